@@ -1,0 +1,1 @@
+"""Diagram builders, scenarios and scene/object construction for the dual-arm stack."""

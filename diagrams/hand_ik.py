@@ -1,0 +1,183 @@
+"""Dual-arm inverse kinematics for the hands' grasp frames (Drake InverseKinematics).
+
+The IK model is the robot, its hands and the table, without the object: a
+MultibodyPlant built from the same files as the station.
+"""
+
+import itertools
+from dataclasses import dataclass
+
+import numpy as np
+from pydrake.math import RigidTransform, RotationMatrix
+from pydrake.multibody.inverse_kinematics import InverseKinematics
+from pydrake.multibody.plant import AddMultibodyPlantSceneGraph
+from pydrake.solvers import Solve
+from pydrake.systems.framework import DiagramBuilder
+
+from diagrams.centauro_description import joint_names
+from diagrams.scenario import Scenario
+from diagrams.station import AddCentauro, AddTable
+
+SIDES = ("left", "right")
+# A hand is symmetric under a half turn about its approach axis z_G.
+HALF_TURN = RigidTransform(RotationMatrix.MakeZRotation(np.pi))
+
+
+@dataclass
+class IkResult:
+    success: bool
+    q: np.ndarray  # 14 arm joint positions, rad (arm 1 then arm 2)
+    message: str = ""
+
+
+class DualArmIk:
+    """Solves for the 14 arm joints that put both grasp frames at given world poses."""
+
+    def __init__(self, scenario: Scenario, open_width: float = 0.1):
+        builder = DiagramBuilder()
+        self.plant, self.scene_graph = AddMultibodyPlantSceneGraph(builder, time_step=0.0)
+        robot, hands = AddCentauro(self.plant, self.scene_graph, scenario)
+        AddTable(self.plant, scenario)
+        self.plant.Finalize()
+        self.diagram = builder.Build()
+        self.context = self.diagram.CreateDefaultContext()
+        self.plant_context = self.plant.GetMyMutableContextFromRoot(self.context)
+        self.grasp_frames = {side: self.plant.GetFrameByName("grasp_frame", hands[side]) for side in SIDES}
+        joints = [self.plant.GetJointByName(n, robot) for n in joint_names(1) + joint_names(2)]
+        self.arm_indices = np.array([j.position_start() for j in joints])
+        self.lower = np.array([j.position_lower_limits()[0] for j in joints])
+        self.upper = np.array([j.position_upper_limits()[0] for j in joints])
+        self.velocity_limits = np.array([j.velocity_upper_limits()[0] for j in joints])
+        for hand in hands.values():
+            for name in ("finger_1_joint", "finger_2_joint"):
+                self.plant.GetJointByName(name, hand).set_default_translation(open_width / 2)
+        self.q_default = self.plant.GetPositions(self.plant.CreateDefaultContext())
+        self._build_seed_table(scenario.random_seed)
+
+    def _build_seed_table(self, seed: int, samples: int = 3000):
+        """Random collision-free arm configurations and the grasp frame poses they reach.
+
+        They are IK starting points: SNOPT from a nearby, feasible start converges far more
+        often than from the current configuration.
+        """
+        rng = np.random.default_rng(seed)
+        candidates = rng.uniform(self.lower, self.upper, size=(3 * samples, len(self.lower)))
+        free = [q for q in candidates if not self.in_collision(q)]
+        self._seed_q = np.array(free[:samples])
+        samples = len(self._seed_q)
+        self._seed_poses = {side: np.empty((samples, 3, 4)) for side in SIDES}
+        for i, q in enumerate(self._seed_q):
+            for side, X in self.grasp_frame_poses(q).items():
+                self._seed_poses[side][i] = X.GetAsMatrix34()
+
+    def _seeds(self, targets: dict[str, RigidTransform], count: int) -> list[np.ndarray]:
+        """Seed-table configurations whose hands lie nearest the targets, per arm."""
+        best = {}
+        for side, X in targets.items():
+            poses = self._seed_poses[side]
+            position_error = np.linalg.norm(poses[:, :, 3] - X.translation(), axis=1)
+            # Approach axes must agree; the handle axis only up to sign (the hand is symmetric).
+            R = X.rotation().matrix()
+            approach_error = 1.0 - poses[:, :, 2] @ R[:, 2]
+            handle_error = 1.0 - np.abs(poses[:, :, 0] @ R[:, 0])
+            best[side] = np.argsort(position_error + 0.3 * approach_error + 0.1 * handle_error)[:count]
+        seeds = []
+        for left, right in zip(best["left"], best["right"], strict=True):
+            q = self._seed_q[left].copy()
+            q[7:] = self._seed_q[right][7:]
+            seeds.append(q)
+        return seeds
+
+    def full_positions(self, q_arms: np.ndarray) -> np.ndarray:
+        q = self.q_default.copy()
+        q[self.arm_indices] = q_arms
+        return q
+
+    def in_collision(self, q_arms: np.ndarray) -> bool:
+        """Whether the robot touches itself or the table at arm configuration q_arms."""
+        self.plant.SetPositions(self.plant_context, self.full_positions(q_arms))
+        return self.plant.get_geometry_query_input_port().Eval(self.plant_context).HasCollisions()
+
+    def grasp_frame_poses(self, q_arms: np.ndarray) -> dict[str, RigidTransform]:
+        """X_WG of both hands at arm configuration q_arms."""
+        self.plant.SetPositions(self.plant_context, self.full_positions(q_arms))
+        return {side: frame.CalcPoseInWorld(self.plant_context) for side, frame in self.grasp_frames.items()}
+
+    def solve(
+        self,
+        X_WG: dict[str, RigidTransform],
+        q_guess: np.ndarray,
+        position_tolerance: float = 0.002,
+        angle_tolerance: float = 0.03,
+        min_distance: float | None = 0.005,
+        allow_half_turn: bool = True,
+        restarts: int = 4,
+    ) -> IkResult:
+        """Arm joints putting each side's grasp frame at X_WG[side], nearest to q_guess.
+
+        Args:
+            X_WG: target pose per side ("left", "right") in the world.
+            q_guess: 14 arm joints, the initial guess and the configuration to stay near.
+            position_tolerance: metres. angle_tolerance: radians.
+            min_distance: if not None, every robot/table geometry pair stays this far apart (m).
+            allow_half_turn: also try each target turned by pi about z_G (the hands are symmetric).
+            restarts: extra initial guesses from the seed table when q_guess fails.
+        """
+        q_guess = np.asarray(q_guess, dtype=float)
+        flips = (False, True) if allow_half_turn else (False,)
+        # The arms are kinematically independent: solve each alone (7 joints, many starts),
+        # then both together with the collision constraint, from the per-arm answers.
+        per_arm = {}
+        for side in SIDES:
+            starts = [q_guess] + (self._seeds(X_WG, restarts) if restarts else [])
+            per_arm[side] = []
+            for start, flip in itertools.product(starts, flips):
+                target = {side: X_WG[side] @ HALF_TURN if flip else X_WG[side]}
+                result = self._solve_once(target, start, q_guess, position_tolerance, angle_tolerance, None)
+                if result.success:
+                    per_arm[side].append((flip, result.q))
+            if not per_arm[side]:
+                return IkResult(False, q_guess, f"{side} hand: target out of reach")
+            per_arm[side].sort(key=lambda item: np.sum((item[1] - q_guess) ** 2))
+        for (left_flip, left_q), (right_flip, right_q) in itertools.islice(
+            itertools.product(per_arm["left"][:4], per_arm["right"][:4]), 8
+        ):
+            start = np.concatenate([left_q[:7], right_q[7:]])
+            targets = {
+                "left": X_WG["left"] @ HALF_TURN if left_flip else X_WG["left"],
+                "right": X_WG["right"] @ HALF_TURN if right_flip else X_WG["right"],
+            }
+            if min_distance is None:
+                return IkResult(True, start, "solved per arm")
+            result = self._solve_once(targets, start, start, position_tolerance, angle_tolerance, min_distance)
+            if result.success:
+                return result
+        return IkResult(False, q_guess, "each hand reaches its target, but not without a collision")
+
+    def _solve_once(self, targets, start, q_nominal, position_tolerance, angle_tolerance, min_distance) -> IkResult:
+        """One SNOPT solve; the joints of an arm without a target stay at `start`."""
+        ik = InverseKinematics(self.plant, self.plant_context, with_joint_limits=True)
+        q = ik.q()
+        prog = ik.prog()
+        for side, X in targets.items():
+            frame = self.grasp_frames[side]
+            tol = np.full(3, position_tolerance)
+            ik.AddPositionConstraint(
+                frame, [0, 0, 0], self.plant.world_frame(), X.translation() - tol, X.translation() + tol
+            )
+            ik.AddOrientationConstraint(
+                frame, RotationMatrix(), self.plant.world_frame(), X.rotation(), angle_tolerance
+            )
+        if min_distance is not None:
+            ik.AddMinimumDistanceLowerBoundConstraint(min_distance)
+        fixed_q = self.full_positions(start)
+        free = np.concatenate(
+            [self.arm_indices[:7] if "left" in targets else [], self.arm_indices[7:] if "right" in targets else []]
+        )
+        fixed = np.setdiff1d(np.arange(self.plant.num_positions()), free.astype(int))
+        prog.AddBoundingBoxConstraint(fixed_q[fixed], fixed_q[fixed], q[fixed])
+        prog.AddQuadraticErrorCost(np.eye(len(self.arm_indices)), q_nominal, q[self.arm_indices])
+        prog.SetInitialGuess(q, self.full_positions(start))
+        result = Solve(prog)
+        q_arms = result.GetSolution(q)[self.arm_indices]
+        return IkResult(result.is_success(), q_arms, str(result.get_solution_result()))

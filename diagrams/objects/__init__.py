@@ -1,0 +1,1 @@
+"""Procedurally generated object categories with ground-truth grasp frames."""

@@ -1,0 +1,65 @@
+"""The fixed, seeded instances of each category, and instances on demand.
+
+Every instance's shape comes from `numpy.random.default_rng([CATALOG_SEED, category id,
+split id, index])`, so `train_3` is the same can on every machine.
+"""
+
+from pathlib import Path
+
+import numpy as np
+
+from diagrams.objects import drill, watering_can
+from diagrams.objects.instance import ObjectInstance
+from diagrams.paths import SDF_DIR
+
+CATALOG_SEED = 2018
+CATEGORIES = {"watering_can": watering_can, "drill": drill}
+SPLITS = {"train": 8, "test": 3}
+# The paper's test cans differ clearly from each other: one body style each.
+TEST_CAN_STYLES = ("cylinder", "oval", "tapered")
+
+
+def instance_names(category: str) -> list[str]:
+    """The fixed instance names of a category: train_0..train_7, test_0..test_2."""
+    category_module(category)
+    return [f"{split}_{i}" for split, count in SPLITS.items() for i in range(count)]
+
+
+def category_module(category: str):
+    try:
+        return CATEGORIES[category]
+    except KeyError:
+        raise ValueError(f"unknown object category {category!r}; known categories: {sorted(CATEGORIES)}") from None
+
+
+def parse_instance_name(name: str) -> tuple[str, int]:
+    """Splits 'train_3' into ('train', 3); 'extra_17' names an on-demand instance."""
+    split, _, index = name.rpartition("_")
+    if split not in (*SPLITS, "extra") or not index.isdigit():
+        raise ValueError(f"bad instance name {name!r}: expected train_<i>, test_<i> or extra_<seed>")
+    return split, int(index)
+
+
+def generate(category: str, name: str) -> ObjectInstance:
+    """Generates the named instance (train_i, test_i, or extra_<seed> for any number more)."""
+    module = category_module(category)
+    split, index = parse_instance_name(name)
+    if split in SPLITS and index >= SPLITS[split]:
+        raise ValueError(f"{category} has {SPLITS[split]} {split} instances; {name!r} does not exist")
+    split_id = (*SPLITS, "extra").index(split)
+    category_id = list(CATEGORIES).index(category)
+    rng = np.random.default_rng([CATALOG_SEED, category_id, split_id, index])
+    if category == "watering_can" and split == "test":
+        parameters = module.sample_parameters(rng, body_style=TEST_CAN_STYLES[index])
+    else:
+        parameters = module.sample_parameters(rng)
+    return module.build(name, parameters)
+
+
+def instance_directory(category: str, name: str) -> Path:
+    return SDF_DIR / "objects" / category / name
+
+
+def presentation_yaw(category: str) -> float:
+    """World yaw (rad) of a category's object frame at the paper's 0 rad presentation."""
+    return category_module(category).PRESENTATION_YAW

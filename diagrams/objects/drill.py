@@ -1,0 +1,83 @@
+"""Procedural two-handed drills: battery, pistol grip, motor housing, chuck, side handle.
+
+Object frame O: origin at the centre of the battery's bottom face, z up, x towards
+the chuck, the side handle along +y. The right hand grasps the pistol grip from
+behind (approach +x_O); the left hand grasps the side handle from above.
+"""
+
+import numpy as np
+
+from diagrams.objects import geometry
+from diagrams.objects.instance import ObjectInstance, Part, make_grasp
+
+CATEGORY = "drill"
+# Yaw of O in the world at the "0 rad" presentation: chuck away from the robot.
+PRESENTATION_YAW = 0.0
+# The left hand reaches over the side handle from the robot's side (-x_O), tilted
+# this far from vertical (rad).
+APPROACH_TILT = 0.6
+
+
+def sample_parameters(rng: np.random.Generator) -> dict[str, float]:
+    """Draws the shape parameters of one drill (metres, radians, kg)."""
+    return {
+        "battery_length": rng.uniform(0.1, 0.13),
+        "battery_width": rng.uniform(0.07, 0.09),
+        "battery_height": rng.uniform(0.05, 0.07),
+        "grip_length": rng.uniform(0.1, 0.13),
+        "grip_radius": rng.uniform(0.016, 0.02),
+        "grip_tilt": rng.uniform(0.0, 0.25),
+        "housing_radius": rng.uniform(0.032, 0.042),
+        "housing_length": rng.uniform(0.17, 0.24),
+        "chuck_length": rng.uniform(0.04, 0.07),
+        "side_handle_length": rng.uniform(0.12, 0.16),
+        "side_handle_radius": rng.uniform(0.015, 0.019),
+        "side_handle_position": rng.uniform(0.6, 0.8),
+        "mass": rng.uniform(1.4, 2.0),
+    }
+
+
+def build(name: str, p: dict[str, float]) -> ObjectInstance:
+    """Builds the instance's parts and ground-truth grasps from its parameters."""
+    hb, rg, rh = p["battery_height"], p["grip_radius"], p["housing_radius"]
+    battery = geometry.box([p["battery_length"], p["battery_width"], hb], [0.0, 0.0, hb / 2])
+
+    # The grip leans forward by grip_tilt from the battery up to the housing.
+    grip_bottom = np.array([-0.035, 0.0, hb - 0.01])
+    grip_axis = np.array([np.sin(p["grip_tilt"]), 0.0, np.cos(p["grip_tilt"])])
+    grip_top = grip_bottom + p["grip_length"] * grip_axis
+    grip = geometry.frustum(grip_bottom, grip_top + 0.5 * rh * grip_axis, rg, rg)
+
+    housing_z = grip_top[2] + 0.6 * rh
+    housing_rear = np.array([grip_top[0] - 0.04, 0.0, housing_z])
+    housing_front = housing_rear + [p["housing_length"], 0.0, 0.0]
+    housing = geometry.frustum(housing_rear, housing_front, rh, 0.85 * rh)
+    chuck_end = housing_front + [p["chuck_length"], 0.0, 0.0]
+    chuck = geometry.frustum(housing_front - [0.005, 0, 0], chuck_end, 0.55 * rh, 0.35 * rh)
+
+    side_x = housing_rear[0] + p["side_handle_position"] * p["housing_length"]
+    side_start = np.array([side_x, 0.0, housing_z])
+    side_end = side_start + [0.0, p["side_handle_length"], 0.0]
+    side = geometry.frustum(side_start, side_end, p["side_handle_radius"], p["side_handle_radius"])
+    knob = geometry.frustum(
+        side_end - [0, 0.005, 0], side_end + [0, 0.015, 0], 1.5 * p["side_handle_radius"], 1.2 * p["side_handle_radius"]
+    )
+
+    parts = [
+        # Most of a cordless drill's mass sits in its battery and motor.
+        Part("battery", battery, [battery], density=2.5),
+        Part("grip", grip, [grip]),
+        Part("housing", housing, [housing], density=1.5),
+        Part("chuck", chuck, [chuck], density=2.0),
+        Part("side_handle", side, [side]),
+        Part("knob", knob, [knob]),
+    ]
+    grip_middle = grip_bottom + 0.5 * p["grip_length"] * grip_axis
+    side_middle = side_start + [0.0, 0.5 * (rh + p["side_handle_length"]), 0.0]
+    grasps = {
+        "left": make_grasp(
+            side_middle, approach=[np.sin(APPROACH_TILT), 0, -np.cos(APPROACH_TILT)], handle_axis=[0, 1, 0]
+        ),
+        "right": make_grasp(grip_middle, approach=[1, 0, 0], handle_axis=grip_axis),
+    }
+    return ObjectInstance(CATEGORY, name, p, parts, p["mass"], grasps)

@@ -1,0 +1,113 @@
+"""Watertight mesh primitives used to assemble object instances.
+
+All lengths are in metres and all points are expressed in the object frame O
+(z up, origin at the centre of the supporting face on the table).
+"""
+
+import numpy as np
+import trimesh
+
+
+def convex_loft(rings: list[np.ndarray]) -> trimesh.Trimesh:
+    """Convex hull of a stack of closed rings (each an (n, 3) array)."""
+    return trimesh.convex.convex_hull(np.vstack(rings))
+
+
+def ellipse_ring(center, radius_x: float, radius_y: float, sections: int = 48) -> np.ndarray:
+    """Points of an ellipse in the plane z = center[2]."""
+    angles = np.linspace(0.0, 2.0 * np.pi, sections, endpoint=False)
+    ring = np.stack([radius_x * np.cos(angles), radius_y * np.sin(angles), np.zeros_like(angles)], axis=1)
+    return ring + np.asarray(center, dtype=float)
+
+
+def circle_ring(center, axis, radius: float, sections: int = 24) -> np.ndarray:
+    """Points of a circle of `radius` around `center`, normal to `axis`."""
+    axis = np.asarray(axis, dtype=float)
+    axis = axis / np.linalg.norm(axis)
+    helper = np.array([1.0, 0.0, 0.0]) if abs(axis[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    u = np.cross(axis, helper)
+    u /= np.linalg.norm(u)
+    v = np.cross(axis, u)
+    angles = np.linspace(0.0, 2.0 * np.pi, sections, endpoint=False)
+    return np.asarray(center, dtype=float) + radius * np.cos(angles)[:, None] * u + radius * np.sin(angles)[:, None] * v
+
+
+def frustum(start, end, radius_start: float, radius_end: float, sections: int = 24):
+    """Convex truncated cone from `start` to `end` (a cylinder when radii are equal)."""
+    axis = np.asarray(end, dtype=float) - np.asarray(start, dtype=float)
+    return convex_loft(
+        [
+            circle_ring(start, axis, radius_start, sections),
+            circle_ring(end, axis, radius_end, sections),
+        ]
+    )
+
+
+def box(size, center) -> trimesh.Trimesh:
+    """Axis-aligned box of `size` (x, y, z) centred at `center`."""
+    return trimesh.creation.box(extents=size, transform=trimesh.transformations.translation_matrix(center))
+
+
+def tube(path: np.ndarray, radius: float, sections: int = 20) -> trimesh.Trimesh:
+    """Watertight tube of constant radius swept along a polyline, with flat end caps.
+
+    Args:
+        path: (n, 3) points, n >= 2.
+        radius: tube radius in metres.
+        sections: vertices around each cross-section.
+    """
+    path = np.asarray(path, dtype=float)
+    tangents = np.gradient(path, axis=0)
+    tangents /= np.linalg.norm(tangents, axis=1, keepdims=True)
+    # Parallel-transport a normal along the path so rings do not twist.
+    helper = np.array([0.0, 1.0, 0.0]) if abs(tangents[0][1]) < 0.9 else np.array([1.0, 0.0, 0.0])
+    normal = np.cross(tangents[0], helper)
+    normal /= np.linalg.norm(normal)
+    angles = np.linspace(0.0, 2.0 * np.pi, sections, endpoint=False)
+    rings = []
+    for point, tangent in zip(path, tangents, strict=True):
+        normal = normal - tangent * np.dot(normal, tangent)
+        normal /= np.linalg.norm(normal)
+        binormal = np.cross(tangent, normal)
+        rings.append(point + radius * np.cos(angles)[:, None] * normal + radius * np.sin(angles)[:, None] * binormal)
+    vertices = np.vstack(rings + [path[:1], path[-1:]])
+    n, m = len(path), sections
+    faces = []
+    for i in range(n - 1):
+        for j in range(m):
+            a, b = i * m + j, i * m + (j + 1) % m
+            c, d = a + m, b + m
+            faces += [[a, b, c], [b, d, c]]
+    start_cap, end_cap = n * m, n * m + 1
+    for j in range(m):
+        faces.append([start_cap, (j + 1) % m, j])
+        last = (n - 1) * m
+        faces.append([end_cap, last + j, last + (j + 1) % m])
+    mesh = trimesh.Trimesh(vertices=vertices, faces=np.array(faces), process=True)
+    if mesh.volume < 0:
+        mesh.invert()
+    return mesh
+
+
+def arc(center, radius: float, start_angle: float, end_angle: float, plane: str = "xz", samples: int = 24):
+    """Points on a circular arc in the given coordinate plane ("xz" or "xy" or "yz").
+
+    Angles are measured from the plane's first axis towards its second axis.
+    """
+    angles = np.linspace(start_angle, end_angle, samples)
+    first, second = {"xz": (0, 2), "xy": (0, 1), "yz": (1, 2)}[plane]
+    points = np.zeros((samples, 3))
+    points[:, first] = radius * np.cos(angles)
+    points[:, second] = radius * np.sin(angles)
+    return points + np.asarray(center, dtype=float)
+
+
+def convex_pieces_of_tube(path: np.ndarray, radius: float, pieces: int) -> list[trimesh.Trimesh]:
+    """Splits a tube along its path into `pieces` convex hulls (for collision)."""
+    bounds = np.linspace(0, len(path) - 1, pieces + 1).round().astype(int)
+    hulls = []
+    for lo, hi in zip(bounds[:-1], bounds[1:], strict=True):
+        segment = path[lo : hi + 1]
+        rings = [circle_ring(p, t, radius, 12) for p, t in zip(segment, np.gradient(segment, axis=0), strict=True)]
+        hulls.append(convex_loft(rings))
+    return hulls

@@ -1,0 +1,139 @@
+"""Finds the model file (and, when known, the ground truth) of the object a scenario names.
+
+Generated instances live under sdf/objects/<category>/<instance>/ (model.sdf and
+info.yaml); `extra_<seed>` instances are generated into a cache on first use. A
+user's own model is an SDF/URDF used as is, or a mesh (.obj/.ply/.stl) that is
+recentred (origin at the centre of its bottom face), scaled, decomposed into
+convex pieces with CoACD and written as an SDF into the cache.
+"""
+
+import hashlib
+import logging
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import trimesh
+from pydrake.common.yaml import yaml_load_typed
+
+from diagrams.objects import catalog
+from diagrams.objects.instance import ObjectInfo, export_obj, object_sdf
+
+MESH_SUFFIXES = (".obj", ".ply", ".stl")
+MODEL_SUFFIXES = (".sdf", ".urdf")
+
+
+@dataclass
+class ObjectModel:
+    """A model file the parser can load, and what is known about it."""
+
+    model_file: Path
+    # Ground truth (grasp frames, mass): None for a user's model without an info file.
+    info: ObjectInfo | None
+    # World yaw of the object frame at the category's presentation pose, rad.
+    presentation_yaw: float
+
+
+def cache_dir() -> Path:
+    root = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
+    return Path(root) / "dualarm"
+
+
+def load_info(path: Path) -> ObjectInfo:
+    try:
+        return yaml_load_typed(schema=ObjectInfo, data=path.read_text())
+    except Exception as error:
+        raise ValueError(f"invalid object info file {path}: {error}") from error
+
+
+def resolve_object(config) -> ObjectModel:
+    """Resolves a scenario's ObjectConfig to a model file.
+
+    Raises:
+        ValueError: unknown category or instance name, or unsupported file type.
+        FileNotFoundError: the named file does not exist.
+    """
+    yaw = catalog.presentation_yaw(config.category)
+    if config.file:
+        return _user_model(Path(config.file), config, yaw)
+    catalog.parse_instance_name(config.instance)
+    directory = catalog.instance_directory(config.category, config.instance)
+    if not (directory / "model.sdf").is_file():
+        if not config.instance.startswith("extra_"):
+            # Raises a clear error for names that cannot exist (e.g. test_9).
+            catalog.generate(config.category, config.instance)
+            raise FileNotFoundError(f"{directory / 'model.sdf'} is missing; run scripts/generate_objects.py")
+        directory = cache_dir() / "objects" / config.category / config.instance
+        if not (directory / "model.sdf").is_file():
+            logging.info("generating %s/%s into %s", config.category, config.instance, directory)
+            catalog.generate(config.category, config.instance).write(directory)
+    return ObjectModel(directory / "model.sdf", load_info(directory / "info.yaml"), yaw)
+
+
+def _user_model(path: Path, config, yaw: float) -> ObjectModel:
+    path = path.expanduser().resolve()
+    if not path.is_file():
+        raise FileNotFoundError(f"object file not found: {path}")
+    suffix = path.suffix.lower()
+    info_file = next((p for p in (path.with_suffix(".info.yaml"), path.parent / "info.yaml") if p.is_file()), None)
+    info = load_info(info_file) if info_file else None
+    if suffix in MODEL_SUFFIXES:
+        return ObjectModel(path, info, yaw)
+    if suffix not in MESH_SUFFIXES:
+        raise ValueError(f"unsupported object file {path.name}: use one of {MODEL_SUFFIXES + MESH_SUFFIXES}")
+    return ObjectModel(mesh_to_sdf(path, config.mass, config.scale), info, yaw)
+
+
+def mesh_to_sdf(path: Path, mass: float, scale: float) -> Path:
+    """Converts a mesh into a cached SDF with convex collision pieces; returns the SDF path.
+
+    The mesh is taken as z up; its frame is moved to the centre of its bottom face.
+    """
+    digest = hashlib.sha256(path.read_bytes() + f"{mass}:{scale}".encode()).hexdigest()[:16]
+    directory = cache_dir() / "user_objects" / f"{path.stem}_{digest}"
+    sdf_path = directory / "model.sdf"
+    if sdf_path.is_file():
+        return sdf_path
+    mesh = trimesh.load(path, force="mesh")
+    if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
+        raise ValueError(f"{path} holds no triangle mesh")
+    mesh.apply_scale(scale)
+    lo, hi = mesh.bounds
+    mesh.apply_translation([-(lo[0] + hi[0]) / 2, -(lo[1] + hi[1]) / 2, -lo[2]])
+    pieces = convex_decomposition(mesh)
+    directory.mkdir(parents=True, exist_ok=True)
+    export_obj(mesh, directory / "visual.obj")
+    for i, piece in enumerate(pieces):
+        export_obj(piece, directory / f"collision_{i:02d}.obj")
+    com, inertia = mass_properties(mesh, pieces, mass)
+    sdf_path.write_text(
+        object_sdf(
+            model_name=path.stem,
+            visual_uri="visual.obj",
+            collision_uris=[f"collision_{i:02d}.obj" for i in range(len(pieces))],
+            mass=mass,
+            com=com,
+            inertia=inertia,
+            color=(0.6, 0.6, 0.65),
+        )
+    )
+    return sdf_path
+
+
+def convex_decomposition(mesh: trimesh.Trimesh) -> list[trimesh.Trimesh]:
+    """Convex pieces of a (possibly non-convex) mesh, via CoACD."""
+    import coacd  # Imported here: only user meshes need it.
+
+    coacd.set_log_level("error")
+    parts = coacd.run_coacd(coacd.Mesh(mesh.vertices, mesh.faces), threshold=0.05, max_convex_hull=24)
+    return [trimesh.Trimesh(vertices=v, faces=f).convex_hull for v, f in parts]
+
+
+def mass_properties(mesh, pieces, mass) -> tuple[np.ndarray, np.ndarray]:
+    """Centre of mass and inertia about it, from the watertight mesh or else the pieces' union."""
+    solid = mesh if mesh.is_volume else trimesh.util.concatenate(pieces).convex_hull
+    solid_mass = solid.volume
+    com = solid.center_mass
+    inertia = solid.moment_inertia * (mass / solid_mass)
+    return com, inertia

@@ -1,0 +1,107 @@
+"""Procedural watering cans: body, spout, top handle and rear handle.
+
+Object frame O: origin at the centre of the bottom face, z up, x towards the spout.
+The left hand grasps the top handle from above; the right hand grasps the rear
+handle from behind (approach about +x_O).
+"""
+
+import numpy as np
+
+from diagrams.objects import geometry
+from diagrams.objects.instance import ObjectInstance, Part, make_grasp
+
+CATEGORY = "watering_can"
+# Yaw of O in the world at the paper's "0 rad" presentation: spout pointing away from
+# the robot, rear handle towards it.
+PRESENTATION_YAW = 0.0
+BODY_STYLES = ("cylinder", "oval", "tapered")
+TUBE_RADIUS_RANGE = (0.011, 0.014)
+# The left hand reaches over the top handle from the robot's left (+y_O), tilted this
+# far from vertical (rad); the right hand takes the rear handle from behind and to the
+# right, turned this far from +x_O (rad).
+LEFT_APPROACH_TILT = 0.6
+RIGHT_APPROACH_TURN = 0.3
+
+
+def sample_parameters(rng: np.random.Generator, body_style: str | None = None) -> dict[str, float]:
+    """Draws the shape parameters of one can (metres, radians, kg)."""
+    style = body_style or BODY_STYLES[rng.integers(len(BODY_STYLES))]
+    radius = rng.uniform(0.075, 0.1)
+    height = rng.uniform(0.18, 0.26)
+    p = {
+        "body_style": float(BODY_STYLES.index(style)),
+        "radius": radius,
+        "height": height,
+        "oval_ratio": rng.uniform(0.65, 0.8) if style == "oval" else 1.0,
+        "taper": rng.uniform(0.7, 0.85) if style == "tapered" else 1.0,
+        "spout_base": rng.uniform(0.12, 0.3) * height,
+        "spout_angle": rng.uniform(0.55, 0.95),
+        "spout_length": rng.uniform(0.16, 0.28),
+        "spout_radius": rng.uniform(0.015, 0.021),
+        "tube_radius": rng.uniform(*TUBE_RADIUS_RANGE),
+        "mass": rng.uniform(0.8, 1.1),
+    }
+    top_radius = radius * p["taper"]
+    # The top handle's feet must stand on the lid, leaving a rim of 1.5 cm.
+    p["top_handle_offset"] = rng.uniform(-0.25, 0.05) * top_radius
+    max_top = top_radius - p["tube_radius"] - 0.015 - abs(p["top_handle_offset"])
+    p["top_handle_radius"] = rng.uniform(0.75, 1.0) * min(max_top, 0.085)
+    p["rear_handle_radius"] = rng.uniform(0.05, 0.075)
+    lo = 0.025 + p["rear_handle_radius"]
+    hi = height - 0.015 - p["rear_handle_radius"]
+    p["rear_handle_height"] = rng.uniform(lo, max(lo, hi))
+    return p
+
+
+def radius_at(p: dict[str, float], z: float) -> float:
+    """Body x-radius at height z (linear taper)."""
+    return p["radius"] * (1.0 + (p["taper"] - 1.0) * z / p["height"])
+
+
+def build(name: str, p: dict[str, float]) -> ObjectInstance:
+    """Builds the instance's parts and ground-truth grasps from its parameters."""
+    h, ratio, tube = p["height"], p["oval_ratio"], p["tube_radius"]
+    r0, r1 = radius_at(p, 0.0), radius_at(p, h)
+    body = geometry.convex_loft(
+        [geometry.ellipse_ring([0, 0, 0], r0, r0 * ratio), geometry.ellipse_ring([0, 0, h], r1, r1 * ratio)]
+    )
+
+    spout_start = np.array([radius_at(p, p["spout_base"]) - 0.03, 0.0, p["spout_base"]])
+    direction = np.array([np.cos(p["spout_angle"]), 0.0, np.sin(p["spout_angle"])])
+    spout_end = spout_start + p["spout_length"] * direction
+    spout_tip_radius = 0.6 * p["spout_radius"]
+    spout = geometry.frustum(spout_start, spout_end, p["spout_radius"], spout_tip_radius)
+    rose = geometry.frustum(
+        spout_end - 0.01 * direction, spout_end + 0.025 * direction, spout_tip_radius, 1.9 * spout_tip_radius
+    )
+
+    # Top handle: half circle in the xz plane standing on the lid.
+    top_center = np.array([p["top_handle_offset"], 0.0, h - 0.01])
+    top_path = geometry.arc(top_center, p["top_handle_radius"], 0.0, np.pi)
+    top = geometry.tube(top_path, tube)
+
+    # Rear handle: half circle in the xz plane bulging backwards (-x).
+    rz, rr = p["rear_handle_height"], p["rear_handle_radius"]
+    rear_x = -min(radius_at(p, rz - rr), radius_at(p, rz + rr)) + 0.012
+    rear_center = np.array([rear_x, 0.0, rz])
+    rear_path = geometry.arc(rear_center, rr, np.pi / 2, 3 * np.pi / 2)
+    rear = geometry.tube(rear_path, tube)
+
+    parts = [
+        Part("body", body, [body]),
+        Part("spout", spout, [spout]),
+        Part("rose", rose, [rose]),
+        Part("top_handle", top, geometry.convex_pieces_of_tube(top_path, tube, 6)),
+        Part("rear_handle", rear, geometry.convex_pieces_of_tube(rear_path, tube, 6)),
+    ]
+    top_apex = top_center + [0.0, 0.0, p["top_handle_radius"]]
+    rear_apex = rear_center - [rr, 0.0, 0.0]
+    grasps = {
+        "left": make_grasp(
+            top_apex, approach=[0, -np.sin(LEFT_APPROACH_TILT), -np.cos(LEFT_APPROACH_TILT)], handle_axis=[1, 0, 0]
+        ),
+        "right": make_grasp(
+            rear_apex, approach=[np.cos(RIGHT_APPROACH_TURN), np.sin(RIGHT_APPROACH_TURN), 0], handle_axis=[0, 0, 1]
+        ),
+    }
+    return ObjectInstance(CATEGORY, name, p, parts, p["mass"], grasps)

@@ -1,0 +1,131 @@
+"""The ground-truth ("oracle") pick: true object pose + true grasp frames -> IK -> joint plan.
+
+It proves the robot, the hands, the objects and contact before perception and
+planning exist. The plan is a list of joint-space keyframes played by Drake's
+TrajectorySource through the station's position ports:
+
+  start -> pre-grasp -> grasp (straight approach) -> close hands -> lift -> hold
+"""
+
+import logging
+from dataclasses import dataclass, field
+
+import numpy as np
+from pydrake.math import RigidTransform
+from pydrake.trajectories import PiecewisePolynomial
+
+from diagrams.hand_ik import SIDES, DualArmIk
+from diagrams.objects.instance import ObjectInfo
+
+# Fraction of each joint's velocity limit used by the plan's peak speed.
+SPEED_FRACTION = 0.25
+# Shortest duration of one move between keyframes, seconds.
+MIN_SEGMENT_S = 0.8
+OPEN_WIDTH = 0.1  # m
+CLOSED_WIDTH = 0.0  # m: the fingers stop on the handle; the joint effort limit sets the squeeze
+CLOSE_S = 1.0
+LIFT_HEIGHT = 0.15  # m
+LIFT_STEPS = 3
+APPROACH_STEPS = 3
+HOLD_S = 2.5
+
+
+class PlanningError(RuntimeError):
+    """No plan: names the phase that failed and why."""
+
+
+@dataclass
+class JointPlan:
+    """Keyframes for the 14 arm joints and the hands' opening width."""
+
+    times: list[float] = field(default_factory=list)
+    arm_q: list[np.ndarray] = field(default_factory=list)
+    hand_width: list[float] = field(default_factory=list)
+    # Time (s) at which each named phase ends.
+    phases: dict[str, float] = field(default_factory=dict)
+
+    def append(self, q: np.ndarray, width: float, duration: float):
+        self.times.append((self.times[-1] if self.times else 0.0) + duration)
+        self.arm_q.append(np.asarray(q, dtype=float))
+        self.hand_width.append(width)
+
+    def arm_trajectory(self) -> PiecewisePolynomial:
+        """Cubic through the keyframes with zero velocity at each one (no overshoot)."""
+        knots = np.column_stack(self.arm_q)
+        return PiecewisePolynomial.CubicHermite(self.times, knots, np.zeros_like(knots))
+
+    def hand_trajectory(self) -> PiecewisePolynomial:
+        return PiecewisePolynomial.FirstOrderHold(self.times, np.array([self.hand_width]))
+
+    @property
+    def duration(self) -> float:
+        return self.times[-1]
+
+
+def move_duration(q_from, q_to, velocity_limits) -> float:
+    """Duration of a zero-velocity-to-zero-velocity cubic that peaks at SPEED_FRACTION of the limits.
+
+    A cubic Hermite segment with zero end velocities peaks at 1.5 * |dq| / T.
+    """
+    dq = np.abs(np.asarray(q_to) - np.asarray(q_from))
+    return max(MIN_SEGMENT_S, float(np.max(1.5 * dq / (SPEED_FRACTION * velocity_limits))))
+
+
+def world_grasps(X_WO: RigidTransform, info: ObjectInfo, kind: str) -> dict[str, RigidTransform]:
+    """X_WG of each hand's `kind` ("pregrasp" or "grasp") for an object at X_WO."""
+    return {side: X_WO @ getattr(info.grasps[side], kind).GetDeterministicValue() for side in SIDES}
+
+
+def plan_oracle_pick(ik: DualArmIk, q_start: np.ndarray, X_WO: RigidTransform, info: ObjectInfo) -> JointPlan:
+    """Plans the pick from the true object pose.
+
+    Raises:
+        PlanningError: naming the phase whose IK failed.
+    """
+    plan = JointPlan()
+    plan.append(q_start, OPEN_WIDTH, 0.0)
+    plan.append(q_start, OPEN_WIDTH, 0.5)  # let the object settle
+    pregrasp = ik.solve(world_grasps(X_WO, info, "pregrasp"), q_start, restarts=12)
+    if not pregrasp.success:
+        raise PlanningError(f"pre-grasp: no collision-free IK solution ({pregrasp.message})")
+    plan.append(pregrasp.q, OPEN_WIDTH, move_duration(q_start, pregrasp.q, ik.velocity_limits))
+    plan.phases["reach"] = plan.duration
+
+    # Straight approach along each hand's z axis, keeping the solution branch.
+    q = pregrasp.q
+    start_poses = ik.grasp_frame_poses(q)
+    goal_poses = world_grasps(X_WO, info, "grasp")
+    for step in range(1, APPROACH_STEPS + 1):
+        s = step / APPROACH_STEPS
+        targets = {
+            side: RigidTransform(
+                start_poses[side].rotation(),
+                (1 - s) * start_poses[side].translation() + s * goal_poses[side].translation(),
+            )
+            for side in SIDES
+        }
+        result = ik.solve(targets, q, min_distance=None, allow_half_turn=False, restarts=0)
+        if not result.success:
+            raise PlanningError(f"approach step {step}: IK failed ({result.message})")
+        plan.append(result.q, OPEN_WIDTH, move_duration(q, result.q, ik.velocity_limits))
+        q = result.q
+    plan.phases["approach"] = plan.duration
+    plan.append(q, CLOSED_WIDTH, CLOSE_S)
+    plan.append(q, CLOSED_WIDTH, 0.5)
+    plan.phases["close"] = plan.duration
+
+    # Lift both hands together: the hands keep their relative pose (closed chain).
+    grasp_poses = ik.grasp_frame_poses(q)
+    for step in range(1, LIFT_STEPS + 1):
+        up = RigidTransform([0.0, 0.0, LIFT_HEIGHT * step / LIFT_STEPS])
+        targets = {side: up @ grasp_poses[side] for side in SIDES}
+        result = ik.solve(targets, q, min_distance=None, allow_half_turn=False, restarts=0)
+        if not result.success:
+            raise PlanningError(f"lift step {step}: IK failed ({result.message})")
+        plan.append(result.q, CLOSED_WIDTH, move_duration(q, result.q, ik.velocity_limits))
+        q = result.q
+    plan.phases["lift"] = plan.duration
+    plan.append(q, CLOSED_WIDTH, HOLD_S)
+    plan.phases["hold"] = plan.duration
+    logging.info("oracle plan: %.1f s, phases %s", plan.duration, plan.phases)
+    return plan

@@ -1,0 +1,134 @@
+"""Runs a pick in simulation and judges it against the simulator's ground truth.
+
+Success: at the end, the object's origin is at least LIFT_SUCCESS_M above where it
+rested, it stayed that high for the last HOLD_CHECK_S seconds, and both hands
+touch it.
+"""
+
+import logging
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from pydrake.geometry import Meshcat
+from pydrake.multibody.plant import MultibodyPlant
+from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
+from pydrake.systems.framework import Diagram, DiagramBuilder
+from pydrake.systems.primitives import TrajectorySource
+
+from diagrams.oracle_pick import JointPlan
+from diagrams.station import HAND_INSTANCES, OBJECT_INSTANCE, MakeStation
+from diagrams.scenario import Scenario
+
+LIFT_SUCCESS_M = 0.10
+HOLD_CHECK_S = 2.0
+SAMPLE_S = 0.05
+
+
+@dataclass
+class PickOutcome:
+    """What happened, measured on the simulator's ground truth."""
+
+    success: bool
+    # Height of the object's origin above its resting height at the end, m.
+    lift_height_m: float
+    # Lowest lift height over the final HOLD_CHECK_S seconds, m.
+    min_hold_height_m: float
+    # Which hands touch the object at the end.
+    hands_in_contact: list[str] = field(default_factory=list)
+    sim_time_s: float = 0.0
+    wall_time_s: float = 0.0
+    message: str = ""
+
+
+def MakeOracleDiagram(scenario: Scenario, plan: JointPlan, meshcat: Meshcat | None = None) -> Diagram:
+    """Station + trajectory sources playing `plan` into the arm and hand position ports."""
+    builder = DiagramBuilder()
+    station = builder.AddNamedSystem("station", MakeStation(scenario, meshcat))
+    arm_source = builder.AddNamedSystem("centauro.trajectory_source", TrajectorySource(plan.arm_trajectory()))
+    hand_source = builder.AddNamedSystem("hands.trajectory_source", TrajectorySource(plan.hand_trajectory()))
+    builder.Connect(arm_source.get_output_port(), station.GetInputPort("centauro.position"))
+    for name in HAND_INSTANCES.values():
+        builder.Connect(hand_source.get_output_port(), station.GetInputPort(f"{name}.position"))
+    diagram = builder.Build()
+    diagram.set_name("oracle_pick")
+    return diagram
+
+
+def station_plant(diagram: Diagram) -> MultibodyPlant:
+    return diagram.GetSubsystemByName("station").GetSubsystemByName("plant")
+
+
+def object_body(plant: MultibodyPlant):
+    return plant.get_body(plant.GetBodyIndices(plant.GetModelInstanceByName(OBJECT_INSTANCE))[0])
+
+
+def hands_touching_object(plant: MultibodyPlant, plant_context) -> list[str]:
+    """Names of the hands ("left", "right") with a contact against the object."""
+    results = plant.get_contact_results_output_port().Eval(plant_context)
+    object_index = object_body(plant).index()
+    hand_bodies = {
+        side: set(plant.GetBodyIndices(plant.GetModelInstanceByName(name))) for side, name in HAND_INSTANCES.items()
+    }
+    touching = set()
+    for i in range(results.num_point_pair_contacts()):
+        info = results.point_pair_contact_info(i)
+        pair = {info.bodyA_index(), info.bodyB_index()}
+        if object_index in pair:
+            for side, bodies in hand_bodies.items():
+                if pair & bodies:
+                    touching.add(side)
+    return sorted(touching)
+
+
+def simulate_pick(
+    diagram: Diagram,
+    scenario: Scenario,
+    duration: float,
+    meshcat: Meshcat | None = None,
+    record: Path | None = None,
+) -> PickOutcome:
+    """Simulates `duration` seconds and judges the lift on ground truth."""
+    simulator = Simulator(diagram)
+    ApplySimulatorConfig(scenario.simulator_config, simulator)
+    context = simulator.get_mutable_context()
+    plant = station_plant(diagram)
+    plant_context = plant.GetMyContextFromRoot(context)
+    body = object_body(plant)
+    z_rest = None
+    heights = []
+    if meshcat is not None and record is not None:
+        meshcat.StartRecording(set_visualizations_while_recording=False)
+    start = time.perf_counter()
+    simulator.Initialize()
+    for t in np.arange(SAMPLE_S, duration + 1e-9, SAMPLE_S):
+        simulator.AdvanceTo(t)
+        z = body.EvalPoseInWorld(plant_context).translation()[2]
+        if z_rest is None and t >= 0.4:
+            z_rest = z  # resting height, once the object has settled
+        heights.append((t, z))
+        if int(t / SAMPLE_S) % 40 == 0:
+            logging.info("t = %4.1f s  object z = %.3f m", t, z)
+    wall = time.perf_counter() - start
+    if meshcat is not None and record is not None:
+        meshcat.StopRecording()
+        meshcat.PublishRecording()
+        record.write_text(meshcat.StaticHtml())
+        logging.info("wrote %s", record)
+    times, z = np.array(heights).T
+    lift = z - z_rest
+    final_window = times >= duration - HOLD_CHECK_S
+    touching = hands_touching_object(plant, plant_context)
+    min_hold = float(lift[final_window].min())
+    success = bool(min_hold >= LIFT_SUCCESS_M and touching == ["left", "right"])
+    message = (
+        "lifted and held by both hands"
+        if success
+        else (
+            f"not lifted: lowest height over the last {HOLD_CHECK_S} s was {min_hold:.3f} m"
+            if min_hold < LIFT_SUCCESS_M
+            else f"lifted but touched only by {touching or 'no hand'}"
+        )
+    )
+    return PickOutcome(success, float(lift[-1]), min_hold, touching, float(duration), wall, message)

@@ -1,0 +1,154 @@
+"""The Scenario: everything a run needs, loaded from YAML with Drake's typed loader.
+
+Files live beside this module (`default.yaml`, ...). A `--scenario_text` overlay
+on the command line is merged on top of the file, field by field.
+"""
+
+import dataclasses
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from pydrake.common.yaml import yaml_load_typed
+from pydrake.lcm import DrakeLcmParams
+from pydrake.multibody.plant import MultibodyPlantConfig
+from pydrake.systems.analysis import SimulatorConfig
+from pydrake.systems.sensors import CameraConfig
+from pydrake.visualization import VisualizationConfig
+
+SCENARIO_DIR = Path(__file__).resolve().parent
+DEFAULT_SCENARIO = SCENARIO_DIR / "default.yaml"
+
+
+@dataclass
+class ObjectConfig:
+    """Which object lies on the table, and where."""
+
+    # Category: "watering_can" or "drill".
+    category: str = "watering_can"
+    # A generated instance: train_<i>, test_<i> (the fixed seeded ones) or extra_<seed>.
+    instance: str = "test_0"
+    # A user's own model instead of a generated instance: .sdf, .urdf, or .obj
+    # (then `mass` and `scale` apply). Relative paths are relative to the working
+    # directory. Empty: use `instance`.
+    file: str = ""
+    # Mass of an .obj model, kg.
+    mass: float = 1.0
+    # Uniform scale of an .obj model (e.g. 0.001 for millimetres).
+    scale: float = 1.0
+    # Object frame origin in the table_top frame, metres.
+    xy: list[float] = field(default_factory=lambda: [-0.12, 0.0])
+    # Rotation about the world z axis relative to the category's presentation
+    # pose (can: spout to the robot's left; drill: chuck away), rad. The paper
+    # evaluated -0.25, 0 and +0.25.
+    yaw: float = 0.0
+
+
+@dataclass
+class ArmControllerConfig:
+    """Joint PD gains of the simulated arms (the plant's own PD actuators)."""
+
+    # Proportional gain per joint 1..7, N m/rad.
+    kp: list[float] = field(default_factory=lambda: [1500, 1500, 1000, 1000, 400, 400, 150])
+    # Derivative gain per joint 1..7, N m s/rad.
+    kd: list[float] = field(default_factory=lambda: [80, 80, 50, 50, 15, 15, 5])
+
+
+@dataclass
+class HandControllerConfig:
+    """PD gains of each finger's prismatic joint; the joint's effort limit caps the squeeze."""
+
+    # N/m.
+    kp: float = 4000.0
+    # N s/m.
+    kd: float = 40.0
+
+
+@dataclass
+class Scenario:
+    """A complete simulation scenario."""
+
+    # Seed for every random draw of a run (yaw noise, sensor noise, ...).
+    random_seed: int = 0
+    # The object on the table.
+    object: ObjectConfig = field(default_factory=ObjectConfig)
+    # Height of the robot's pelvis frame above the floor, metres.
+    pelvis_height: float = 1.0
+    # Table base frame position in the world (the floor under its centre), metres.
+    table_xyz: list[float] = field(default_factory=lambda: [0.85, 0.0, 0.0])
+    # Initial joint positions j_arm1_1..7 then j_arm2_1..7, rad (arms below the table top).
+    initial_arm_positions: list[float] = field(
+        default_factory=lambda: [0.0, 0.15, 0.0, -0.1, 0.0, 0.0, 0.0] + [0.0, -0.15, 0.0, -0.1, 0.0, 0.0, 0.0]
+    )
+    # Initial hand opening width, metres (0 closed, 0.12 fully open).
+    initial_hand_width: float = 0.1
+    arm_controller: ArmControllerConfig = field(default_factory=ArmControllerConfig)
+    hand_controller: HandControllerConfig = field(default_factory=HandControllerConfig)
+    # Multibody plant: discrete SAP at 1 ms.
+    plant_config: MultibodyPlantConfig = field(
+        default_factory=lambda: MultibodyPlantConfig(time_step=0.001, discrete_contact_approximation="sap")
+    )
+    simulator_config: SimulatorConfig = field(
+        default_factory=lambda: SimulatorConfig(target_realtime_rate=0.0, publish_every_time_step=False)
+    )
+    # The chest RGB-D camera; X_PB is relative to the robot's camera_mount frame.
+    camera: CameraConfig = field(
+        default_factory=lambda: CameraConfig(
+            name="camera0",
+            width=640,
+            height=480,
+            fps=10.0,
+            center_x=None,
+            center_y=None,
+            focal=CameraConfig.FovDegrees(y=50.0),
+            clipping_far=4.0,
+            z_far=4.0,
+            renderer_name="vtk",
+            renderer_class="RenderEngineVtk",
+            label=True,
+            depth=True,
+        )
+    )
+    # Meshcat drawing options.
+    visualization: VisualizationConfig = field(default_factory=VisualizationConfig)
+    # LCM for the hardware backend; simulations never touch the network.
+    lcm: DrakeLcmParams = field(default_factory=lambda: DrakeLcmParams(lcm_url="memq://null"))
+
+
+def load_scenario(filename: str | Path | None = None, scenario_text: str = "") -> Scenario:
+    """Loads a Scenario from a YAML file, then overlays `scenario_text` (YAML) on it.
+
+    Raises:
+        FileNotFoundError: the file does not exist.
+        ValueError: the YAML does not match the Scenario schema, with the reason.
+    """
+    path = Path(filename) if filename else DEFAULT_SCENARIO
+    if not path.is_file():
+        raise FileNotFoundError(f"scenario file not found: {path}")
+    scenario = Scenario()
+    for source, text in ((str(path), path.read_text()), ("--scenario_text", scenario_text)):
+        if not text.strip():
+            continue
+        try:
+            scenario = yaml_load_typed(data=text, defaults=scenario)
+        except Exception as error:  # Drake raises RuntimeError; yaml raises its own.
+            raise ValueError(f"invalid scenario in {source}: {error}") from error
+    validate(scenario)
+    return scenario
+
+
+def validate(scenario: Scenario) -> None:
+    """Checks what the schema cannot express; raises ValueError naming the field."""
+    if len(scenario.initial_arm_positions) != 14:
+        raise ValueError(f"initial_arm_positions must have 14 entries, got {len(scenario.initial_arm_positions)}")
+    if len(scenario.object.xy) != 2:
+        raise ValueError(f"object.xy must have 2 entries, got {scenario.object.xy}")
+    for name in ("kp", "kd"):
+        if len(getattr(scenario.arm_controller, name)) != 7:
+            raise ValueError(f"arm_controller.{name} must have 7 entries (joints 1..7)")
+    if scenario.object.mass <= 0 or scenario.object.scale <= 0:
+        raise ValueError("object.mass and object.scale must be positive")
+
+
+def replace_object(scenario: Scenario, **changes) -> Scenario:
+    """A copy of the scenario with object fields changed."""
+    return dataclasses.replace(scenario, object=dataclasses.replace(scenario.object, **changes))

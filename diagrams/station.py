@@ -1,0 +1,226 @@
+"""The simulated Centauro station: plant, controllers and the chest RGB-D camera.
+
+MakeStation(scenario) returns a Diagram with these exported ports (the hardware
+station of the LCM backend exposes the same names):
+
+  inputs:  centauro.position (14, rad), left_hand.position, right_hand.position
+           (1 each: opening width, m)
+  outputs: centauro.position_commanded, centauro.position_measured,
+           centauro.velocity_estimated (14 each), centauro.state_estimated (28),
+           centauro.torque_commanded (14, N m),
+           left_hand.state_measured, right_hand.state_measured (2 each: width m, m/s),
+           camera0.rgb_image, camera0.depth_image (32F, m), camera0.label_image
+
+The plant is named "plant" inside the diagram; the simulator's ground truth is read
+from it, never through an exported port.
+"""
+
+import numpy as np
+from pydrake.geometry import (
+    CollisionFilterDeclaration,
+    MakeRenderEngineVtk,
+    Meshcat,
+    MeshcatVisualizer,
+    MeshcatVisualizerParams,
+    RenderEngineVtkParams,
+    Role,
+    SceneGraph,
+)
+from pydrake.math import RigidTransform, RollPitchYaw
+from pydrake.multibody.parsing import Parser
+from pydrake.multibody.plant import AddMultibodyPlant, MultibodyPlant
+from pydrake.multibody.tree import PdControllerGains
+from pydrake.systems.framework import Diagram, DiagramBuilder
+from pydrake.systems.primitives import Demultiplexer, MatrixGain, PassThrough, StateInterpolatorWithDiscreteDerivative
+from pydrake.systems.sensors import RgbdSensor
+
+from diagrams.centauro_description import joint_names
+from diagrams.objects.library import ObjectModel, resolve_object
+from diagrams.paths import PACKAGE_XML
+from diagrams.scenario import Scenario
+from systems.gravity_compensation import GravityCompensation
+
+ARM_INSTANCE = "centauro"
+HAND_INSTANCES = {"left": "left_hand", "right": "right_hand"}
+OBJECT_INSTANCE = "object"
+# Lift the object this far above the table at t = 0 so that it settles without penetration.
+OBJECT_DROP_HEIGHT = 0.002
+
+
+def make_parser(plant: MultibodyPlant) -> Parser:
+    """A parser that resolves package://dualarm/... to this repository's sdf/ folder."""
+    parser = Parser(plant)
+    parser.package_map().AddPackageXml(str(PACKAGE_XML))
+    return parser
+
+
+def AddCentauro(plant: MultibodyPlant, scene_graph: SceneGraph, scenario: Scenario):
+    """Adds the robot (pelvis welded at the scenario's height) and both hands.
+
+    Collisions between each hand and its own wrist (links 5 to 7) are filtered out:
+    they touch by construction.
+
+    Returns:
+        (arm model instance, {"left": hand instance, "right": hand instance})
+    """
+    parser = make_parser(plant)
+    (robot,) = parser.AddModels(url="package://dualarm/centauro/centauro.sdf")
+    plant.WeldFrames(
+        plant.world_frame(),
+        plant.GetFrameByName("pelvis", robot),
+        RigidTransform([0.0, 0.0, scenario.pelvis_height]),
+    )
+    hands = {}
+    for arm, (side, name) in enumerate(HAND_INSTANCES.items(), start=1):
+        parser.SetAutoRenaming(True)
+        (hand,) = parser.AddModels(url="package://dualarm/centauro/hand.sdf")
+        plant.RenameModelInstance(hand, name)
+        plant.WeldFrames(plant.GetFrameByName(f"arm{arm}_flange", robot), plant.GetFrameByName("hand_base", hand))
+        hands[side] = hand
+        wrist = [plant.GetBodyByName(f"arm{arm}_{i}", robot) for i in (5, 6, 7)]
+        bodies = wrist + [plant.get_body(i) for i in plant.GetBodyIndices(hand)]
+        scene_graph.collision_filter_manager().Apply(
+            CollisionFilterDeclaration().ExcludeWithin(plant.CollectRegisteredGeometries(bodies))
+        )
+    return robot, hands
+
+
+def AddTable(plant: MultibodyPlant, scenario: Scenario):
+    """Adds the table (welded) and the floor; returns the table model instance."""
+    parser = make_parser(plant)
+    (table,) = parser.AddModels(url="package://dualarm/scene/table.sdf")
+    plant.WeldFrames(plant.world_frame(), plant.GetFrameByName("table", table), RigidTransform(scenario.table_xyz))
+    (floor,) = parser.AddModels(url="package://dualarm/scene/floor.sdf")
+    plant.WeldFrames(plant.world_frame(), plant.GetFrameByName("floor", floor))
+    return table
+
+
+def object_pose_on_table(plant: MultibodyPlant, scenario: Scenario, model: ObjectModel) -> RigidTransform:
+    """X_WO of the object resting on the table at the scenario's xy and yaw."""
+    x, y = scenario.object.xy
+    top = np.array(scenario.table_xyz) + [x, y, 0.76 + OBJECT_DROP_HEIGHT]
+    yaw = model.presentation_yaw + scenario.object.yaw
+    return RigidTransform(RollPitchYaw(0.0, 0.0, yaw), top)
+
+
+def AddObject(plant: MultibodyPlant, scenario: Scenario):
+    """Adds the scenario's object as a free body resting on the table.
+
+    Returns:
+        (object model instance, its ObjectModel)
+    """
+    model = resolve_object(scenario.object)
+    parser = make_parser(plant)
+    instances = parser.AddModels(file_name=str(model.model_file))
+    if len(instances) != 1:
+        raise ValueError(f"{model.model_file} must hold exactly one model, found {len(instances)}")
+    (instance,) = instances
+    plant.RenameModelInstance(instance, OBJECT_INSTANCE)
+    bodies = plant.GetBodyIndices(instance)
+    if not bodies:
+        raise ValueError(f"{model.model_file} has no links")
+    body = plant.get_body(bodies[0])
+    plant.SetDefaultFloatingBaseBodyPose(body, object_pose_on_table(plant, scenario, model))
+    return instance, model
+
+
+def MakeStation(scenario: Scenario, meshcat: Meshcat | None = None) -> Diagram:
+    """Builds the simulated station for `scenario`; see the module docstring for its ports.
+
+    Args:
+        scenario: the run's configuration.
+        meshcat: if given, the station draws itself there.
+    """
+    builder = DiagramBuilder()
+    plant, scene_graph = AddMultibodyPlant(scenario.plant_config, builder)
+    robot, hands = AddCentauro(plant, scene_graph, scenario)
+    AddTable(plant, scenario)
+    AddObject(plant, scenario)
+    plant.Finalize()
+
+    _set_pd_gains(plant, robot, scenario.arm_controller.kp * 2, scenario.arm_controller.kd * 2)
+    for hand in hands.values():
+        _set_pd_gains(plant, hand, [scenario.hand_controller.kp] * 2, [scenario.hand_controller.kd] * 2)
+    _set_default_positions(plant, robot, hands, scenario)
+
+    _AddArmController(builder, plant, robot, scenario)
+    for side, hand in hands.items():
+        _AddHandController(builder, plant, hand, HAND_INSTANCES[side])
+    _AddCamera(builder, plant, scene_graph, scenario)
+
+    if meshcat is not None:
+        MeshcatVisualizer.AddToBuilder(builder, scene_graph, meshcat, MeshcatVisualizerParams(role=Role.kIllustration))
+    diagram = builder.Build()
+    diagram.set_name("station")
+    return diagram
+
+
+def _set_pd_gains(plant, instance, kp, kd):
+    for index, p, d in zip(plant.GetJointActuatorIndices(instance), kp, kd, strict=True):
+        plant.get_joint_actuator(index).set_controller_gains(PdControllerGains(p=p, d=d))
+
+
+def _set_default_positions(plant, robot, hands, scenario):
+    q0 = np.array(scenario.initial_arm_positions)
+    for name, q in zip(joint_names(1) + joint_names(2), q0, strict=True):
+        plant.GetJointByName(name, robot).set_default_angle(q)
+    for hand in hands.values():
+        for joint in ("finger_1_joint", "finger_2_joint"):
+            plant.GetJointByName(joint, hand).set_default_translation(scenario.initial_hand_width / 2)
+
+
+def _AddArmController(builder, plant, robot, scenario):
+    """Position command -> desired state of the plant's PD actuators, plus gravity feed-forward."""
+    command = builder.AddSystem(PassThrough(14))
+    command.set_name("centauro.command")
+    interpolator = builder.AddSystem(
+        StateInterpolatorWithDiscreteDerivative(14, scenario.plant_config.time_step, suppress_initial_transient=True)
+    )
+    interpolator.set_name("centauro.desired_state")
+    builder.Connect(command.get_output_port(), interpolator.get_input_port())
+    builder.Connect(interpolator.get_output_port(), plant.get_desired_state_input_port(robot))
+    gravity = builder.AddSystem(GravityCompensation(plant, robot))
+    gravity.set_name("centauro.gravity_compensation")
+    builder.Connect(plant.get_state_output_port(), gravity.state_input)
+    builder.Connect(gravity.actuation_output, plant.get_actuation_input_port(robot))
+
+    builder.ExportInput(command.get_input_port(), "centauro.position")
+    builder.ExportOutput(command.get_output_port(), "centauro.position_commanded")
+    state = plant.get_state_output_port(robot)
+    builder.ExportOutput(state, "centauro.state_estimated")
+    demux = builder.AddSystem(Demultiplexer([14, 14]))
+    demux.set_name("centauro.state_demux")
+    builder.Connect(state, demux.get_input_port())
+    builder.ExportOutput(demux.get_output_port(0), "centauro.position_measured")
+    builder.ExportOutput(demux.get_output_port(1), "centauro.velocity_estimated")
+    builder.ExportOutput(plant.get_net_actuation_output_port(robot), "centauro.torque_commanded")
+
+
+def _AddHandController(builder, plant, hand, name):
+    """Opening width command -> both fingers' desired state; finger state -> (width, rate)."""
+    to_fingers = builder.AddSystem(MatrixGain(np.array([[0.5], [0.5], [0.0], [0.0]])))
+    to_fingers.set_name(f"{name}.controller")
+    builder.Connect(to_fingers.get_output_port(), plant.get_desired_state_input_port(hand))
+    builder.ExportInput(to_fingers.get_input_port(), f"{name}.position")
+    to_width = builder.AddSystem(MatrixGain(np.array([[1.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 1.0]])))
+    to_width.set_name(f"{name}.state_measured")
+    builder.Connect(plant.get_state_output_port(hand), to_width.get_input_port())
+    builder.ExportOutput(to_width.get_output_port(), f"{name}.state_measured")
+
+
+def _AddCamera(builder, plant, scene_graph, scenario):
+    """The chest RGB-D sensor, mounted at the robot's camera_mount frame (VTK, headless)."""
+    config = scenario.camera
+    if not scene_graph.HasRenderer(config.renderer_name):
+        scene_graph.AddRenderer(config.renderer_name, MakeRenderEngineVtk(RenderEngineVtkParams()))
+    color_camera, depth_camera = config.MakeCameras()
+    mount = plant.GetFrameByName("camera_mount")
+    X_PB = mount.GetFixedPoseInBodyFrame() @ config.X_PB.GetDeterministicValue()
+    sensor = builder.AddSystem(
+        RgbdSensor(plant.GetBodyFrameIdOrThrow(mount.body().index()), X_PB, color_camera, depth_camera)
+    )
+    sensor.set_name(f"{config.name}.sensor")
+    builder.Connect(scene_graph.get_query_output_port(), sensor.query_object_input_port())
+    builder.ExportOutput(sensor.color_image_output_port(), f"{config.name}.rgb_image")
+    builder.ExportOutput(sensor.depth_image_32F_output_port(), f"{config.name}.depth_image")
+    builder.ExportOutput(sensor.label_image_output_port(), f"{config.name}.label_image")

@@ -1,0 +1,1 @@
+"""Drake LeafSystems, one per pipeline stage, each beside the plain-Python core it wraps."""
