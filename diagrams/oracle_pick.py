@@ -24,7 +24,7 @@ MIN_SEGMENT_S = 0.8
 OPEN_WIDTH = 0.1  # m
 CLOSED_WIDTH = 0.0  # m: the fingers stop on the handle; the joint effort limit sets the squeeze
 CLOSE_S = 1.0
-LIFT_HEIGHT = 0.15  # m
+LIFT_HEIGHT = 0.125  # m
 LIFT_STEPS = 3
 APPROACH_STEPS = 3
 HOLD_S = 2.5
@@ -119,7 +119,7 @@ def plan_oracle_pick(ik: DualArmIk, q_start: np.ndarray, X_WO: RigidTransform, i
     for step in range(1, LIFT_STEPS + 1):
         up = RigidTransform([0.0, 0.0, LIFT_HEIGHT * step / LIFT_STEPS])
         targets = {side: up @ grasp_poses[side] for side in SIDES}
-        result = ik.solve(targets, q, min_distance=None, allow_half_turn=False, restarts=0)
+        result = ik.solve(targets, q, angle_tolerance=0.08, min_distance=None, allow_half_turn=False, restarts=12)
         if not result.success:
             raise PlanningError(f"lift step {step}: IK failed ({result.message})")
         plan.append(result.q, CLOSED_WIDTH, move_duration(q, result.q, ik.velocity_limits))

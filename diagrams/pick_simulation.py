@@ -18,8 +18,8 @@ from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.systems.primitives import TrajectorySource
 
 from diagrams.oracle_pick import JointPlan
-from diagrams.station import HAND_INSTANCES, OBJECT_INSTANCE, MakeStation
 from diagrams.scenario import Scenario
+from diagrams.station import HAND_INSTANCES, OBJECT_INSTANCE, MakeStation
 
 LIFT_SUCCESS_M = 0.10
 HOLD_CHECK_S = 2.0

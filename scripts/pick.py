@@ -14,11 +14,12 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 from pydrake.geometry import Meshcat, MeshcatParams
 
 from diagrams.hand_ik import DualArmIk
 from diagrams.oracle_pick import PlanningError, plan_oracle_pick
-from diagrams.pick_simulation import MakeOracleDiagram, object_body, simulate_pick, station_plant
+from diagrams.pick_simulation import MakeOracleDiagram, object_body, simulate_pick
 from diagrams.scenario import DEFAULT_SCENARIO, load_scenario, replace_object
 from diagrams.station import MakeStation
 
@@ -77,21 +78,16 @@ def main(argv=None) -> int:
         station = MakeStation(scenario)
         plant = station.GetSubsystemByName("plant")
         X_WO = object_body(plant).EvalPoseInWorld(plant.GetMyContextFromRoot(station.CreateDefaultContext()))
-        from diagrams.objects.library import resolve_object
-
         info = resolve_object(obj).info
         if info is None:
             raise PlanningError(f"{obj.file} has no grasp frames (info.yaml beside it): the oracle needs them")
         start = time.perf_counter()
         ik = DualArmIk(scenario)
-        plan = plan_oracle_pick(
-            ik, station.GetInputPort("centauro.position") and scenario.initial_arm_positions, X_WO, info
-        )
+        plan = plan_oracle_pick(ik, np.array(scenario.initial_arm_positions), X_WO, info)
         planning_s = time.perf_counter() - start
         print(f"planned in {planning_s:.2f} s: {plan.duration:.1f} s of motion")
         diagram = MakeOracleDiagram(scenario, plan, meshcat)
         outcome = simulate_pick(diagram, scenario, plan.duration, meshcat, args.record)
-        del station_plant
     except (PlanningError, ValueError, FileNotFoundError) as error:
         print(f"error: {error}", file=sys.stderr)
         outcome = None

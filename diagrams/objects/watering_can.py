@@ -17,10 +17,12 @@ PRESENTATION_YAW = 0.0
 BODY_STYLES = ("cylinder", "oval", "tapered")
 TUBE_RADIUS_RANGE = (0.011, 0.014)
 # The left hand reaches over the top handle from the robot's left (+y_O), tilted this
-# far from vertical (rad); the right hand takes the rear handle from behind and to the
-# right, turned this far from +x_O (rad).
+# far from vertical (rad). The right hand takes the rear handle from behind, right and
+# above: its approach is (cos turn, sin turn, -dip) in O, normalised. These directions
+# lie well inside the arms' workspace for the paper's yaw range.
 LEFT_APPROACH_TILT = 0.6
-RIGHT_APPROACH_TURN = 0.3
+RIGHT_APPROACH_TURN = 0.6
+RIGHT_APPROACH_DIP = 1.0
 
 
 def sample_parameters(rng: np.random.Generator, body_style: str | None = None) -> dict[str, float]:
@@ -46,6 +48,8 @@ def sample_parameters(rng: np.random.Generator, body_style: str | None = None) -
     p["top_handle_offset"] = rng.uniform(-0.25, 0.05) * top_radius
     max_top = top_radius - p["tube_radius"] - 0.015 - abs(p["top_handle_offset"])
     p["top_handle_radius"] = rng.uniform(0.75, 1.0) * min(max_top, 0.085)
+    # The arc is an ellipse: tall enough for the fingers whatever the lid's size.
+    p["top_handle_height"] = rng.uniform(0.06, 0.085)
     p["rear_handle_radius"] = rng.uniform(0.05, 0.075)
     lo = 0.025 + p["rear_handle_radius"]
     hi = height - 0.015 - p["rear_handle_radius"]
@@ -75,9 +79,12 @@ def build(name: str, p: dict[str, float]) -> ObjectInstance:
         spout_end - 0.01 * direction, spout_end + 0.025 * direction, spout_tip_radius, 1.9 * spout_tip_radius
     )
 
-    # Top handle: half circle in the xz plane standing on the lid.
+    # Top handle: half ellipse in the xz plane standing on the lid.
     top_center = np.array([p["top_handle_offset"], 0.0, h - 0.01])
-    top_path = geometry.arc(top_center, p["top_handle_radius"], 0.0, np.pi)
+    angles = np.linspace(0.0, np.pi, 24)
+    top_path = top_center + np.column_stack(
+        [p["top_handle_radius"] * np.cos(angles), np.zeros_like(angles), p["top_handle_height"] * np.sin(angles)]
+    )
     top = geometry.tube(top_path, tube)
 
     # Rear handle: half circle in the xz plane bulging backwards (-x).
@@ -94,14 +101,16 @@ def build(name: str, p: dict[str, float]) -> ObjectInstance:
         Part("top_handle", top, geometry.convex_pieces_of_tube(top_path, tube, 6)),
         Part("rear_handle", rear, geometry.convex_pieces_of_tube(rear_path, tube, 6)),
     ]
-    top_apex = top_center + [0.0, 0.0, p["top_handle_radius"]]
+    top_apex = top_center + [0.0, 0.0, p["top_handle_height"]]
     rear_apex = rear_center - [rr, 0.0, 0.0]
     grasps = {
         "left": make_grasp(
             top_apex, approach=[0, -np.sin(LEFT_APPROACH_TILT), -np.cos(LEFT_APPROACH_TILT)], handle_axis=[1, 0, 0]
         ),
         "right": make_grasp(
-            rear_apex, approach=[np.cos(RIGHT_APPROACH_TURN), np.sin(RIGHT_APPROACH_TURN), 0], handle_axis=[0, 0, 1]
+            rear_apex,
+            approach=[np.cos(RIGHT_APPROACH_TURN), np.sin(RIGHT_APPROACH_TURN), -RIGHT_APPROACH_DIP],
+            handle_axis=[0, 0, 1],
         ),
     }
     return ObjectInstance(CATEGORY, name, p, parts, p["mass"], grasps)

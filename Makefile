@@ -1,0 +1,40 @@
+# Set-up and entry points. `make pick` and `make test` create the environment first.
+VENV := .venv
+PY := $(VENV)/bin/python
+STAMP := $(VENV)/.installed
+APT_PACKAGES := libusb-1.0-0 libegl1 libegl-mesa0 libgl1-mesa-dri libgl1
+
+.PHONY: env apt pick test lint objects clean
+
+env: apt $(STAMP)
+
+# System libraries: open3d needs libusb; VTK renders headless through EGL.
+apt:
+	@missing=$$(for p in $(APT_PACKAGES); do dpkg -s $$p >/dev/null 2>&1 || echo $$p; done); \
+	if [ -n "$$missing" ]; then \
+		echo "installing system packages: $$missing"; \
+		SUDO=$$( [ "$$(id -u)" = 0 ] || echo sudo ); \
+		$$SUDO apt-get update -qq && DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq $$missing >/dev/null; \
+	fi
+
+$(STAMP): pyproject.toml
+	python3 -m venv $(VENV)
+	$(PY) -m pip install -q --upgrade pip
+	$(PY) -m pip install -q -e ".[dev]"
+	touch $(STAMP)
+
+pick: env
+	$(PY) scripts/pick.py --oracle $(ARGS)
+
+test: env
+	DRAKE_DEPRECATION_RUNTIME_SEVERITY=error $(PY) -m pytest -q $(ARGS)
+
+lint: env
+	$(VENV)/bin/ruff check .
+	$(VENV)/bin/ruff format --check .
+
+objects: env
+	$(PY) scripts/generate_objects.py
+
+clean:
+	rm -rf $(VENV) *.egg-info .pytest_cache

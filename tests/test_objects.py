@@ -1,0 +1,94 @@
+"""Generated objects: watertight, real inertia, grasp frames on the handles, stable on the table."""
+
+import numpy as np
+import pytest
+import trimesh
+from scipy.spatial import Delaunay
+
+from diagrams.objects import catalog
+from diagrams.objects.library import load_info, resolve_object
+from diagrams.scenario import ObjectConfig
+
+INSTANCES = [(c, n) for c in sorted(catalog.CATEGORIES) for n in catalog.instance_names(c)]
+
+
+@pytest.fixture(scope="module", params=INSTANCES, ids=lambda p: "/".join(p))
+def generated(request):
+    category, name = request.param
+    instance = catalog.generate(category, name)
+    return instance, instance.visual_mesh()
+
+
+def test_mesh_is_watertight_with_positive_definite_inertia(generated):
+    instance, mesh = generated
+    assert mesh.is_watertight and mesh.is_volume
+    com, inertia = instance.mass_properties()
+    eigenvalues = np.linalg.eigvalsh(inertia)
+    assert np.all(eigenvalues > 0)
+    # Triangle inequality of principal moments: a physically realisable body.
+    assert eigenvalues[0] + eigenvalues[1] >= eigenvalues[2]
+    assert 0.5 < instance.mass < 2.5
+
+
+def test_collision_pieces_are_convex_and_cover_the_object(generated):
+    instance, mesh = generated
+    pieces = [piece for part in instance.parts for piece in part.collision]
+    assert all(piece.is_convex for piece in pieces)
+    # Surface samples of the visual mesh lie inside or on some collision piece.
+    points, _ = trimesh.sample.sample_surface_even(mesh, 400, seed=0)
+    distance = np.min([np.abs(trimesh.proximity.signed_distance(p, points)) for p in pieces], axis=0)
+    assert np.percentile(distance, 95) < 0.004
+
+
+def test_grasp_frames_sit_on_the_handles(generated):
+    instance, mesh = generated
+    for side, grasp in instance.grasps.items():
+        X_OG = grasp.grasp.GetDeterministicValue()
+        point = X_OG.translation()[None, :]
+        # G lies on a handle's centre line: inside the solid, about one handle radius from its surface.
+        depth = trimesh.proximity.signed_distance(mesh, point)[0]
+        assert 0.008 < depth < 0.025, f"{side} grasp point is {depth:.4f} m inside the surface"
+        # The fingers close along y_G: both sides of the handle along y_G are free space.
+        y = X_OG.rotation().matrix()[:, 1]
+        for sign in (1, -1):
+            outside = trimesh.proximity.signed_distance(mesh, point + sign * 0.03 * y)[0]
+            assert outside < 0, f"{side} finger region at {sign:+d} y_G is inside the object"
+        X_OP = grasp.pregrasp.GetDeterministicValue()
+        assert np.linalg.norm(X_OP.translation() - X_OG.translation()) == pytest.approx(0.1)
+
+
+def test_object_rests_stably_on_its_base(generated):
+    instance, mesh = generated
+    com, _ = instance.mass_properties()
+    base = mesh.vertices[mesh.vertices[:, 2] < 1e-4][:, :2]
+    assert len(base) >= 3 and mesh.bounds[0][2] == pytest.approx(0.0, abs=1e-6)
+    assert Delaunay(base).find_simplex(com[:2]) >= 0, "centre of mass outside the footprint"
+
+
+def test_test_cans_differ_from_each_other():
+    styles = [catalog.generate("watering_can", f"test_{i}").parameters["body_style"] for i in range(3)]
+    assert len(set(styles)) == 3
+
+
+def test_generation_is_reproducible_and_matches_the_committed_files():
+    for category, name in INSTANCES:
+        info = load_info(catalog.instance_directory(category, name) / "info.yaml")
+        fresh = catalog.generate(category, name).info()
+        assert info.parameters == pytest.approx(fresh.parameters), f"{category}/{name}: run scripts/generate_objects.py"
+
+
+@pytest.mark.parametrize("name", ["test_3", "train_8", "bogus", "validation_1"])
+def test_unknown_instance_names_give_a_clear_error(name):
+    with pytest.raises(ValueError, match="instance|test|train"):
+        resolve_object(ObjectConfig(category="watering_can", instance=name))
+
+
+def test_unknown_category_gives_a_clear_error():
+    with pytest.raises(ValueError, match="unknown object category"):
+        resolve_object(ObjectConfig(category="teapot"))
+
+
+def test_extra_instances_on_demand(tmp_path, monkeypatch):
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    model = resolve_object(ObjectConfig(category="drill", instance="extra_42"))
+    assert model.model_file.is_file() and model.info.name == "extra_42"
