@@ -18,6 +18,7 @@ import numpy as np
 from pydrake.geometry import Meshcat, MeshcatParams
 
 from diagrams.hand_ik import DualArmIk
+from diagrams.objects.library import resolve_object
 from diagrams.oracle_pick import PlanningError, plan_oracle_pick
 from diagrams.pick_simulation import MakeOracleDiagram, object_body, simulate_pick
 from diagrams.scenario import DEFAULT_SCENARIO, load_scenario, replace_object
