@@ -102,13 +102,13 @@ def simulate_pick(
         meshcat.StartRecording(set_visualizations_while_recording=False)
     start = time.perf_counter()
     simulator.Initialize()
-    for t in np.arange(SAMPLE_S, duration + 1e-9, SAMPLE_S):
+    for step, t in enumerate(np.arange(SAMPLE_S, duration + 1e-9, SAMPLE_S), start=1):
         simulator.AdvanceTo(t)
         z = body.EvalPoseInWorld(plant_context).translation()[2]
         if z_rest is None and t >= 0.4:
             z_rest = z  # resting height, once the object has settled
         heights.append((t, z))
-        if int(t / SAMPLE_S) % 40 == 0:
+        if step % 40 == 0:
             logging.info("t = %4.1f s  object z = %.3f m", t, z)
     wall = time.perf_counter() - start
     if meshcat is not None and record is not None:

@@ -95,7 +95,7 @@ def AddTable(plant: MultibodyPlant, scenario: Scenario):
     return table
 
 
-def object_pose_on_table(plant: MultibodyPlant, scenario: Scenario, model: ObjectModel) -> RigidTransform:
+def object_pose_on_table(scenario: Scenario, model: ObjectModel) -> RigidTransform:
     """X_WO of the object resting on the table at the scenario's xy and yaw."""
     x, y = scenario.object.xy
     top = np.array(scenario.table_xyz) + [x, y, 0.76 + OBJECT_DROP_HEIGHT]
@@ -120,7 +120,7 @@ def AddObject(plant: MultibodyPlant, scenario: Scenario):
     if not bodies:
         raise ValueError(f"{model.model_file} has no links")
     body = plant.get_body(bodies[0])
-    plant.SetDefaultFloatingBaseBodyPose(body, object_pose_on_table(plant, scenario, model))
+    plant.SetDefaultFloatingBaseBodyPose(body, object_pose_on_table(scenario, model))
     return instance, model
 
 

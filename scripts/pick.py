@@ -20,9 +20,9 @@ from pydrake.geometry import Meshcat, MeshcatParams
 from diagrams.hand_ik import DualArmIk
 from diagrams.objects.library import resolve_object
 from diagrams.oracle_pick import PlanningError, plan_oracle_pick
-from diagrams.pick_simulation import MakeOracleDiagram, object_body, simulate_pick
+from diagrams.pick_simulation import MakeOracleDiagram, simulate_pick
 from diagrams.scenario import DEFAULT_SCENARIO, load_scenario, replace_object
-from diagrams.station import MakeStation
+from diagrams.station import object_pose_on_table
 
 
 def parse_args(argv=None):
@@ -76,10 +76,10 @@ def main(argv=None) -> int:
         obj = scenario.object
         print(f"object: {obj.category}/{obj.file or obj.instance}, yaw {obj.yaw:+.3f} rad")
 
-        station = MakeStation(scenario)
-        plant = station.GetSubsystemByName("plant")
-        X_WO = object_body(plant).EvalPoseInWorld(plant.GetMyContextFromRoot(station.CreateDefaultContext()))
-        info = resolve_object(obj).info
+        model = resolve_object(obj)
+        # Ground truth: the pose the station places the object at (before it settles).
+        X_WO = object_pose_on_table(scenario, model)
+        info = model.info
         if info is None:
             raise PlanningError(f"{obj.file} has no grasp frames (info.yaml beside it): the oracle needs them")
         start = time.perf_counter()
