@@ -75,9 +75,10 @@ class Scenario:
     pelvis_height: float = 1.0
     # Table base frame position in the world (the floor under its centre), metres.
     table_xyz: list[float] = field(default_factory=lambda: [0.85, 0.0, 0.0])
-    # Initial joint positions j_arm1_1..7 then j_arm2_1..7, rad (arms below the table top).
+    # Initial joint positions j_arm1_1..7 then j_arm2_1..7, rad: the "ready" pose, elbows bent,
+    # hands 0.22 m above the table top beside the object, the right arm the mirror of the left.
     initial_arm_positions: list[float] = field(
-        default_factory=lambda: [0.0, 0.15, 0.0, -0.1, 0.0, 0.0, 0.0] + [0.0, -0.15, 0.0, -0.1, 0.0, 0.0, 0.0]
+        default_factory=lambda: [0.9, 0.2, 0.5, -2.2, 0.0, 0.5, 0.0] + [0.9, -0.2, -0.5, -2.2, 0.0, 0.5, 0.0]
     )
     # Initial hand opening width, metres (0 closed, 0.12 fully open).
     initial_hand_width: float = 0.1
