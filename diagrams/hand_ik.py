@@ -1,7 +1,7 @@
 """Dual-arm inverse kinematics for the hands' grasp frames (Drake InverseKinematics).
 
-The IK model is the robot, its hands and the table, without the object: a
-MultibodyPlant built from the same files as the station.
+The IK model is the robot, its hands and the table, and optionally the object welded
+where it stands: a MultibodyPlant built from the same files as the station.
 """
 
 import itertools
@@ -15,8 +15,9 @@ from pydrake.solvers import Solve
 from pydrake.systems.framework import DiagramBuilder
 
 from diagrams.centauro_description import joint_names
+from diagrams.objects.library import ObjectModel
 from diagrams.scenario import Scenario
-from diagrams.station import AddCentauro, AddTable
+from diagrams.station import AddCentauro, AddTable, make_parser
 
 SIDES = ("left", "right")
 # A hand is symmetric under a half turn about its approach axis z_G.
@@ -33,11 +34,26 @@ class IkResult:
 class DualArmIk:
     """Solves for the 14 arm joints that put both grasp frames at given world poses."""
 
-    def __init__(self, scenario: Scenario, open_width: float = 0.1):
+    def __init__(
+        self,
+        scenario: Scenario,
+        open_width: float = 0.1,
+        obstacle: ObjectModel | None = None,
+        X_WO: RigidTransform | None = None,
+    ):
+        """Args:
+        scenario: robot and table placement.
+        open_width: hand opening (m) of the collision model.
+        obstacle, X_WO: the object, welded at X_WO in the world, as one more obstacle.
+        """
         builder = DiagramBuilder()
         self.plant, self.scene_graph = AddMultibodyPlantSceneGraph(builder, time_step=0.0)
         robot, hands = AddCentauro(self.plant, self.scene_graph, scenario)
         AddTable(self.plant, scenario)
+        if obstacle is not None:
+            (instance,) = make_parser(self.plant).AddModels(file_name=str(obstacle.model_file))
+            body = self.plant.get_body(self.plant.GetBodyIndices(instance)[0])
+            self.plant.WeldFrames(self.plant.world_frame(), body.body_frame(), X_WO)
         self.plant.Finalize()
         self.diagram = builder.Build()
         self.context = self.diagram.CreateDefaultContext()
@@ -97,6 +113,11 @@ class DualArmIk:
         """Whether the robot touches itself or the table at arm configuration q_arms."""
         self.plant.SetPositions(self.plant_context, self.full_positions(q_arms))
         return self.plant.get_geometry_query_input_port().Eval(self.plant_context).HasCollisions()
+
+    def segment_is_free(self, q_from: np.ndarray, q_to: np.ndarray, max_step: float = 0.02) -> bool:
+        """Whether the straight joint-space segment q_from -> q_to is collision-free (checked every max_step rad)."""
+        steps = max(1, int(np.ceil(np.max(np.abs(np.asarray(q_to) - q_from)) / max_step)))
+        return not any(self.in_collision(q_from + s * (q_to - q_from)) for s in np.linspace(0, 1, steps + 1))
 
     def grasp_frame_poses(self, q_arms: np.ndarray) -> dict[str, RigidTransform]:
         """X_WG of both hands at arm configuration q_arms."""

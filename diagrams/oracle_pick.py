@@ -4,7 +4,11 @@ It proves the robot, the hands, the objects and contact before perception and
 planning exist. The plan is a list of joint-space keyframes played by Drake's
 TrajectorySource through the station's position ports:
 
-  start -> pre-grasp -> grasp (straight approach) -> close hands -> lift -> hold
+  start -> [via point] -> pre-grasp -> grasp (straight approach) -> close hands -> lift -> hold
+
+The IK model holds the object as an obstacle, so the reach to the pre-grasp is
+checked for collisions; when the straight joint-space move would hit the object or
+the table, the hands first go to their pre-grasp poses raised by VIA_HEIGHTS.
 """
 
 import logging
@@ -24,8 +28,10 @@ MIN_SEGMENT_S = 0.8
 OPEN_WIDTH = 0.1  # m
 CLOSED_WIDTH = 0.0  # m: the fingers stop on the handle; the joint effort limit sets the squeeze
 CLOSE_S = 1.0
-LIFT_HEIGHT = 0.125  # m
-LIFT_STEPS = 3
+LIFT_HEIGHT = 0.15  # m: aimed for
+MIN_LIFT_HEIGHT = 0.12  # m: lifting stops early, but not below this, where the arms run out of reach
+VIA_HEIGHTS = (0.1, 0.2, 0.3)  # m
+LIFT_STEPS = 6
 APPROACH_STEPS = 3
 HOLD_S = 2.5
 
@@ -88,7 +94,8 @@ def plan_oracle_pick(ik: DualArmIk, q_start: np.ndarray, X_WO: RigidTransform, i
     pregrasp = ik.solve(world_grasps(X_WO, info, "pregrasp"), q_start, restarts=12)
     if not pregrasp.success:
         raise PlanningError(f"pre-grasp: no collision-free IK solution ({pregrasp.message})")
-    plan.append(pregrasp.q, OPEN_WIDTH, move_duration(q_start, pregrasp.q, ik.velocity_limits))
+    for q in _reach_path(ik, q_start, pregrasp.q):
+        plan.append(q, OPEN_WIDTH, move_duration(plan.arm_q[-1], q, ik.velocity_limits))
     plan.phases["reach"] = plan.duration
 
     # Straight approach along each hand's z axis, keeping the solution branch.
@@ -116,16 +123,37 @@ def plan_oracle_pick(ik: DualArmIk, q_start: np.ndarray, X_WO: RigidTransform, i
 
     # Lift both hands together: the hands keep their relative pose (closed chain).
     grasp_poses = ik.grasp_frame_poses(q)
-    for step in range(1, LIFT_STEPS + 1):
-        up = RigidTransform([0.0, 0.0, LIFT_HEIGHT * step / LIFT_STEPS])
+    lifted = 0.0
+    for height in np.linspace(0.0, LIFT_HEIGHT, LIFT_STEPS + 1)[1:]:
+        up = RigidTransform([0.0, 0.0, height])
         targets = {side: up @ grasp_poses[side] for side in SIDES}
         result = ik.solve(targets, q, angle_tolerance=0.08, min_distance=None, allow_half_turn=False, restarts=12)
         if not result.success:
-            raise PlanningError(f"lift step {step}: IK failed ({result.message})")
+            if lifted >= MIN_LIFT_HEIGHT:
+                break
+            raise PlanningError(f"lift to {height:.3f} m: IK failed ({result.message})")
         plan.append(result.q, CLOSED_WIDTH, move_duration(q, result.q, ik.velocity_limits))
-        q = result.q
+        q, lifted = result.q, height
     plan.phases["lift"] = plan.duration
     plan.append(q, CLOSED_WIDTH, HOLD_S)
     plan.phases["hold"] = plan.duration
     logging.info("oracle plan: %.1f s, phases %s", plan.duration, plan.phases)
     return plan
+
+
+def _reach_path(ik: DualArmIk, q_start: np.ndarray, q_pregrasp: np.ndarray) -> list[np.ndarray]:
+    """Keyframes after q_start that end at q_pregrasp along collision-free joint-space segments.
+
+    Raises:
+        PlanningError: if neither the direct move nor one via a raised pre-grasp is free.
+    """
+    if ik.segment_is_free(q_start, q_pregrasp):
+        return [q_pregrasp]
+    pregrasp_poses = ik.grasp_frame_poses(q_pregrasp)
+    for height in VIA_HEIGHTS:
+        up = RigidTransform([0.0, 0.0, height])
+        via = ik.solve({side: up @ X for side, X in pregrasp_poses.items()}, q_pregrasp, allow_half_turn=False)
+        if via.success and ik.segment_is_free(q_start, via.q) and ik.segment_is_free(via.q, q_pregrasp):
+            logging.info("reach: via the pre-grasp raised by %.2f m", height)
+            return [via.q, q_pregrasp]
+    raise PlanningError("reach: every tried path to the pre-grasp hits the object, the table or the robot")

@@ -17,9 +17,11 @@ from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.systems.primitives import TrajectorySource
 
-from diagrams.oracle_pick import JointPlan
+from diagrams.hand_ik import DualArmIk
+from diagrams.objects.library import resolve_object
+from diagrams.oracle_pick import JointPlan, PlanningError, plan_oracle_pick
 from diagrams.scenario import Scenario
-from diagrams.station import HAND_INSTANCES, OBJECT_INSTANCE, MakeStation
+from diagrams.station import HAND_INSTANCES, OBJECT_INSTANCE, MakeStation, object_pose_on_table
 
 LIFT_SUCCESS_M = 0.10
 HOLD_CHECK_S = 2.0
@@ -40,6 +42,28 @@ class PickOutcome:
     sim_time_s: float = 0.0
     wall_time_s: float = 0.0
     message: str = ""
+    planning_s: float = 0.0
+
+
+def run_oracle_pick(scenario: Scenario, meshcat: Meshcat | None = None, record: Path | None = None) -> PickOutcome:
+    """Plans the pick from the simulator's true object pose and grasp frames, then simulates it.
+
+    Raises:
+        PlanningError: no plan (names the phase), or the object model has no grasp frames.
+    """
+    model = resolve_object(scenario.object)
+    if model.info is None:
+        raise PlanningError(f"{model.model_file} has no grasp frames (info.yaml beside it): the oracle needs them")
+    X_WO = object_pose_on_table(scenario, model)  # where the station places it, before it settles
+    start = time.perf_counter()
+    ik = DualArmIk(scenario, obstacle=model, X_WO=X_WO)
+    plan = plan_oracle_pick(ik, np.array(scenario.initial_arm_positions), X_WO, model.info)
+    planning_s = time.perf_counter() - start
+    logging.info("planned in %.2f s: %.1f s of motion", planning_s, plan.duration)
+    diagram = MakeOracleDiagram(scenario, plan, meshcat)
+    outcome = simulate_pick(diagram, scenario, plan.duration, meshcat, record)
+    outcome.planning_s = planning_s
+    return outcome
 
 
 def MakeOracleDiagram(scenario: Scenario, plan: JointPlan, meshcat: Meshcat | None = None) -> Diagram:

@@ -11,18 +11,13 @@ import dataclasses
 import json
 import logging
 import sys
-import time
 from pathlib import Path
 
-import numpy as np
 from pydrake.geometry import Meshcat, MeshcatParams
 
-from diagrams.hand_ik import DualArmIk
-from diagrams.objects.library import resolve_object
-from diagrams.oracle_pick import PlanningError, plan_oracle_pick
-from diagrams.pick_simulation import MakeOracleDiagram, simulate_pick
+from diagrams.oracle_pick import PlanningError
+from diagrams.pick_simulation import run_oracle_pick
 from diagrams.scenario import DEFAULT_SCENARIO, load_scenario, replace_object
-from diagrams.station import object_pose_on_table
 
 
 def parse_args(argv=None):
@@ -76,19 +71,7 @@ def main(argv=None) -> int:
         obj = scenario.object
         print(f"object: {obj.category}/{obj.file or obj.instance}, yaw {obj.yaw:+.3f} rad")
 
-        model = resolve_object(obj)
-        # Ground truth: the pose the station places the object at (before it settles).
-        X_WO = object_pose_on_table(scenario, model)
-        info = model.info
-        if info is None:
-            raise PlanningError(f"{obj.file} has no grasp frames (info.yaml beside it): the oracle needs them")
-        start = time.perf_counter()
-        ik = DualArmIk(scenario)
-        plan = plan_oracle_pick(ik, np.array(scenario.initial_arm_positions), X_WO, info)
-        planning_s = time.perf_counter() - start
-        print(f"planned in {planning_s:.2f} s: {plan.duration:.1f} s of motion")
-        diagram = MakeOracleDiagram(scenario, plan, meshcat)
-        outcome = simulate_pick(diagram, scenario, plan.duration, meshcat, args.record)
+        outcome = run_oracle_pick(scenario, meshcat, args.record)
     except (PlanningError, ValueError, FileNotFoundError) as error:
         print(f"error: {error}", file=sys.stderr)
         outcome = None
@@ -108,7 +91,7 @@ def main(argv=None) -> int:
             "yaw": obj.yaw,
             "seed": scenario.random_seed,
             "mode": "oracle",
-            "planning_s": planning_s,
+            "planning_s": outcome.planning_s,
             "sim_wall_s": outcome.wall_time_s,
             "message": outcome.message,
         }

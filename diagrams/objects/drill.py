@@ -2,7 +2,8 @@
 
 Object frame O: origin at the centre of the battery's bottom face, z up, x towards
 the chuck, the side handle along +y. The right hand grasps the pistol grip from
-behind (approach +x_O); the left hand grasps the side handle from above.
+behind and to the right (approach in the x_O-y_O plane); the left hand grasps the
+side handle from above.
 """
 
 import numpy as np
@@ -16,6 +17,9 @@ PRESENTATION_YAW = 0.0
 # The left hand reaches over the side handle from the robot's side (-x_O), tilted
 # this far from vertical (rad).
 APPROACH_TILT = 0.6
+# The right hand comes at the pistol grip from behind, turned this far towards the
+# robot's right (rad about z_O): straight from behind, the right arm cannot reach.
+RIGHT_APPROACH_YAW = 0.5
 
 
 def sample_parameters(rng: np.random.Generator) -> dict[str, float]:
@@ -78,6 +82,8 @@ def build(name: str, p: dict[str, float]) -> ObjectInstance:
         "left": make_grasp(
             side_middle, approach=[np.sin(APPROACH_TILT), 0, -np.cos(APPROACH_TILT)], handle_axis=[0, 1, 0]
         ),
-        "right": make_grasp(grip_middle, approach=[1, 0, 0], handle_axis=grip_axis),
+        "right": make_grasp(
+            grip_middle, approach=[np.cos(RIGHT_APPROACH_YAW), np.sin(RIGHT_APPROACH_YAW), 0], handle_axis=grip_axis
+        ),
     }
     return ObjectInstance(CATEGORY, name, p, parts, p["mass"], grasps)
