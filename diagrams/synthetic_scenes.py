@@ -1,0 +1,246 @@
+"""Randomised synthetic scenes for training and testing the segmenter (paper §III).
+
+A *scene* is one Drake diagram: Centauro, a table, walls, floor, lights and
+clutter with random sizes and colours, several chest-camera poses, and every
+object instance of the requested split (recoloured at random) as a free body.
+A *frame* re-places the objects, the clutter and the arms, picks a camera and
+renders colour and label images; the unused objects wait below the floor.
+
+Class ids of the label images: 0 background, then CLASSES' order.
+"""
+
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from pydrake.geometry import (
+    Box,
+    Cylinder,
+    LightParameter,
+    MakeRenderEngineVtk,
+    RenderEngineVtkParams,
+    Rgba,
+    Sphere,
+)
+from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
+from pydrake.multibody.plant import AddMultibodyPlantSceneGraph
+from pydrake.multibody.tree import SpatialInertia
+from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.sensors import RgbdSensor
+
+from diagrams.centauro_description import joint_names
+from diagrams.objects import catalog
+from diagrams.scenario import Scenario
+from diagrams.station import AddCentauro, make_parser
+
+CLASSES = ("background", "watering_can", "drill")
+PARKED = RigidTransform([0.0, 0.0, -10.0])  # where unused bodies wait, out of every view
+
+
+@dataclass
+class Frame:
+    rgb: np.ndarray  # H x W x 3 uint8
+    labels: np.ndarray  # H x W uint8 class ids
+    depth: np.ndarray  # H x W float32, metres (inf where nothing)
+    X_WC: RigidTransform  # the colour camera's pose
+    # Ground truth of each placed object: (category, instance name, X_WO).
+    objects: list[tuple[str, str, RigidTransform]]
+
+
+def recoloured_sdf(model_file: Path, rgb, model_name: str) -> str:
+    """The model's SDF text with absolute mesh paths, a new diffuse colour and no collision geometry."""
+    text = model_file.read_text()
+    text = re.sub(r"<collision.*?</collision>", "", text, flags=re.S)
+    text = re.sub(r"<uri>([^:<]+)</uri>", lambda m: f"<uri>file://{(model_file.parent / m.group(1)).resolve()}</uri>", text)
+    text = re.sub(r"<diffuse>[^<]*</diffuse>", "<diffuse>{:.3f} {:.3f} {:.3f} 1</diffuse>".format(*rgb), text)
+    return re.sub(r'<model name="[^"]*"', f'<model name="{model_name}"', text, count=1)
+
+
+def random_color(rng, saturated=False) -> np.ndarray:
+    """An RGB colour; `saturated` draws from the vivid colours real tools and cans come in."""
+    if saturated:
+        hue = rng.uniform(0, 6)
+        rgb = np.clip(np.abs((hue - np.array([3, 2, 4])) % 6 - 3) - 1, 0, 1)  # HSV hue -> RGB at S=V=1
+        return np.clip(rgb * rng.uniform(0.5, 1.0) + rng.uniform(0.0, 0.3), 0.0, 1.0)
+    return rng.uniform(0.05, 0.95, size=3)
+
+
+def rgba(rgb) -> np.ndarray:
+    return np.append(rgb, 1.0)
+
+
+class SyntheticScene:
+    """One randomised background with every instance of a split ready to be placed."""
+
+    def __init__(
+        self,
+        scenario: Scenario,
+        rng: np.random.Generator,
+        split: str = "train",
+        cameras: int = 3,
+        categories=CLASSES[1:],
+    ):
+        self.rng = rng
+        builder = DiagramBuilder()
+        self.plant, self.scene_graph = AddMultibodyPlantSceneGraph(builder, time_step=0.0)
+        plant = self.plant
+        self.robot, _ = AddCentauro(plant, self.scene_graph, scenario)
+        self.ready_pose = np.array(scenario.initial_arm_positions)
+        self.table_height = rng.uniform(0.7, 0.8)
+        self.table_x = scenario.table_xyz[0] + rng.uniform(-0.05, 0.05)
+        self._add_static_background(scenario)
+        clutter = plant.AddModelInstance("clutter")
+        self.clutter = [self._add_clutter_body(clutter, i) for i in range(rng.integers(2, 7))]
+        # Every instance of the split, freshly coloured.
+        self.objects = []  # (category, instance, body)
+        parser = make_parser(plant)
+        for category in categories:
+            for name in catalog.instance_names(category):
+                if not name.startswith(split):
+                    continue
+                model_file = catalog.instance_directory(category, name) / "model.sdf"
+                color = random_color(rng, saturated=rng.uniform() < 0.8)
+                text = recoloured_sdf(model_file, color, f"{category}_{name}")
+                (instance,) = parser.AddModelsFromString(text, "sdf")
+                body = plant.get_body(plant.GetBodyIndices(instance)[0])
+                self.objects.append((category, name, body))
+        plant.Finalize()
+
+        params = RenderEngineVtkParams(
+            default_clear_color=random_color(rng), lights=self._random_lights()
+        )
+        self.scene_graph.AddRenderer("vtk", MakeRenderEngineVtk(params))
+        X_WC_nominal = self._nominal_camera_pose(scenario)
+        color_camera, depth_camera = scenario.camera.MakeCameras()
+        self.sensors = []
+        for _ in range(cameras):
+            X_WC = X_WC_nominal @ RigidTransform(
+                RollPitchYaw(rng.uniform(-0.12, 0.12, size=3)), rng.uniform(-0.06, 0.06, size=3)
+            )
+            sensor = builder.AddSystem(RgbdSensor(self.scene_graph.world_frame_id(), X_WC, color_camera, depth_camera))
+            builder.Connect(self.scene_graph.get_query_output_port(), sensor.query_object_input_port())
+            self.sensors.append((sensor, X_WC))
+        self.diagram = builder.Build()
+        self.context = self.diagram.CreateDefaultContext()
+        self.plant_context = plant.GetMyMutableContextFromRoot(self.context)
+        self.class_of_label = self._label_classes()
+
+    def _nominal_camera_pose(self, scenario) -> RigidTransform:
+        mount = self.plant.GetFrameByName("camera_mount")
+        X_WM = mount.CalcPoseInWorld(self.plant.CreateDefaultContext())
+        return X_WM @ scenario.camera.X_PB.GetDeterministicValue()
+
+    def _add_static_background(self, scenario):
+        rng, plant = self.rng, self.plant
+        world = plant.world_body()
+        depth, width, thickness = rng.uniform(0.7, 0.9), rng.uniform(1.0, 1.6), 0.04
+        top = RigidTransform([self.table_x, rng.uniform(-0.05, 0.05), self.table_height - thickness / 2])
+        plant.RegisterVisualGeometry(world, top, Box(depth, width, thickness), "table_top", rgba(random_color(rng)))
+        self.table_extent = (top.translation()[:2], np.array([depth, width]) / 2)
+        leg_color = rgba(random_color(rng))
+        for sx in (-1, 1):
+            for sy in (-1, 1):
+                leg = top.translation() + [sx * (depth / 2 - 0.04), sy * (width / 2 - 0.04), -self.table_height / 2]
+                plant.RegisterVisualGeometry(
+                    world, RigidTransform(leg), Box(0.05, 0.05, self.table_height - 0.04), f"leg{sx}{sy}", leg_color
+                )
+        plant.RegisterVisualGeometry(
+            world, RigidTransform([0, 0, -0.05]), Box(10, 10, 0.1), "floor", rgba(random_color(rng))
+        )
+        wall_x = self.table_x + rng.uniform(0.8, 2.5)
+        plant.RegisterVisualGeometry(
+            world, RigidTransform([wall_x, 0, 1.5]), Box(0.1, 8, 3), "front_wall", rgba(random_color(rng))
+        )
+        for side in (-1, 1):
+            plant.RegisterVisualGeometry(
+                world,
+                RigidTransform([1.0, side * rng.uniform(1.2, 2.5), 1.5]),
+                Box(6, 0.1, 3),
+                f"side_wall{side}",
+                rgba(random_color(rng)),
+            )
+
+    def _add_clutter_body(self, model_instance, index):
+        rng, plant = self.rng, self.plant
+        body = plant.AddRigidBody(f"clutter_{index}", model_instance, SpatialInertia.SolidBoxWithMass(0.1, 0.1, 0.1, 0.1))
+        kind = rng.integers(3)
+        size = rng.uniform(0.03, 0.12, size=3)
+        if kind == 0:
+            shape, height = Box(*size), size[2]
+        elif kind == 1:
+            shape, height = Cylinder(size[0] / 2, size[2]), size[2]
+        else:
+            shape, height = Sphere(size[0] / 2), size[0]
+        pose = RigidTransform([0, 0, height / 2])
+        plant.RegisterVisualGeometry(body, pose, shape, "visual", rgba(random_color(rng, rng.uniform() < 0.5)))
+        return body
+
+    def _random_lights(self) -> list[LightParameter]:
+        rng = self.rng
+        lights = []
+        for _ in range(rng.integers(1, 4)):
+            direction = np.array([rng.uniform(-1, 1), rng.uniform(-1, 1), -rng.uniform(0.3, 1.0)])
+            tint = 1.0 - rng.uniform(0.0, 0.25, size=3)
+            lights.append(
+                LightParameter(
+                    type="directional",
+                    color=Rgba(*tint, 1.0),
+                    direction=direction / np.linalg.norm(direction),
+                    frame="world",
+                    intensity=rng.uniform(0.4, 1.1),
+                )
+            )
+        # A headlight keeps the objects' camera-facing sides from going black.
+        lights.append(LightParameter(type="directional", frame="camera", intensity=rng.uniform(0.2, 0.6)))
+        return lights
+
+    def _label_classes(self) -> dict[int, int]:
+        """Render label (the plant's body index) -> class id."""
+        return {int(body.index()): CLASSES.index(category) for category, _, body in self.objects}
+
+    def _place_on_table(self, body, xy, yaw):
+        X = RigidTransform(RotationMatrix.MakeZRotation(yaw), [xy[0], xy[1], self.table_height])
+        self.plant.SetFreeBodyPose(self.plant_context, body, X)
+        return X
+
+    def render(self, max_objects: int = 2, object_region=((0.55, 0.95), (-0.3, 0.3))) -> Frame:
+        """Re-places everything at random and renders one frame from a random camera."""
+        rng, plant = self.rng, self.plant
+        for body in [b for *_, b in self.objects] + self.clutter:
+            plant.SetFreeBodyPose(self.plant_context, body, PARKED)
+        count = rng.choice(max_objects + 1, p=[0.1] + [0.9 / max_objects] * max_objects)
+        placed, occupied = [], []
+        for index in rng.permutation(len(self.objects)):
+            if len(placed) == count:
+                break
+            xy = np.array([rng.uniform(*object_region[0]), rng.uniform(*object_region[1])])
+            if any(np.linalg.norm(xy - other) < 0.35 for other in occupied):
+                continue
+            category, name, body = self.objects[index]
+            placed.append((category, name, self._place_on_table(body, xy, rng.uniform(-np.pi, np.pi))))
+            occupied.append(xy)
+        centre, half = self.table_extent
+        for body in self.clutter:
+            xy = centre + rng.uniform(-0.9, 0.9, size=2) * half
+            if any(np.linalg.norm(xy - other) < 0.2 for other in occupied):
+                continue
+            self._place_on_table(body, xy, rng.uniform(-np.pi, np.pi))
+            occupied.append(xy)
+        self._random_arms()
+        sensor, X_WC = self.sensors[rng.integers(len(self.sensors))]
+        sensor_context = sensor.GetMyContextFromRoot(self.context)
+        rgb = np.array(sensor.color_image_output_port().Eval(sensor_context).data)[:, :, :3]
+        label_image = np.array(sensor.label_image_output_port().Eval(sensor_context).data)[:, :, 0]
+        depth = np.array(sensor.depth_image_32F_output_port().Eval(sensor_context).data)[:, :, 0]
+        labels = np.zeros(label_image.shape, np.uint8)
+        for label, class_id in self.class_of_label.items():
+            labels[label_image == label] = class_id
+        return Frame(rgb, labels, depth, X_WC, placed)
+
+    def _random_arms(self):
+        """Arms near the ready pose (the hands in view, as during a pick)."""
+        joints = [self.plant.GetJointByName(n, self.robot) for n in joint_names(1) + joint_names(2)]
+        for joint, ready in zip(joints, self.ready_pose, strict=True):
+            q = ready + self.rng.uniform(-0.2, 0.2)
+            joint.set_angle(self.plant_context, np.clip(q, joint.position_lower_limits()[0], joint.position_upper_limits()[0]))
