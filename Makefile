@@ -4,7 +4,7 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 APT_PACKAGES := libusb-1.0-0 libegl1 libegl-mesa0 libgl1-mesa-dri libgl1
 
-.PHONY: env apt pick test lint objects clean
+.PHONY: env apt pick test lint objects segmenter benchmark-perception clean
 
 env: apt $(STAMP)
 
@@ -35,6 +35,14 @@ lint: env
 
 objects: env
 	$(PY) scripts/generate_objects.py
+
+# Renders the synthetic training frames (data/, not versioned) and retrains models/segmenter.pt (~15 min, 2 cores).
+segmenter: env
+	$(PY) scripts/generate_segmentation_data.py
+	$(PY) scripts/train_segmenter.py
+
+benchmark-perception: env
+	$(PY) scripts/benchmark_perception.py --scenes 60 --json perception.json
 
 clean:
 	rm -rf $(VENV) *.egg-info .pytest_cache

@@ -224,3 +224,4 @@ def _AddCamera(builder, plant, scene_graph, scenario):
     builder.ExportOutput(sensor.color_image_output_port(), f"{config.name}.rgb_image")
     builder.ExportOutput(sensor.depth_image_32F_output_port(), f"{config.name}.depth_image")
     builder.ExportOutput(sensor.label_image_output_port(), f"{config.name}.label_image")
+    builder.ExportOutput(sensor.body_pose_in_world_output_port(), f"{config.name}.pose")

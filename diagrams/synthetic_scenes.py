@@ -52,7 +52,9 @@ def recoloured_sdf(model_file: Path, rgb, model_name: str) -> str:
     """The model's SDF text with absolute mesh paths, a new diffuse colour and no collision geometry."""
     text = model_file.read_text()
     text = re.sub(r"<collision.*?</collision>", "", text, flags=re.S)
-    text = re.sub(r"<uri>([^:<]+)</uri>", lambda m: f"<uri>file://{(model_file.parent / m.group(1)).resolve()}</uri>", text)
+    text = re.sub(
+        r"<uri>([^:<]+)</uri>", lambda m: f"<uri>file://{(model_file.parent / m.group(1)).resolve()}</uri>", text
+    )
     text = re.sub(r"<diffuse>[^<]*</diffuse>", "<diffuse>{:.3f} {:.3f} {:.3f} 1</diffuse>".format(*rgb), text)
     return re.sub(r'<model name="[^"]*"', f'<model name="{model_name}"', text, count=1)
 
@@ -80,7 +82,15 @@ class SyntheticScene:
         split: str = "train",
         cameras: int = 3,
         categories=CLASSES[1:],
+        camera_jitter: bool = True,
     ):
+        """Args:
+        scenario: robot, camera and nominal table placement.
+        rng: the source of every random draw.
+        split: whose instances ("train" or "test").
+        cameras: how many camera poses to choose from per frame.
+        camera_jitter: perturb the cameras about the chest mount (else all sit at the nominal pose).
+        """
         self.rng = rng
         builder = DiagramBuilder()
         self.plant, self.scene_graph = AddMultibodyPlantSceneGraph(builder, time_step=0.0)
@@ -107,17 +117,14 @@ class SyntheticScene:
                 self.objects.append((category, name, body))
         plant.Finalize()
 
-        params = RenderEngineVtkParams(
-            default_clear_color=random_color(rng), lights=self._random_lights()
-        )
+        params = RenderEngineVtkParams(default_clear_color=random_color(rng), lights=self._random_lights())
         self.scene_graph.AddRenderer("vtk", MakeRenderEngineVtk(params))
         X_WC_nominal = self._nominal_camera_pose(scenario)
         color_camera, depth_camera = scenario.camera.MakeCameras()
         self.sensors = []
         for _ in range(cameras):
-            X_WC = X_WC_nominal @ RigidTransform(
-                RollPitchYaw(rng.uniform(-0.12, 0.12, size=3)), rng.uniform(-0.06, 0.06, size=3)
-            )
+            jitter = RigidTransform(RollPitchYaw(rng.uniform(-0.12, 0.12, size=3)), rng.uniform(-0.06, 0.06, size=3))
+            X_WC = X_WC_nominal @ jitter if camera_jitter else X_WC_nominal
             sensor = builder.AddSystem(RgbdSensor(self.scene_graph.world_frame_id(), X_WC, color_camera, depth_camera))
             builder.Connect(self.scene_graph.get_query_output_port(), sensor.query_object_input_port())
             self.sensors.append((sensor, X_WC))
@@ -163,7 +170,9 @@ class SyntheticScene:
 
     def _add_clutter_body(self, model_instance, index):
         rng, plant = self.rng, self.plant
-        body = plant.AddRigidBody(f"clutter_{index}", model_instance, SpatialInertia.SolidBoxWithMass(0.1, 0.1, 0.1, 0.1))
+        body = plant.AddRigidBody(
+            f"clutter_{index}", model_instance, SpatialInertia.SolidBoxWithMass(0.1, 0.1, 0.1, 0.1)
+        )
         kind = rng.integers(3)
         size = rng.uniform(0.03, 0.12, size=3)
         if kind == 0:
@@ -204,12 +213,21 @@ class SyntheticScene:
         self.plant.SetFreeBodyPose(self.plant_context, body, X)
         return X
 
-    def render(self, max_objects: int = 2, object_region=((0.55, 0.95), (-0.3, 0.3))) -> Frame:
-        """Re-places everything at random and renders one frame from a random camera."""
+    def render(
+        self, max_objects: int = 2, object_region=((0.55, 0.95), (-0.3, 0.3)), count: int | None = None
+    ) -> Frame:
+        """Re-places everything at random and renders one frame from a random camera.
+
+        Args:
+            max_objects: at most this many objects (none in 10 % of the frames).
+            object_region: ((x_min, x_max), (y_min, y_max)) of the objects' origins in W, m.
+            count: exactly this many objects instead.
+        """
         rng, plant = self.rng, self.plant
         for body in [b for *_, b in self.objects] + self.clutter:
             plant.SetFreeBodyPose(self.plant_context, body, PARKED)
-        count = rng.choice(max_objects + 1, p=[0.1] + [0.9 / max_objects] * max_objects)
+        if count is None:
+            count = rng.choice(max_objects + 1, p=[0.1] + [0.9 / max_objects] * max_objects)
         placed, occupied = [], []
         for index in rng.permutation(len(self.objects)):
             if len(placed) == count:
@@ -243,4 +261,6 @@ class SyntheticScene:
         joints = [self.plant.GetJointByName(n, self.robot) for n in joint_names(1) + joint_names(2)]
         for joint, ready in zip(joints, self.ready_pose, strict=True):
             q = ready + self.rng.uniform(-0.2, 0.2)
-            joint.set_angle(self.plant_context, np.clip(q, joint.position_lower_limits()[0], joint.position_upper_limits()[0]))
+            joint.set_angle(
+                self.plant_context, np.clip(q, joint.position_lower_limits()[0], joint.position_upper_limits()[0])
+            )

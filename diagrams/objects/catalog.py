@@ -4,9 +4,11 @@ Every instance's shape comes from `numpy.random.default_rng([CATALOG_SEED, categ
 split id, index])`, so `train_3` is the same can on every machine.
 """
 
+import functools
 from pathlib import Path
 
 import numpy as np
+import trimesh
 
 from diagrams.objects import drill, watering_can
 from diagrams.objects.instance import ObjectInstance
@@ -63,3 +65,17 @@ def instance_directory(category: str, name: str) -> Path:
 def presentation_yaw(category: str) -> float:
     """World yaw (rad) of a category's object frame at the paper's 0 rad presentation."""
     return category_module(category).PRESENTATION_YAW
+
+
+@functools.cache
+def mean_box_centre(category: str) -> np.ndarray:
+    """Mean over the training instances of the centre of their bounding box in O (x, y), metres.
+
+    A category prior: where the object frame's origin sits relative to the object's extent.
+    """
+    centres = []
+    for name in instance_names(category):
+        if name.startswith("train"):
+            mesh = trimesh.load(instance_directory(category, name) / "visual.obj", force="mesh")
+            centres.append(mesh.bounds.mean(axis=0)[:2])
+    return np.mean(centres, axis=0)

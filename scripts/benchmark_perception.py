@@ -1,0 +1,165 @@
+"""Benchmarks segmentation and pose estimation on held-out scenes with the unseen test instances.
+
+Each scene is a new random background with one test can or drill at a random pose,
+seen from the chest camera's nominal pose (the whole object in view). The Segmenter
+and PoseEstimator systems run as they do in the pick diagram (FixValue / Eval).
+
+python scripts/benchmark_perception.py --scenes 60 --json perception.json
+"""
+
+import argparse
+import json
+import logging
+import platform
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+from pydrake.common.value import AbstractValue
+from pydrake.systems.sensors import ImageDepth32F, ImageRgba8U
+
+from diagrams.perception import MakePoseEstimator
+from diagrams.scenario import load_scenario
+from diagrams.synthetic_scenes import CLASSES, SyntheticScene
+from systems.segmenter import DEFAULT_WEIGHTS, Segmenter
+from systems.segmenter_training import intersection_over_union
+
+OBJECT_REGION = ((0.6, 0.85), (-0.2, 0.2))  # m, in W: where the robot picks from
+MIN_OBJECT_PIXELS = 1500
+
+
+def yaw_of(X) -> float:
+    R = X.rotation().matrix()
+    return float(np.arctan2(R[1, 0], R[0, 0]))
+
+
+def wrap(angle: float) -> float:
+    return float((angle + np.pi) % (2 * np.pi) - np.pi)
+
+
+def render_held_out_frame(scene: SyntheticScene):
+    """A frame with exactly one object wholly in view (re-placed until it is)."""
+    for _ in range(20):
+        frame = scene.render(object_region=OBJECT_REGION, count=1)
+        object_pixels = frame.labels > 0
+        on_border = object_pixels[[0, -1]].any() or object_pixels[:, [0, -1]].any()
+        if np.count_nonzero(object_pixels) >= MIN_OBJECT_PIXELS and not on_border:
+            return frame
+    raise RuntimeError("could not place an object wholly in view in 20 tries")
+
+
+def to_rgba_image(rgb: np.ndarray) -> ImageRgba8U:
+    image = ImageRgba8U(rgb.shape[1], rgb.shape[0])
+    image.mutable_data[:, :, :3] = rgb
+    image.mutable_data[:, :, 3] = 255
+    return image
+
+
+def to_depth_image(depth: np.ndarray) -> ImageDepth32F:
+    image = ImageDepth32F(depth.shape[1], depth.shape[0])
+    image.mutable_data[:, :, 0] = depth
+    return image
+
+
+def main():
+    logging.basicConfig(level=logging.INFO, format="%(message)s")
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--scenes", type=int, default=60)
+    parser.add_argument("--seed", type=int, default=2024, help="held-out scenes' seed (training used others)")
+    parser.add_argument("--weights", type=Path, default=DEFAULT_WEIGHTS)
+    parser.add_argument("--threads", type=int, default=2, help="torch CPU threads")
+    parser.add_argument("--json", type=Path, help="write the results here")
+    args = parser.parse_args()
+    torch.set_num_threads(args.threads)
+    scenario = load_scenario()
+    rng = np.random.default_rng(args.seed)
+
+    segmenter = Segmenter(args.weights)
+    pose_estimator = MakePoseEstimator(scenario)
+    predicted, truth, rows = [], [], []
+    for i in range(args.scenes):
+        scene = SyntheticScene(scenario, rng, split="test", cameras=1, camera_jitter=False)
+        frame = render_held_out_frame(scene)
+        category, instance, X_WO_true = frame.objects[0]
+
+        seg_context = segmenter.CreateDefaultContext()
+        segmenter.GetInputPort("color_image").FixValue(seg_context, to_rgba_image(frame.rgb))
+        start = time.perf_counter()
+        segmentation = segmenter.GetOutputPort("segmentation").Eval(seg_context)
+        segmentation_s = time.perf_counter() - start
+        labels = segmenter.GetOutputPort("labels").Eval(seg_context)
+
+        pose_context = pose_estimator.CreateDefaultContext()
+        pose_estimator.GetInputPort("segmentation").FixValue(pose_context, AbstractValue.Make(segmentation))
+        pose_estimator.GetInputPort("depth_image").FixValue(pose_context, to_depth_image(frame.depth))
+        pose_estimator.GetInputPort("camera_pose").FixValue(pose_context, AbstractValue.Make(frame.X_WC))
+        start = time.perf_counter()
+        estimate = pose_estimator.GetOutputPort("estimate").Eval(pose_context)
+        pose_s = time.perf_counter() - start
+
+        predicted.append(labels)
+        truth.append(frame.labels)
+        row = {
+            "category": category,
+            "instance": instance,
+            "found": estimate.found,
+            "category_correct": estimate.category == category,
+            "segmentation_s": segmentation_s,
+            "pose_s": pose_s,
+        }
+        if estimate.found and estimate.category == category:
+            row["translation_error_m"] = float(np.linalg.norm(estimate.X_WO.translation() - X_WO_true.translation()))
+            row["yaw_error_rad"] = abs(wrap(yaw_of(estimate.X_WO) - yaw_of(X_WO_true)))
+        rows.append(row)
+        logging.info(
+            "%3d %-12s %-7s %s seg %.3f s pose %.4f s  dt %s  dyaw %s",
+            i,
+            category,
+            instance,
+            "ok  " if row["category_correct"] else "MISS",
+            segmentation_s,
+            pose_s,
+            f"{row.get('translation_error_m', float('nan')):.3f} m",
+            f"{np.degrees(row.get('yaw_error_rad', float('nan'))):5.1f} deg",
+        )
+
+    iou = intersection_over_union(np.stack(predicted), np.stack(truth), len(CLASSES))
+    localised = [r for r in rows if "translation_error_m" in r]
+    results = {
+        "scenes": args.scenes,
+        "seed": args.seed,
+        "iou": dict(zip(CLASSES, iou.tolist(), strict=True)),
+        "iou_mean": float(np.nanmean(iou[1:])),  # over the object classes
+        "category_accuracy": float(np.mean([r["category_correct"] for r in rows])),
+        "segmentation_s_median": float(np.median([r["segmentation_s"] for r in rows])),
+        "pose_s_median": float(np.median([r["pose_s"] for r in rows])),
+        "translation_error_m_median": float(np.median([r["translation_error_m"] for r in localised])),
+        "translation_error_m_p90": float(np.percentile([r["translation_error_m"] for r in localised], 90)),
+        "yaw_error_rad_median": float(np.median([r["yaw_error_rad"] for r in localised])),
+        "yaw_error_rad_p90": float(np.percentile([r["yaw_error_rad"] for r in localised], 90)),
+        "torch_threads": torch.get_num_threads(),
+        "machine": platform.processor() or platform.machine(),
+        "frames": rows,
+    }
+    print()
+    print(f"{'metric':32s} {'value':>10s}  target")
+    for key, value, target in (
+        ("iou_mean (can, drill)", results["iou_mean"], ">= 0.9"),
+        ("iou watering_can", results["iou"]["watering_can"], ""),
+        ("iou drill", results["iou"]["drill"], ""),
+        ("category accuracy", results["category_accuracy"], ""),
+        ("segmentation_s_median", results["segmentation_s_median"], "<= 0.15 s"),
+        ("pose_s_median", results["pose_s_median"], "<= 0.02 s"),
+        ("translation_error_m_median", results["translation_error_m_median"], "<= 0.02 m"),
+        ("yaw_error_deg_median", np.degrees(results["yaw_error_rad_median"]), "<= 15 deg"),
+        ("yaw_error_deg_p90", np.degrees(results["yaw_error_rad_p90"]), ""),
+    ):
+        print(f"{key:32s} {value:10.4f}  {target}")
+    if args.json:
+        args.json.write_text(json.dumps(results, indent=2))
+        print(f"wrote {args.json}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,277 @@
+"""The pose estimator system: object mask + depth image -> world point cloud and initial pose X_WO.
+
+Frames: C is the depth camera (x right, y down, z along the optical axis), W the
+world (z up), O the object (origin on its support surface, z up, x towards the
+spout / chuck; see diagrams/objects/).
+
+  * points: the mask's pixels with a valid depth (NaN, inf and 0 are holes), eroded
+    by a few pixels (edges mix object and background), back-projected and moved to W.
+  * z_O is the world's up axis (the category prior: objects stand upright), and the
+    origin's height is the support surface's, measured in a ring of pixels around the mask.
+  * yaw and origin (x, y): the points' principal horizontal axis and extent give a
+    first guess, turned through YAW_CANDIDATES headings; each is refined by planar ICP
+    against the category's template (a training instance's surface), scored by the mean
+    point distance plus a free-space term (template points the camera would see but
+    sees through), and the best few are refined further. The template's spout / chuck
+    settles which end is which.
+"""
+
+import functools
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+import trimesh
+from pydrake.common.value import AbstractValue
+from pydrake.math import RigidTransform, RotationMatrix
+from pydrake.perception import BaseField, Fields, PointCloud
+from pydrake.systems.framework import LeafSystem
+from pydrake.systems.sensors import CameraInfo, ImageDepth32F
+from scipy.spatial import cKDTree
+
+from diagrams.objects import catalog
+from systems.segmenter import Segmentation
+
+MIN_POINTS = 50
+VOXEL = 0.006  # m: the points are thinned to one per voxel before fitting
+GRID_CELL = 0.004  # m: resolution of the template's nearest-point field
+MAX_FIT_POINTS = 400
+TEMPLATE_INSTANCE = "train_0"  # the category prior's shape
+COARSE_ITERATIONS = 4
+COARSE_POINTS = 120
+YAW_CANDIDATES = 12
+FINE_CANDIDATES = 3
+FINE_ITERATIONS = 12
+SILHOUETTE_WEIGHT = 0.03  # m of point distance per unit fraction of the template the camera sees through
+FREE_SPACE_MARGIN = 0.02  # m
+
+
+@dataclass
+class ObjectEstimate:
+    """The object's point cloud and initial pose, or why there is none."""
+
+    found: bool
+    category: str = ""
+    X_WO: RigidTransform = field(default_factory=RigidTransform)
+    points_W: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))  # N x 3, metres
+    message: str = ""
+
+
+def depth_to_points(depth: np.ndarray, mask: np.ndarray, intrinsics: CameraInfo) -> np.ndarray:
+    """Back-projects the masked pixels with a finite, positive depth to N x 3 points in C."""
+    if depth.shape != mask.shape:
+        raise ValueError(f"depth image {depth.shape} and mask {mask.shape} differ in size")
+    v, u = np.nonzero(mask & np.isfinite(depth) & (depth > 0))
+    z = depth[v, u].astype(float)
+    x = (u - intrinsics.center_x()) * z / intrinsics.focal_x()
+    y = (v - intrinsics.center_y()) * z / intrinsics.focal_y()
+    return np.column_stack([x, y, z])
+
+
+def voxel_thin(points: np.ndarray, size: float = VOXEL) -> np.ndarray:
+    """One point (the first) per occupied voxel: near surfaces no longer outweigh far ones."""
+    cells = np.floor(points / size).astype(np.int64)
+    cells -= cells.min(axis=0)
+    span = cells.max(axis=0) + 1
+    keys = (cells[:, 0] * span[1] + cells[:, 1]) * span[2] + cells[:, 2]
+    _, first = np.unique(keys, return_index=True)
+    return points[np.sort(first)]
+
+
+class NearestPointField:
+    """Nearest template point to any point, by lookup in a precomputed voxel grid (cell GRID_CELL).
+
+    Far cheaper than a k-d tree query per ICP iteration; exact up to half a cell.
+    Points outside the grid take the nearest cell's answer; their distance is still exact.
+    """
+
+    def __init__(self, points: np.ndarray, margin: float = 0.15):
+        self.points = points
+        self.lower = points.min(axis=0) - margin
+        self.shape = np.ceil((points.max(axis=0) + margin - self.lower) / GRID_CELL).astype(int) + 1
+        centres = self.lower + GRID_CELL * np.stack(np.indices(self.shape), axis=-1).reshape(-1, 3)
+        self.index = cKDTree(points).query(centres)[1].astype(np.int32).reshape(self.shape)
+
+    def query(self, query_points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(distance, template index) of each query point (N x 3)."""
+        cell = np.clip(np.rint((query_points - self.lower) / GRID_CELL).astype(int), 0, self.shape - 1)
+        index = self.index[cell[:, 0], cell[:, 1], cell[:, 2]]
+        return np.linalg.norm(query_points - self.points[index], axis=1), index
+
+
+@functools.cache
+def category_template(category: str, count: int = 3000) -> tuple[np.ndarray, NearestPointField]:
+    """Surface points (in O) of the category's template instance, and their nearest-point field."""
+    mesh = trimesh.load(catalog.instance_directory(category, TEMPLATE_INSTANCE) / "visual.obj", force="mesh")
+    points, _ = trimesh.sample.sample_surface_even(mesh, count, seed=0)
+    return points, NearestPointField(points)
+
+
+def _rotation_2d(angle: float) -> np.ndarray:
+    c, s = np.cos(angle), np.sin(angle)
+    return np.array([[c, -s], [s, c]])
+
+
+def _fit_yaw_translation(points_W, yaw, xy, z, field: NearestPointField, iterations):
+    """Planar ICP (yaw about z, translation in x-y) of the observed points onto the template.
+
+    Every observed point counts: the spout and handles are few points, but they fix the yaw.
+
+    Returns (yaw, xy, mean distance in metres).
+    """
+    for _ in range(iterations + 1):
+        in_O = np.column_stack([(points_W[:, :2] - xy) @ _rotation_2d(yaw), points_W[:, 2] - z])
+        distance, index = field.query(in_O)
+        error = float(distance.mean())
+        # Best rotation + translation taking the matched template points (in O) to the observations (in W).
+        a, b = field.points[index, :2], points_W[:, :2]
+        a_mean, b_mean = a.mean(axis=0), b.mean(axis=0)
+        H = (a - a_mean).T @ (b - b_mean)
+        yaw = np.arctan2(H[0, 1] - H[1, 0], H[0, 0] + H[1, 1])
+        xy = b_mean - _rotation_2d(yaw) @ a_mean
+    return yaw, xy, error
+
+
+def estimate_pose(
+    points_W: np.ndarray, category: str, support_height: float | None = None, outside_silhouette=None
+) -> RigidTransform:
+    """Upright X_WO of a `category` object from its observed surface points (N x 3 in W).
+
+    Args:
+        support_height: the table's height under the object (m); None takes the lowest points'.
+        outside_silhouette: optional f(points_W) -> fraction of those points that the camera
+            would see outside the object's mask; it settles which end of the object is which.
+    """
+    thinned = voxel_thin(points_W)
+    if len(thinned) > MAX_FIT_POINTS:
+        thinned = thinned[np.linspace(0, len(thinned) - 1, MAX_FIT_POINTS).astype(int)]
+    z = np.percentile(thinned[:, 2], 1.0) if support_height is None else support_height
+    template, field = category_template(category)
+    # Principal horizontal axis and the centre of the extent along it and across it.
+    centred = thinned[:, :2] - thinned[:, :2].mean(axis=0)
+    _, vectors = np.linalg.eigh(centred.T @ centred)
+    axis_yaw = np.arctan2(vectors[1, -1], vectors[0, -1])
+    R_axes = _rotation_2d(axis_yaw)
+    in_axes = thinned[:, :2] @ R_axes
+    extent_centre = R_axes @ (0.5 * (np.percentile(in_axes, 0.5, axis=0) + np.percentile(in_axes, 99.5, axis=0)))
+    box_centre = catalog.mean_box_centre(category)
+    candidates = []
+    coarse = thinned[np.linspace(0, len(thinned) - 1, min(len(thinned), COARSE_POINTS)).astype(int)]
+
+    def fit(points, yaw, xy, iterations):
+        yaw, xy, error = _fit_yaw_translation(points, yaw, xy, z, field, iterations)
+        if outside_silhouette is not None:
+            X_WO = RigidTransform(RotationMatrix.MakeZRotation(yaw), [xy[0], xy[1], z])
+            error += SILHOUETTE_WEIGHT * outside_silhouette(X_WO.multiply(template[::4].T).T)
+        return error, yaw, xy
+
+    candidates = []
+    for k in range(YAW_CANDIDATES):
+        yaw = axis_yaw + k * 2 * np.pi / YAW_CANDIDATES
+        candidates.append(fit(coarse, yaw, extent_centre - _rotation_2d(yaw) @ box_centre, COARSE_ITERATIONS))
+    candidates.sort(key=lambda candidate: candidate[0])
+    refined = [fit(thinned, yaw, xy, FINE_ITERATIONS) for _, yaw, xy in candidates[:FINE_CANDIDATES]]
+    _, yaw, xy = min(refined, key=lambda candidate: candidate[0])
+    return RigidTransform(RotationMatrix.MakeZRotation(yaw), [xy[0], xy[1], z])
+
+
+def to_point_cloud(points: np.ndarray) -> PointCloud:
+    cloud = PointCloud(len(points), Fields(BaseField.kXYZs))
+    cloud.mutable_xyzs()[:] = points.T
+    return cloud
+
+
+class PoseEstimator(LeafSystem):
+    """Initial 6D pose of the segmented object from depth (paper §III).
+
+    Input ports:
+        segmentation: Segmentation from the Segmenter.
+        depth_image: ImageDepth32F, metres (NaN, inf and 0 are holes).
+        camera_pose: RigidTransform X_WB of the camera body (the station's `camera0.pose`).
+    Output ports:
+        estimate: ObjectEstimate (found False, with the reason, when there is no object or too few points).
+        point_cloud: the object's points in W as a drake PointCloud (empty when not found).
+    """
+
+    def __init__(self, intrinsics: CameraInfo, X_BC: RigidTransform | None = None, erode_pixels: int = 2):
+        super().__init__()
+        self.intrinsics = intrinsics
+        self.X_BC = X_BC or RigidTransform()
+        self.erode_pixels = erode_pixels
+        self.DeclareAbstractInputPort("segmentation", AbstractValue.Make(Segmentation(False)))
+        self.DeclareAbstractInputPort("depth_image", AbstractValue.Make(ImageDepth32F()))
+        self.DeclareAbstractInputPort("camera_pose", AbstractValue.Make(RigidTransform()))
+        self.DeclareAbstractOutputPort("estimate", lambda: AbstractValue.Make(ObjectEstimate(False)), self._calc)
+        self.DeclareAbstractOutputPort("point_cloud", lambda: AbstractValue.Make(PointCloud()), self._calc_cloud)
+
+    def estimate(self, segmentation: Segmentation, depth: np.ndarray, X_WB: RigidTransform) -> ObjectEstimate:
+        if not segmentation.found:
+            return ObjectEstimate(False, message=f"no object to localise ({segmentation.message})")
+        mask = segmentation.mask
+        if self.erode_pixels:
+            # Edge pixels mix object and background depth; drop them when enough remain.
+            kernel = np.ones((2 * self.erode_pixels + 1,) * 2, np.uint8)
+            eroded = cv2.erode(mask.astype(np.uint8), kernel).astype(bool)
+            if np.count_nonzero(eroded) >= MIN_POINTS:
+                mask = eroded
+        points_C = depth_to_points(depth, mask, self.intrinsics)
+        if len(points_C) < MIN_POINTS:
+            return ObjectEstimate(
+                False,
+                segmentation.category,
+                message=f"only {len(points_C)} of {segmentation.pixel_count} object pixels have a valid depth",
+            )
+        X_WC = X_WB @ self.X_BC
+        points_W = X_WC.multiply(points_C.T).T
+        support = self.support_height(segmentation.mask, depth, X_WC, points_W)
+        X_WO = estimate_pose(
+            points_W, segmentation.category, support, self._free_space_test(segmentation.mask, depth, X_WC)
+        )
+        return ObjectEstimate(True, segmentation.category, X_WO, points_W, f"{len(points_W)} points")
+
+    def _free_space_test(self, mask, depth, X_WC):
+        """f(points_W) -> fraction of the points the camera would have seen but sees through.
+
+        A point contradicts the image where it projects off the object's (grown) mask and the
+        camera measured a surface behind it there; points hidden behind a nearer surface or
+        outside the image are not evidence either way.
+        """
+        grown = cv2.dilate(mask.astype(np.uint8), np.ones((7, 7), np.uint8)).astype(bool)
+        seen = np.where(np.isfinite(depth) & (depth > 0), depth, np.inf)
+        X_CW = X_WC.inverse()
+        K = self.intrinsics
+
+        def see_through_fraction(points_W):
+            p = X_CW.multiply(points_W.T)
+            u = np.round(K.focal_x() * p[0] / p[2] + K.center_x()).astype(int)
+            v = np.round(K.focal_y() * p[1] / p[2] + K.center_y()).astype(int)
+            inside = (p[2] > 0) & (u >= 0) & (u < mask.shape[1]) & (v >= 0) & (v < mask.shape[0])
+            if not inside.any():
+                return 1.0
+            u, v, z = u[inside], v[inside], p[2][inside]
+            contradicted = ~grown[v, u] & (seen[v, u] > z + FREE_SPACE_MARGIN)
+            return float(contradicted.mean())
+
+        return see_through_fraction
+
+    def support_height(self, mask, depth, X_WC, points_W) -> float | None:
+        """Height (m) of the surface the object stands on, from the pixels in a ring around the mask.
+
+        The ring's points no higher than a little above the object's lowest points are the table;
+        None when too few are seen (then the object's lowest points decide).
+        """
+        near = cv2.dilate(mask.astype(np.uint8), np.ones((9, 9), np.uint8))
+        far = cv2.dilate(mask.astype(np.uint8), np.ones((31, 31), np.uint8))
+        ring_W = X_WC.multiply(depth_to_points(depth, (far > near), self.intrinsics).T).T
+        bottom = np.percentile(points_W[:, 2], 2.0)
+        table = ring_W[(ring_W[:, 2] < bottom + 0.02) & (ring_W[:, 2] > bottom - 0.15), 2]
+        return float(np.median(table)) if len(table) >= MIN_POINTS else None
+
+    def _calc(self, context, output):
+        segmentation = self.get_input_port(0).Eval(context)
+        depth = np.asarray(self.get_input_port(1).Eval(context).data)[:, :, 0]
+        X_WB = self.get_input_port(2).Eval(context)
+        output.set_value(self.estimate(segmentation, depth, X_WB))
+
+    def _calc_cloud(self, context, output):
+        output.set_value(to_point_cloud(self.get_output_port(0).Eval(context).points_W))

@@ -1,0 +1,141 @@
+"""A RefineNet-style semantic segmentation network in plain torch (paper §III; Lin et al. 2017).
+
+Encoder: a strided stem and four ResNet basic blocks (1/4 ... 1/32 resolution).
+Decoder: RefineNet multi-path refinement. Starting from the coarsest map, each
+RefineBlock passes the finer encoder map through residual conv units, fuses it
+with the upsampled coarser result, and applies chained residual pooling; a light
+last fusion with the stem's 1/2-resolution map sharpens the object boundaries.
+A linear (1x1) classifier gives per-pixel class scores, and the pixel-wise softmax
+(or its argmax) the classes. Everything runs on the CPU.
+"""
+
+import numpy as np
+import torch
+from torch import nn
+from torch.nn import functional as F
+
+# Network input size (width, height); camera images are resized to it.
+INPUT_SIZE = (320, 240)
+
+
+class ResidualBlock(nn.Module):
+    """ResNet basic block: two 3x3 convolutions with a (projected) shortcut."""
+
+    def __init__(self, in_channels: int, out_channels: int, stride: int):
+        super().__init__()
+        self.conv1 = nn.Conv2d(in_channels, out_channels, 3, stride, 1, bias=False)
+        self.bn1 = nn.BatchNorm2d(out_channels)
+        self.conv2 = nn.Conv2d(out_channels, out_channels, 3, 1, 1, bias=False)
+        self.bn2 = nn.BatchNorm2d(out_channels)
+        self.shortcut = nn.Sequential(
+            nn.Conv2d(in_channels, out_channels, 1, stride, bias=False), nn.BatchNorm2d(out_channels)
+        )
+
+    def forward(self, x):
+        y = F.relu(self.bn1(self.conv1(x)))
+        return F.relu(self.bn2(self.conv2(y)) + self.shortcut(x))
+
+
+class ResidualConvUnit(nn.Module):
+    """RefineNet RCU: x + conv(relu(conv(relu(x))))."""
+
+    def __init__(self, channels: int):
+        super().__init__()
+        self.conv1 = nn.Conv2d(channels, channels, 3, 1, 1)
+        self.conv2 = nn.Conv2d(channels, channels, 3, 1, 1)
+
+    def forward(self, x):
+        return x + self.conv2(F.relu(self.conv1(F.relu(x))))
+
+
+class ChainedResidualPooling(nn.Module):
+    """RefineNet CRP: a chain of 5x5 max-pool + conv stages, each added to the output."""
+
+    def __init__(self, channels: int, stages: int = 2):
+        super().__init__()
+        self.convs = nn.ModuleList(nn.Conv2d(channels, channels, 3, 1, 1, bias=False) for _ in range(stages))
+
+    def forward(self, x):
+        x = F.relu(x)
+        out, path = x, x
+        for conv in self.convs:
+            path = conv(F.max_pool2d(path, 5, 1, 2))
+            out = out + path
+        return out
+
+
+class RefineBlock(nn.Module):
+    """Fuses a finer encoder map with the refined coarser map (or refines the coarsest alone)."""
+
+    def __init__(self, channels: int, has_coarser: bool):
+        super().__init__()
+        self.adapt = ResidualConvUnit(channels)
+        self.fuse_fine = nn.Conv2d(channels, channels, 3, 1, 1)
+        self.fuse_coarse = nn.Conv2d(channels, channels, 3, 1, 1) if has_coarser else None
+        self.pool = ChainedResidualPooling(channels)
+        self.out = ResidualConvUnit(channels)
+
+    def forward(self, fine, coarser=None):
+        x = self.fuse_fine(self.adapt(fine))
+        if coarser is not None:
+            x = x + F.interpolate(self.fuse_coarse(coarser), size=x.shape[-2:], mode="bilinear", align_corners=False)
+        return self.out(self.pool(x))
+
+
+class RefineNetLite(nn.Module):
+    """Four ResNet blocks, four RefineBlocks, a fusion with the stem, a 1x1 classifier."""
+
+    def __init__(self, num_classes: int, widths=(24, 32, 48, 64), channels: int = 32, stem_channels: int = 16):
+        super().__init__()
+        self.num_classes = num_classes
+        self.stem = nn.Sequential(
+            nn.Conv2d(3, stem_channels, 3, 2, 1, bias=False), nn.BatchNorm2d(stem_channels), nn.ReLU()
+        )
+        ins = (stem_channels, *widths[:-1])
+        self.encoder = nn.ModuleList(ResidualBlock(i, o, 2) for i, o in zip(ins, widths, strict=True))
+        self.reduce = nn.ModuleList(nn.Conv2d(w, channels, 1) for w in widths)
+        self.refine = nn.ModuleList(RefineBlock(channels, has_coarser=i < 3) for i in range(4))
+        self.fine_from_refined = nn.Conv2d(channels, stem_channels, 1)
+        self.fine_from_stem = nn.Conv2d(stem_channels, stem_channels, 1)
+        self.fine = ResidualConvUnit(stem_channels)
+        self.classifier = nn.Conv2d(stem_channels, num_classes, 1)
+
+    def forward(self, image):
+        """image: N x 3 x H x W in [-0.5, 0.5] -> class scores N x C x H x W."""
+        stem = self.stem(image)
+        x, features = stem, []
+        for block in self.encoder:
+            x = block(x)
+            features.append(x)
+        refined = None
+        for i in reversed(range(4)):
+            refined = self.refine[i](self.reduce[i](features[i]), refined)
+        up = F.interpolate(self.fine_from_refined(refined), size=stem.shape[-2:], mode="bilinear", align_corners=False)
+        scores = self.classifier(self.fine(up + self.fine_from_stem(stem)))
+        return F.interpolate(scores, size=image.shape[-2:], mode="bilinear", align_corners=False)
+
+
+def to_input(rgb: np.ndarray) -> torch.Tensor:
+    """H x W x 3 uint8 images (or a batch N x H x W x 3) -> network input in [-0.5, 0.5]."""
+    x = torch.from_numpy(np.ascontiguousarray(rgb)).float().div_(255.0).sub_(0.5)
+    return x.permute(0, 3, 1, 2) if x.dim() == 4 else x.permute(2, 0, 1).unsqueeze(0)
+
+
+def save(model: RefineNetLite, path, metadata: dict):
+    torch.save({"state_dict": model.state_dict(), "num_classes": model.num_classes, "metadata": metadata}, path)
+
+
+def load(path) -> tuple[RefineNetLite, dict]:
+    """Loads weights saved by `save`; the model is in eval mode.
+
+    Raises:
+        FileNotFoundError: no such file (the message says how to make it).
+    """
+    try:
+        checkpoint = torch.load(path, map_location="cpu", weights_only=True)
+    except FileNotFoundError:
+        raise FileNotFoundError(f"{path}: no segmenter weights; run scripts/train_segmenter.py") from None
+    model = RefineNetLite(checkpoint["num_classes"])
+    model.load_state_dict(checkpoint["state_dict"])
+    model.eval()
+    return model, checkpoint["metadata"]

@@ -1,0 +1,103 @@
+"""The segmenter system: colour image in, per-pixel classes and the dominant object's mask out."""
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import cv2
+import numpy as np
+import torch
+from pydrake.common.value import AbstractValue
+from pydrake.systems.framework import LeafSystem
+from pydrake.systems.sensors import ImageRgba8U
+from torch.nn import functional as F
+
+from diagrams.paths import MODELS_DIR
+from systems import segmentation_network
+
+DEFAULT_WEIGHTS = MODELS_DIR / "segmenter.pt"
+
+
+@dataclass
+class Segmentation:
+    """The dominant object in view, or an explicit "nothing found"."""
+
+    found: bool
+    category: str = ""
+    # H x W bool at the camera's resolution; all False when nothing was found.
+    mask: np.ndarray = field(default_factory=lambda: np.zeros((0, 0), bool))
+    pixel_count: int = 0
+    message: str = ""
+
+
+def dominant_object(labels: np.ndarray, classes, min_pixels: int) -> Segmentation:
+    """The largest connected object region (outer contour, filled) over all object classes.
+
+    Args:
+        labels: H x W class ids (0 = background).
+        classes: class names by id.
+        min_pixels: smaller regions are noise; with none larger, nothing is found.
+    """
+    best = Segmentation(False, mask=np.zeros(labels.shape, bool))
+    kernel = np.ones((3, 3), np.uint8)
+    for class_id, name in enumerate(classes):
+        if class_id == 0:
+            continue
+        pixels = cv2.morphologyEx((labels == class_id).astype(np.uint8), cv2.MORPH_OPEN, kernel)
+        contours, _ = cv2.findContours(pixels, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+        for contour in contours:
+            region = np.zeros(labels.shape, np.uint8)
+            cv2.drawContours(region, [contour], -1, 1, thickness=cv2.FILLED)
+            mask = (region & pixels).astype(bool)  # keep holes, e.g. inside a handle loop
+            count = int(np.count_nonzero(mask))
+            if count > best.pixel_count:
+                best = Segmentation(True, name, mask, count)
+    if best.pixel_count < min_pixels:
+        return Segmentation(
+            False,
+            mask=np.zeros(labels.shape, bool),
+            message=f"no object in view: the largest object region has {best.pixel_count} px (< {min_pixels})",
+        )
+    best.message = f"{best.category}: {best.pixel_count} px"
+    return best
+
+
+class Segmenter(LeafSystem):
+    """RefineNet-style semantic segmentation of the colour image.
+
+    Input ports:
+        color_image: ImageRgba8U from the camera.
+    Output ports:
+        labels: H x W uint8 class ids at the camera's resolution (0 background, then `classes`).
+        segmentation: a Segmentation of the dominant object (largest region by pixel count).
+    """
+
+    def __init__(self, weights: Path = DEFAULT_WEIGHTS, min_pixels: int = 400, threads: int | None = None):
+        super().__init__()
+        self.model, metadata = segmentation_network.load(weights)
+        self.classes = tuple(metadata["classes"])
+        self.min_pixels = min_pixels
+        if threads is not None:
+            torch.set_num_threads(threads)
+        self.DeclareAbstractInputPort("color_image", AbstractValue.Make(ImageRgba8U()))
+        self.DeclareAbstractOutputPort(
+            "labels", lambda: AbstractValue.Make(np.zeros((0, 0), np.uint8)), self._calc_labels
+        )
+        self.DeclareAbstractOutputPort("segmentation", lambda: AbstractValue.Make(Segmentation(False)), self._calc_mask)
+
+    def segment(self, rgb: np.ndarray) -> np.ndarray:
+        """H x W x 3 uint8 -> H x W uint8 class ids (network at INPUT_SIZE, scores upsampled)."""
+        if rgb.ndim != 3 or rgb.shape[2] < 3 or rgb.size == 0:
+            raise ValueError(f"expected an H x W x 3 colour image, got shape {rgb.shape}")
+        small = cv2.resize(rgb[:, :, :3], segmentation_network.INPUT_SIZE, interpolation=cv2.INTER_AREA)
+        with torch.no_grad():
+            scores = self.model(segmentation_network.to_input(small))
+            scores = F.interpolate(scores, size=rgb.shape[:2], mode="bilinear", align_corners=False)
+        return scores.argmax(1)[0].numpy().astype(np.uint8)
+
+    def _calc_labels(self, context, output):
+        image = self.get_input_port(0).Eval(context)
+        output.set_value(self.segment(np.asarray(image.data)))
+
+    def _calc_mask(self, context, output):
+        labels = self.get_output_port(0).Eval(context)
+        output.set_value(dominant_object(labels, self.classes, self.min_pixels))

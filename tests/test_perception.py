@@ -1,0 +1,158 @@
+"""Perception systems alone (FixValue / Eval) on rendered frames, and wired to the station."""
+
+import numpy as np
+import pytest
+from pydrake.common.value import AbstractValue
+from pydrake.math import RigidTransform
+from pydrake.systems.framework import DiagramBuilder
+
+from diagrams import segmentation_data
+from diagrams.objects.library import resolve_object
+from diagrams.perception import AddPerception, MakePoseEstimator
+from diagrams.scenario import load_scenario, replace_object
+from diagrams.station import MakeStation, object_pose_on_table
+from diagrams.synthetic_scenes import CLASSES, SyntheticScene
+from systems import segmentation_network
+from systems.segmenter import DEFAULT_WEIGHTS, Segmentation, Segmenter, dominant_object
+from systems.segmenter_training import intersection_over_union, predict_labels, train
+
+TRANSLATION_TOLERANCE = 0.03  # m
+YAW_TOLERANCE = np.radians(12)
+
+
+def yaw_error(X_a: RigidTransform, X_b: RigidTransform) -> float:
+    R = X_a.rotation().inverse() @ X_b.rotation()
+    return abs(R.ToRollPitchYaw().yaw_angle())
+
+
+@pytest.fixture(scope="module")
+def segmenter():
+    return Segmenter()
+
+
+@pytest.fixture(scope="module", params=[("watering_can", "test_1", 0.25), ("drill", "test_2", -0.25)])
+def station_frame(request):
+    """The station's camera images of an unseen instance, and the ground truth."""
+    category, instance, yaw = request.param
+    scenario = replace_object(load_scenario(), category=category, instance=instance, yaw=yaw)
+    station = MakeStation(scenario)
+    context = station.CreateDefaultContext()
+    plant = station.GetSubsystemByName("plant")
+    body = plant.GetBodyIndices(plant.GetModelInstanceByName("object"))[0]
+    labels = np.asarray(station.GetOutputPort("camera0.label_image").Eval(context).data)[:, :, 0]
+    return {
+        "scenario": scenario,
+        "category": category,
+        "rgb": station.GetOutputPort("camera0.rgb_image").Eval(context),
+        "depth": station.GetOutputPort("camera0.depth_image").Eval(context),
+        "X_WB": station.GetOutputPort("camera0.pose").Eval(context),
+        "mask": labels == int(body),
+        "X_WO": object_pose_on_table(scenario, resolve_object(scenario.object)),
+    }
+
+
+def test_dominant_object_is_the_largest_region():
+    labels = np.zeros((100, 120), np.uint8)
+    labels[10:30, 10:30] = 1  # 400 px can
+    labels[50:90, 50:100] = 2  # 2000 px drill
+    labels[60:65, 5:8] = 1  # speck, removed
+    result = dominant_object(labels, CLASSES, min_pixels=100)
+    assert result.found and result.category == "drill" and result.pixel_count == 2000
+    assert result.mask.sum() == 2000 and result.mask[70, 70] and not result.mask[20, 20]
+
+
+def test_dominant_object_reports_nothing_found():
+    result = dominant_object(np.zeros((50, 50), np.uint8), CLASSES, min_pixels=100)
+    assert not result.found and result.mask.shape == (50, 50) and not result.mask.any()
+    assert "no object in view" in result.message
+
+
+def test_segmenter_finds_unseen_object_in_station_image(segmenter, station_frame):
+    context = segmenter.CreateDefaultContext()
+    segmenter.GetInputPort("color_image").FixValue(context, station_frame["rgb"])
+    result = segmenter.GetOutputPort("segmentation").Eval(context)
+    assert result.found and result.category == station_frame["category"]
+    truth = station_frame["mask"]
+    iou = np.count_nonzero(result.mask & truth) / np.count_nonzero(result.mask | truth)
+    assert iou > 0.85, f"IoU {iou:.3f}"
+
+
+def test_segmenter_on_empty_scene_finds_nothing(segmenter):
+    scene = SyntheticScene(load_scenario(), np.random.default_rng(3), split="test", cameras=1, camera_jitter=False)
+    frame = scene.render(count=0)
+    assert not frame.labels.any()
+    result = dominant_object(segmenter.segment(frame.rgb), segmenter.classes, segmenter.min_pixels)
+    assert not result.found and not result.mask.any()
+
+
+def test_pose_estimator_alone_on_true_mask(station_frame):
+    estimator = MakePoseEstimator(station_frame["scenario"])
+    context = estimator.CreateDefaultContext()
+    mask = station_frame["mask"]
+    segmentation = Segmentation(True, station_frame["category"], mask, int(mask.sum()))
+    estimator.GetInputPort("segmentation").FixValue(context, AbstractValue.Make(segmentation))
+    estimator.GetInputPort("depth_image").FixValue(context, station_frame["depth"])
+    estimator.GetInputPort("camera_pose").FixValue(context, AbstractValue.Make(station_frame["X_WB"]))
+    estimate = estimator.GetOutputPort("estimate").Eval(context)
+    assert estimate.found, estimate.message
+    error = np.linalg.norm(estimate.X_WO.translation() - station_frame["X_WO"].translation())
+    assert error < TRANSLATION_TOLERANCE
+    assert yaw_error(estimate.X_WO, station_frame["X_WO"]) < YAW_TOLERANCE
+    cloud = estimator.GetOutputPort("point_cloud").Eval(context)
+    assert cloud.size() == len(estimate.points_W) > 1000
+
+
+def test_pose_estimator_survives_depth_holes_and_reports_no_depth(station_frame):
+    estimator = MakePoseEstimator(station_frame["scenario"])
+    mask = station_frame["mask"]
+    segmentation = Segmentation(True, station_frame["category"], mask, int(mask.sum()))
+    depth = np.asarray(station_frame["depth"].data)[:, :, 0].copy()
+    rng = np.random.default_rng(0)
+    holes = rng.uniform(size=depth.shape) < 0.3
+    depth[holes & (rng.uniform(size=depth.shape) < 0.5)] = np.nan
+    depth[holes & ~np.isnan(depth)] = 0.0  # too close / no return
+    estimate = estimator.estimate(segmentation, depth, station_frame["X_WB"])
+    assert estimate.found
+    assert np.all(np.isfinite(estimate.points_W))
+    error = np.linalg.norm(estimate.X_WO.translation() - station_frame["X_WO"].translation())
+    assert error < TRANSLATION_TOLERANCE
+
+    no_depth = estimator.estimate(segmentation, np.full_like(depth, np.inf), station_frame["X_WB"])
+    assert not no_depth.found and "valid depth" in no_depth.message
+    nothing = estimator.estimate(Segmentation(False, message="empty"), depth, station_frame["X_WB"])
+    assert not nothing.found and "no object" in nothing.message
+
+
+def test_perception_wired_to_station_localises_the_object():
+    scenario = load_scenario()
+    builder = DiagramBuilder()
+    station = builder.AddNamedSystem("station", MakeStation(scenario))
+    _, pose_estimator = AddPerception(builder, station, scenario)
+    diagram = builder.Build()
+    context = diagram.CreateDefaultContext()
+    estimate = pose_estimator.GetOutputPort("estimate").Eval(pose_estimator.GetMyContextFromRoot(context))
+    assert estimate.found and estimate.category == "watering_can"
+    X_WO = object_pose_on_table(scenario, resolve_object(scenario.object))
+    assert np.linalg.norm(estimate.X_WO.translation() - X_WO.translation()) < TRANSLATION_TOLERANCE
+    assert yaw_error(estimate.X_WO, X_WO) < YAW_TOLERANCE
+
+
+def test_tiny_training_run_reduces_loss():
+    data = segmentation_data.generate(load_scenario(), frames=12, frames_per_scene=12, split="train", seed=5)
+    assert all(name.split("/")[1].startswith("train") for row in data["instances"] for name in row.split(",") if name)
+    _, history = train(data["rgb"], data["labels"], len(CLASSES), epochs=4, seed=0, batch_size=4, learning_rate=3e-3)
+    assert history[-1] < 0.8 * history[0]
+
+
+def test_shipped_weights_reproduce_recorded_validation_iou():
+    model, metadata = segmentation_network.load(DEFAULT_WEIGHTS)
+    recorded = metadata["validation"]
+    frames = segmentation_data.generate(load_scenario(), recorded["frames"], 20, "test", recorded["seed"])
+    iou = intersection_over_union(predict_labels(model, frames["rgb"]), frames["labels"], len(CLASSES))
+    np.testing.assert_allclose(iou, [recorded["iou"][c] for c in CLASSES], atol=0.01)
+    assert min(iou) > 0.85
+
+
+def test_missing_weights_give_a_clear_error(tmp_path):
+    with pytest.raises(FileNotFoundError, match="train_segmenter.py"):
+        Segmenter(tmp_path / "nothing.pt")
