@@ -214,7 +214,11 @@ class SyntheticScene:
         return X
 
     def render(
-        self, max_objects: int = 2, object_region=((0.55, 0.95), (-0.3, 0.3)), count: int | None = None
+        self,
+        max_objects: int = 2,
+        object_region=((0.55, 0.95), (-0.3, 0.3)),
+        count: int | None = None,
+        placement: tuple[str, str, float, np.ndarray] | None = None,
     ) -> Frame:
         """Re-places everything at random and renders one frame from a random camera.
 
@@ -222,6 +226,7 @@ class SyntheticScene:
             max_objects: at most this many objects (none in 10 % of the frames).
             object_region: ((x_min, x_max), (y_min, y_max)) of the objects' origins in W, m.
             count: exactly this many objects instead.
+            placement: (category, instance, yaw, xy): exactly this object at this pose on the table.
         """
         rng, plant = self.rng, self.plant
         for body in [b for *_, b in self.objects] + self.clutter:
@@ -229,6 +234,12 @@ class SyntheticScene:
         if count is None:
             count = rng.choice(max_objects + 1, p=[0.1] + [0.9 / max_objects] * max_objects)
         placed, occupied = [], []
+        if placement is not None:
+            category, name, yaw, xy = placement
+            (body,) = [b for c, n, b in self.objects if (c, n) == (category, name)]
+            placed.append((category, name, self._place_on_table(body, xy, yaw)))
+            occupied.append(np.asarray(xy))
+            count = 1
         for index in rng.permutation(len(self.objects)):
             if len(placed) == count:
                 break

@@ -33,6 +33,7 @@ from diagrams.objects import catalog
 from systems.segmenter import Segmentation
 
 MIN_POINTS = 50
+MAX_OBJECT_RADIUS = 0.35  # m from the points' median: farther points are strays
 VOXEL = 0.006  # m: the points are thinned to one per voxel before fitting
 GRID_CELL = 0.004  # m: resolution of the template's nearest-point field
 MAX_FIT_POINTS = 400
@@ -223,6 +224,10 @@ class PoseEstimator(LeafSystem):
             )
         X_WC = X_WB @ self.X_BC
         points_W = X_WC.multiply(points_C.T).T
+        # Far strays (a wrongly segmented patch of wall or table) are not part of the object.
+        near = np.linalg.norm(points_W - np.median(points_W, axis=0), axis=1) < MAX_OBJECT_RADIUS
+        if np.count_nonzero(near) >= MIN_POINTS:
+            points_W = points_W[near]
         support = self.support_height(segmentation.mask, depth, X_WC, points_W)
         X_WO = estimate_pose(
             points_W, segmentation.category, support, self._free_space_test(segmentation.mask, depth, X_WC)
@@ -236,7 +241,8 @@ class PoseEstimator(LeafSystem):
         camera measured a surface behind it there; points hidden behind a nearer surface or
         outside the image are not evidence either way.
         """
-        grown = cv2.dilate(mask.astype(np.uint8), np.ones((7, 7), np.uint8)).astype(bool)
+        # Grown generously: a thin spout the segmenter missed must not count against the right pose.
+        grown = cv2.dilate(mask.astype(np.uint8), np.ones((15, 15), np.uint8)).astype(bool)
         seen = np.where(np.isfinite(depth) & (depth > 0), depth, np.inf)
         X_CW = X_WC.inverse()
         K = self.intrinsics

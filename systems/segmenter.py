@@ -85,12 +85,18 @@ class Segmenter(LeafSystem):
         self.DeclareAbstractOutputPort("segmentation", lambda: AbstractValue.Make(Segmentation(False)), self._calc_mask)
 
     def segment(self, rgb: np.ndarray) -> np.ndarray:
-        """H x W x 3 uint8 -> H x W uint8 class ids (network at INPUT_SIZE, scores upsampled)."""
+        """H x W x 3 uint8 -> H x W uint8 class ids.
+
+        The network runs at INPUT_SIZE on the image and its mirror image (test-time flip:
+        the two score maps are summed), and the scores are upsampled to the camera's size.
+        """
         if rgb.ndim != 3 or rgb.shape[2] < 3 or rgb.size == 0:
             raise ValueError(f"expected an H x W x 3 colour image, got shape {rgb.shape}")
         small = cv2.resize(rgb[:, :, :3], segmentation_network.INPUT_SIZE, interpolation=cv2.INTER_AREA)
+        x = segmentation_network.to_input(small)
         with torch.no_grad():
-            scores = self.model(segmentation_network.to_input(small))
+            scores = self.model(torch.cat([x, x.flip(-1)]))
+            scores = scores[:1] + scores[1:].flip(-1)
             scores = F.interpolate(scores, size=rgb.shape[:2], mode="bilinear", align_corners=False)
         return scores.argmax(1)[0].numpy().astype(np.uint8)
 

@@ -20,6 +20,7 @@ OUTPUTS = {
     "camera0.rgb_image",
     "camera0.depth_image",
     "camera0.label_image",
+    "camera0.pose",
 }
 
 

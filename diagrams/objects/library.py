@@ -57,18 +57,29 @@ def resolve_object(config) -> ObjectModel:
     yaw = catalog.presentation_yaw(config.category)
     if config.file:
         return _user_model(Path(config.file), config, yaw)
-    catalog.parse_instance_name(config.instance)
-    directory = catalog.instance_directory(config.category, config.instance)
-    if not (directory / "model.sdf").is_file():
-        if not config.instance.startswith("extra_"):
-            # Raises a clear error for names that cannot exist (e.g. test_9).
-            catalog.generate(config.category, config.instance)
-            raise FileNotFoundError(f"{directory / 'model.sdf'} is missing; run scripts/generate_objects.py")
-        directory = cache_dir() / "objects" / config.category / config.instance
-        if not (directory / "model.sdf").is_file():
-            logging.info("generating %s/%s into %s", config.category, config.instance, directory)
-            catalog.generate(config.category, config.instance).write(directory)
+    directory = generated_instance_directory(config.category, config.instance)
     return ObjectModel(directory / "model.sdf", load_info(directory / "info.yaml"), yaw)
+
+
+def generated_instance_directory(category: str, name: str) -> Path:
+    """The folder of a generated instance; extra_<seed> ones are generated into the cache on first use.
+
+    Raises:
+        ValueError: unknown category or impossible instance name.
+        FileNotFoundError: a fixed instance's files are missing from the repository.
+    """
+    catalog.parse_instance_name(name)
+    directory = catalog.instance_directory(category, name)
+    if (directory / "model.sdf").is_file():
+        return directory
+    if not name.startswith("extra_"):
+        catalog.generate(category, name)  # raises a clear error for names that cannot exist (e.g. test_9)
+        raise FileNotFoundError(f"{directory / 'model.sdf'} is missing; run scripts/generate_objects.py")
+    directory = cache_dir() / "objects" / category / name
+    if not (directory / "model.sdf").is_file():
+        logging.info("generating %s/%s into %s", category, name, directory)
+        catalog.generate(category, name).write(directory)
+    return directory
 
 
 def _user_model(path: Path, config, yaw: float) -> ObjectModel:

@@ -1,0 +1,125 @@
+"""Builds a category's latent shape space (CPD fields from a canonical instance + PCA-EM).
+
+python scripts/build_shape_space.py --category watering_can          # models/shape_space_watering_can.npz
+python scripts/build_shape_space.py --category drill --extra 8       # also 8 more generated instances
+python scripts/build_shape_space.py --folder my_cans/ --poses my_cans/poses.yaml --category my_cans
+
+A folder holds one model per file: meshes (.obj, .ply, .stl; surface-sampled) or point
+clouds (.ply, .pcd). The poses YAML names the canonical model and its control poses
+in that model's frame (metres, degrees):
+
+  canonical: can_a.obj
+  poses:
+    left_pregrasp:  {translation: [0.0, 0.05, 0.40], rpy_deg: [145, 0, 0]}
+    left_grasp:     {translation: [0.0, 0.0, 0.32], rpy_deg: [145, 0, 0]}
+    right_pregrasp: {...}
+    right_grasp:    {...}
+"""
+
+import argparse
+import logging
+import time
+from pathlib import Path
+
+import numpy as np
+import open3d as o3d
+import trimesh
+import yaml
+from pydrake.math import RigidTransform, RollPitchYaw
+
+from diagrams.objects import catalog
+from diagrams.objects.library import generated_instance_directory, load_info
+from diagrams.paths import MODELS_DIR
+from systems.shape_space.space import POSE_NAMES, build_shape_space
+
+CLOUD_POINTS = 2000
+MESH_SUFFIXES = {".obj", ".stl", ".ply"}
+CLOUD_SUFFIXES = {".pcd", ".ply"}
+
+
+def sample_mesh(path: Path, count: int = CLOUD_POINTS) -> np.ndarray:
+    mesh = trimesh.load(path, force="mesh")
+    points, _ = trimesh.sample.sample_surface_even(mesh, count, seed=0)
+    return np.asarray(points)
+
+
+def load_model_points(path: Path) -> np.ndarray:
+    """Surface points of a mesh file, or the points of a point-cloud file (thinned to CLOUD_POINTS)."""
+    if path.suffix.lower() in CLOUD_SUFFIXES:
+        cloud = np.asarray(o3d.io.read_point_cloud(str(path)).points)
+        if len(cloud) > 0 and (path.suffix.lower() == ".pcd" or len(trimesh.load(path, force="mesh").faces) == 0):
+            index = np.random.default_rng(0).choice(len(cloud), min(CLOUD_POINTS, len(cloud)), replace=False)
+            return cloud[index]
+    points = sample_mesh(path)
+    if len(points) == 0:
+        raise ValueError(f"{path}: no surface or points")
+    return points
+
+
+def generated_instances(category: str, extra: int):
+    """Clouds and true control poses of the training instances (and `extra` more generated ones)."""
+    names = [n for n in catalog.instance_names(category) if n.startswith("train")]
+    names += [f"extra_{i}" for i in range(extra)]
+    clouds, poses = {}, {}
+    for name in names:
+        directory = generated_instance_directory(category, name)
+        clouds[name] = sample_mesh(directory / "visual.obj")
+        info = load_info(directory / "info.yaml")
+        poses[name] = {
+            f"{side}_{kind}": getattr(info.grasps[side], kind).GetDeterministicValue()
+            for side in ("left", "right")
+            for kind in ("pregrasp", "grasp")
+        }
+    return clouds, poses
+
+
+def folder_instances(folder: Path, poses_file: Path):
+    if not folder.is_dir():
+        raise SystemExit(f"error: {folder} is not a folder")
+    files = sorted(p for p in folder.iterdir() if p.suffix.lower() in MESH_SUFFIXES | CLOUD_SUFFIXES)
+    if len(files) < 2:
+        raise SystemExit(f"error: {folder} holds {len(files)} model files; a shape space needs at least 2")
+    spec = yaml.safe_load(poses_file.read_text())
+    missing = [n for n in POSE_NAMES if n not in spec.get("poses", {})]
+    if "canonical" not in spec or missing:
+        raise SystemExit(f"error: {poses_file} needs 'canonical' and poses {POSE_NAMES}; missing {missing}")
+    poses = {
+        name: RigidTransform(RollPitchYaw(np.radians(p["rpy_deg"])), p["translation"])
+        for name, p in spec["poses"].items()
+        if name in POSE_NAMES
+    }
+    clouds = {p.name: load_model_points(p) for p in files}
+    if spec["canonical"] not in clouds:
+        raise SystemExit(f"error: canonical model {spec['canonical']!r} is not among {sorted(clouds)}")
+    return clouds, {spec["canonical"]: poses}, spec["canonical"]
+
+
+def main():
+    logging.basicConfig(level=logging.INFO, format="%(message)s")
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--category", required=True, help="generated category, or the name of a folder's category")
+    parser.add_argument("--extra", type=int, default=8, help="extra generated instances beyond train_0..7")
+    parser.add_argument("--folder", type=Path, help="a folder of your own models (meshes or point clouds)")
+    parser.add_argument("--poses", type=Path, help="with --folder: YAML with the canonical model's control poses")
+    parser.add_argument("--components", type=int, default=8, help="latent dimensions (the paper: 8)")
+    parser.add_argument("--out", type=Path, help="default: models/shape_space_<category>.npz")
+    args = parser.parse_args()
+    start = time.perf_counter()
+    if args.folder:
+        if not args.poses:
+            parser.error("--folder needs --poses")
+        clouds, poses, canonical = folder_instances(args.folder, args.poses)
+        space = build_shape_space(args.category, clouds, poses, args.components, canonical=canonical, align=True)
+    else:
+        clouds, poses = generated_instances(args.category, args.extra)
+        space = build_shape_space(args.category, clouds, poses, args.components)
+    out = args.out or MODELS_DIR / f"shape_space_{args.category}.npz"
+    space.save(out)
+    explained = space.pca.variances / space.pca.variances.sum()
+    print(f"canonical: {space.canonical_name}; {len(clouds)} instances; {space.latent_size} components")
+    print("variance explained per component: " + " ".join(f"{v:.2f}" for v in explained))
+    print(f"wrote {out} ({out.stat().st_size / 1e3:.0f} kB) in {time.perf_counter() - start:.1f} s")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,92 @@
+"""The shape registrar system: observed cloud + initial pose -> refined pose, full shape, grasp poses."""
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from pydrake.common.value import AbstractValue
+from pydrake.math import RigidTransform
+from pydrake.systems.framework import LeafSystem
+
+from diagrams.paths import MODELS_DIR
+from systems.pose_estimator import ObjectEstimate
+from systems.shape_space.registration import Registrar
+from systems.shape_space.space import ShapeSpace
+
+
+def shape_space_file(category: str) -> Path:
+    return MODELS_DIR / f"shape_space_{category}.npz"
+
+
+@dataclass
+class GraspPoses:
+    """Per-arm control poses in the world, or why there are none."""
+
+    found: bool
+    poses_W: dict[str, RigidTransform] = field(default_factory=dict)  # left/right pregrasp/grasp -> X_WG
+    message: str = ""
+
+
+class ShapeRegistrar(LeafSystem):
+    """Latent shape space registration of the estimated object (paper §IV-A).
+
+    Input ports:
+        estimate: ObjectEstimate from the PoseEstimator (its points_W, category and initial X_WO).
+    Output ports:
+        X_WO: the refined RigidTransform (the initial one if registration was impossible).
+        grasp_poses: GraspPoses, the canonical control poses warped to this instance, in W.
+        reconstructed_cloud_W: N x 3 numpy array, the whole inferred shape (also the unseen side).
+    """
+
+    def __init__(self, categories=("watering_can", "drill")):
+        super().__init__()
+        self.registrars = {c: Registrar(ShapeSpace.load(shape_space_file(c))) for c in categories}
+        self.DeclareAbstractInputPort("estimate", AbstractValue.Make(ObjectEstimate(False)))
+        self._registration = self.DeclareCacheEntry(
+            "registration", lambda: AbstractValue.Make(_Result()), self._calc_registration
+        ).ticket()
+        self.DeclareAbstractOutputPort("X_WO", lambda: AbstractValue.Make(RigidTransform()), self._calc_pose)
+        self.DeclareAbstractOutputPort("grasp_poses", lambda: AbstractValue.Make(GraspPoses(False)), self._calc_grasps)
+        self.DeclareAbstractOutputPort(
+            "reconstructed_cloud_W", lambda: AbstractValue.Make(np.zeros((0, 3))), self._calc_cloud
+        )
+
+    def _calc_registration(self, context, cache):
+        estimate = self.get_input_port(0).Eval(context)
+        if not estimate.found:
+            cache.set_value(_Result(estimate.X_WO, None, f"nothing to register: {estimate.message}"))
+            return
+        registrar = self.registrars.get(estimate.category)
+        if registrar is None:
+            cache.set_value(_Result(estimate.X_WO, None, f"no shape space for category {estimate.category!r}"))
+            return
+        try:
+            registration = registrar.register(estimate.points_W, estimate.X_WO)
+        except ValueError as error:
+            cache.set_value(_Result(estimate.X_WO, None, str(error)))
+            return
+        cache.set_value(_Result(registration.X_WO, registration, f"fit error {registration.fit_error_m:.4f} m"))
+
+    def _result(self, context) -> "_Result":
+        return self.get_cache_entry(self._registration).Eval(context)
+
+    def _calc_pose(self, context, output):
+        output.set_value(self._result(context).X_WO)
+
+    def _calc_grasps(self, context, output):
+        result = self._result(context)
+        if result.registration is None:
+            output.set_value(GraspPoses(False, message=result.message))
+        else:
+            output.set_value(GraspPoses(True, result.registration.grasp_poses_W, result.message))
+
+    def _calc_cloud(self, context, output):
+        result = self._result(context)
+        output.set_value(np.zeros((0, 3)) if result.registration is None else result.registration.reconstructed_W)
+
+
+@dataclass
+class _Result:
+    X_WO: RigidTransform = field(default_factory=RigidTransform)
+    registration: object = None
+    message: str = ""

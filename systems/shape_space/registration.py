@@ -1,0 +1,151 @@
+"""Latent + rigid registration of an observed partial cloud to a category's shape space.
+
+The model is the canonical shape deformed by the latent vector z and moved by X_WO:
+s_m = R (y_m + v_m(z)) + t. Like CPD, the observed points are samples of a Gaussian
+mixture centred on the s_m with an outlier component, so points on the unseen side
+of the model simply get no weight. EM alternates the posteriors (E-step) with one
+Gauss-Newton step (analytic Jacobians in rotation, translation and z) on
+
+    sum_mn p_mn |x_n - s_m|^2 / (2 sigma^2) + (1/2) sum_k z_k^2 / var_k,
+
+the latent prior keeping the shape plausible. Several yaw hypotheses around the
+initial pose are run and the best fit kept, against the local minima where one end
+of an object is registered onto the other.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+from pydrake.math import RigidTransform, RotationMatrix
+
+from systems.shape_space.space import ShapeSpace
+
+MODEL_POINTS = 400
+OBSERVED_POINTS = 500
+OUTLIER_WEIGHT = 0.1
+ITERATIONS = 40
+YAW_HYPOTHESES = (0.0, -0.35, 0.35)
+INITIAL_SIGMA = 0.02  # m
+
+
+@dataclass
+class Registration:
+    X_WO: RigidTransform
+    latent: np.ndarray
+    reconstructed_W: np.ndarray  # the whole deformed canonical shape, M x 3 in W
+    grasp_poses_W: dict[str, RigidTransform]  # POSE_NAMES -> X_WG
+    fit_error_m: float  # mean distance of the observed points to the fitted model
+    iterations: int
+
+
+def _skew_columns(v: np.ndarray) -> np.ndarray:
+    """For rows v_m, the 3 x 3 matrices -[v_m]x: d(R v)/d(omega) for a small world-frame rotation omega."""
+    out = np.zeros((len(v), 3, 3))
+    out[:, 0, 1], out[:, 0, 2] = v[:, 2], -v[:, 1]
+    out[:, 1, 0], out[:, 1, 2] = -v[:, 2], v[:, 0]
+    out[:, 2, 0], out[:, 2, 1] = v[:, 1], -v[:, 0]
+    return out
+
+
+def _rotation_from_vector(omega: np.ndarray) -> np.ndarray:
+    angle = np.linalg.norm(omega)
+    if angle < 1e-12:
+        return np.eye(3)
+    k = omega / angle
+    K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    return np.eye(3) + np.sin(angle) * K + (1 - np.cos(angle)) * K @ K
+
+
+def _check_cloud(points: np.ndarray) -> np.ndarray:
+    points = np.asarray(points, dtype=float)
+    if points.ndim != 2 or points.shape[1] != 3:
+        raise ValueError(f"the observed cloud must be N x 3, got shape {points.shape}")
+    points = points[np.all(np.isfinite(points), axis=1)]
+    if len(points) < 20:
+        raise ValueError(f"the observed cloud has {len(points)} finite points; registration needs at least 20")
+    return points
+
+
+class Registrar:
+    """Registers observed clouds to one category's ShapeSpace."""
+
+    def __init__(self, space: ShapeSpace, upright: bool = True, prior_weight: float = 1.0):
+        """Args:
+        upright: the object stands upright (rotation about the world z only), else full 3D rotation.
+        prior_weight: scales the latent prior against the data term.
+        """
+        self.space = space
+        self.upright = upright
+        self.prior_weight = prior_weight
+        M = len(space.canonical_points)
+        self.model_index = np.linspace(0, M - 1, min(MODEL_POINTS, M)).astype(int)
+        components = space.pca.components.reshape(len(space.pca.variances), M, 3)
+        self.Y = space.canonical_points[self.model_index]
+        self.mean = space.pca.mean.reshape(M, 3)[self.model_index]
+        self.B = np.transpose(components[:, self.model_index, :], (1, 2, 0))  # m x 3 x q
+        self.inverse_variances = 1.0 / np.maximum(space.pca.variances, 1e-12)
+
+    def register(self, observed_W: np.ndarray, X_WO_initial: RigidTransform) -> Registration:
+        """Fits pose and shape to observed points (N x 3, W) from an initial pose; the best hypothesis wins.
+
+        Raises:
+            ValueError: fewer than 20 finite points, or not an N x 3 array.
+        """
+        X = _check_cloud(observed_W)
+        if len(X) > OBSERVED_POINTS:
+            X = X[np.random.default_rng(0).choice(len(X), OBSERVED_POINTS, replace=False)]
+        best = None
+        for offset in YAW_HYPOTHESES:
+            X0 = RigidTransform(RotationMatrix.MakeZRotation(offset)) @ X_WO_initial
+            X0 = RigidTransform(X0.rotation(), X_WO_initial.translation())  # turn about the object's origin
+            result = self._fit(X, X0)
+            if best is None or result[3] < best[3]:
+                best = result
+        R, t, z, error, iterations = best
+        X_WO = RigidTransform(RotationMatrix(R), t)
+        shape_W = X_WO.multiply(self.space.reconstruct(z).T).T
+        poses = {name: X_WO @ X_OG for name, X_OG in self.space.control_poses_at(z).items()}
+        return Registration(X_WO, z, shape_W, poses, error, iterations)
+
+    def _fit(self, X, X_WO0):
+        R, t = X_WO0.rotation().matrix(), X_WO0.translation().copy()
+        q = len(self.inverse_variances)
+        z = np.zeros(q)
+        sigma2 = INITIAL_SIGMA**2
+        N, M = len(X), len(self.Y)
+        rotation_dofs = [2] if self.upright else [0, 1, 2]
+        for iteration in range(1, ITERATIONS + 1):  # noqa: B007 (the count is returned)
+            S = self.Y + self.mean + self.B @ z  # model in O, m x 3
+            RS = S @ R.T
+            model = RS + t
+            # E-step: posterior of each model point for each observed point, with a uniform outlier term.
+            squared = ((model[:, None, :] - X[None, :, :]) ** 2).sum(-1)
+            P = np.exp(-squared / (2 * sigma2))
+            c = (2 * np.pi * sigma2) ** 1.5 * OUTLIER_WEIGHT / (1 - OUTLIER_WEIGHT) * M / N
+            P /= P.sum(0) + c
+            P1 = P.sum(1)
+            Np = P1.sum()
+            if Np < 1e-9:
+                break
+            targets = P @ X  # m x 3, = P1_m * mean target
+            # Gauss-Newton on sum_m P1_m |s_m - target_m / P1_m|^2 / (2 sigma2) + prior.
+            residual = targets - P1[:, None] * model  # = P1_m (target_m - s_m)
+            J = np.concatenate(
+                [_skew_columns(RS)[:, :, rotation_dofs], np.broadcast_to(np.eye(3), (M, 3, 3)), R @ self.B], axis=2
+            )  # m x 3 x (rot + 3 + q)
+            H = np.einsum("m,mia,mib->ab", P1, J, J) / sigma2
+            g = np.einsum("mia,mi->a", J, residual) / sigma2
+            latent = slice(len(rotation_dofs) + 3, None)
+            H[latent, latent] += self.prior_weight * np.diag(self.inverse_variances)
+            g[latent] -= self.prior_weight * self.inverse_variances * z
+            step = np.linalg.solve(H + 1e-9 * np.eye(len(g)), g)
+            omega = np.zeros(3)
+            omega[rotation_dofs] = step[: len(rotation_dofs)]
+            R = _rotation_from_vector(omega) @ R
+            t = t + step[len(rotation_dofs) : len(rotation_dofs) + 3]
+            z = z + step[latent]
+            model = (self.Y + self.mean + self.B @ z) @ R.T + t
+            squared = ((model[:, None, :] - X[None, :, :]) ** 2).sum(-1)
+            sigma2 = max(float((P * squared).sum() / (3 * Np)), 1e-8)
+        error = float(np.sqrt(squared.min(0)).mean())
+        return R, t, z, error, iteration

@@ -1,0 +1,113 @@
+"""Coherent Point Drift and PCA-EM against planted ground truth."""
+
+import numpy as np
+import pytest
+from pydrake.math import RigidTransform, RotationMatrix
+from scipy.spatial.transform import Rotation
+
+from systems.shape_space.cpd import deformable_cpd, rigid_cpd
+from systems.shape_space.pca_em import pca_em
+from systems.shape_space.registration import Registrar
+from systems.shape_space.space import POSE_NAMES, ShapeSpace, build_shape_space
+
+
+@pytest.fixture(scope="module")
+def cloud():
+    return np.random.default_rng(0).uniform(-0.15, 0.15, size=(400, 3))
+
+
+def smooth_warp(points):
+    return points + 0.02 * np.column_stack(
+        [np.sin(6 * points[:, 1]), np.cos(5 * points[:, 0]) - 1, np.sin(4 * points[:, 2])]
+    )
+
+
+def test_rigid_cpd_recovers_a_known_transform_with_outliers(cloud):
+    rng = np.random.default_rng(1)
+    R = Rotation.from_euler("xyz", [0.3, -0.2, 0.6]).as_matrix()
+    t = np.array([0.05, -0.02, 0.1])
+    target = cloud @ R.T + t + rng.normal(0, 0.001, cloud.shape)
+    target = np.vstack([target, rng.uniform(-0.3, 0.3, (40, 3))])[rng.permutation(len(cloud) + 40)]
+    result = rigid_cpd(cloud, target, w=0.1)
+    np.testing.assert_allclose(result.R, R, atol=0.01)
+    np.testing.assert_allclose(result.t, t, atol=0.003)
+
+
+def test_rigid_cpd_estimates_scale(cloud):
+    result = rigid_cpd(cloud, 1.3 * cloud + [0.1, 0, 0], estimate_scale=True)
+    assert result.s == pytest.approx(1.3, abs=1e-3)
+
+
+def test_deformable_cpd_recovers_a_smooth_deformation(cloud):
+    target = smooth_warp(cloud)[np.random.default_rng(2).permutation(len(cloud))]
+    result = deformable_cpd(cloud, target, beta=0.2, lam=0.5, max_iterations=200)
+    error = np.linalg.norm(result.transformed - smooth_warp(cloud), axis=1)
+    displacement = np.linalg.norm(smooth_warp(cloud) - cloud, axis=1)
+    assert np.median(error) < 0.05 * np.median(displacement)
+    # The field also warps points that were not in the source.
+    probe = cloud[:50] + 0.003
+    np.testing.assert_allclose(result.warp(probe), smooth_warp(probe), atol=0.008)
+
+
+@pytest.mark.parametrize("bad", [np.zeros((0, 3)), np.zeros((3, 3)), np.full((10, 3), np.nan)])
+def test_cpd_rejects_degenerate_clouds(cloud, bad):
+    with pytest.raises(ValueError, match="source|target"):
+        deformable_cpd(bad, cloud)
+    with pytest.raises(ValueError, match="source|target"):
+        rigid_cpd(cloud, bad)
+
+
+def test_pca_em_recovers_planted_low_rank_structure():
+    rng = np.random.default_rng(3)
+    basis, _ = np.linalg.qr(rng.standard_normal((300, 3)))
+    scales = np.array([3.0, 2.0, 1.0])
+    latent = rng.standard_normal((40, 3)) * scales
+    samples = 5.0 + latent @ basis.T + rng.normal(0, 0.01, (40, 300))
+    model = pca_em(samples, components=3)
+    # The recovered subspace is the planted one (all principal angles ~0), the axes ordered by variance.
+    cosines = np.linalg.svd(model.components @ basis, compute_uv=False)
+    np.testing.assert_allclose(cosines, 1.0, atol=1e-3)
+    assert np.all(np.diff(model.variances) < 0)
+    reconstructed = model.decode(model.encode(samples))
+    assert np.abs(reconstructed - samples).max() < 0.06
+    assert model.noise_variance == pytest.approx(0.01**2, rel=0.3)
+
+
+def test_pca_em_rejects_too_many_components():
+    with pytest.raises(ValueError, match="components"):
+        pca_em(np.zeros((4, 10)), components=4)
+
+
+def box_family(a, b, c, count=600):
+    """Points on the surface of an axis-aligned box of half sizes (a, b, c), standing on z = 0."""
+    rng = np.random.default_rng(int(1000 * (a + b + c)))
+    points = rng.uniform(-1, 1, (count, 3))
+    face = rng.integers(3, size=count)
+    points[np.arange(count), face] = np.sign(points[np.arange(count), face])
+    return points * [a, b, c] + [0, 0, c]
+
+
+@pytest.fixture(scope="module")
+def box_space():
+    sizes = {f"box_{i}": (0.1 + 0.02 * i, 0.06 + 0.01 * (i % 3), 0.08 + 0.015 * (i % 4)) for i in range(8)}
+    clouds = {name: box_family(*size) for name, size in sizes.items()}
+    grasp = RigidTransform(RotationMatrix.MakeXRotation(np.pi), [0.0, 0.0, 0.3])
+    poses = {name: {pose: grasp for pose in POSE_NAMES} for name in clouds}
+    return build_shape_space("box", clouds, poses, components=4, canonical_points=300, beta=0.08), sizes
+
+
+def test_shape_space_round_trips_through_its_file(box_space, tmp_path):
+    space, _ = box_space
+    space.save(tmp_path / "space.npz")
+    loaded = ShapeSpace.load(tmp_path / "space.npz")
+    z = np.array([0.1, -0.2, 0.0, 0.05]) * np.sqrt(space.pca.variances)
+    np.testing.assert_allclose(loaded.shape(z), space.shape(z), atol=1e-5)
+    assert loaded.canonical_name == space.canonical_name and loaded.latent_size == 4
+    with pytest.raises(FileNotFoundError, match="build_shape_space.py"):
+        ShapeSpace.load(tmp_path / "missing.npz")
+
+
+@pytest.mark.parametrize("bad", [np.zeros((0, 3)), np.zeros((3, 3)), np.full((100, 3), np.nan), np.zeros((50, 2))])
+def test_registration_rejects_degenerate_clouds(box_space, bad):
+    with pytest.raises(ValueError, match="cloud"):
+        Registrar(box_space[0]).register(bad, RigidTransform())
