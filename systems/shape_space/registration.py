@@ -26,6 +26,7 @@ OUTLIER_WEIGHT = 0.1
 ITERATIONS = 40
 YAW_HYPOTHESES = (0.0, -0.35, 0.35)
 INITIAL_SIGMA = 0.02  # m
+TRANSLATION_PRIOR = 0.02  # m: standard deviation of the origin about the initial estimate
 
 
 @dataclass
@@ -54,6 +55,12 @@ def _rotation_from_vector(omega: np.ndarray) -> np.ndarray:
     k = omega / angle
     K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
     return np.eye(3) + np.sin(angle) * K + (1 - np.cos(angle)) * K @ K
+
+
+def _squared_distances(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """|a_i - b_j|^2 for all pairs (len(A) x len(B))."""
+    squared = (A**2).sum(1)[:, None] + (B**2).sum(1)[None, :] - 2.0 * A @ B.T
+    return np.maximum(squared, 0.0, out=squared)
 
 
 def _check_cloud(points: np.ndarray) -> np.ndarray:
@@ -113,13 +120,16 @@ class Registrar:
         z = np.zeros(q)
         sigma2 = INITIAL_SIGMA**2
         N, M = len(X), len(self.Y)
+        # Upright: turn about z only, and the origin stays on the support surface (the initial height).
         rotation_dofs = [2] if self.upright else [0, 1, 2]
+        translation_dofs = [0, 1] if self.upright else [0, 1, 2]
+        t0 = t.copy()
         for iteration in range(1, ITERATIONS + 1):  # noqa: B007 (the count is returned)
             S = self.Y + self.mean + self.B @ z  # model in O, m x 3
             RS = S @ R.T
             model = RS + t
             # E-step: posterior of each model point for each observed point, with a uniform outlier term.
-            squared = ((model[:, None, :] - X[None, :, :]) ** 2).sum(-1)
+            squared = _squared_distances(model, X)
             P = np.exp(-squared / (2 * sigma2))
             c = (2 * np.pi * sigma2) ** 1.5 * OUTLIER_WEIGHT / (1 - OUTLIER_WEIGHT) * M / N
             P /= P.sum(0) + c
@@ -130,22 +140,27 @@ class Registrar:
             targets = P @ X  # m x 3, = P1_m * mean target
             # Gauss-Newton on sum_m P1_m |s_m - target_m / P1_m|^2 / (2 sigma2) + prior.
             residual = targets - P1[:, None] * model  # = P1_m (target_m - s_m)
+            translation_jacobian = np.broadcast_to(np.eye(3)[:, translation_dofs], (M, 3, len(translation_dofs)))
             J = np.concatenate(
-                [_skew_columns(RS)[:, :, rotation_dofs], np.broadcast_to(np.eye(3), (M, 3, 3)), R @ self.B], axis=2
-            )  # m x 3 x (rot + 3 + q)
+                [_skew_columns(RS)[:, :, rotation_dofs], translation_jacobian, R @ self.B], axis=2
+            )  # m x 3 x (rotation + translation + q)
             H = np.einsum("m,mia,mib->ab", P1, J, J) / sigma2
             g = np.einsum("mia,mi->a", J, residual) / sigma2
-            latent = slice(len(rotation_dofs) + 3, None)
+            moved = slice(len(rotation_dofs), len(rotation_dofs) + len(translation_dofs))
+            latent = slice(moved.stop, None)
+            # Priors: a plausible shape, and an origin near the initial estimate.
             H[latent, latent] += self.prior_weight * np.diag(self.inverse_variances)
             g[latent] -= self.prior_weight * self.inverse_variances * z
+            H[moved, moved] += np.eye(len(translation_dofs)) / TRANSLATION_PRIOR**2
+            g[moved] -= (t - t0)[translation_dofs] / TRANSLATION_PRIOR**2
             step = np.linalg.solve(H + 1e-9 * np.eye(len(g)), g)
             omega = np.zeros(3)
             omega[rotation_dofs] = step[: len(rotation_dofs)]
             R = _rotation_from_vector(omega) @ R
-            t = t + step[len(rotation_dofs) : len(rotation_dofs) + 3]
+            t[translation_dofs] += step[moved]
             z = z + step[latent]
             model = (self.Y + self.mean + self.B @ z) @ R.T + t
-            squared = ((model[:, None, :] - X[None, :, :]) ** 2).sum(-1)
+            squared = _squared_distances(model, X)
             sigma2 = max(float((P * squared).sum() / (3 * Np)), 1e-8)
         error = float(np.sqrt(squared.min(0)).mean())
         return R, t, z, error, iteration

@@ -21,7 +21,7 @@ from systems.shape_space.pca_em import PcaModel, pca_em
 
 # The control poses: the pre-grasp and grasp frame of each hand.
 POSE_NAMES = ("left_pregrasp", "left_grasp", "right_pregrasp", "right_grasp")
-FRAME_PROBE = 0.03  # m: the field is sampled this far along a pose's axes to carry its orientation
+FRAME_PROBE = 0.1  # m: radius of the star of points whose motion turns a control pose
 
 
 @dataclass
@@ -73,7 +73,18 @@ class ShapeSpace:
         return RigidTransform(RotationMatrix(R) @ X_OG.rotation(), moved[0])
 
     def control_poses_at(self, latent: np.ndarray) -> dict[str, RigidTransform]:
-        return {name: self.warp_pose(latent, X) for name, X in self.control_poses.items()}
+        """All control poses at `latent`, in O.
+
+        Each grasp is warped by the field; each pre-grasp keeps its canonical pose relative to its
+        grasp (it lies off the surface, where the field fades out and says little).
+        """
+        poses = {}
+        for side in ("left", "right"):
+            X_OG = self.control_poses[f"{side}_grasp"]
+            X_GP = X_OG.InvertAndCompose(self.control_poses[f"{side}_pregrasp"])
+            poses[f"{side}_grasp"] = self.warp_pose(latent, X_OG)
+            poses[f"{side}_pregrasp"] = poses[f"{side}_grasp"] @ X_GP
+        return poses
 
     def save(self, path: Path):
         path.parent.mkdir(parents=True, exist_ok=True)
