@@ -1,0 +1,191 @@
+"""Batched forward kinematics of Centauro's arms and hands, and a sphere model of their collision geometry.
+
+STOMP evaluates thousands of configurations per iteration; one Drake call per
+configuration is far too slow, so the kinematic tree is read once from the
+MultibodyPlant and evaluated here in numpy for a whole batch (B x 14) at once.
+
+Every body of interest is reached from the world through the arm's revolute joints;
+all other joints (welds, the hands' fingers) keep the pose they have in the plant
+context given at construction. Poses are 4 x 4 homogeneous matrices X_WB.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+from pydrake.geometry import Box, Capsule, Cylinder, Sphere
+from pydrake.multibody.plant import MultibodyPlant
+
+
+@dataclass
+class _Link:
+    body_index: int
+    parent: int  # position of the parent in the link list, -1 for the fixed root
+    arm_dof: int  # which of the 14 arm coordinates drives it, -1 if fixed relative to its parent
+    X_PF: np.ndarray  # parent body -> joint frame on parent (4 x 4)
+    axis: np.ndarray  # revolute axis in F
+    X_MB: np.ndarray  # joint frame on child -> child body (4 x 4)
+
+
+def _rotations(axis: np.ndarray, angles: np.ndarray) -> np.ndarray:
+    """Rotation matrices (B x 3 x 3) about a unit axis by each angle (Rodrigues)."""
+    K = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    s, c = np.sin(angles)[:, None, None], np.cos(angles)[:, None, None]
+    return np.eye(3) + s * K + (1 - c) * (K @ K)
+
+
+class BatchedKinematics:
+    """World poses of chosen bodies for a batch of 14-joint arm configurations."""
+
+    def __init__(self, plant: MultibodyPlant, plant_context, arm_joints, bodies):
+        """Args:
+        plant, plant_context: the robot; joints other than `arm_joints` stay as in this context.
+        arm_joints: the 14 revolute joints, in the order of the configuration vector.
+        bodies: the bodies whose poses are wanted (each must hang from the world through them).
+        """
+        self.arm_joint_of_body = {joint.child_body().index(): i for i, joint in enumerate(arm_joints)}
+        self.inboard_joint = {}
+        for joint_index in plant.GetJointIndices():
+            joint = plant.get_joint(joint_index)
+            self.inboard_joint[joint.child_body().index()] = joint
+        self.links: list[_Link] = []
+        self.position_of_body: dict[int, int] = {}
+        self._plant, self._context = plant, plant_context
+        for body in bodies:
+            self._add(body)
+        self.body_names = [plant.get_body(link.body_index).name() for link in self.links]
+
+    def _add(self, body) -> int:
+        index = body.index()
+        if index in self.position_of_body:
+            return self.position_of_body[index]
+        plant, context = self._plant, self._context
+        dof = self.arm_joint_of_body.get(index, -1)
+        if dof < 0:
+            # Fixed relative to the nearest arm-driven ancestor (or the world): one constant transform.
+            parent = self._driving_ancestor(body)
+            X_WP = plant.EvalBodyPoseInWorld(context, parent) if parent is not None else None
+            X_WB = plant.EvalBodyPoseInWorld(context, body)
+            X_PB = (X_WP.inverse() @ X_WB if X_WP is not None else X_WB).GetAsMatrix4()
+            parent_position = self._add(parent) if parent is not None else -1
+            link = _Link(index, parent_position, -1, X_PB, np.zeros(3), np.eye(4))
+        else:
+            joint = self.inboard_joint[index]
+            parent_position = self._add(joint.parent_body())
+            X_PF = joint.frame_on_parent().GetFixedPoseInBodyFrame().GetAsMatrix4()
+            X_BM = joint.frame_on_child().GetFixedPoseInBodyFrame()
+            link = _Link(
+                index, parent_position, dof, X_PF, np.asarray(joint.revolute_axis()), X_BM.inverse().GetAsMatrix4()
+            )
+        self.links.append(link)
+        self.position_of_body[index] = len(self.links) - 1
+        return len(self.links) - 1
+
+    def _driving_ancestor(self, body):
+        """The closest ancestor that an arm joint moves, or None when only fixed joints lead to the world."""
+        current = body
+        while current.index() in self.inboard_joint:
+            current = self.inboard_joint[current.index()].parent_body()
+            if current.index() in self.arm_joint_of_body:
+                return current
+        return None
+
+    def body_poses(self, q: np.ndarray) -> np.ndarray:
+        """X_WB of every tracked body: an array (B x L x 4 x 4), L in the order of `body_names`."""
+        q = np.atleast_2d(q)
+        batch = len(q)
+        poses = np.empty((batch, len(self.links), 4, 4))
+        for i, link in enumerate(self.links):
+            X_PB = np.broadcast_to(link.X_PF, (batch, 4, 4)).copy()
+            if link.arm_dof >= 0:
+                joint = np.zeros((batch, 4, 4))
+                joint[:, :3, :3] = _rotations(link.axis, q[:, link.arm_dof])
+                joint[:, 3, 3] = 1.0
+                X_PB = X_PB @ joint @ link.X_MB
+            poses[:, i] = X_PB if link.parent < 0 else poses[:, link.parent] @ X_PB
+        return poses
+
+
+@dataclass
+class SphereModel:
+    """Spheres bounding the robot's collision geometry, attached to bodies."""
+
+    body: np.ndarray  # S, position of each sphere's body in BatchedKinematics.links
+    centre_B: np.ndarray  # S x 3, in the body frame
+    radius: np.ndarray  # S
+    group: np.ndarray  # S, which rigid group (arm side) the sphere belongs to: 0 torso, 1 left, 2 right
+
+    def centres_W(self, body_poses: np.ndarray) -> np.ndarray:
+        """Sphere centres in W (B x S x 3) from the batch of body poses."""
+        X = body_poses[:, self.body]  # B x S x 4 x 4
+        return np.einsum("bsij,sj->bsi", X[:, :, :3, :3], self.centre_B) + X[:, :, :3, 3]
+
+
+def shape_spheres(shape, X_BG: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Centres (in B) and radii of spheres that cover a primitive shape at pose X_BG."""
+    if isinstance(shape, Sphere):
+        local, radii = np.zeros((1, 3)), np.array([shape.radius()])
+    elif isinstance(shape, (Capsule, Cylinder)):
+        r, length = shape.radius(), shape.length()
+        count = int(np.ceil(length / r)) + 1
+        local = np.column_stack([np.zeros(count), np.zeros(count), np.linspace(-length / 2, length / 2, count)])
+        # Grown to cover the waist between neighbouring centres (and a cylinder's rim).
+        radii = np.full(count, np.hypot(r, length / (2 * (count - 1))))
+    elif isinstance(shape, Box):
+        size = np.array([shape.width(), shape.depth(), shape.height()])
+        spacing = size.min()
+        counts = np.maximum(1, np.ceil(size / spacing).astype(int))
+        cell = size / counts
+        axes = [(np.arange(n) + 0.5) * c - s / 2 for n, c, s in zip(counts, cell, size, strict=True)]
+        local = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)
+        radii = np.full(len(local), 0.5 * np.linalg.norm(cell))
+    else:
+        raise ValueError(f"no sphere cover for {type(shape).__name__}")
+    return local @ X_BG[:3, :3].T + X_BG[:3, 3], radii
+
+
+def robot_spheres(plant: MultibodyPlant, scene_graph, kinematics: BatchedKinematics, group_of_body) -> SphereModel:
+    """Spheres covering every proximity geometry of the kinematics' bodies.
+
+    Args:
+        group_of_body: body name -> group id (0 torso, 1 left arm and hand, 2 right).
+    """
+    inspector = scene_graph.model_inspector()
+    bodies, centres, radii, groups = [], [], [], []
+    for position, link in enumerate(kinematics.links):
+        body = plant.get_body(link.body_index)
+        for geometry in plant.GetCollisionGeometriesForBody(body):
+            if inspector.GetProximityProperties(geometry) is None:
+                continue
+            X_BG = inspector.GetPoseInFrame(geometry).GetAsMatrix4()
+            centre, radius = shape_spheres(inspector.GetShape(geometry), X_BG)
+            bodies += [position] * len(radius)
+            centres.append(centre)
+            radii.append(radius)
+            groups += [group_of_body(body.name(), body.model_instance())] * len(radius)
+    return SphereModel(np.array(bodies), np.vstack(centres), np.concatenate(radii), np.array(groups))
+
+
+def centauro_kinematics(plant: MultibodyPlant, scene_graph, plant_context):
+    """Batched kinematics of both arms (j_arm1_*, j_arm2_*) with the hands, and their sphere model.
+
+    Groups: 0 pelvis/torso/head, 1 left arm + left hand, 2 right arm + right hand.
+    """
+    from diagrams.centauro_description import joint_names
+    from diagrams.station import HAND_INSTANCES
+
+    joints = [plant.GetJointByName(name) for name in joint_names(1) + joint_names(2)]
+    hands = {side: plant.GetModelInstanceByName(name) for side, name in HAND_INSTANCES.items()}
+    bodies = [joint.child_body() for joint in joints]
+    for hand in hands.values():
+        bodies += [plant.get_body(b) for b in plant.GetBodyIndices(hand)]
+    bodies += [plant.GetBodyByName("torso"), plant.GetBodyByName("pelvis")]
+    kinematics = BatchedKinematics(plant, plant_context, joints, bodies)
+
+    def group(name, model_instance):
+        if model_instance == hands["left"] or name.startswith("arm1_"):
+            return 1
+        if model_instance == hands["right"] or name.startswith("arm2_"):
+            return 2
+        return 0
+
+    return kinematics, robot_spheres(plant, scene_graph, kinematics, group)

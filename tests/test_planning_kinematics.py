@@ -1,0 +1,80 @@
+"""Batched kinematics and the sphere model against Drake's own kinematics and geometry."""
+
+import numpy as np
+import pytest
+from pydrake.multibody.plant import AddMultibodyPlantSceneGraph
+from pydrake.systems.framework import DiagramBuilder
+
+from diagrams.centauro_description import joint_names
+from diagrams.station import AddCentauro
+from systems.planning.kinematics import centauro_kinematics
+
+
+@pytest.fixture(scope="module")
+def robot(scenario):
+    builder = DiagramBuilder()
+    plant, scene_graph = AddMultibodyPlantSceneGraph(builder, time_step=0.0)
+    AddCentauro(plant, scene_graph, scenario)
+    plant.Finalize()
+    diagram = builder.Build()
+    context = diagram.CreateDefaultContext()
+    plant_context = plant.GetMyMutableContextFromRoot(context)
+    kinematics, spheres = centauro_kinematics(plant, scene_graph, plant_context)
+    joints = [plant.GetJointByName(n) for n in joint_names(1) + joint_names(2)]
+    return plant, scene_graph, plant_context, kinematics, spheres, joints
+
+
+def random_configurations(joints, count, seed=0):
+    lower = np.array([j.position_lower_limits()[0] for j in joints])
+    upper = np.array([j.position_upper_limits()[0] for j in joints])
+    return np.random.default_rng(seed).uniform(lower, upper, size=(count, len(joints)))
+
+
+def test_batched_kinematics_equals_drake(robot):
+    plant, _, plant_context, kinematics, _, joints = robot
+    q_batch = random_configurations(joints, 20)
+    poses = kinematics.body_poses(q_batch)
+    default = plant.GetPositions(plant_context).copy()
+    for q, batch_poses in zip(q_batch, poses, strict=True):
+        for joint, value in zip(joints, q, strict=True):
+            joint.set_angle(plant_context, value)
+        for link, X in zip(kinematics.links, batch_poses, strict=True):
+            X_drake = plant.EvalBodyPoseInWorld(plant_context, plant.get_body(link.body_index)).GetAsMatrix4()
+            np.testing.assert_allclose(X, X_drake, atol=1e-10)
+    plant.SetPositions(plant_context, default)
+
+
+def test_spheres_cover_every_collision_geometry(robot):
+    plant, scene_graph, plant_context, kinematics, spheres, joints = robot
+    q = random_configurations(joints, 1, seed=3)[0]
+    for joint, value in zip(joints, q, strict=True):
+        joint.set_angle(plant_context, value)
+    centres = spheres.centres_W(kinematics.body_poses(q))[0]
+    inspector = scene_graph.model_inspector()
+    # Sample points on each body's collision geometry's surface via its pose; each must lie in some sphere.
+    for link in kinematics.links:
+        body = plant.get_body(link.body_index)
+        X_WB = plant.EvalBodyPoseInWorld(plant_context, body).GetAsMatrix4()
+        mine = spheres.body == kinematics.position_of_body[link.body_index]
+        for geometry in plant.GetCollisionGeometriesForBody(body):
+            X_BG = inspector.GetPoseInFrame(geometry).GetAsMatrix4()
+            for corner in _extreme_points(inspector.GetShape(geometry)):
+                p = (X_WB @ X_BG @ np.append(corner, 1.0))[:3]
+                inside = np.linalg.norm(centres[mine] - p, axis=1) <= spheres.radius[mine] + 1e-9
+                assert inside.any(), f"{body.name()}: {corner} not covered"
+    assert set(np.unique(spheres.group)) == {0, 1, 2}
+
+
+def _extreme_points(shape):
+    """Points on a primitive's boundary that a cover must contain (box corners, capsule tips)."""
+    from pydrake.geometry import Box, Capsule, Sphere
+
+    if isinstance(shape, Box):
+        half = np.array([shape.width(), shape.depth(), shape.height()]) / 2
+        return [half * (2 * np.array(signs) - 1) for signs in np.ndindex(2, 2, 2)]
+    if isinstance(shape, Capsule):
+        tip = shape.length() / 2 + shape.radius()
+        return [np.array([0, 0, tip]), np.array([0, 0, -tip]), np.array([shape.radius(), 0, 0])]
+    if isinstance(shape, Sphere):
+        return [np.array([shape.radius(), 0, 0])]
+    return []
