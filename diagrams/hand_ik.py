@@ -4,20 +4,26 @@ The IK model is the robot, its hands and the table, and optionally the object we
 where it stands: a MultibodyPlant built from the same files as the station.
 """
 
+import functools
 import itertools
 from dataclasses import dataclass
 
 import numpy as np
+import trimesh
+from pydrake.geometry import Box
 from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.multibody.inverse_kinematics import InverseKinematics
 from pydrake.multibody.plant import AddMultibodyPlantSceneGraph
+from pydrake.multibody.tree import BodyIndex
 from pydrake.solvers import Solve
 from pydrake.systems.framework import DiagramBuilder
 
 from diagrams.centauro_description import joint_names
 from diagrams.objects.library import ObjectModel
 from diagrams.scenario import Scenario
-from diagrams.station import AddCentauro, AddTable, make_parser
+from diagrams.station import HAND_INSTANCES, AddCentauro, AddTable, make_parser
+from systems.planning.kinematics import centauro_kinematics
+from systems.planning.stomp import Obstacles, Stomp
 
 SIDES = ("left", "right")
 # A hand is symmetric under a half turn about its approach axis z_G.
@@ -50,6 +56,7 @@ class DualArmIk:
         self.plant, self.scene_graph = AddMultibodyPlantSceneGraph(builder, time_step=0.0)
         robot, hands = AddCentauro(self.plant, self.scene_graph, scenario)
         AddTable(self.plant, scenario)
+        self.obstacle, self.X_WO = obstacle, X_WO
         if obstacle is not None:
             (instance,) = make_parser(self.plant).AddModels(file_name=str(obstacle.model_file))
             body = self.plant.get_body(self.plant.GetBodyIndices(instance)[0])
@@ -113,6 +120,34 @@ class DualArmIk:
         """Whether the robot touches itself or the table at arm configuration q_arms."""
         self.plant.SetPositions(self.plant_context, self.full_positions(q_arms))
         return self.plant.get_geometry_query_input_port().Eval(self.plant_context).HasCollisions()
+
+    @functools.cached_property
+    def stomp(self) -> Stomp:
+        """A STOMP planner over this model's robot (sphere model) and its limits."""
+        kinematics, spheres = centauro_kinematics(self.plant, self.scene_graph, self.plant_context)
+        return Stomp(kinematics, spheres, self.scene_graph.model_inspector(), self.lower, self.upper)
+
+    @functools.cached_property
+    def planning_obstacles(self) -> Obstacles:
+        """The scene for STOMP: every box of the table and floor, and the object's surface points."""
+        obstacles = Obstacles()
+        inspector = self.scene_graph.model_inspector()
+        robot = {self.plant.GetModelInstanceByName(n) for n in ("centauro", *HAND_INSTANCES.values())}
+        for index in range(self.plant.num_bodies()):
+            body = self.plant.get_body(BodyIndex(index))
+            if body.model_instance() in robot:
+                continue
+            X_WB = self.plant.EvalBodyPoseInWorld(self.plant_context, body)
+            for geometry in self.plant.GetCollisionGeometriesForBody(body):
+                shape = inspector.GetShape(geometry)
+                if isinstance(shape, Box):
+                    X_WG = (X_WB @ inspector.GetPoseInFrame(geometry)).GetAsMatrix4()
+                    obstacles.add_box(X_WG, [shape.width(), shape.depth(), shape.height()])
+        if self.obstacle is not None:
+            mesh = trimesh.load(self.obstacle.model_file.parent / "visual.obj", force="mesh")
+            points, _ = trimesh.sample.sample_surface_even(mesh, 3000, seed=0)
+            obstacles.add_points(self.X_WO.multiply(points.T).T)
+        return obstacles
 
     def segment_is_free(self, q_from: np.ndarray, q_to: np.ndarray, max_step: float = 0.02) -> bool:
         """Whether the straight joint-space segment q_from -> q_to is collision-free (checked every max_step rad)."""

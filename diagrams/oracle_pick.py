@@ -4,11 +4,11 @@ It proves the robot, the hands, the objects and contact before perception and
 planning exist. The plan is a list of joint-space keyframes played by Drake's
 TrajectorySource through the station's position ports:
 
-  start -> [via point] -> pre-grasp -> grasp (straight approach) -> close hands -> lift -> hold
+  start -> [STOMP keyframes] -> pre-grasp -> grasp (straight approach) -> close hands -> lift -> hold
 
 The IK model holds the object as an obstacle, so the reach to the pre-grasp is
 checked for collisions; when the straight joint-space move would hit the object or
-the table, the hands first go to their pre-grasp poses raised by VIA_HEIGHTS.
+the table, STOMP plans around them.
 """
 
 import logging
@@ -30,7 +30,6 @@ CLOSED_WIDTH = 0.0  # m: the fingers stop on the handle; the joint effort limit 
 CLOSE_S = 1.0
 LIFT_HEIGHT = 0.15  # m: aimed for
 MIN_LIFT_HEIGHT = 0.12  # m: lifting stops early, but not below this, where the arms run out of reach
-VIA_HEIGHTS = (0.1, 0.2, 0.3)  # m
 LIFT_STEPS = 6
 APPROACH_STEPS = 3
 HOLD_S = 2.5
@@ -144,16 +143,31 @@ def plan_oracle_pick(ik: DualArmIk, q_start: np.ndarray, X_WO: RigidTransform, i
 def _reach_path(ik: DualArmIk, q_start: np.ndarray, q_pregrasp: np.ndarray) -> list[np.ndarray]:
     """Keyframes after q_start that end at q_pregrasp along collision-free joint-space segments.
 
+    The straight move if it is free; otherwise a STOMP trajectory, shortened to as few
+    keyframes as Drake's own collision checks allow.
+
     Raises:
-        PlanningError: if neither the direct move nor one via a raised pre-grasp is free.
+        PlanningError: STOMP found no collision-free trajectory.
     """
     if ik.segment_is_free(q_start, q_pregrasp):
         return [q_pregrasp]
-    pregrasp_poses = ik.grasp_frame_poses(q_pregrasp)
-    for height in VIA_HEIGHTS:
-        up = RigidTransform([0.0, 0.0, height])
-        via = ik.solve({side: up @ X for side, X in pregrasp_poses.items()}, q_pregrasp, allow_half_turn=False)
-        if via.success and ik.segment_is_free(q_start, via.q) and ik.segment_is_free(via.q, q_pregrasp):
-            logging.info("reach: via the pre-grasp raised by %.2f m", height)
-            return [via.q, q_pregrasp]
-    raise PlanningError("reach: every tried path to the pre-grasp hits the object, the table or the robot")
+    result = ik.stomp.plan(q_start, q_pregrasp, ik.planning_obstacles)
+    if not result.success:
+        raise PlanningError(f"reach: {result.message}")
+    logging.info("reach: STOMP, %d iterations, %.2f s", result.iterations, result.seconds)
+    keyframes = shortcut(ik, list(result.trajectory))
+    if keyframes is None:
+        raise PlanningError("reach: the STOMP trajectory collides under Drake's exact check")
+    return keyframes[1:]
+
+
+def shortcut(ik: DualArmIk, keyframes: list[np.ndarray]) -> list[np.ndarray] | None:
+    """Greedily drops keyframes while each remaining segment is collision-free (None if some segment is not)."""
+    kept, i = [keyframes[0]], 0
+    while i < len(keyframes) - 1:
+        j = next((j for j in range(len(keyframes) - 1, i, -1) if ik.segment_is_free(keyframes[i], keyframes[j])), None)
+        if j is None:
+            return None
+        kept.append(keyframes[j])
+        i = j
+    return kept

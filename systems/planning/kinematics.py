@@ -113,11 +113,30 @@ class SphereModel:
     centre_B: np.ndarray  # S x 3, in the body frame
     radius: np.ndarray  # S
     group: np.ndarray  # S, which rigid group (arm side) the sphere belongs to: 0 torso, 1 left, 2 right
+    geometry: list  # S, the GeometryId each sphere covers
+
+    def pairs(self, inspector, group_a: int, group_b: int) -> tuple[np.ndarray, np.ndarray]:
+        """Index pairs (i in group_a, j in group_b) of spheres whose geometries may collide (not filtered)."""
+        a, b = np.nonzero(self.group == group_a)[0], np.nonzero(self.group == group_b)[0]
+        allowed = {}
+        i_list, j_list = [], []
+        for i in a:
+            for j in b:
+                key = (self.geometry[i], self.geometry[j])
+                if key not in allowed:
+                    allowed[key] = not inspector.CollisionFiltered(*key)
+                if allowed[key]:
+                    i_list.append(i)
+                    j_list.append(j)
+        return np.array(i_list, int), np.array(j_list, int)
 
     def centres_W(self, body_poses: np.ndarray) -> np.ndarray:
         """Sphere centres in W (B x S x 3) from the batch of body poses."""
         X = body_poses[:, self.body]  # B x S x 4 x 4
         return np.einsum("bsij,sj->bsi", X[:, :, :3, :3], self.centre_B) + X[:, :, :3, 3]
+
+
+BOX_SPHERE_SPACING = 0.04  # m: boxes thinner than this are covered by fewer, larger spheres
 
 
 def shape_spheres(shape, X_BG: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -132,7 +151,7 @@ def shape_spheres(shape, X_BG: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         radii = np.full(count, np.hypot(r, length / (2 * (count - 1))))
     elif isinstance(shape, Box):
         size = np.array([shape.width(), shape.depth(), shape.height()])
-        spacing = size.min()
+        spacing = max(size.min(), BOX_SPHERE_SPACING)
         counts = np.maximum(1, np.ceil(size / spacing).astype(int))
         cell = size / counts
         axes = [(np.arange(n) + 0.5) * c - s / 2 for n, c, s in zip(counts, cell, size, strict=True)]
@@ -150,7 +169,7 @@ def robot_spheres(plant: MultibodyPlant, scene_graph, kinematics: BatchedKinemat
         group_of_body: body name -> group id (0 torso, 1 left arm and hand, 2 right).
     """
     inspector = scene_graph.model_inspector()
-    bodies, centres, radii, groups = [], [], [], []
+    bodies, centres, radii, groups, geometries = [], [], [], [], []
     for position, link in enumerate(kinematics.links):
         body = plant.get_body(link.body_index)
         for geometry in plant.GetCollisionGeometriesForBody(body):
@@ -162,7 +181,8 @@ def robot_spheres(plant: MultibodyPlant, scene_graph, kinematics: BatchedKinemat
             centres.append(centre)
             radii.append(radius)
             groups += [group_of_body(body.name(), body.model_instance())] * len(radius)
-    return SphereModel(np.array(bodies), np.vstack(centres), np.concatenate(radii), np.array(groups))
+            geometries += [geometry] * len(radius)
+    return SphereModel(np.array(bodies), np.vstack(centres), np.concatenate(radii), np.array(groups), geometries)
 
 
 def centauro_kinematics(plant: MultibodyPlant, scene_graph, plant_context):

@@ -1,0 +1,196 @@
+"""STOMP (Kalakrishnan et al. 2011) for both arms: 14-DOF joint-space keyframes, start and goal fixed.
+
+Each iteration draws noisy rollouts around the current trajectory (noise shaped by the
+inverse of the finite-difference acceleration metric R, so it is smooth), evaluates a
+cost per rollout and keyframe, turns the costs into per-keyframe probabilities
+(exp(-h * normalised cost)), averages the noise with them, smooths the update with
+M (R^-1 with columns scaled) and keeps the best rollouts for the next iteration. It
+stops when the trajectory is collision-free and its cost has settled, or at the time
+limit.
+
+Costs per keyframe here: sphere-model clearance to the scene (boxes and point sets)
+and between the arms and the torso. Joint limits are enforced by clipping every
+rollout. (The closure and orientation terms of the paper come next.)
+"""
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from systems.planning.kinematics import BatchedKinematics, SphereModel
+
+
+@dataclass
+class StompConfig:
+    keyframes: int = 16
+    rollouts: int = 16
+    reused_rollouts: int = 4
+    max_iterations: int = 300
+    time_limit_s: float = 2.0
+    noise_std: float = 0.5  # rad, initial; shrinks by noise_decay per iteration
+    noise_decay: float = 0.97
+    margin: float = 0.02  # m: clearance below which the collision cost starts
+    sensitivity: float = 10.0  # h in exp(-h * normalised cost)
+    seed: int = 0
+
+
+@dataclass
+class StompResult:
+    success: bool
+    trajectory: np.ndarray  # keyframes x 14
+    iterations: int
+    seconds: float
+    min_clearance_m: float  # smallest sphere-model clearance along the keyframes
+    message: str = ""
+    cost_history: list[float] = field(default_factory=list)
+
+
+class Obstacles:
+    """The scene for the sphere model: oriented boxes and point sets (e.g. an object's surface)."""
+
+    def __init__(self):
+        self.boxes: list[tuple[np.ndarray, np.ndarray]] = []  # (X_BW 4x4, half sizes)
+        self.trees: list[cKDTree] = []
+
+    def add_box(self, X_WB: np.ndarray, size) -> "Obstacles":
+        self.boxes.append((np.linalg.inv(X_WB), 0.5 * np.asarray(size, float)))
+        return self
+
+    def add_points(self, points_W: np.ndarray) -> "Obstacles":
+        self.trees.append(cKDTree(np.asarray(points_W, float)))
+        return self
+
+    def distance(self, centres: np.ndarray, cap: float = 0.3) -> np.ndarray:
+        """Distance (m, negative inside a box) from each point (... x 3) to the nearest obstacle, capped at `cap`.
+
+        The cap lets the point-set queries stop early; nothing beyond it matters to the costs.
+        """
+        flat = centres.reshape(-1, 3)
+        nearest = np.full(len(flat), cap)
+        for X_BW, half in self.boxes:
+            local = flat @ X_BW[:3, :3].T + X_BW[:3, 3]
+            excess = np.abs(local) - half
+            outside = np.linalg.norm(np.maximum(excess, 0.0), axis=1)
+            nearest = np.minimum(nearest, outside + np.minimum(excess.max(axis=1), 0.0))
+        for tree in self.trees:
+            nearest = np.minimum(nearest, tree.query(flat, distance_upper_bound=cap)[0])
+        return nearest.reshape(centres.shape[:-1])
+
+
+def _smoothing_matrices(free: int) -> tuple[np.ndarray, np.ndarray]:
+    """R^-1 (noise covariance) and M (update smoothing) for `free` interior keyframes."""
+    A = np.zeros((free + 2, free))
+    for i in range(free):
+        A[i, i], A[i + 1, i], A[i + 2, i] = 1.0, -2.0, 1.0
+    R = A.T @ A
+    R_inv = np.linalg.inv(R)
+    M = R_inv / (free * R_inv.max(axis=0))
+    return R_inv / R_inv.max(), M
+
+
+class Stomp:
+    """Plans joint-space trajectories for both arms with STOMP."""
+
+    def __init__(
+        self,
+        kinematics: BatchedKinematics,
+        spheres: SphereModel,
+        inspector,
+        lower: np.ndarray,
+        upper: np.ndarray,
+        config: StompConfig | None = None,
+    ):
+        """Args:
+        kinematics, spheres: the robot's batched kinematics and sphere model.
+        inspector: the SceneGraph's model inspector (its collision filters decide which sphere pairs count).
+        lower, upper: the 14 joints' limits, rad.
+        """
+        self.kinematics, self.spheres = kinematics, spheres
+        self.lower, self.upper = np.asarray(lower), np.asarray(upper)
+        self.config = config or StompConfig()
+        self.noise_covariance, self.smoothing = _smoothing_matrices(self.config.keyframes - 2)
+        self.noise_factor = np.linalg.cholesky(self.noise_covariance + 1e-12 * np.eye(len(self.noise_covariance)))
+        # Sphere pairs that must not meet: left arm vs right arm, each arm vs the torso (unless filtered).
+        self.pairs = [spheres.pairs(inspector, 1, 2), spheres.pairs(inspector, 1, 0), spheres.pairs(inspector, 2, 0)]
+
+    def clearance(self, q: np.ndarray, obstacles: Obstacles) -> np.ndarray:
+        """Smallest clearance (m) of the sphere model at each configuration (... x 14)."""
+        shape = q.shape[:-1]
+        centres = self.spheres.centres_W(self.kinematics.body_poses(q.reshape(-1, 14)))
+        radius = self.spheres.radius
+        nearest = (obstacles.distance(centres) - radius).min(axis=1)
+        for a, b in self.pairs:
+            if len(a):
+                gaps = np.linalg.norm(centres[:, a] - centres[:, b], axis=-1) - radius[a] - radius[b]
+                nearest = np.minimum(nearest, gaps.min(axis=1))
+        return nearest.reshape(shape)
+
+    def _costs(self, trajectories: np.ndarray, obstacles: Obstacles) -> np.ndarray:
+        """Cost of every keyframe of every rollout (K x N): how far the clearance falls below the margin."""
+        clearance = self.clearance(trajectories, obstacles)
+        return np.maximum(self.config.margin - clearance, 0.0)
+
+    def plan(self, q_start: np.ndarray, q_goal: np.ndarray, obstacles: Obstacles) -> StompResult:
+        config = self.config
+        rng = np.random.default_rng(config.seed)
+        start = time.perf_counter()
+        n, free = config.keyframes, config.keyframes - 2
+        s = np.linspace(0.0, 1.0, n)[:, None]
+        theta = (1 - s) * q_start + s * q_goal  # N x 14
+        for q, name in ((q_start, "start"), (q_goal, "goal")):
+            if np.any(q < self.lower - 1e-9) or np.any(q > self.upper + 1e-9):
+                return StompResult(
+                    False, theta, 0, 0.0, np.nan, f"the {name} configuration is outside the joint limits"
+                )
+        end_clearance = self.clearance(np.stack([q_start, q_goal]), obstacles)
+        if np.any(end_clearance < 0):
+            which = "start" if end_clearance[0] < 0 else "goal"
+            return StompResult(False, theta, 0, 0.0, float(end_clearance.min()), f"the {which} configuration collides")
+        std = config.noise_std
+        kept = np.empty((0, n, 14))
+        kept_costs = np.empty((0, n))
+        history = []
+        iteration = 0
+        while True:
+            iteration += 1
+            noise = np.einsum("ij,kjd->kid", self.noise_factor, rng.standard_normal((config.rollouts, free, 14))) * std
+            rollouts = np.repeat(theta[None], config.rollouts, axis=0)
+            rollouts[:, 1:-1] += noise
+            np.clip(rollouts, self.lower, self.upper, out=rollouts)
+            costs = self._costs(rollouts, obstacles)
+            all_rollouts = np.concatenate([rollouts, kept])
+            all_costs = np.concatenate([costs, kept_costs])
+            # Per-keyframe probabilities from the cost still to come (STOMP's cost-to-go).
+            to_go = np.cumsum(all_costs[:, ::-1], axis=1)[:, ::-1]
+            low, high = to_go.min(axis=0), to_go.max(axis=0)
+            weights = np.exp(-config.sensitivity * (to_go - low) / np.maximum(high - low, 1e-12))
+            weights /= weights.sum(axis=0)
+            delta = np.einsum("kn,knd->nd", weights, all_rollouts - theta[None])[1:-1]
+            theta[1:-1] += self.smoothing @ delta
+            np.clip(theta, self.lower, self.upper, out=theta)
+            best = np.argsort(all_costs.sum(axis=1))[: config.reused_rollouts]
+            kept, kept_costs = all_rollouts[best], all_costs[best]
+            clearance = self.clearance(theta, obstacles)
+            history.append(float(np.maximum(config.margin - clearance, 0).sum()))
+            std *= config.noise_decay
+            elapsed = time.perf_counter() - start
+            if clearance.min() > 0 and self._segments_clear(theta, obstacles):
+                return StompResult(True, theta, iteration, elapsed, float(clearance.min()), "collision-free", history)
+            if iteration >= config.max_iterations or elapsed > config.time_limit_s:
+                return StompResult(
+                    False,
+                    theta,
+                    iteration,
+                    elapsed,
+                    float(clearance.min()),
+                    f"no collision-free trajectory after {iteration} iterations ({elapsed:.2f} s)",
+                    history,
+                )
+
+    def _segments_clear(self, theta: np.ndarray, obstacles: Obstacles, steps: int = 4) -> bool:
+        """The sphere model stays clear between keyframes too (checked at `steps` points per segment)."""
+        s = np.linspace(0, 1, steps + 1)[1:-1, None, None]
+        between = (1 - s) * theta[None, :-1] + s * theta[None, 1:]
+        return bool(self.clearance(between, obstacles).min() > 0)

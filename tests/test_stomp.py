@@ -1,0 +1,80 @@
+"""STOMP reaching around the table and the object, checked with Drake's exact collision queries."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from diagrams.hand_ik import DualArmIk
+from diagrams.objects.library import resolve_object
+from diagrams.oracle_pick import world_grasps
+from diagrams.station import object_pose_on_table
+from systems.planning.stomp import Obstacles, StompConfig
+
+# Both hands start under the table top, at its front edge: the straight move collides.
+BELOW_TABLE = np.array([0, 0.15, 0, -0.1, 0, 0, 0, 0, -0.15, 0, -0.1, 0, 0, 0.0])
+
+
+@pytest.fixture(scope="module")
+def planning(scenario):
+    model = resolve_object(scenario.object)
+    X_WO = object_pose_on_table(scenario, model)
+    ik = DualArmIk(scenario, obstacle=model, X_WO=X_WO)
+    pregrasp = ik.solve(world_grasps(X_WO, model.info, "pregrasp"), np.array(scenario.initial_arm_positions))
+    assert pregrasp.success
+    return ik, pregrasp.q
+
+
+def test_box_distance_matches_hand_computed_values():
+    obstacles = Obstacles().add_box(np.eye(4), [2.0, 2.0, 2.0])  # the cube [-1, 1]^3
+    points = np.array([[0, 0, 2.0], [2, 2, 0], [0, 0, 0.5], [0, 0, 0]])
+    np.testing.assert_allclose(obstacles.distance(points, cap=10), [1.0, np.sqrt(2), -0.5, -1.0])
+    assert obstacles.distance(np.array([[0, 0, 9.0]]), cap=0.3)[0] == pytest.approx(0.3)
+
+
+def test_stomp_reaches_from_under_the_table_without_collision(planning):
+    ik, q_goal = planning
+    assert not ik.segment_is_free(BELOW_TABLE, q_goal)
+    result = ik.stomp.plan(BELOW_TABLE, q_goal, ik.planning_obstacles)
+    assert result.success, result.message
+    trajectory = result.trajectory
+    np.testing.assert_allclose(trajectory[0], BELOW_TABLE)
+    np.testing.assert_allclose(trajectory[-1], q_goal)
+    assert np.all(trajectory >= ik.lower - 1e-9) and np.all(trajectory <= ik.upper + 1e-9)
+    for q_from, q_to in zip(trajectory[:-1], trajectory[1:], strict=True):
+        assert ik.segment_is_free(q_from, q_to, max_step=0.01)  # Drake's exact geometry, densely
+
+
+def test_stomp_rejects_bad_goals_and_keeps_its_time_limit(planning):
+    ik, q_goal = planning
+    outside = ik.stomp.plan(BELOW_TABLE, ik.upper + 0.1, ik.planning_obstacles)
+    assert not outside.success and "joint limits" in outside.message
+    colliding = _colliding_configuration(ik)
+    in_collision = ik.stomp.plan(BELOW_TABLE, colliding, ik.planning_obstacles)
+    assert not in_collision.success and "goal configuration collides" in in_collision.message
+
+    stomp = ik.stomp
+    saved = stomp.config
+    stomp.config = dataclasses.replace(saved, time_limit_s=0.05, max_iterations=100_000, noise_std=1e-4)
+    try:
+        # Almost no exploration: the colliding straight line stays; the time limit ends the search.
+        timed_out = stomp.plan(BELOW_TABLE, q_goal, ik.planning_obstacles)
+    finally:
+        stomp.config = saved
+    assert not timed_out.success and "no collision-free trajectory" in timed_out.message
+    assert timed_out.seconds < 0.5
+
+
+def _colliding_configuration(ik) -> np.ndarray:
+    """A configuration in collision under Drake's exact check (found by seeded sampling)."""
+    rng = np.random.default_rng(0)
+    for _ in range(2000):
+        q = rng.uniform(ik.lower, ik.upper)
+        if ik.in_collision(q):
+            return q
+    raise AssertionError("no colliding sample found")
+
+
+def test_stomp_config_defaults_are_sane():
+    config = StompConfig()
+    assert config.keyframes >= 8 and config.rollouts > config.reused_rollouts and 0 < config.noise_decay <= 1
