@@ -22,7 +22,7 @@ from diagrams.centauro_description import joint_names
 from diagrams.objects.library import ObjectModel
 from diagrams.scenario import Scenario
 from diagrams.station import HAND_INSTANCES, AddCentauro, AddTable, make_parser
-from systems.planning.kinematics import centauro_kinematics
+from systems.planning.kinematics import EndEffectors, centauro_kinematics
 from systems.planning.stomp import Obstacles, Stomp
 
 SIDES = ("left", "right")
@@ -125,7 +125,9 @@ class DualArmIk:
     def stomp(self) -> Stomp:
         """A STOMP planner over this model's robot (sphere model) and its limits."""
         kinematics, spheres = centauro_kinematics(self.plant, self.scene_graph, self.plant_context)
-        return Stomp(kinematics, spheres, self.scene_graph.model_inspector(), self.lower, self.upper)
+        end_effectors = EndEffectors(self.plant, kinematics, [self.grasp_frames[side] for side in SIDES])
+        inspector = self.scene_graph.model_inspector()
+        return Stomp(kinematics, spheres, inspector, self.lower, self.upper, end_effectors=end_effectors)
 
     @functools.cached_property
     def planning_obstacles(self) -> Obstacles:

@@ -209,3 +209,29 @@ def centauro_kinematics(plant: MultibodyPlant, scene_graph, plant_context):
         return 0
 
     return kinematics, robot_spheres(plant, scene_graph, kinematics, group)
+
+
+class EndEffectors:
+    """World poses of the two hands' grasp frames for batches of arm configurations."""
+
+    def __init__(self, plant: MultibodyPlant, kinematics: BatchedKinematics, frames):
+        """Args:
+        frames: the two end-effector frames (left, right), each fixed to a tracked body.
+        """
+        self.kinematics = kinematics
+        self.positions = [kinematics.position_of_body[frame.body().index()] for frame in frames]
+        self.X_BE = [frame.GetFixedPoseInBodyFrame().GetAsMatrix4() for frame in frames]
+
+    def poses(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(X_WE1, X_WE2), each B x 4 x 4."""
+        body = self.kinematics.body_poses(q)
+        return tuple(body[:, p] @ X for p, X in zip(self.positions, self.X_BE, strict=True))
+
+    def relative(self, q: np.ndarray) -> np.ndarray:
+        """X_E1E2 (B x 4 x 4): the right end-effector's pose seen from the left one's."""
+        X1, X2 = self.poses(q)
+        inverse = np.zeros_like(X1)
+        inverse[:, :3, :3] = np.transpose(X1[:, :3, :3], (0, 2, 1))
+        inverse[:, :3, 3] = -np.einsum("bji,bj->bi", X1[:, :3, :3], X1[:, :3, 3])
+        inverse[:, 3, 3] = 1.0
+        return inverse @ X2

@@ -9,8 +9,11 @@ stops when the trajectory is collision-free and its cost has settled, or at the 
 limit.
 
 Costs per keyframe here: sphere-model clearance to the scene (boxes and point sets)
-and between the arms and the torso. Joint limits are enforced by clipping every
-rollout. (The closure and orientation terms of the paper come next.)
+and between the arms and the torso, and, when both hands hold an object, the
+kinematic-chain closure term q_cc of equations (2)-(4) (systems/planning/closure.py)
+over each transition. Joint limits are enforced by clipping every rollout. With the
+closure on, every update is followed by a projection of the right arm back onto the
+closure manifold (a few damped Gauss-Newton steps), which STOMP-New did not have.
 """
 
 import time
@@ -19,7 +22,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial import cKDTree
 
-from systems.planning.kinematics import BatchedKinematics, SphereModel
+from systems.planning.closure import ClosureConstraint, deviations, transition_costs
+from systems.planning.kinematics import BatchedKinematics, EndEffectors, SphereModel
 
 
 @dataclass
@@ -34,6 +38,8 @@ class StompConfig:
     margin: float = 0.02  # m: clearance below which the collision cost starts
     sensitivity: float = 10.0  # h in exp(-h * normalised cost)
     seed: int = 0
+    closure_states: int = 3  # states checked along each transition for q_cc (including both ends)
+    projection_steps: int = 3
 
 
 @dataclass
@@ -101,12 +107,15 @@ class Stomp:
         lower: np.ndarray,
         upper: np.ndarray,
         config: StompConfig | None = None,
+        end_effectors: EndEffectors | None = None,
     ):
         """Args:
         kinematics, spheres: the robot's batched kinematics and sphere model.
         inspector: the SceneGraph's model inspector (its collision filters decide which sphere pairs count).
         lower, upper: the 14 joints' limits, rad.
+        end_effectors: the hands' grasp frames, needed for the closure constraint.
         """
+        self.end_effectors = end_effectors
         self.kinematics, self.spheres = kinematics, spheres
         self.lower, self.upper = np.asarray(lower), np.asarray(upper)
         self.config = config or StompConfig()
@@ -127,12 +136,76 @@ class Stomp:
                 nearest = np.minimum(nearest, gaps.min(axis=1))
         return nearest.reshape(shape)
 
-    def _costs(self, trajectories: np.ndarray, obstacles: Obstacles) -> np.ndarray:
-        """Cost of every keyframe of every rollout (K x N): how far the clearance falls below the margin."""
+    def _costs(self, trajectories: np.ndarray, obstacles: Obstacles, closure=None) -> np.ndarray:
+        """Cost of every keyframe of every rollout (K x N): clearance below the margin, plus q_cc of the
+        transition into the keyframe when the closure constraint is on."""
         clearance = self.clearance(trajectories, obstacles)
-        return np.maximum(self.config.margin - clearance, 0.0)
+        costs = np.maximum(self.config.margin - clearance, 0.0)
+        if closure is not None:
+            constraint, X_desired = closure
+            t_dev, o_dev = self._transition_deviations(trajectories, X_desired)
+            costs[:, 1:] += transition_costs(t_dev, o_dev, constraint)
+        return costs
 
-    def plan(self, q_start: np.ndarray, q_goal: np.ndarray, obstacles: Obstacles) -> StompResult:
+    def _transition_deviations(self, trajectories: np.ndarray, X_desired: np.ndarray):
+        """Closure deviations at the states along every transition (K x N-1 x closure_states each)."""
+        s = np.linspace(0.0, 1.0, self.config.closure_states)[None, None, :, None]
+        states = (1 - s) * trajectories[:, :-1, None] + s * trajectories[:, 1:, None]
+        t_dev, o_dev = deviations(self.end_effectors, states.reshape(-1, 14), X_desired)
+        return t_dev.reshape(states.shape[:-1]), o_dev.reshape(states.shape[:-1])
+
+    def _project(self, theta: np.ndarray, X_desired: np.ndarray) -> np.ndarray:
+        """Moves both arms of every interior keyframe back towards the desired relative hand pose
+        (the smallest joint change, damped Gauss-Newton with a finite-difference Jacobian)."""
+        q = theta[1:-1].copy()
+        step = 1e-5
+        for _ in range(self.config.projection_steps):
+            error = self._closure_error(q, X_desired)  # K x 6
+            shifted = np.repeat(q[:, None], 14, axis=1) + step * np.eye(14)  # K x 14 x 14
+            moved = self._closure_error(shifted.reshape(-1, 14), X_desired).reshape(len(q), 14, 6)
+            jacobian = np.transpose(moved - error[:, None], (0, 2, 1)) / step  # K x 6 x 14
+            JT = np.transpose(jacobian, (0, 2, 1))
+            damped = jacobian @ JT + 1e-6 * np.eye(6)
+            q -= np.einsum("kij,kj->ki", JT, np.linalg.solve(damped, error[..., None])[..., 0])
+            np.clip(q, self.lower, self.upper, out=q)
+        theta = theta.copy()
+        theta[1:-1] = q
+        return theta
+
+    def _closure_error(self, q: np.ndarray, X_desired: np.ndarray) -> np.ndarray:
+        """6-vector per configuration: translation error and rotation error (axis * angle, small)."""
+        X = self.end_effectors.relative(q)
+        R_error = np.einsum("ji,bjk->bik", X_desired[:3, :3], X[:, :3, :3])  # R_desired^T R
+        rotation = 0.5 * np.column_stack(
+            [
+                R_error[:, 2, 1] - R_error[:, 1, 2],
+                R_error[:, 0, 2] - R_error[:, 2, 0],
+                R_error[:, 1, 0] - R_error[:, 0, 1],
+            ]
+        )
+        return np.column_stack([X[:, :3, 3] - X_desired[:3, 3], rotation])
+
+    def closure_within_limits(self, theta: np.ndarray, closure, steps: int = 10) -> tuple[bool, float, float]:
+        """Whether the deviations stay below t_max and o_max densely along the trajectory; also the largest ones."""
+        constraint, X_desired = closure
+        s = np.linspace(0, 1, steps + 1)[:, None, None]
+        states = ((1 - s) * theta[None, :-1] + s * theta[None, 1:]).reshape(-1, 14)
+        t_dev, o_dev = deviations(self.end_effectors, states, X_desired)
+        ok = t_dev.max() < constraint.t_max and o_dev.max() < constraint.o_max
+        return bool(ok), float(t_dev.max()), float(o_dev.max())
+
+    def plan(
+        self,
+        q_start: np.ndarray,
+        q_goal: np.ndarray,
+        obstacles: Obstacles,
+        closure_constraint: ClosureConstraint | None = None,
+    ) -> StompResult:
+        """Plans from q_start to q_goal (both fixed).
+
+        Args:
+            closure_constraint: keep the hands' relative pose as at q_start (both hands hold an object).
+        """
         config = self.config
         rng = np.random.default_rng(config.seed)
         start = time.perf_counter()
@@ -148,6 +221,12 @@ class Stomp:
         if np.any(end_clearance < 0):
             which = "start" if end_clearance[0] < 0 else "goal"
             return StompResult(False, theta, 0, 0.0, float(end_clearance.min()), f"the {which} configuration collides")
+        closure = None
+        if closure_constraint is not None:
+            if self.end_effectors is None:
+                raise ValueError("the closure constraint needs the end effectors (Stomp(..., end_effectors=...))")
+            closure = (closure_constraint, self.end_effectors.relative(q_start[None])[0])
+            theta = self._project(theta, closure[1])
         std = config.noise_std
         kept = np.empty((0, n, 14))
         kept_costs = np.empty((0, n))
@@ -159,7 +238,7 @@ class Stomp:
             rollouts = np.repeat(theta[None], config.rollouts, axis=0)
             rollouts[:, 1:-1] += noise
             np.clip(rollouts, self.lower, self.upper, out=rollouts)
-            costs = self._costs(rollouts, obstacles)
+            costs = self._costs(rollouts, obstacles, closure)
             all_rollouts = np.concatenate([rollouts, kept])
             all_costs = np.concatenate([costs, kept_costs])
             # Per-keyframe probabilities from the cost still to come (STOMP's cost-to-go).
@@ -170,13 +249,16 @@ class Stomp:
             delta = np.einsum("kn,knd->nd", weights, all_rollouts - theta[None])[1:-1]
             theta[1:-1] += self.smoothing @ delta
             np.clip(theta, self.lower, self.upper, out=theta)
+            if closure is not None:
+                theta = self._project(theta, closure[1])
             best = np.argsort(all_costs.sum(axis=1))[: config.reused_rollouts]
             kept, kept_costs = all_rollouts[best], all_costs[best]
             clearance = self.clearance(theta, obstacles)
             history.append(float(np.maximum(config.margin - clearance, 0).sum()))
             std *= config.noise_decay
             elapsed = time.perf_counter() - start
-            if clearance.min() > 0 and self._segments_clear(theta, obstacles):
+            closure_ok = closure is None or self.closure_within_limits(theta, closure)[0]
+            if clearance.min() > 0 and closure_ok and self._segments_clear(theta, obstacles):
                 return StompResult(True, theta, iteration, elapsed, float(clearance.min()), "collision-free", history)
             if iteration >= config.max_iterations or elapsed > config.time_limit_s:
                 return StompResult(

@@ -1,0 +1,57 @@
+"""The kinematic-chain closure cost of STOMP-New (paper §IV-B, equations (2)-(4)).
+
+When both hands hold an object, the pose of one end-effector relative to the other
+must stay as it was at the first configuration theta_0. Per configuration, t_dev is
+the largest component of |t_desired - t_j| (translation between the end-effectors,
+here expressed in the left one's frame) and o_dev the largest of |o_desired - o_j|
+(relative orientation as roll, pitch, yaw). Each is scored as
+
+    q(dev) = dev / max                 if dev <  max    (in [0, 1))
+             C + C * dev               if dev >= max    (C >> 1)
+
+and a transition theta_i -> theta_{i+1} costs
+q_cc = 1/2 max_j q_ct(theta_j) + 1/2 max_j q_co(theta_j) over the states j along it.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from systems.planning.kinematics import EndEffectors
+
+
+@dataclass
+class ClosureConstraint:
+    t_max: float = 0.01  # m
+    o_max: float = 0.05  # rad
+    C_ct: float = 1000.0
+    C_co: float = 1000.0
+
+
+def rpy_of(R: np.ndarray) -> np.ndarray:
+    """Roll, pitch, yaw (B x 3) of rotation matrices (B x 3 x 3), the convention of Drake's RollPitchYaw."""
+    roll = np.arctan2(R[:, 2, 1], R[:, 2, 2])
+    pitch = np.arcsin(np.clip(-R[:, 2, 0], -1.0, 1.0))
+    yaw = np.arctan2(R[:, 1, 0], R[:, 0, 0])
+    return np.column_stack([roll, pitch, yaw])
+
+
+def deviations(end_effectors: EndEffectors, q: np.ndarray, X_E1E2_desired: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(t_dev, o_dev) of each configuration (B x 14): the largest component deviations, m and rad."""
+    X = end_effectors.relative(q)
+    t_dev = np.abs(X[:, :3, 3] - X_E1E2_desired[:3, 3]).max(axis=1)
+    difference = rpy_of(X[:, :3, :3]) - rpy_of(X_E1E2_desired[None, :3, :3])
+    o_dev = np.abs((difference + np.pi) % (2 * np.pi) - np.pi).max(axis=1)
+    return t_dev, o_dev
+
+
+def threshold_cost(deviation: np.ndarray, maximum: float, C: float) -> np.ndarray:
+    """Equations (3)/(4): dev / max below the threshold, C + C * dev at or beyond it."""
+    return np.where(deviation >= maximum, C + C * deviation, deviation / maximum)
+
+
+def transition_costs(t_dev: np.ndarray, o_dev: np.ndarray, constraint: ClosureConstraint) -> np.ndarray:
+    """Equation (2) for each transition, given deviations at the states along it (... x transitions x states)."""
+    q_ct = threshold_cost(t_dev, constraint.t_max, constraint.C_ct)
+    q_co = threshold_cost(o_dev, constraint.o_max, constraint.C_co)
+    return 0.5 * q_ct.max(axis=-1) + 0.5 * q_co.max(axis=-1)

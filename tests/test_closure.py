@@ -1,0 +1,72 @@
+"""The closure cost (paper equations (2)-(4)) and STOMP lifting a held object with the closure on."""
+
+import numpy as np
+import pytest
+from pydrake.math import RollPitchYaw, RotationMatrix
+
+from diagrams.hand_ik import DualArmIk
+from diagrams.objects.library import resolve_object
+from diagrams.oracle_pick import plan_oracle_pick
+from diagrams.station import object_pose_on_table
+from systems.planning.closure import ClosureConstraint, rpy_of, threshold_cost, transition_costs
+from systems.planning.stomp import Obstacles
+
+
+def test_threshold_cost_below_at_and_beyond_the_maximum():
+    deviation = np.array([0.0, 0.005, 0.01, 0.02])
+    np.testing.assert_allclose(threshold_cost(deviation, 0.01, 1000.0), [0.0, 0.5, 1000 + 10.0, 1000 + 20.0])
+
+
+def test_transition_cost_is_half_the_worst_translation_plus_half_the_worst_orientation():
+    constraint = ClosureConstraint(t_max=0.01, o_max=0.1, C_ct=100.0, C_co=100.0)
+    t_dev = np.array([[0.002, 0.004, 0.001]])  # the states along one transition
+    o_dev = np.array([[0.01, 0.05, 0.2]])  # the last state breaks o_max
+    expected = 0.5 * 0.4 + 0.5 * (100 + 100 * 0.2)
+    np.testing.assert_allclose(transition_costs(t_dev, o_dev, constraint), [expected])
+
+
+def test_rpy_matches_drake():
+    rng = np.random.default_rng(0)
+    for rpy in rng.uniform([-3, -1.5, -3], [3, 1.5, 3], size=(20, 3)):
+        R = RotationMatrix(RollPitchYaw(rpy)).matrix()
+        np.testing.assert_allclose(rpy_of(R[None])[0], RollPitchYaw(RotationMatrix(R)).vector(), atol=1e-9)
+
+
+@pytest.fixture(scope="module")
+def lift_problem(scenario):
+    model = resolve_object(scenario.object)
+    X_WO = object_pose_on_table(scenario, model)
+    ik = DualArmIk(scenario, obstacle=model, X_WO=X_WO)
+    plan = plan_oracle_pick(ik, np.array(scenario.initial_arm_positions), X_WO, model.info)
+    trajectory = plan.arm_trajectory()
+    q_grasp = trajectory.value(plan.phases["close"]).ravel()
+    q_lift = trajectory.value(plan.phases["lift"]).ravel()
+    return ik, q_grasp, q_lift, scenario
+
+
+def test_end_effector_relative_pose_matches_drake(lift_problem):
+    ik, q_grasp, _, _ = lift_problem
+    X = ik.grasp_frame_poses(q_grasp)
+    expected = (X["left"].inverse() @ X["right"]).GetAsMatrix4()
+    np.testing.assert_allclose(ik.stomp.end_effectors.relative(q_grasp[None])[0], expected, atol=1e-10)
+
+
+def test_stomp_lifts_with_the_closure_kept_densely(lift_problem):
+    ik, q_grasp, q_lift, scenario = lift_problem
+    stomp = ik.stomp
+    constraint = ClosureConstraint()
+    X_desired = stomp.end_effectors.relative(q_grasp[None])[0]
+    # The goal keeps the grasp's relative hand pose exactly (projected onto the closure manifold).
+    goal = stomp._project(np.stack([q_grasp, q_lift, q_lift]), X_desired)
+    for _ in range(5):
+        goal = stomp._project(goal, X_desired)
+    table = Obstacles()
+    table.boxes = ik.planning_obstacles.boxes  # the object moves with the hands
+    result = stomp.plan(q_grasp, goal[1], table, constraint)
+    assert result.success, result.message
+    within, t_dev, o_dev = stomp.closure_within_limits(result.trajectory, (constraint, X_desired), steps=20)
+    assert within and t_dev < constraint.t_max and o_dev < constraint.o_max
+    # Drake's exact check against robot and table (the object moves with the hands, so it is left out).
+    without_object = DualArmIk(scenario)
+    for q_from, q_to in zip(result.trajectory[:-1], result.trajectory[1:], strict=True):
+        assert without_object.segment_is_free(q_from, q_to, max_step=0.01)
