@@ -121,6 +121,13 @@ class DualArmIk:
         self.plant.SetPositions(self.plant_context, self.full_positions(q_arms))
         return self.plant.get_geometry_query_input_port().Eval(self.plant_context).HasCollisions()
 
+    def clearance(self, q_arms: np.ndarray, max_distance: float = 0.5) -> float:
+        """Smallest signed distance (m) between robot, table and object geometries at q_arms (Drake's exact query)."""
+        self.plant.SetPositions(self.plant_context, self.full_positions(q_arms))
+        query = self.plant.get_geometry_query_input_port().Eval(self.plant_context)
+        pairs = query.ComputeSignedDistancePairwiseClosestPoints(max_distance)
+        return min((pair.distance for pair in pairs), default=max_distance)
+
     @functools.cached_property
     def stomp(self) -> Stomp:
         """A STOMP planner over this model's robot (sphere model) and its limits."""
