@@ -29,11 +29,11 @@ from systems.planning.kinematics import BatchedKinematics, EndEffectors, SphereM
 @dataclass
 class StompConfig:
     keyframes: int = 16
-    rollouts: int = 16
+    rollouts: int = 24
     reused_rollouts: int = 4
     max_iterations: int = 300
     time_limit_s: float = 2.0
-    noise_std: float = 0.5  # rad, initial; shrinks by noise_decay per iteration
+    noise_std: float = 0.8  # rad, initial; shrinks by noise_decay per iteration
     noise_decay: float = 0.97
     margin: float = 0.02  # m: clearance below which the collision cost starts
     sensitivity: float = 10.0  # h in exp(-h * normalised cost)
@@ -126,21 +126,28 @@ class Stomp:
 
     def clearance(self, q: np.ndarray, obstacles: Obstacles) -> np.ndarray:
         """Smallest clearance (m) of the sphere model at each configuration (... x 14)."""
+        return self._clearances(q, obstacles)[0]
+
+    def _clearances(self, q: np.ndarray, obstacles: Obstacles) -> tuple[np.ndarray, np.ndarray]:
+        """(smallest clearance, summed shortfall below the margin over all spheres and pairs) per configuration."""
         shape = q.shape[:-1]
         centres = self.spheres.centres_W(self.kinematics.body_poses(q.reshape(-1, 14)))
         radius = self.spheres.radius
-        nearest = (obstacles.distance(centres) - radius).min(axis=1)
+        gaps = [obstacles.distance(centres) - radius]
+        centres32 = centres.astype(np.float32)
         for a, b in self.pairs:
             if len(a):
-                gaps = np.linalg.norm(centres[:, a] - centres[:, b], axis=-1) - radius[a] - radius[b]
-                nearest = np.minimum(nearest, gaps.min(axis=1))
-        return nearest.reshape(shape)
+                difference = centres32[:, a] - centres32[:, b]
+                distance = np.sqrt(np.einsum("bpi,bpi->bp", difference, difference))
+                gaps.append(distance - (radius[a] + radius[b]).astype(np.float32))
+        gaps = np.concatenate(gaps, axis=1, dtype=np.float64)
+        shortfall = np.maximum(self.config.margin - gaps, 0.0).sum(axis=1)
+        return gaps.min(axis=1).reshape(shape), shortfall.reshape(shape)
 
     def _costs(self, trajectories: np.ndarray, obstacles: Obstacles, closure=None) -> np.ndarray:
         """Cost of every keyframe of every rollout (K x N): clearance below the margin, plus q_cc of the
         transition into the keyframe when the closure constraint is on."""
-        clearance = self.clearance(trajectories, obstacles)
-        costs = np.maximum(self.config.margin - clearance, 0.0)
+        costs = self._clearances(trajectories, obstacles)[1]
         if closure is not None:
             constraint, X_desired = closure
             t_dev, o_dev = self._transition_deviations(trajectories, X_desired)
