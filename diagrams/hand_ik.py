@@ -26,6 +26,7 @@ from systems.planning.kinematics import EndEffectors, centauro_kinematics
 from systems.planning.stomp import Obstacles, Stomp
 
 SIDES = ("left", "right")
+OBJECT_SURFACE_POINTS = 6000
 # A hand is symmetric under a half turn about its approach axis z_G.
 HALF_TURN = RigidTransform(RotationMatrix.MakeZRotation(np.pi))
 
@@ -154,8 +155,10 @@ class DualArmIk:
                     obstacles.add_box(X_WG, [shape.width(), shape.depth(), shape.height()])
         if self.obstacle is not None:
             mesh = trimesh.load(self.obstacle.model_file.parent / "visual.obj", force="mesh")
-            points, _ = trimesh.sample.sample_surface_even(mesh, 3000, seed=0)
-            obstacles.add_points(self.X_WO.multiply(points.T).T)
+            points, _ = trimesh.sample.sample_surface_even(mesh, OBJECT_SURFACE_POINTS, seed=0)
+            # Between surface samples the nearest sample is up to about half their spacing too far.
+            spacing = np.sqrt(mesh.area / len(points))
+            obstacles.add_points(self.X_WO.multiply(points.T).T, inflation=0.5 * spacing)
         return obstacles
 
     def segment_is_free(self, q_from: np.ndarray, q_to: np.ndarray, max_step: float = 0.02) -> bool:

@@ -53,25 +53,62 @@ class StompResult:
     cost_history: list[float] = field(default_factory=list)
 
 
+class DistanceField:
+    """Distance to a point set, precomputed on a grid (cell CELL) around it and interpolated trilinearly.
+
+    Points farther than REACH from the set's box get the cap.
+    """
+
+    CELL = 0.01  # m
+    REACH = 0.15  # m
+
+    def __init__(self, points: np.ndarray, inflation: float = 0.0):
+        self.inflation = inflation
+        self.lower = points.min(axis=0) - self.REACH
+        self.shape = np.ceil((points.max(axis=0) + self.REACH - self.lower) / self.CELL).astype(int) + 1
+        nodes = self.lower + self.CELL * np.stack(np.indices(self.shape), axis=-1).reshape(-1, 3)
+        self.values = cKDTree(points).query(nodes)[0].reshape(self.shape).astype(np.float32)
+
+    def __call__(self, query: np.ndarray, cap: float) -> np.ndarray:
+        u = (query - self.lower) / self.CELL
+        inside = np.all((u >= 0) & (u <= self.shape - 1), axis=1)
+        result = np.full(len(query), cap)
+        u = u[inside]
+        i = np.minimum(np.floor(u).astype(int), self.shape - 2)
+        f = u - i
+        v = self.values
+        value = 0.0
+        for dx in (0, 1):
+            wx = f[:, 0] if dx else 1 - f[:, 0]
+            for dy in (0, 1):
+                wy = f[:, 1] if dy else 1 - f[:, 1]
+                for dz in (0, 1):
+                    wz = f[:, 2] if dz else 1 - f[:, 2]
+                    value = value + wx * wy * wz * v[i[:, 0] + dx, i[:, 1] + dy, i[:, 2] + dz]
+        result[inside] = np.minimum(value - self.inflation, cap)
+        return result
+
+
 class Obstacles:
     """The scene for the sphere model: oriented boxes and point sets (e.g. an object's surface)."""
 
     def __init__(self):
         self.boxes: list[tuple[np.ndarray, np.ndarray]] = []  # (X_BW 4x4, half sizes)
-        self.trees: list[cKDTree] = []
+        self.fields: list[DistanceField] = []
 
     def add_box(self, X_WB: np.ndarray, size) -> "Obstacles":
         self.boxes.append((np.linalg.inv(X_WB), 0.5 * np.asarray(size, float)))
         return self
 
-    def add_points(self, points_W: np.ndarray) -> "Obstacles":
-        self.trees.append(cKDTree(np.asarray(points_W, float)))
+    def add_points(self, points_W: np.ndarray, inflation: float = 0.0) -> "Obstacles":
+        """A surface given by points; distances to it are reduced by `inflation` (m), e.g. half their spacing."""
+        self.fields.append(DistanceField(np.asarray(points_W, float), inflation))
         return self
 
     def distance(self, centres: np.ndarray, cap: float = 0.3) -> np.ndarray:
         """Distance (m, negative inside a box) from each point (... x 3) to the nearest obstacle, capped at `cap`.
 
-        The cap lets the point-set queries stop early; nothing beyond it matters to the costs.
+        Nothing beyond the cap matters to the costs (it must exceed the margin plus the largest sphere).
         """
         flat = centres.reshape(-1, 3)
         nearest = np.full(len(flat), cap)
@@ -80,8 +117,8 @@ class Obstacles:
             excess = np.abs(local) - half
             outside = np.linalg.norm(np.maximum(excess, 0.0), axis=1)
             nearest = np.minimum(nearest, outside + np.minimum(excess.max(axis=1), 0.0))
-        for tree in self.trees:
-            nearest = np.minimum(nearest, tree.query(flat, distance_upper_bound=cap)[0])
+        for field_ in self.fields:
+            nearest = np.minimum(nearest, field_(flat, cap))
         return nearest.reshape(centres.shape[:-1])
 
 
@@ -122,7 +159,27 @@ class Stomp:
         self.noise_covariance, self.smoothing = _smoothing_matrices(self.config.keyframes - 2)
         self.noise_factor = np.linalg.cholesky(self.noise_covariance + 1e-12 * np.eye(len(self.noise_covariance)))
         # Sphere pairs that must not meet: left arm vs right arm, each arm vs the torso (unless filtered).
-        self.pairs = [spheres.pairs(inspector, 1, 2), spheres.pairs(inspector, 1, 0), spheres.pairs(inspector, 2, 0)]
+        pairs = [spheres.pairs(inspector, 1, 2), spheres.pairs(inspector, 1, 0), spheres.pairs(inspector, 2, 0)]
+        self.pair_a = np.concatenate([a for a, _ in pairs])
+        self.pair_b = np.concatenate([b for _, b in pairs])
+        # Broad phase: a bounding sphere per body; sphere pairs are grouped by their bodies' pair.
+        bodies = np.unique(spheres.body)
+        self.bound_centre = np.array([spheres.centre_B[spheres.body == b].mean(axis=0) for b in bodies])
+        self.bound_radius = np.array(
+            [
+                np.max(
+                    np.linalg.norm(spheres.centre_B[spheres.body == b] - c, axis=1) + spheres.radius[spheres.body == b]
+                )
+                for b, c in zip(bodies, self.bound_centre, strict=True)
+            ]
+        )
+        self.bound_body = bodies
+        slot = {b: i for i, b in enumerate(bodies)}
+        body_pairs = np.array(
+            [(slot[spheres.body[a]], slot[spheres.body[b]]) for a, b in zip(self.pair_a, self.pair_b, strict=True)]
+        )
+        self.body_pairs, pair_group = np.unique(body_pairs, axis=0, return_inverse=True)
+        self.pair_group = pair_group.ravel()
 
     def clearance(self, q: np.ndarray, obstacles: Obstacles) -> np.ndarray:
         """Smallest clearance (m) of the sphere model at each configuration (... x 14)."""
@@ -131,18 +188,29 @@ class Stomp:
     def _clearances(self, q: np.ndarray, obstacles: Obstacles) -> tuple[np.ndarray, np.ndarray]:
         """(smallest clearance, summed shortfall below the margin over all spheres and pairs) per configuration."""
         shape = q.shape[:-1]
-        centres = self.spheres.centres_W(self.kinematics.body_poses(q.reshape(-1, 14)))
+        poses = self.kinematics.body_poses(q.reshape(-1, 14))
+        centres = self.spheres.centres_W(poses)
         radius = self.spheres.radius
         gaps = [obstacles.distance(centres) - radius]
-        centres32 = centres.astype(np.float32)
-        for a, b in self.pairs:
-            if len(a):
-                difference = centres32[:, a] - centres32[:, b]
-                distance = np.sqrt(np.einsum("bpi,bpi->bp", difference, difference))
-                gaps.append(distance - (radius[a] + radius[b]).astype(np.float32))
+        near = self._near_sphere_pairs(poses)
+        if len(near):
+            a, b = self.pair_a[near], self.pair_b[near]
+            centres32 = centres.astype(np.float32)
+            difference = centres32[:, a] - centres32[:, b]
+            distance = np.sqrt(np.einsum("bpi,bpi->bp", difference, difference))
+            gaps.append(distance - (radius[a] + radius[b]).astype(np.float32))
         gaps = np.concatenate(gaps, axis=1, dtype=np.float64)
         shortfall = np.maximum(self.config.margin - gaps, 0.0).sum(axis=1)
         return gaps.min(axis=1).reshape(shape), shortfall.reshape(shape)
+
+    def _near_sphere_pairs(self, body_poses: np.ndarray) -> np.ndarray:
+        """Indices of the sphere pairs whose bodies' bounding spheres come within the margin in any configuration."""
+        poses = body_poses[:, self.bound_body]
+        centres = np.einsum("bkij,kj->bki", poses[:, :, :3, :3], self.bound_centre) + poses[:, :, :3, 3]
+        i, j = self.body_pairs[:, 0], self.body_pairs[:, 1]
+        gap = np.linalg.norm(centres[:, i] - centres[:, j], axis=-1) - self.bound_radius[i] - self.bound_radius[j]
+        close = (gap < self.config.margin).any(axis=0)
+        return np.nonzero(close[self.pair_group])[0]
 
     def _costs(self, trajectories: np.ndarray, obstacles: Obstacles, closure=None) -> np.ndarray:
         """Cost of every keyframe of every rollout (K x N): clearance below the margin, plus q_cc of the
