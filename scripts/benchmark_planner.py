@@ -1,8 +1,8 @@
 """Benchmarks the STOMP planner on the paper's experiments, with Drake's KinematicTrajectoryOptimization as a peer.
 
   closure_off / closure_on: paper Table I. Both hands hold the can at its grasp; both arms
-      lift it 0.15 m, without / with the kinematic-chain closure constraint (no scene
-      obstacles; self-collision counts). 10 s limit.
+      lift it 0.15 m, without / with the kinematic-chain closure constraint (the table is the
+      only obstacle, the held object moves with the hands; self-collision counts). 10 s limit.
   reach: from arms under the table top (the straight line collides) to the pre-grasp
       poses of a test can or drill at a random yaw.
   reach_kto: the same reaching problems solved by Drake's KinematicTrajectoryOptimization.
@@ -30,7 +30,6 @@ from diagrams.oracle_pick import plan_oracle_pick, world_grasps
 from diagrams.scenario import load_scenario, replace_object
 from diagrams.station import object_pose_on_table
 from systems.planning.closure import ClosureConstraint, deviations
-from systems.planning.stomp import Obstacles
 
 BELOW_TABLE = np.array([0, 0.15, 0, -0.1, 0, 0, 0, 0, -0.15, 0, -0.1, 0, 0, 0.0])
 TIME_LIMIT_S = 10.0
@@ -77,11 +76,10 @@ def closure_experiment(runs: int, closure: bool) -> list[dict]:
     goal = np.stack([q_grasp, q_lift, q_lift])
     for _ in range(5):
         goal = stomp._project(goal, X_desired)
-    free_space = Obstacles()
     rows = []
     for run in range(runs):
         stomp.config.seed = run
-        result = stomp.plan(q_grasp, goal[1], free_space, constraint if closure else None)
+        result = stomp.plan(q_grasp, goal[1], ik.planning_obstacles, constraint if closure else None)
         states = dense_states(result.trajectory)
         t_dev, o_dev = deviations(stomp.end_effectors, states, X_desired)
         clearance = min(ik.clearance(q) for q in states[:: max(1, len(states) // 200)])

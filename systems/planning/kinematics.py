@@ -116,12 +116,17 @@ class SphereModel:
     geometry: list  # S, the GeometryId each sphere covers
 
     def pairs(self, inspector, group_a: int, group_b: int) -> tuple[np.ndarray, np.ndarray]:
-        """Index pairs (i in group_a, j in group_b) of spheres whose geometries may collide (not filtered)."""
+        """Index pairs (i in group_a, j in group_b) of spheres whose geometries may collide (not filtered).
+
+        With group_a == group_b, the pairs within the group (e.g. a hand and its own upper arm).
+        """
         a, b = np.nonzero(self.group == group_a)[0], np.nonzero(self.group == group_b)[0]
         allowed = {}
         i_list, j_list = [], []
         for i in a:
             for j in b:
+                if group_a == group_b and (j <= i or self.geometry[i] == self.geometry[j]):
+                    continue  # within one group: each pair once, and never a geometry with itself
                 key = (self.geometry[i], self.geometry[j])
                 if key not in allowed:
                     allowed[key] = not inspector.CollisionFiltered(*key)

@@ -158,8 +158,10 @@ class Stomp:
         self.config = config or StompConfig()
         self.noise_covariance, self.smoothing = _smoothing_matrices(self.config.keyframes - 2)
         self.noise_factor = np.linalg.cholesky(self.noise_covariance + 1e-12 * np.eye(len(self.noise_covariance)))
-        # Sphere pairs that must not meet: left arm vs right arm, each arm vs the torso (unless filtered).
-        pairs = [spheres.pairs(inspector, 1, 2), spheres.pairs(inspector, 1, 0), spheres.pairs(inspector, 2, 0)]
+        # Sphere pairs that must not meet (unless their geometries are filtered): the arms with each other,
+        # with the torso, and within each arm.
+        groups = ((1, 2), (1, 0), (2, 0), (1, 1), (2, 2))
+        pairs = [spheres.pairs(inspector, a, b) for a, b in groups]
         self.pair_a = np.concatenate([a for a, _ in pairs])
         self.pair_b = np.concatenate([b for _, b in pairs])
         # Broad phase: a bounding sphere per body; sphere pairs are grouped by their bodies' pair.
