@@ -36,6 +36,7 @@ class StompConfig:
     noise_std: float = 0.8  # rad, initial; shrinks by noise_decay per iteration
     noise_decay: float = 0.97
     margin: float = 0.02  # m: clearance below which the collision cost starts
+    required_clearance: float = 0.005  # m: a plan counts as collision-free above this (covers model errors)
     sensitivity: float = 10.0  # h in exp(-h * normalised cost)
     seed: int = 0
     closure_states: int = 3  # states checked along each transition for q_cc (including both ends)
@@ -335,7 +336,7 @@ class Stomp:
             std *= config.noise_decay
             elapsed = time.perf_counter() - start
             closure_ok = closure is None or self.closure_within_limits(theta, closure)[0]
-            if clearance.min() > 0 and closure_ok and self._segments_clear(theta, obstacles):
+            if clearance.min() > config.required_clearance and closure_ok and self._segments_clear(theta, obstacles):
                 return StompResult(True, theta, iteration, elapsed, float(clearance.min()), "collision-free", history)
             if iteration >= config.max_iterations or elapsed > config.time_limit_s:
                 return StompResult(
@@ -352,4 +353,4 @@ class Stomp:
         """The sphere model stays clear between keyframes too (checked at `steps` points per segment)."""
         s = np.linspace(0, 1, steps + 1)[1:-1, None, None]
         between = (1 - s) * theta[None, :-1] + s * theta[None, 1:]
-        return bool(self.clearance(between, obstacles).min() > 0)
+        return bool(self.clearance(between, obstacles).min() > self.config.required_clearance)
