@@ -3,6 +3,8 @@
   closure_off / closure_on: paper Table I. Both hands hold the can at its grasp; both arms
       lift it 0.15 m, without / with the kinematic-chain closure constraint (the table is the
       only obstacle, the held object moves with the hands; self-collision counts). 10 s limit.
+  bar_lift: the same lift keeping, besides the closure, both hands' world orientation
+      (a bar lying on both wrists must not roll off).
   reach: from arms under the table top (the straight line collides) to the pre-grasp
       poses of a test can or drill at a random yaw.
   reach_kto: the same reaching problems solved by Drake's KinematicTrajectoryOptimization.
@@ -29,7 +31,7 @@ from diagrams.objects.library import resolve_object
 from diagrams.oracle_pick import plan_oracle_pick, world_grasps
 from diagrams.scenario import load_scenario, replace_object
 from diagrams.station import object_pose_on_table
-from systems.planning.closure import ClosureConstraint, deviations
+from systems.planning.closure import ClosureConstraint, OrientationConstraint, deviations, orientation_deviations
 
 BELOW_TABLE = np.array([0, 0.15, 0, -0.1, 0, 0, 0, 0, -0.15, 0, -0.1, 0, 0, 0.0])
 TIME_LIMIT_S = 10.0
@@ -59,7 +61,7 @@ def summary(rows: list[dict]) -> dict:
     return result
 
 
-def closure_experiment(runs: int, closure: bool) -> list[dict]:
+def closure_experiment(runs: int, closure: bool, fixed_orientation: bool = False) -> list[dict]:
     scenario = load_scenario()
     model = resolve_object(scenario.object)
     X_WO = object_pose_on_table(scenario, model)
@@ -73,15 +75,19 @@ def closure_experiment(runs: int, closure: bool) -> list[dict]:
     stomp.config.time_limit_s = TIME_LIMIT_S
     constraint = ClosureConstraint()
     X_desired = stomp.end_effectors.relative(q_grasp[None])[0]
+    orientation = OrientationConstraint() if fixed_orientation else None
+    R_desired = [X[0, :3, :3] for X in stomp.end_effectors.poses(q_grasp[None])] if fixed_orientation else None
     goal = np.stack([q_grasp, q_lift, q_lift])
     for _ in range(5):
-        goal = stomp._project(goal, X_desired)
+        goal = stomp._project(goal, X_desired, R_desired)
     rows = []
     for run in range(runs):
         stomp.config.seed = run
-        result = stomp.plan(q_grasp, goal[1], ik.planning_obstacles, constraint if closure else None)
+        result = stomp.plan(q_grasp, goal[1], ik.planning_obstacles, constraint if closure else None, orientation)
         states = dense_states(result.trajectory)
         t_dev, o_dev = deviations(stomp.end_effectors, states, X_desired)
+        if fixed_orientation:
+            o_dev = np.maximum(o_dev, orientation_deviations(stomp.end_effectors, states, R_desired))
         clearance = min(ik.clearance(q) for q in states[:: max(1, len(states) // 200)])
         rows.append(
             {
@@ -179,6 +185,7 @@ def main():
     results = {}
     results["closure_off"] = summary(closure_experiment(args.runs, closure=False))
     results["closure_on"] = summary(closure_experiment(args.runs, closure=True))
+    results["bar_lift"] = summary(closure_experiment(args.runs, closure=True, fixed_orientation=True))
     problems = reach_problems(args.reach_runs, args.seed)
     results["reach"] = summary(reach_stomp(problems))
     results["reach_kto"] = summary(reach_kto(problems[: args.kto_runs]))

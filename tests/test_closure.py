@@ -8,7 +8,13 @@ from diagrams.hand_ik import DualArmIk
 from diagrams.objects.library import resolve_object
 from diagrams.oracle_pick import plan_oracle_pick
 from diagrams.station import object_pose_on_table
-from systems.planning.closure import ClosureConstraint, rpy_of, threshold_cost, transition_costs
+from systems.planning.closure import (
+    ClosureConstraint,
+    OrientationConstraint,
+    rpy_of,
+    threshold_cost,
+    transition_costs,
+)
 from systems.planning.stomp import Obstacles
 
 
@@ -70,3 +76,24 @@ def test_stomp_lifts_with_the_closure_kept_densely(lift_problem):
     without_object = DualArmIk(scenario)
     for q_from, q_to in zip(result.trajectory[:-1], result.trajectory[1:], strict=True):
         assert without_object.segment_is_free(q_from, q_to, max_step=0.01)
+
+
+def test_stomp_bar_lift_keeps_closure_and_both_hand_orientations(lift_problem):
+    ik, q_grasp, q_lift, _ = lift_problem
+    stomp = ik.stomp
+    X_desired = stomp.end_effectors.relative(q_grasp[None])[0]
+    R_desired = [X[0, :3, :3] for X in stomp.end_effectors.poses(q_grasp[None])]
+    goal = np.stack([q_grasp, q_lift, q_lift])
+    for _ in range(5):
+        goal = stomp._project(goal, X_desired, R_desired)
+    table = Obstacles()
+    table.boxes = ik.planning_obstacles.boxes
+    closure, orientation = ClosureConstraint(), OrientationConstraint()
+    result = stomp.plan(q_grasp, goal[1], table, closure, orientation)
+    assert result.success, result.message
+    within, worst = stomp.orientation_within_limits(result.trajectory, (orientation, R_desired), steps=20)
+    assert within and worst < orientation.o_max
+    assert stomp.closure_within_limits(result.trajectory, (closure, X_desired), steps=20)[0]
+    # The hands really rise (the orientation is kept along a real motion).
+    lift = stomp.end_effectors.poses(result.trajectory[[0, -1]])[0][:, 2, 3]
+    assert lift[1] - lift[0] > 0.1

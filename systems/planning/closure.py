@@ -55,3 +55,20 @@ def transition_costs(t_dev: np.ndarray, o_dev: np.ndarray, constraint: ClosureCo
     q_ct = threshold_cost(t_dev, constraint.t_max, constraint.C_ct)
     q_co = threshold_cost(o_dev, constraint.o_max, constraint.C_co)
     return 0.5 * q_ct.max(axis=-1) + 0.5 * q_co.max(axis=-1)
+
+
+@dataclass
+class OrientationConstraint:
+    """STOMP-New's end-effector orientation constraint: both hands keep their world orientation from theta_0."""
+
+    o_max: float = 0.05  # rad
+    C: float = 1000.0
+
+
+def orientation_deviations(end_effectors: EndEffectors, q: np.ndarray, R_desired) -> np.ndarray:
+    """Largest roll/pitch/yaw deviation (rad) of either hand from its desired world orientation, per configuration."""
+    worst = np.zeros(len(q))
+    for X, R in zip(end_effectors.poses(q), R_desired, strict=True):
+        difference = rpy_of(X[:, :3, :3]) - rpy_of(R[None])
+        worst = np.maximum(worst, np.abs((difference + np.pi) % (2 * np.pi) - np.pi).max(axis=1))
+    return worst

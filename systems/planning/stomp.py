@@ -22,7 +22,14 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial import cKDTree
 
-from systems.planning.closure import ClosureConstraint, deviations, transition_costs
+from systems.planning.closure import (
+    ClosureConstraint,
+    OrientationConstraint,
+    deviations,
+    orientation_deviations,
+    threshold_cost,
+    transition_costs,
+)
 from systems.planning.kinematics import BatchedKinematics, EndEffectors, SphereModel
 
 
@@ -123,6 +130,14 @@ class Obstacles:
         return nearest.reshape(centres.shape[:-1])
 
 
+def _rotation_error(R_desired: np.ndarray, R: np.ndarray) -> np.ndarray:
+    """Small-angle rotation vectors (B x 3) of R_desired^T R for rotations R (B x 3 x 3)."""
+    R_error = np.einsum("ji,bjk->bik", R_desired, R)
+    return 0.5 * np.column_stack(
+        [R_error[:, 2, 1] - R_error[:, 1, 2], R_error[:, 0, 2] - R_error[:, 2, 0], R_error[:, 1, 0] - R_error[:, 0, 1]]
+    )
+
+
 def _smoothing_matrices(free: int) -> tuple[np.ndarray, np.ndarray]:
     """R^-1 (noise covariance) and M (update smoothing) for `free` interior keyframes."""
     A = np.zeros((free + 2, free))
@@ -215,15 +230,26 @@ class Stomp:
         close = (gap < self.config.margin).any(axis=0)
         return np.nonzero(close[self.pair_group])[0]
 
-    def _costs(self, trajectories: np.ndarray, obstacles: Obstacles, closure=None) -> np.ndarray:
+    def _costs(self, trajectories: np.ndarray, obstacles: Obstacles, closure=None, orientation=None) -> np.ndarray:
         """Cost of every keyframe of every rollout (K x N): clearance below the margin, plus q_cc of the
-        transition into the keyframe when the closure constraint is on."""
+        transition into the keyframe when the closure constraint is on, plus the orientation term."""
         costs = self._clearances(trajectories, obstacles)[1]
         if closure is not None:
             constraint, X_desired = closure
             t_dev, o_dev = self._transition_deviations(trajectories, X_desired)
             costs[:, 1:] += transition_costs(t_dev, o_dev, constraint)
+        if orientation is not None:
+            constraint, R_desired = orientation
+            states = self._transition_states(trajectories)
+            o_dev = orientation_deviations(self.end_effectors, states.reshape(-1, 14), R_desired)
+            q_o = threshold_cost(o_dev.reshape(states.shape[:-1]), constraint.o_max, constraint.C)
+            costs[:, 1:] += q_o.max(axis=-1)
         return costs
+
+    def _transition_states(self, trajectories: np.ndarray) -> np.ndarray:
+        """The states along every transition (K x N-1 x closure_states x 14)."""
+        s = np.linspace(0.0, 1.0, self.config.closure_states)[None, None, :, None]
+        return (1 - s) * trajectories[:, :-1, None] + s * trajectories[:, 1:, None]
 
     def _transition_deviations(self, trajectories: np.ndarray, X_desired: np.ndarray):
         """Closure deviations at the states along every transition (K x N-1 x closure_states each)."""
@@ -232,18 +258,30 @@ class Stomp:
         t_dev, o_dev = deviations(self.end_effectors, states.reshape(-1, 14), X_desired)
         return t_dev.reshape(states.shape[:-1]), o_dev.reshape(states.shape[:-1])
 
-    def _project(self, theta: np.ndarray, X_desired: np.ndarray) -> np.ndarray:
+    def _project(self, theta: np.ndarray, X_desired: np.ndarray | None, R_desired=None) -> np.ndarray:
         """Moves both arms of every interior keyframe back towards the desired relative hand pose
-        (the smallest joint change, damped Gauss-Newton with a finite-difference Jacobian)."""
+        (X_desired) and/or the hands' desired world orientations (R_desired): the smallest joint change,
+        damped Gauss-Newton with a finite-difference Jacobian."""
+
+        def error_of(q):
+            parts = []
+            if X_desired is not None:
+                parts.append(self._closure_error(q, X_desired))
+            if R_desired is not None:
+                for X, R in zip(self.end_effectors.poses(q), R_desired, strict=True):
+                    parts.append(_rotation_error(R, X[:, :3, :3]))
+            return np.concatenate(parts, axis=1)
+
         q = theta[1:-1].copy()
         step = 1e-5
         for _ in range(self.config.projection_steps):
-            error = self._closure_error(q, X_desired)  # K x 6
+            error = error_of(q)  # K x E
+            size = error.shape[1]
             shifted = np.repeat(q[:, None], 14, axis=1) + step * np.eye(14)  # K x 14 x 14
-            moved = self._closure_error(shifted.reshape(-1, 14), X_desired).reshape(len(q), 14, 6)
-            jacobian = np.transpose(moved - error[:, None], (0, 2, 1)) / step  # K x 6 x 14
+            moved = error_of(shifted.reshape(-1, 14)).reshape(len(q), 14, size)
+            jacobian = np.transpose(moved - error[:, None], (0, 2, 1)) / step  # K x E x 14
             JT = np.transpose(jacobian, (0, 2, 1))
-            damped = jacobian @ JT + 1e-6 * np.eye(6)
+            damped = jacobian @ JT + 1e-6 * np.eye(size)
             q -= np.einsum("kij,kj->ki", JT, np.linalg.solve(damped, error[..., None])[..., 0])
             np.clip(q, self.lower, self.upper, out=q)
         theta = theta.copy()
@@ -253,15 +291,15 @@ class Stomp:
     def _closure_error(self, q: np.ndarray, X_desired: np.ndarray) -> np.ndarray:
         """6-vector per configuration: translation error and rotation error (axis * angle, small)."""
         X = self.end_effectors.relative(q)
-        R_error = np.einsum("ji,bjk->bik", X_desired[:3, :3], X[:, :3, :3])  # R_desired^T R
-        rotation = 0.5 * np.column_stack(
-            [
-                R_error[:, 2, 1] - R_error[:, 1, 2],
-                R_error[:, 0, 2] - R_error[:, 2, 0],
-                R_error[:, 1, 0] - R_error[:, 0, 1],
-            ]
-        )
-        return np.column_stack([X[:, :3, 3] - X_desired[:3, 3], rotation])
+        return np.column_stack([X[:, :3, 3] - X_desired[:3, 3], _rotation_error(X_desired[:3, :3], X[:, :3, :3])])
+
+    def orientation_within_limits(self, theta: np.ndarray, orientation, steps: int = 10) -> tuple[bool, float]:
+        """Whether both hands stay within o_max of their desired orientations densely; also the largest deviation."""
+        constraint, R_desired = orientation
+        s = np.linspace(0, 1, steps + 1)[:, None, None]
+        states = ((1 - s) * theta[None, :-1] + s * theta[None, 1:]).reshape(-1, 14)
+        worst = float(orientation_deviations(self.end_effectors, states, R_desired).max())
+        return worst < constraint.o_max, worst
 
     def closure_within_limits(self, theta: np.ndarray, closure, steps: int = 10) -> tuple[bool, float, float]:
         """Whether the deviations stay below t_max and o_max densely along the trajectory; also the largest ones."""
@@ -278,11 +316,13 @@ class Stomp:
         q_goal: np.ndarray,
         obstacles: Obstacles,
         closure_constraint: ClosureConstraint | None = None,
+        orientation_constraint: OrientationConstraint | None = None,
     ) -> StompResult:
         """Plans from q_start to q_goal (both fixed).
 
         Args:
             closure_constraint: keep the hands' relative pose as at q_start (both hands hold an object).
+            orientation_constraint: keep both hands' world orientations as at q_start.
         """
         config = self.config
         rng = np.random.default_rng(config.seed)
@@ -299,12 +339,18 @@ class Stomp:
         if np.any(end_clearance < 0):
             which = "start" if end_clearance[0] < 0 else "goal"
             return StompResult(False, theta, 0, 0.0, float(end_clearance.min()), f"the {which} configuration collides")
-        closure = None
+        closure = orientation = None
+        if (closure_constraint or orientation_constraint) and self.end_effectors is None:
+            raise ValueError("hand constraints need the end effectors (Stomp(..., end_effectors=...))")
         if closure_constraint is not None:
-            if self.end_effectors is None:
-                raise ValueError("the closure constraint needs the end effectors (Stomp(..., end_effectors=...))")
             closure = (closure_constraint, self.end_effectors.relative(q_start[None])[0])
-            theta = self._project(theta, closure[1])
+        if orientation_constraint is not None:
+            orientation = (orientation_constraint, [X[0, :3, :3] for X in self.end_effectors.poses(q_start[None])])
+        X_desired = closure[1] if closure else None
+        R_desired = orientation[1] if orientation else None
+        constrained = closure is not None or orientation is not None
+        if constrained:
+            theta = self._project(theta, X_desired, R_desired)
         std = config.noise_std
         kept = np.empty((0, n, 14))
         kept_costs = np.empty((0, n))
@@ -316,7 +362,7 @@ class Stomp:
             rollouts = np.repeat(theta[None], config.rollouts, axis=0)
             rollouts[:, 1:-1] += noise
             np.clip(rollouts, self.lower, self.upper, out=rollouts)
-            costs = self._costs(rollouts, obstacles, closure)
+            costs = self._costs(rollouts, obstacles, closure, orientation)
             all_rollouts = np.concatenate([rollouts, kept])
             all_costs = np.concatenate([costs, kept_costs])
             # Per-keyframe probabilities from the cost still to come (STOMP's cost-to-go).
@@ -327,8 +373,8 @@ class Stomp:
             delta = np.einsum("kn,knd->nd", weights, all_rollouts - theta[None])[1:-1]
             theta[1:-1] += self.smoothing @ delta
             np.clip(theta, self.lower, self.upper, out=theta)
-            if closure is not None:
-                theta = self._project(theta, closure[1])
+            if constrained:
+                theta = self._project(theta, X_desired, R_desired)
             best = np.argsort(all_costs.sum(axis=1))[: config.reused_rollouts]
             kept, kept_costs = all_rollouts[best], all_costs[best]
             clearance = self.clearance(theta, obstacles)
@@ -336,6 +382,8 @@ class Stomp:
             std *= config.noise_decay
             elapsed = time.perf_counter() - start
             closure_ok = closure is None or self.closure_within_limits(theta, closure)[0]
+            if orientation is not None:
+                closure_ok = closure_ok and self.orientation_within_limits(theta, orientation)[0]
             if clearance.min() > config.required_clearance and closure_ok and self._segments_clear(theta, obstacles):
                 return StompResult(True, theta, iteration, elapsed, float(clearance.min()), "collision-free", history)
             if iteration >= config.max_iterations or elapsed > config.time_limit_s:
