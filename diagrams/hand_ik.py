@@ -72,6 +72,9 @@ class DualArmIk:
         self.lower = np.array([j.position_lower_limits()[0] for j in joints])
         self.upper = np.array([j.position_upper_limits()[0] for j in joints])
         self.velocity_limits = np.array([j.velocity_upper_limits()[0] for j in joints])
+        actuators = [self.plant.get_joint_actuator(i) for i in self.plant.GetJointActuatorIndices()]
+        effort = {actuator.joint().index(): actuator.effort_limit() for actuator in actuators}
+        self.effort_limits = np.array([effort[j.index()] for j in joints])
         for hand in hands.values():
             for name in ("finger_1_joint", "finger_2_joint"):
                 self.plant.GetJointByName(name, hand).set_default_translation(open_width / 2)
@@ -135,7 +138,16 @@ class DualArmIk:
         kinematics, spheres = centauro_kinematics(self.plant, self.scene_graph, self.plant_context)
         end_effectors = EndEffectors(self.plant, kinematics, [self.grasp_frames[side] for side in SIDES])
         inspector = self.scene_graph.model_inspector()
-        return Stomp(kinematics, spheres, inspector, self.lower, self.upper, end_effectors=end_effectors)
+        return Stomp(
+            kinematics,
+            spheres,
+            inspector,
+            self.lower,
+            self.upper,
+            end_effectors=end_effectors,
+            velocity_limits=self.velocity_limits,
+            effort_limits=self.effort_limits,
+        )
 
     @functools.cached_property
     def planning_obstacles(self) -> Obstacles:

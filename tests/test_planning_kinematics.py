@@ -7,7 +7,7 @@ from pydrake.systems.framework import DiagramBuilder
 
 from diagrams.centauro_description import joint_names
 from diagrams.station import AddCentauro
-from systems.planning.kinematics import centauro_kinematics
+from systems.planning.kinematics import centauro_kinematics, gravity_torques
 
 
 @pytest.fixture(scope="module")
@@ -78,3 +78,16 @@ def _extreme_points(shape):
     if isinstance(shape, Sphere):
         return [np.array([shape.radius(), 0, 0])]
     return []
+
+
+def test_batched_gravity_torques_equal_drake(robot):
+    plant, _, plant_context, kinematics, _, joints = robot
+    q_batch = random_configurations(joints, 10, seed=5)
+    torques = gravity_torques(kinematics, q_batch)
+    default = plant.GetPositions(plant_context).copy()
+    for q, tau in zip(q_batch, torques, strict=True):
+        for joint, value in zip(joints, q, strict=True):
+            joint.set_angle(plant_context, value)
+        tau_drake = plant.CalcGravityGeneralizedForces(plant_context)
+        np.testing.assert_allclose(tau, [tau_drake[j.velocity_start()] for j in joints], atol=1e-9)
+    plant.SetPositions(plant_context, default)

@@ -9,6 +9,7 @@ from diagrams.hand_ik import DualArmIk
 from diagrams.objects.library import resolve_object
 from diagrams.oracle_pick import world_grasps
 from diagrams.station import object_pose_on_table
+from systems.planning.kinematics import gravity_torques
 from systems.planning.stomp import Obstacles, StompConfig
 
 # Both hands start under the table top, at its front edge: the straight move collides.
@@ -78,3 +79,18 @@ def _colliding_configuration(ik) -> np.ndarray:
 def test_stomp_config_defaults_are_sane():
     config = StompConfig()
     assert config.keyframes >= 8 and config.rollouts > config.reused_rollouts and 0 < config.noise_decay <= 1
+
+
+def test_torque_and_duration_cost_terms_match_hand_computation(planning):
+    ik, q_goal = planning
+    stomp = ik.stomp
+    trajectory = np.linspace(BELOW_TABLE, q_goal, stomp.config.keyframes)[None]
+    free_space = Obstacles()
+    costs = stomp._costs(trajectory, free_space)
+    clearance_part = stomp._clearances(trajectory, free_space)[1]
+    load = np.abs(gravity_torques(stomp.kinematics, trajectory[0])) / ik.effort_limits
+    expected = clearance_part[0] + stomp.config.torque_weight * (load**2).sum(axis=1)
+    expected += stomp.config.torque_limit_penalty * np.maximum(load - 1, 0).sum(axis=1)
+    seconds = (np.abs(np.diff(trajectory[0], axis=0)) / ik.velocity_limits).max(axis=1)
+    expected[1:] += stomp.config.duration_weight * seconds
+    np.testing.assert_allclose(costs[0], expected, rtol=1e-9)

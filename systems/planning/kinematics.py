@@ -53,6 +53,21 @@ class BatchedKinematics:
         for body in bodies:
             self._add(body)
         self.body_names = [plant.get_body(link.body_index).name() for link in self.links]
+        self.masses = np.array([plant.get_body(link.body_index).default_mass() for link in self.links])
+        self.coms_B = np.array([plant.get_body(link.body_index).default_com() for link in self.links])
+        self.gravity = np.asarray(plant.gravity_field().gravity_vector())
+        # For each arm coordinate: its link, and every tracked link it carries (its subtree).
+        self.dof_link = np.full(len(arm_joints), -1)
+        for i, link in enumerate(self.links):
+            if link.arm_dof >= 0:
+                self.dof_link[link.arm_dof] = i
+        self.carried = np.zeros((len(arm_joints), len(self.links)), bool)
+        for i in range(len(self.links)):
+            j = i
+            while j >= 0:
+                if self.links[j].arm_dof >= 0:
+                    self.carried[self.links[j].arm_dof, i] = True
+                j = self.links[j].parent
 
     def _add(self, body) -> int:
         index = body.index()
@@ -103,6 +118,26 @@ class BatchedKinematics:
                 X_PB = X_PB @ joint @ link.X_MB
             poses[:, i] = X_PB if link.parent < 0 else poses[:, link.parent] @ X_PB
         return poses
+
+
+def gravity_torques(kinematics: "BatchedKinematics", q: np.ndarray, poses: np.ndarray | None = None) -> np.ndarray:
+    """Generalized gravity forces on the arm joints (B x 14, N m), as Drake's CalcGravityGeneralizedForces.
+
+    For joint j at p_j with axis a_j carrying links of total mass M_j and first moment S_j = sum m_l c_l:
+    tau_j = a_j . ((S_j - M_j p_j) x g). `poses`: the bodies' poses at q if already computed.
+    """
+    if poses is None:
+        poses = kinematics.body_poses(np.atleast_2d(q))  # B x L x 4 x 4
+    coms = np.einsum("blij,lj->bli", poses[:, :, :3, :3], kinematics.coms_B) + poses[:, :, :3, 3]
+    carried_mass = kinematics.carried @ kinematics.masses  # 14
+    first_moment = np.einsum("jl,bli->bji", kinematics.carried * kinematics.masses, coms)  # B x 14 x 3
+    parents = np.array([kinematics.links[i].parent for i in kinematics.dof_link])
+    X_PF = np.array([kinematics.links[i].X_PF for i in kinematics.dof_link])  # 14 x 4 x 4
+    axes_F = np.array([kinematics.links[i].axis for i in kinematics.dof_link])  # 14 x 3
+    X_WF = poses[:, parents] @ X_PF  # every arm joint's parent is a tracked body
+    axes = np.einsum("bjik,jk->bji", X_WF[:, :, :3, :3], axes_F)
+    moment = np.cross(first_moment - carried_mass[:, None] * X_WF[:, :, :3, 3], kinematics.gravity)
+    return np.einsum("bji,bji->bj", moment, axes)
 
 
 @dataclass

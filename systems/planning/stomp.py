@@ -8,8 +8,10 @@ M (R^-1 with columns scaled) and keeps the best rollouts for the next iteration.
 stops when the trajectory is collision-free and its cost has settled, or at the time
 limit.
 
-Costs per keyframe here: sphere-model clearance to the scene (boxes and point sets)
-and between the arms and the torso, and, when both hands hold an object, the
+Costs per keyframe (STOMP-New's terms): sphere-model clearance to the scene (boxes
+and point sets) and between and within the arms and the torso; gravity joint torques
+against the effort limits; each transition's duration at full joint speed; and, when
+both hands hold an object, the
 kinematic-chain closure term q_cc of equations (2)-(4) (systems/planning/closure.py)
 over each transition. Joint limits are enforced by clipping every rollout. With the
 closure on, every update is followed by a projection of the right arm back onto the
@@ -30,7 +32,7 @@ from systems.planning.closure import (
     threshold_cost,
     transition_costs,
 )
-from systems.planning.kinematics import BatchedKinematics, EndEffectors, SphereModel
+from systems.planning.kinematics import BatchedKinematics, EndEffectors, SphereModel, gravity_torques
 
 
 @dataclass
@@ -47,6 +49,9 @@ class StompConfig:
     sensitivity: float = 10.0  # h in exp(-h * normalised cost)
     seed: int = 0
     closure_states: int = 3  # states checked along each transition for q_cc (including both ends)
+    torque_weight: float = 0.001  # per keyframe, times sum_j (tau_j / tau_max_j)^2 of the gravity torques
+    torque_limit_penalty: float = 100.0  # per unit of |tau| / tau_max beyond 1
+    duration_weight: float = 0.001  # per transition, times its duration at full joint speed (s)
     projection_steps: int = 3
 
 
@@ -161,14 +166,18 @@ class Stomp:
         upper: np.ndarray,
         config: StompConfig | None = None,
         end_effectors: EndEffectors | None = None,
+        velocity_limits: np.ndarray | None = None,
+        effort_limits: np.ndarray | None = None,
     ):
         """Args:
         kinematics, spheres: the robot's batched kinematics and sphere model.
         inspector: the SceneGraph's model inspector (its collision filters decide which sphere pairs count).
         lower, upper: the 14 joints' limits, rad.
         end_effectors: the hands' grasp frames, needed for the closure constraint.
+        velocity_limits, effort_limits: the joints' limits (rad/s, N m) for the duration and torque costs.
         """
         self.end_effectors = end_effectors
+        self.velocity_limits, self.effort_limits = velocity_limits, effort_limits
         self.kinematics, self.spheres = kinematics, spheres
         self.lower, self.upper = np.asarray(lower), np.asarray(upper)
         self.config = config or StompConfig()
@@ -203,10 +212,11 @@ class Stomp:
         """Smallest clearance (m) of the sphere model at each configuration (... x 14)."""
         return self._clearances(q, obstacles)[0]
 
-    def _clearances(self, q: np.ndarray, obstacles: Obstacles) -> tuple[np.ndarray, np.ndarray]:
+    def _clearances(self, q: np.ndarray, obstacles: Obstacles, poses=None) -> tuple[np.ndarray, np.ndarray]:
         """(smallest clearance, summed shortfall below the margin over all spheres and pairs) per configuration."""
         shape = q.shape[:-1]
-        poses = self.kinematics.body_poses(q.reshape(-1, 14))
+        if poses is None:
+            poses = self.kinematics.body_poses(q.reshape(-1, 14))
         centres = self.spheres.centres_W(poses)
         radius = self.spheres.radius
         gaps = [obstacles.distance(centres) - radius]
@@ -233,7 +243,17 @@ class Stomp:
     def _costs(self, trajectories: np.ndarray, obstacles: Obstacles, closure=None, orientation=None) -> np.ndarray:
         """Cost of every keyframe of every rollout (K x N): clearance below the margin, plus q_cc of the
         transition into the keyframe when the closure constraint is on, plus the orientation term."""
-        costs = self._clearances(trajectories, obstacles)[1]
+        poses = self.kinematics.body_poses(trajectories.reshape(-1, 14))
+        costs = self._clearances(trajectories, obstacles, poses)[1]
+        config = self.config
+        if self.effort_limits is not None:
+            torques = gravity_torques(self.kinematics, None, poses).reshape(*trajectories.shape)
+            load = np.abs(torques) / self.effort_limits
+            costs += config.torque_weight * (load**2).sum(axis=-1)
+            costs += config.torque_limit_penalty * np.maximum(load - 1.0, 0.0).sum(axis=-1)
+        if self.velocity_limits is not None:
+            seconds = (np.abs(np.diff(trajectories, axis=1)) / self.velocity_limits).max(axis=-1)
+            costs[:, 1:] += config.duration_weight * seconds
         if closure is not None:
             constraint, X_desired = closure
             t_dev, o_dev = self._transition_deviations(trajectories, X_desired)
