@@ -38,7 +38,7 @@ from systems.planning.kinematics import BatchedKinematics, EndEffectors, SphereM
 @dataclass
 class StompConfig:
     keyframes: int = 16
-    rollouts: int = 24
+    rollouts: int = 16
     reused_rollouts: int = 4
     max_iterations: int = 300
     time_limit_s: float = 2.0
