@@ -47,12 +47,16 @@ class DualArmIk:
         open_width: float = 0.1,
         obstacle: ObjectModel | None = None,
         X_WO: RigidTransform | None = None,
+        obstacle_points_W: np.ndarray | None = None,
     ):
         """Args:
         scenario: robot and table placement.
         open_width: hand opening (m) of the collision model.
         obstacle, X_WO: the object, welded at X_WO in the world, as one more obstacle.
+        obstacle_points_W: or the object as seen (e.g. a reconstructed cloud, N x 3): checked with the
+            sphere model (collision checks and STOMP), since Drake's model has no geometry for it.
         """
+        self.obstacle_points_W = obstacle_points_W
         builder = DiagramBuilder()
         self.plant, self.scene_graph = AddMultibodyPlantSceneGraph(builder, time_step=0.0)
         robot, hands = AddCentauro(self.plant, self.scene_graph, scenario)
@@ -165,6 +169,8 @@ class DualArmIk:
                 if isinstance(shape, Box):
                     X_WG = (X_WB @ inspector.GetPoseInFrame(geometry)).GetAsMatrix4()
                     obstacles.add_box(X_WG, [shape.width(), shape.depth(), shape.height()])
+        if self.obstacle_points_W is not None:
+            obstacles.add_points(self.obstacle_points_W)
         if self.obstacle is not None:
             mesh = trimesh.load(self.obstacle.model_file.parent / "visual.obj", force="mesh")
             points, _ = trimesh.sample.sample_surface_even(mesh, OBJECT_SURFACE_POINTS, seed=0)
@@ -174,9 +180,17 @@ class DualArmIk:
         return obstacles
 
     def segment_is_free(self, q_from: np.ndarray, q_to: np.ndarray, max_step: float = 0.02) -> bool:
-        """Whether the straight joint-space segment q_from -> q_to is collision-free (checked every max_step rad)."""
+        """Whether the straight joint-space segment q_from -> q_to is collision-free (checked every max_step rad).
+
+        Drake's exact geometry, and the sphere model against obstacle points if there are any.
+        """
         steps = max(1, int(np.ceil(np.max(np.abs(np.asarray(q_to) - q_from)) / max_step)))
-        return not any(self.in_collision(q_from + s * (q_to - q_from)) for s in np.linspace(0, 1, steps + 1))
+        states = [q_from + s * (q_to - q_from) for s in np.linspace(0, 1, steps + 1)]
+        if self.obstacle_points_W is not None:
+            clearance = self.stomp.clearance(np.array(states), self.planning_obstacles)
+            if clearance.min() <= 0:
+                return False
+        return not any(self.in_collision(q) for q in states)
 
     def grasp_frame_poses(self, q_arms: np.ndarray) -> dict[str, RigidTransform]:
         """X_WG of both hands at arm configuration q_arms."""

@@ -15,6 +15,7 @@ from pathlib import Path
 
 from pydrake.geometry import Meshcat, MeshcatParams
 
+from diagrams.autonomous_pick import run_autonomous_pick
 from diagrams.oracle_pick import PlanningError
 from diagrams.pick_simulation import run_oracle_pick
 from diagrams.scenario import DEFAULT_SCENARIO, load_scenario, replace_object
@@ -56,13 +57,6 @@ def scenario_from_args(args):
 def main(argv=None) -> int:
     logging.basicConfig(level=logging.INFO, format="%(message)s")
     args = parse_args(argv)
-    if not args.oracle:
-        print(
-            "error: the autonomous pipeline (segmentation, registration, STOMP) is not built yet; "
-            "run with --oracle for the ground-truth pick",
-            file=sys.stderr,
-        )
-        return 2
     try:
         scenario = scenario_from_args(args)
         meshcat = Meshcat(MeshcatParams(host="localhost")) if (args.meshcat or args.record) else None
@@ -71,7 +65,10 @@ def main(argv=None) -> int:
         obj = scenario.object
         print(f"object: {obj.category}/{obj.file or obj.instance}, yaw {obj.yaw:+.3f} rad")
 
-        outcome = run_oracle_pick(scenario, meshcat, args.record)
+        if args.oracle:
+            outcome = run_oracle_pick(scenario, meshcat, args.record)
+        else:
+            outcome, _ = run_autonomous_pick(scenario, meshcat, args.record)
     except (PlanningError, ValueError, FileNotFoundError) as error:
         print(f"error: {error}", file=sys.stderr)
         outcome = None
@@ -90,7 +87,7 @@ def main(argv=None) -> int:
             "instance": obj.file or obj.instance,
             "yaw": obj.yaw,
             "seed": scenario.random_seed,
-            "mode": "oracle",
+            "mode": "oracle" if args.oracle else "autonomous",
             "planning_s": outcome.planning_s,
             "sim_wall_s": outcome.wall_time_s,
             "message": outcome.message,

@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.math import RigidTransform
-from pydrake.systems.framework import LeafSystem
+from pydrake.systems.framework import LeafSystem, ValueProducer
 
 from diagrams.paths import MODELS_DIR
 from systems.pose_estimator import ObjectEstimate
@@ -43,8 +43,10 @@ class ShapeRegistrar(LeafSystem):
         self.registrars = {c: Registrar(ShapeSpace.load(shape_space_file(c))) for c in categories}
         self.DeclareAbstractInputPort("estimate", AbstractValue.Make(ObjectEstimate(False)))
         self._registration = self.DeclareCacheEntry(
-            "registration", lambda: AbstractValue.Make(_Result()), self._calc_registration
-        ).ticket()
+            description="registration",
+            value_producer=ValueProducer(allocate=AbstractValue.Make(_Result()).Clone, calc=self._calc_registration),
+            prerequisites_of_calc={self.input_port_ticket(self.get_input_port(0).get_index())},
+        )
         self.DeclareAbstractOutputPort("X_WO", lambda: AbstractValue.Make(RigidTransform()), self._calc_pose)
         self.DeclareAbstractOutputPort("grasp_poses", lambda: AbstractValue.Make(GraspPoses(False)), self._calc_grasps)
         self.DeclareAbstractOutputPort(
@@ -68,7 +70,7 @@ class ShapeRegistrar(LeafSystem):
         cache.set_value(_Result(registration.X_WO, registration, f"fit error {registration.fit_error_m:.4f} m"))
 
     def _result(self, context) -> "_Result":
-        return self.get_cache_entry(self._registration).Eval(context)
+        return self._registration.Eval(context)
 
     def _calc_pose(self, context, output):
         output.set_value(self._result(context).X_WO)
