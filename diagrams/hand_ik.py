@@ -5,7 +5,9 @@ where it stands: a MultibodyPlant built from the same files as the station.
 """
 
 import functools
+import hashlib
 import itertools
+import os
 from dataclasses import dataclass
 
 import numpy as np
@@ -19,13 +21,15 @@ from pydrake.solvers import Solve
 from pydrake.systems.framework import DiagramBuilder
 
 from diagrams.centauro_description import joint_names
-from diagrams.objects.library import ObjectModel
+from diagrams.objects.library import ObjectModel, cache_dir
+from diagrams.paths import SDF_DIR
 from diagrams.scenario import Scenario
 from diagrams.station import HAND_INSTANCES, AddCentauro, AddTable, make_parser
 from systems.planning.kinematics import EndEffectors, centauro_kinematics
 from systems.planning.stomp import Obstacles, Stomp
 
 SIDES = ("left", "right")
+SEED_SAMPLES = 3000
 OBJECT_SURFACE_POINTS = 6000
 # A hand is symmetric under a half turn about its approach axis z_G.
 HALF_TURN = RigidTransform(RotationMatrix.MakeZRotation(np.pi))
@@ -83,9 +87,24 @@ class DualArmIk:
             for name in ("finger_1_joint", "finger_2_joint"):
                 self.plant.GetJointByName(name, hand).set_default_translation(open_width / 2)
         self.q_default = self.plant.GetPositions(self.plant.CreateDefaultContext())
-        self._build_seed_table(scenario.random_seed)
+        self._load_or_build_seed_table(scenario, open_width)
 
-    def _build_seed_table(self, seed: int, samples: int = 3000):
+    def _load_or_build_seed_table(self, scenario: Scenario, open_width: float):
+        """The seed table from the cache when this robot, table, object and seed were seen before."""
+        key = _seed_table_key(scenario, open_width, self.obstacle, self.X_WO, SEED_SAMPLES)
+        path = cache_dir() / "ik_seeds" / f"{key}.npz"
+        if path.is_file():
+            with np.load(path) as data:
+                self._seed_q = data["q"]
+                self._seed_poses = {side: data[side] for side in SIDES}
+            return
+        self._build_seed_table(scenario.random_seed, SEED_SAMPLES)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        partial = path.with_suffix(f".{os.getpid()}.tmp.npz")
+        np.savez(partial, q=self._seed_q, **self._seed_poses)
+        os.replace(partial, path)  # atomic: a concurrent run reads the whole file or none
+
+    def _build_seed_table(self, seed: int, samples: int = SEED_SAMPLES):
         """Random collision-free arm configurations and the grasp frame poses they reach.
 
         They are IK starting points: SNOPT from a nearby, feasible start converges far more
@@ -275,3 +294,19 @@ class DualArmIk:
         result = Solve(prog)
         q_arms = result.GetSolution(q)[self.arm_indices]
         return IkResult(result.is_success(), q_arms, str(result.get_solution_result()))
+
+
+def _seed_table_key(scenario, open_width, obstacle, X_WO, samples) -> str:
+    """A hash of everything the seed table depends on: the model files, placements, object and seed."""
+    digest = hashlib.sha256()
+    for path in ("centauro/centauro.sdf", "centauro/hand.sdf", "scene/table.sdf", "scene/floor.sdf"):
+        digest.update((SDF_DIR / path).read_bytes())
+    digest.update(
+        repr((scenario.pelvis_height, list(scenario.table_xyz), open_width, scenario.random_seed, samples)).encode()
+    )
+    if obstacle is not None:
+        for piece in sorted(obstacle.model_file.parent.glob("*")):
+            if piece.suffix in (".sdf", ".obj", ".urdf"):
+                digest.update(piece.read_bytes())
+        digest.update(np.round(X_WO.GetAsMatrix4(), 9).tobytes())
+    return digest.hexdigest()[:24]
