@@ -9,7 +9,7 @@ judged on ground truth only afterwards.
 
 import logging
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from pydrake.common.schema import Transform
@@ -17,22 +17,13 @@ from pydrake.math import RigidTransform
 from pydrake.systems.framework import DiagramBuilder
 
 from diagrams.hand_ik import SIDES, DualArmIk
+from diagrams.objects.instance import HandGrasp, ObjectInfo
 from diagrams.oracle_pick import JointPlan, PlanningError, plan_oracle_pick
 from diagrams.perception import AddPerception
+from diagrams.pick_simulation import MakeOracleDiagram, simulate_pick
 from diagrams.scenario import Scenario
 from diagrams.station import MakeStation
 from systems.shape_registrar import ShapeRegistrar
-
-
-@dataclass
-class _Grasp:
-    pregrasp: Transform
-    grasp: Transform
-
-
-@dataclass
-class _Grasps:
-    grasps: dict = field(default_factory=dict)
 
 
 @dataclass
@@ -75,15 +66,14 @@ def perceive(scenario: Scenario) -> Perceived:
 def plan_autonomous_pick(scenario: Scenario, perceived: Perceived) -> JointPlan:
     """The pick plan from perceived grasps; the object's reconstruction is the obstacle for reach planning."""
     ik = DualArmIk(scenario, obstacle_points_W=perceived.cloud_W)
-    info = _Grasps(
-        {
-            side: _Grasp(
-                Transform(perceived.grasps_W[f"{side}_pregrasp"]), Transform(perceived.grasps_W[f"{side}_grasp"])
-            )
-            for side in SIDES
-        }
-    )
-    return plan_oracle_pick(ik, np.array(scenario.initial_arm_positions), RigidTransform(), info)
+    # The perceived grasps, as if of an object whose frame is the world's.
+    grasps = {
+        side: HandGrasp(
+            Transform(perceived.grasps_W[f"{side}_pregrasp"]), Transform(perceived.grasps_W[f"{side}_grasp"])
+        )
+        for side in SIDES
+    }
+    return plan_oracle_pick(ik, np.array(scenario.initial_arm_positions), RigidTransform(), ObjectInfo(grasps=grasps))
 
 
 def run_autonomous_pick(scenario: Scenario, meshcat=None, record=None):
@@ -92,8 +82,6 @@ def run_autonomous_pick(scenario: Scenario, meshcat=None, record=None):
     Raises:
         PlanningError: perception, registration or planning failed (names the stage).
     """
-    from diagrams.pick_simulation import MakeOracleDiagram, simulate_pick
-
     start = time.perf_counter()
     perceived = perceive(scenario)
     plan = plan_autonomous_pick(scenario, perceived)

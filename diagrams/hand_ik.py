@@ -159,7 +159,7 @@ class DualArmIk:
     def stomp(self) -> Stomp:
         """A STOMP planner over this model's robot (sphere model) and its limits."""
         kinematics, spheres = centauro_kinematics(self.plant, self.scene_graph, self.plant_context)
-        end_effectors = EndEffectors(self.plant, kinematics, [self.grasp_frames[side] for side in SIDES])
+        end_effectors = EndEffectors(kinematics, [self.grasp_frames[side] for side in SIDES])
         inspector = self.scene_graph.model_inspector()
         return Stomp(
             kinematics,

@@ -62,6 +62,10 @@ class JointPlan:
     def hand_trajectory(self) -> PiecewisePolynomial:
         return PiecewisePolynomial.FirstOrderHold(self.times, np.array([self.hand_width]))
 
+    def configuration_at(self, phase: str) -> np.ndarray:
+        """The 14 arm joints at the end of a named phase (e.g. "close": grasping, "lift": lifted)."""
+        return self.arm_trajectory().value(self.phases[phase]).ravel()
+
     @property
     def duration(self) -> float:
         return self.times[-1]

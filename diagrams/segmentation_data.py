@@ -14,19 +14,16 @@ import numpy as np
 from diagrams.paths import REPO_ROOT
 from diagrams.scenario import Scenario
 from diagrams.synthetic_scenes import CLASSES, SyntheticScene
-from systems.segmentation_network import INPUT_SIZE
+from systems.segmentation_network import INPUT_SIZE, resize_to_input
 
 DEFAULT_DATASET = REPO_ROOT / "data" / "segmentation" / "train.npz"
 DEFAULT_FRAMES = 800
 FRAMES_PER_SCENE = 25
 
 
-def resize_frame(rgb: np.ndarray, labels: np.ndarray | None = None):
-    """Camera-resolution colour (and labels) -> the network's input size."""
-    small = cv2.resize(rgb, INPUT_SIZE, interpolation=cv2.INTER_AREA)
-    if labels is None:
-        return small
-    return small, cv2.resize(labels, INPUT_SIZE, interpolation=cv2.INTER_NEAREST)
+def resize_frame(rgb: np.ndarray, labels: np.ndarray):
+    """Camera-resolution colour and labels -> the network's input size."""
+    return resize_to_input(rgb), cv2.resize(labels, INPUT_SIZE, interpolation=cv2.INTER_NEAREST)
 
 
 def generate(scenario: Scenario, frames: int, frames_per_scene: int, split: str, seed: int) -> dict[str, np.ndarray]:

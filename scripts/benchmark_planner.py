@@ -32,15 +32,11 @@ from diagrams.oracle_pick import plan_oracle_pick, world_grasps
 from diagrams.scenario import load_scenario, replace_object
 from diagrams.station import object_pose_on_table
 from systems.planning.closure import ClosureConstraint, OrientationConstraint, deviations, orientation_deviations
+from systems.planning.stomp import interpolate_segments
 
 BELOW_TABLE = np.array([0, 0.15, 0, -0.1, 0, 0, 0, 0, -0.15, 0, -0.1, 0, 0, 0.0])
 TIME_LIMIT_S = 10.0
 DENSE_STEPS = 20  # states checked per segment between keyframes
-
-
-def dense_states(trajectory: np.ndarray, steps: int = DENSE_STEPS) -> np.ndarray:
-    s = np.linspace(0, 1, steps + 1)[:, None, None]
-    return ((1 - s) * trajectory[None, :-1] + s * trajectory[None, 1:]).reshape(-1, trajectory.shape[1])
 
 
 def summary(rows: list[dict]) -> dict:
@@ -67,9 +63,7 @@ def closure_experiment(runs: int, closure: bool, fixed_orientation: bool = False
     X_WO = object_pose_on_table(scenario, model)
     with_object = DualArmIk(scenario, obstacle=model, X_WO=X_WO)
     plan = plan_oracle_pick(with_object, np.array(scenario.initial_arm_positions), X_WO, model.info)
-    trajectory = plan.arm_trajectory()
-    q_grasp = trajectory.value(plan.phases["close"]).ravel()
-    q_lift = trajectory.value(plan.phases["lift"]).ravel()
+    q_grasp, q_lift = plan.configuration_at("close"), plan.configuration_at("lift")
     ik = DualArmIk(scenario)  # the held object moves with the hands: robot and table only
     stomp = ik.stomp
     stomp.config.time_limit_s = TIME_LIMIT_S
@@ -77,14 +71,12 @@ def closure_experiment(runs: int, closure: bool, fixed_orientation: bool = False
     X_desired = stomp.end_effectors.relative(q_grasp[None])[0]
     orientation = OrientationConstraint() if fixed_orientation else None
     R_desired = [X[0, :3, :3] for X in stomp.end_effectors.poses(q_grasp[None])] if fixed_orientation else None
-    goal = np.stack([q_grasp, q_lift, q_lift])
-    for _ in range(5):
-        goal = stomp._project(goal, X_desired, R_desired)
+    goal = stomp.project(q_lift, X_desired, R_desired, steps=15)[0]
     rows = []
     for run in range(runs):
         stomp.config.seed = run
-        result = stomp.plan(q_grasp, goal[1], ik.planning_obstacles, constraint if closure else None, orientation)
-        states = dense_states(result.trajectory)
+        result = stomp.plan(q_grasp, goal, ik.planning_obstacles, constraint if closure else None, orientation)
+        states = interpolate_segments(result.trajectory, DENSE_STEPS)
         t_dev, o_dev = deviations(stomp.end_effectors, states, X_desired)
         if fixed_orientation:
             o_dev = np.maximum(o_dev, orientation_deviations(stomp.end_effectors, states, R_desired))
@@ -122,7 +114,7 @@ def reach_problems(runs: int, seed: int):
 
 
 def check_dense(ik: DualArmIk, trajectory: np.ndarray) -> float:
-    states = dense_states(trajectory)
+    states = interpolate_segments(trajectory, DENSE_STEPS)
     return min(ik.clearance(q) for q in states)
 
 

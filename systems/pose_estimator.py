@@ -43,7 +43,7 @@ COARSE_POINTS = 120
 YAW_CANDIDATES = 12
 FINE_CANDIDATES = 3
 FINE_ITERATIONS = 12
-SILHOUETTE_WEIGHT = 0.03  # m of point distance per unit fraction of the template the camera sees through
+FREE_SPACE_WEIGHT = 0.03  # m of point distance per unit fraction of the template the camera sees through
 FREE_SPACE_MARGIN = 0.02  # m
 
 
@@ -134,14 +134,14 @@ def _fit_yaw_translation(points_W, yaw, xy, z, field: NearestPointField, iterati
 
 
 def estimate_pose(
-    points_W: np.ndarray, category: str, support_height: float | None = None, outside_silhouette=None
+    points_W: np.ndarray, category: str, support_height: float | None = None, see_through=None
 ) -> RigidTransform:
     """Upright X_WO of a `category` object from its observed surface points (N x 3 in W).
 
     Args:
         support_height: the table's height under the object (m); None takes the lowest points'.
-        outside_silhouette: optional f(points_W) -> fraction of those points that the camera
-            would see outside the object's mask; it settles which end of the object is which.
+        see_through: optional f(points_W) -> fraction of those points the camera would have seen
+            but sees through (PoseEstimator's free-space test); it settles which end is which.
     """
     thinned = voxel_thin(points_W)
     if len(thinned) > MAX_FIT_POINTS:
@@ -156,14 +156,13 @@ def estimate_pose(
     in_axes = thinned[:, :2] @ R_axes
     extent_centre = R_axes @ (0.5 * (np.percentile(in_axes, 0.5, axis=0) + np.percentile(in_axes, 99.5, axis=0)))
     box_centre = catalog.mean_box_centre(category)
-    candidates = []
     coarse = thinned[np.linspace(0, len(thinned) - 1, min(len(thinned), COARSE_POINTS)).astype(int)]
 
     def fit(points, yaw, xy, iterations):
         yaw, xy, error = _fit_yaw_translation(points, yaw, xy, z, field, iterations)
-        if outside_silhouette is not None:
+        if see_through is not None:
             X_WO = RigidTransform(RotationMatrix.MakeZRotation(yaw), [xy[0], xy[1], z])
-            error += SILHOUETTE_WEIGHT * outside_silhouette(X_WO.multiply(template[::4].T).T)
+            error += FREE_SPACE_WEIGHT * see_through(X_WO.multiply(template[::4].T).T)
         return error, yaw, xy
 
     candidates = []

@@ -9,6 +9,7 @@ A linear (1x1) classifier gives per-pixel class scores, and the pixel-wise softm
 (or its argmax) the classes. Everything runs on the CPU.
 """
 
+import cv2
 import numpy as np
 import torch
 from torch import nn
@@ -113,6 +114,11 @@ class RefineNetLite(nn.Module):
         up = F.interpolate(self.fine_from_refined(refined), size=stem.shape[-2:], mode="bilinear", align_corners=False)
         scores = self.classifier(self.fine(up + self.fine_from_stem(stem)))
         return F.interpolate(scores, size=image.shape[-2:], mode="bilinear", align_corners=False)
+
+
+def resize_to_input(rgb: np.ndarray) -> np.ndarray:
+    """A camera-resolution colour image (H x W x 3 or 4, uint8) at the network's INPUT_SIZE, RGB."""
+    return cv2.resize(rgb[:, :, :3], INPUT_SIZE, interpolation=cv2.INTER_AREA)
 
 
 def to_input(rgb: np.ndarray) -> torch.Tensor:

@@ -71,13 +71,11 @@ class Segmenter(LeafSystem):
         segmentation: a Segmentation of the dominant object (largest region by pixel count).
     """
 
-    def __init__(self, weights: Path = DEFAULT_WEIGHTS, min_pixels: int = 400, threads: int | None = None):
+    def __init__(self, weights: Path = DEFAULT_WEIGHTS, min_pixels: int = 400):
         super().__init__()
         self.model, metadata = segmentation_network.load(weights)
         self.classes = tuple(metadata["classes"])
         self.min_pixels = min_pixels
-        if threads is not None:
-            torch.set_num_threads(threads)
         self.DeclareAbstractInputPort("color_image", AbstractValue.Make(ImageRgba8U()))
         self.DeclareAbstractOutputPort(
             "labels", lambda: AbstractValue.Make(np.zeros((0, 0), np.uint8)), self._calc_labels
@@ -92,8 +90,7 @@ class Segmenter(LeafSystem):
         """
         if rgb.ndim != 3 or rgb.shape[2] < 3 or rgb.size == 0:
             raise ValueError(f"expected an H x W x 3 colour image, got shape {rgb.shape}")
-        small = cv2.resize(rgb[:, :, :3], segmentation_network.INPUT_SIZE, interpolation=cv2.INTER_AREA)
-        x = segmentation_network.to_input(small)
+        x = segmentation_network.to_input(segmentation_network.resize_to_input(rgb))
         with torch.no_grad():
             scores = self.model(torch.cat([x, x.flip(-1)]))
             scores = scores[:1] + scores[1:].flip(-1)

@@ -44,10 +44,7 @@ def lift_problem(scenario):
     X_WO = object_pose_on_table(scenario, model)
     ik = DualArmIk(scenario, obstacle=model, X_WO=X_WO)
     plan = plan_oracle_pick(ik, np.array(scenario.initial_arm_positions), X_WO, model.info)
-    trajectory = plan.arm_trajectory()
-    q_grasp = trajectory.value(plan.phases["close"]).ravel()
-    q_lift = trajectory.value(plan.phases["lift"]).ravel()
-    return ik, q_grasp, q_lift, scenario
+    return ik, plan.configuration_at("close"), plan.configuration_at("lift"), scenario
 
 
 def test_end_effector_relative_pose_matches_drake(lift_problem):
@@ -63,12 +60,10 @@ def test_stomp_lifts_with_the_closure_kept_densely(lift_problem):
     constraint = ClosureConstraint()
     X_desired = stomp.end_effectors.relative(q_grasp[None])[0]
     # The goal keeps the grasp's relative hand pose exactly (projected onto the closure manifold).
-    goal = stomp._project(np.stack([q_grasp, q_lift, q_lift]), X_desired)
-    for _ in range(5):
-        goal = stomp._project(goal, X_desired)
+    goal = stomp.project(q_lift, X_desired, steps=18)[0]
     table = Obstacles()
     table.boxes = ik.planning_obstacles.boxes  # the object moves with the hands
-    result = stomp.plan(q_grasp, goal[1], table, constraint)
+    result = stomp.plan(q_grasp, goal, table, constraint)
     assert result.success, result.message
     within, t_dev, o_dev = stomp.closure_within_limits(result.trajectory, (constraint, X_desired), steps=20)
     assert within and t_dev < constraint.t_max and o_dev < constraint.o_max
@@ -83,13 +78,11 @@ def test_stomp_bar_lift_keeps_closure_and_both_hand_orientations(lift_problem):
     stomp = ik.stomp
     X_desired = stomp.end_effectors.relative(q_grasp[None])[0]
     R_desired = [X[0, :3, :3] for X in stomp.end_effectors.poses(q_grasp[None])]
-    goal = np.stack([q_grasp, q_lift, q_lift])
-    for _ in range(5):
-        goal = stomp._project(goal, X_desired, R_desired)
+    goal = stomp.project(q_lift, X_desired, R_desired, steps=15)[0]
     table = Obstacles()
     table.boxes = ik.planning_obstacles.boxes
     closure, orientation = ClosureConstraint(), OrientationConstraint()
-    result = stomp.plan(q_grasp, goal[1], table, closure, orientation)
+    result = stomp.plan(q_grasp, goal, table, closure, orientation)
     assert result.success, result.message
     within, worst = stomp.orientation_within_limits(result.trajectory, (orientation, R_desired), steps=20)
     assert within and worst < orientation.o_max

@@ -35,8 +35,8 @@ def test_oracle_plan_reach_is_collision_free_and_within_limits(scenario):
     speeds = np.abs(np.column_stack([trajectory.EvalDerivative(t) for t in np.linspace(0, plan.duration, 400)]))
     assert np.all(speeds.T <= ik.velocity_limits)
     # Both hands rise together by at least MIN_LIFT_HEIGHT and keep their relative pose (closed chain).
-    grasped = ik.grasp_frame_poses(trajectory.value(plan.phases["close"]).ravel())
-    lifted = ik.grasp_frame_poses(trajectory.value(plan.phases["lift"]).ravel())
+    grasped = ik.grasp_frame_poses(plan.configuration_at("close"))
+    lifted = ik.grasp_frame_poses(plan.configuration_at("lift"))
     for side in ("left", "right"):
         rise = lifted[side].translation() - grasped[side].translation()
         assert rise[2] >= MIN_LIFT_HEIGHT - 0.002 and np.linalg.norm(rise[:2]) < 0.005

@@ -94,3 +94,14 @@ def test_torque_and_duration_cost_terms_match_hand_computation(planning):
     seconds = (np.abs(np.diff(trajectory[0], axis=0)) / ik.velocity_limits).max(axis=1)
     expected[1:] += stomp.config.duration_weight * seconds
     np.testing.assert_allclose(costs[0], expected, rtol=1e-9)
+
+
+def test_point_set_distance_field_matches_exact_distances():
+    rng = np.random.default_rng(2)
+    sphere = rng.normal(size=(4000, 3))
+    sphere = 0.1 * sphere / np.linalg.norm(sphere, axis=1, keepdims=True)  # a 0.1 m sphere's surface
+    queries = np.array([[0.15, 0.0, 0.0], [0.0, 0.0, 0.2], [0.05, 0.05, 0.0], [2.0, 0.0, 0.0]])
+    exact = np.abs(np.linalg.norm(queries, axis=1) - 0.1)  # up to the samples' spacing
+    distances = Obstacles().add_points(sphere, inflation=0.002).distance(queries, cap=0.3)
+    np.testing.assert_allclose(distances[:3], exact[:3] - 0.002, atol=0.006)
+    assert distances[3] == pytest.approx(0.3)  # far outside the grid: the cap

@@ -36,13 +36,17 @@ def rpy_of(R: np.ndarray) -> np.ndarray:
     return np.column_stack([roll, pitch, yaw])
 
 
+def rpy_deviation(R: np.ndarray, R_desired: np.ndarray) -> np.ndarray:
+    """Largest |roll|, |pitch| or |yaw| difference (rad, wrapped) of rotations R (B x 3 x 3) from R_desired."""
+    difference = rpy_of(R) - rpy_of(R_desired[None])
+    return np.abs((difference + np.pi) % (2 * np.pi) - np.pi).max(axis=1)
+
+
 def deviations(end_effectors: EndEffectors, q: np.ndarray, X_E1E2_desired: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(t_dev, o_dev) of each configuration (B x 14): the largest component deviations, m and rad."""
     X = end_effectors.relative(q)
     t_dev = np.abs(X[:, :3, 3] - X_E1E2_desired[:3, 3]).max(axis=1)
-    difference = rpy_of(X[:, :3, :3]) - rpy_of(X_E1E2_desired[None, :3, :3])
-    o_dev = np.abs((difference + np.pi) % (2 * np.pi) - np.pi).max(axis=1)
-    return t_dev, o_dev
+    return t_dev, rpy_deviation(X[:, :3, :3], X_E1E2_desired[:3, :3])
 
 
 def threshold_cost(deviation: np.ndarray, maximum: float, C: float) -> np.ndarray:
@@ -67,8 +71,5 @@ class OrientationConstraint:
 
 def orientation_deviations(end_effectors: EndEffectors, q: np.ndarray, R_desired) -> np.ndarray:
     """Largest roll/pitch/yaw deviation (rad) of either hand from its desired world orientation, per configuration."""
-    worst = np.zeros(len(q))
-    for X, R in zip(end_effectors.poses(q), R_desired, strict=True):
-        difference = rpy_of(X[:, :3, :3]) - rpy_of(R[None])
-        worst = np.maximum(worst, np.abs((difference + np.pi) % (2 * np.pi) - np.pi).max(axis=1))
-    return worst
+    poses = end_effectors.poses(q)
+    return np.max([rpy_deviation(X[:, :3, :3], R) for X, R in zip(poses, R_desired, strict=True)], axis=0)

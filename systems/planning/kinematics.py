@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 from pydrake.geometry import Box, Capsule, Cylinder, Sphere
 from pydrake.multibody.plant import MultibodyPlant
+from scipy.spatial.transform import Rotation
 
 
 @dataclass
@@ -24,13 +25,6 @@ class _Link:
     X_PF: np.ndarray  # parent body -> joint frame on parent (4 x 4)
     axis: np.ndarray  # revolute axis in F
     X_MB: np.ndarray  # joint frame on child -> child body (4 x 4)
-
-
-def _rotations(axis: np.ndarray, angles: np.ndarray) -> np.ndarray:
-    """Rotation matrices (B x 3 x 3) about a unit axis by each angle (Rodrigues)."""
-    K = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
-    s, c = np.sin(angles)[:, None, None], np.cos(angles)[:, None, None]
-    return np.eye(3) + s * K + (1 - c) * (K @ K)
 
 
 class BatchedKinematics:
@@ -52,7 +46,6 @@ class BatchedKinematics:
         self._plant, self._context = plant, plant_context
         for body in bodies:
             self._add(body)
-        self.body_names = [plant.get_body(link.body_index).name() for link in self.links]
         self.masses = np.array([plant.get_body(link.body_index).default_mass() for link in self.links])
         self.coms_B = np.array([plant.get_body(link.body_index).default_com() for link in self.links])
         self.gravity = np.asarray(plant.gravity_field().gravity_vector())
@@ -105,7 +98,7 @@ class BatchedKinematics:
         return None
 
     def body_poses(self, q: np.ndarray) -> np.ndarray:
-        """X_WB of every tracked body: an array (B x L x 4 x 4), L in the order of `body_names`."""
+        """X_WB of every tracked body: an array (B x L x 4 x 4), in the order of `links`."""
         q = np.atleast_2d(q)
         batch = len(q)
         poses = np.empty((batch, len(self.links), 4, 4))
@@ -113,7 +106,7 @@ class BatchedKinematics:
             X_PB = np.broadcast_to(link.X_PF, (batch, 4, 4)).copy()
             if link.arm_dof >= 0:
                 joint = np.zeros((batch, 4, 4))
-                joint[:, :3, :3] = _rotations(link.axis, q[:, link.arm_dof])
+                joint[:, :3, :3] = Rotation.from_rotvec(np.outer(q[:, link.arm_dof], link.axis)).as_matrix()
                 joint[:, 3, 3] = 1.0
                 X_PB = X_PB @ joint @ link.X_MB
             poses[:, i] = X_PB if link.parent < 0 else poses[:, link.parent] @ X_PB
@@ -254,7 +247,7 @@ def centauro_kinematics(plant: MultibodyPlant, scene_graph, plant_context):
 class EndEffectors:
     """World poses of the two hands' grasp frames for batches of arm configurations."""
 
-    def __init__(self, plant: MultibodyPlant, kinematics: BatchedKinematics, frames):
+    def __init__(self, kinematics: BatchedKinematics, frames):
         """Args:
         frames: the two end-effector frames (left, right), each fixed to a tracked body.
         """

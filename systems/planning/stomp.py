@@ -5,23 +5,24 @@ inverse of the finite-difference acceleration metric R, so it is smooth), evalua
 cost per rollout and keyframe, turns the costs into per-keyframe probabilities
 (exp(-h * normalised cost)), averages the noise with them, smooths the update with
 M (R^-1 with columns scaled) and keeps the best rollouts for the next iteration. It
-stops when the trajectory is collision-free and its cost has settled, or at the time
-limit.
+stops as soon as the trajectory is collision-free (and within the constraints), or
+at the iteration or time limit.
 
 Costs per keyframe (STOMP-New's terms): sphere-model clearance to the scene (boxes
 and point sets) and between and within the arms and the torso; gravity joint torques
 against the effort limits; each transition's duration at full joint speed; and, when
-both hands hold an object, the
-kinematic-chain closure term q_cc of equations (2)-(4) (systems/planning/closure.py)
-over each transition. Joint limits are enforced by clipping every rollout. With the
-closure on, every update is followed by a projection of the right arm back onto the
-closure manifold (a few damped Gauss-Newton steps), which STOMP-New did not have.
+both hands hold an object, the kinematic-chain closure term q_cc of equations (2)-(4)
+(systems/planning/closure.py) over each transition; optionally the hands' world
+orientation. Joint limits are enforced by clipping every rollout. With a hand
+constraint on, every update is followed by a projection of both arms back onto the
+constraint manifold (a few damped Gauss-Newton steps), which STOMP-New did not have.
 """
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
+from scipy.ndimage import map_coordinates
 from scipy.spatial import cKDTree
 
 from systems.planning.closure import (
@@ -63,7 +64,6 @@ class StompResult:
     seconds: float
     min_clearance_m: float  # smallest sphere-model clearance along the keyframes
     message: str = ""
-    cost_history: list[float] = field(default_factory=list)
 
 
 class DistanceField:
@@ -78,28 +78,14 @@ class DistanceField:
     def __init__(self, points: np.ndarray, inflation: float = 0.0):
         self.inflation = inflation
         self.lower = points.min(axis=0) - self.REACH
-        self.shape = np.ceil((points.max(axis=0) + self.REACH - self.lower) / self.CELL).astype(int) + 1
-        nodes = self.lower + self.CELL * np.stack(np.indices(self.shape), axis=-1).reshape(-1, 3)
-        self.values = cKDTree(points).query(nodes)[0].reshape(self.shape).astype(np.float32)
+        shape = np.ceil((points.max(axis=0) + self.REACH - self.lower) / self.CELL).astype(int) + 1
+        nodes = self.lower + self.CELL * np.stack(np.indices(shape), axis=-1).reshape(-1, 3)
+        self.values = cKDTree(points).query(nodes)[0].reshape(shape)
 
     def __call__(self, query: np.ndarray, cap: float) -> np.ndarray:
-        u = (query - self.lower) / self.CELL
-        inside = np.all((u >= 0) & (u <= self.shape - 1), axis=1)
-        result = np.full(len(query), cap)
-        u = u[inside]
-        i = np.minimum(np.floor(u).astype(int), self.shape - 2)
-        f = u - i
-        v = self.values
-        value = 0.0
-        for dx in (0, 1):
-            wx = f[:, 0] if dx else 1 - f[:, 0]
-            for dy in (0, 1):
-                wy = f[:, 1] if dy else 1 - f[:, 1]
-                for dz in (0, 1):
-                    wz = f[:, 2] if dz else 1 - f[:, 2]
-                    value = value + wx * wy * wz * v[i[:, 0] + dx, i[:, 1] + dy, i[:, 2] + dz]
-        result[inside] = np.minimum(value - self.inflation, cap)
-        return result
+        grid = ((query - self.lower) / self.CELL).T
+        distance = map_coordinates(self.values, grid, order=1, mode="constant", cval=np.inf)
+        return np.minimum(distance - self.inflation, cap)
 
 
 class Obstacles:
@@ -133,6 +119,12 @@ class Obstacles:
         for field_ in self.fields:
             nearest = np.minimum(nearest, field_(flat, cap))
         return nearest.reshape(centres.shape[:-1])
+
+
+def interpolate_segments(keyframes: np.ndarray, steps: int) -> np.ndarray:
+    """States along each segment between consecutive keyframes, `steps` per segment (both ends included), S x 14."""
+    s = np.linspace(0, 1, steps + 1)[:, None, None]
+    return ((1 - s) * keyframes[None, :-1] + s * keyframes[None, 1:]).reshape(-1, keyframes.shape[1])
 
 
 def _rotation_error(R_desired: np.ndarray, R: np.ndarray) -> np.ndarray:
@@ -273,15 +265,22 @@ class Stomp:
 
     def _transition_deviations(self, trajectories: np.ndarray, X_desired: np.ndarray):
         """Closure deviations at the states along every transition (K x N-1 x closure_states each)."""
-        s = np.linspace(0.0, 1.0, self.config.closure_states)[None, None, :, None]
-        states = (1 - s) * trajectories[:, :-1, None] + s * trajectories[:, 1:, None]
+        states = self._transition_states(trajectories)
         t_dev, o_dev = deviations(self.end_effectors, states.reshape(-1, 14), X_desired)
         return t_dev.reshape(states.shape[:-1]), o_dev.reshape(states.shape[:-1])
 
     def _project(self, theta: np.ndarray, X_desired: np.ndarray | None, R_desired=None) -> np.ndarray:
-        """Moves both arms of every interior keyframe back towards the desired relative hand pose
-        (X_desired) and/or the hands' desired world orientations (R_desired): the smallest joint change,
-        damped Gauss-Newton with a finite-difference Jacobian."""
+        """`theta` with its interior keyframes projected (start and goal stay fixed)."""
+        theta = theta.copy()
+        theta[1:-1] = self.project(theta[1:-1], X_desired, R_desired)
+        return theta
+
+    def project(
+        self, q: np.ndarray, X_desired: np.ndarray | None, R_desired=None, steps: int | None = None
+    ) -> np.ndarray:
+        """Configurations (B x 14) moved back towards the desired relative hand pose X_E1E2 (X_desired)
+        and/or the hands' desired world orientations (R_desired): the smallest joint change, `steps`
+        (default config.projection_steps) damped Gauss-Newton steps with a finite-difference Jacobian."""
 
         def error_of(q):
             parts = []
@@ -292,9 +291,9 @@ class Stomp:
                     parts.append(_rotation_error(R, X[:, :3, :3]))
             return np.concatenate(parts, axis=1)
 
-        q = theta[1:-1].copy()
+        q = np.atleast_2d(q).copy()
         step = 1e-5
-        for _ in range(self.config.projection_steps):
+        for _ in range(self.config.projection_steps if steps is None else steps):
             error = error_of(q)  # K x E
             size = error.shape[1]
             shifted = np.repeat(q[:, None], 14, axis=1) + step * np.eye(14)  # K x 14 x 14
@@ -304,9 +303,7 @@ class Stomp:
             damped = jacobian @ JT + 1e-6 * np.eye(size)
             q -= np.einsum("kij,kj->ki", JT, np.linalg.solve(damped, error[..., None])[..., 0])
             np.clip(q, self.lower, self.upper, out=q)
-        theta = theta.copy()
-        theta[1:-1] = q
-        return theta
+        return q
 
     def _closure_error(self, q: np.ndarray, X_desired: np.ndarray) -> np.ndarray:
         """6-vector per configuration: translation error and rotation error (axis * angle, small)."""
@@ -316,17 +313,14 @@ class Stomp:
     def orientation_within_limits(self, theta: np.ndarray, orientation, steps: int = 10) -> tuple[bool, float]:
         """Whether both hands stay within o_max of their desired orientations densely; also the largest deviation."""
         constraint, R_desired = orientation
-        s = np.linspace(0, 1, steps + 1)[:, None, None]
-        states = ((1 - s) * theta[None, :-1] + s * theta[None, 1:]).reshape(-1, 14)
+        states = interpolate_segments(theta, steps)
         worst = float(orientation_deviations(self.end_effectors, states, R_desired).max())
         return worst < constraint.o_max, worst
 
     def closure_within_limits(self, theta: np.ndarray, closure, steps: int = 10) -> tuple[bool, float, float]:
         """Whether the deviations stay below t_max and o_max densely along the trajectory; also the largest ones."""
         constraint, X_desired = closure
-        s = np.linspace(0, 1, steps + 1)[:, None, None]
-        states = ((1 - s) * theta[None, :-1] + s * theta[None, 1:]).reshape(-1, 14)
-        t_dev, o_dev = deviations(self.end_effectors, states, X_desired)
+        t_dev, o_dev = deviations(self.end_effectors, interpolate_segments(theta, steps), X_desired)
         ok = t_dev.max() < constraint.t_max and o_dev.max() < constraint.o_max
         return bool(ok), float(t_dev.max()), float(o_dev.max())
 
@@ -374,7 +368,6 @@ class Stomp:
         std = config.noise_std
         kept = np.empty((0, n, 14))
         kept_costs = np.empty((0, n))
-        history = []
         iteration = 0
         while True:
             iteration += 1
@@ -398,14 +391,13 @@ class Stomp:
             best = np.argsort(all_costs.sum(axis=1))[: config.reused_rollouts]
             kept, kept_costs = all_rollouts[best], all_costs[best]
             clearance = self.clearance(theta, obstacles)
-            history.append(float(np.maximum(config.margin - clearance, 0).sum()))
             std *= config.noise_decay
             elapsed = time.perf_counter() - start
             closure_ok = closure is None or self.closure_within_limits(theta, closure)[0]
             if orientation is not None:
                 closure_ok = closure_ok and self.orientation_within_limits(theta, orientation)[0]
             if clearance.min() > config.required_clearance and closure_ok and self._segments_clear(theta, obstacles):
-                return StompResult(True, theta, iteration, elapsed, float(clearance.min()), "collision-free", history)
+                return StompResult(True, theta, iteration, elapsed, float(clearance.min()), "collision-free")
             if iteration >= config.max_iterations or elapsed > config.time_limit_s:
                 return StompResult(
                     False,
@@ -414,11 +406,10 @@ class Stomp:
                     elapsed,
                     float(clearance.min()),
                     f"no collision-free trajectory after {iteration} iterations ({elapsed:.2f} s)",
-                    history,
                 )
 
     def _segments_clear(self, theta: np.ndarray, obstacles: Obstacles, steps: int = 4) -> bool:
-        """The sphere model stays clear between keyframes too (checked at `steps` points per segment)."""
-        s = np.linspace(0, 1, steps + 1)[1:-1, None, None]
-        between = (1 - s) * theta[None, :-1] + s * theta[None, 1:]
-        return bool(self.clearance(between, obstacles).min() > self.config.required_clearance)
+        """The sphere model stays clear between keyframes too (checked `steps` times per segment)."""
+        return bool(
+            self.clearance(interpolate_segments(theta, steps), obstacles).min() > self.config.required_clearance
+        )

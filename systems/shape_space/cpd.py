@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg
+from scipy.spatial.distance import cdist
 
 LOW_RANK_TOLERANCE = 1e-10  # drops only numerically non-positive eigenvalues
 MAX_RANK = 150  # the field's smooth kernel has few eigenvalues worth keeping
@@ -66,9 +67,6 @@ class RigidResult:
     transformed: np.ndarray  # s R y + t for every source point
     sigma2: float
     iterations: int
-
-    def transform(self, points: np.ndarray) -> np.ndarray:
-        return self.s * np.asarray(points) @ self.R.T + self.t
 
 
 def rigid_cpd(
@@ -146,47 +144,8 @@ def top_eigenpairs(G: np.ndarray, rank: int, power_iterations: int = 2) -> tuple
     return eigenvalues[-rank:], (basis @ vectors)[:, -rank:]
 
 
-@dataclass
-class AffineResult:
-    B: np.ndarray  # D x D linear part
-    t: np.ndarray  # D translation
-    transformed: np.ndarray  # B y + t for every source point
-    sigma2: float
-    iterations: int
-
-    def transform(self, points: np.ndarray) -> np.ndarray:
-        return np.asarray(points) @ self.B.T + self.t
-
-
-def affine_cpd(
-    source: np.ndarray, target: np.ndarray, w: float = 0.0, max_iterations: int = 100, tolerance: float = 1e-5
-) -> AffineResult:
-    """Affine CPD moving `source` onto `target` (captures a category's stretches before the non-rigid part)."""
-    X, Y = _check(target, "target"), _check(source, "source")
-    D = X.shape[1]
-    B, t = np.eye(D), np.zeros(D)
-    sigma2 = _initial_sigma2(X, Y)
-    T = Y
-    for iteration in range(1, max_iterations + 1):  # noqa: B007 (the count is returned)
-        P, P1, Pt1, PX = _e_step(X, T, sigma2, w)
-        Np = P1.sum()
-        mu_x, mu_y = Pt1 @ X / Np, P1 @ Y / Np
-        A = PX.T @ Y - Np * np.outer(mu_x, mu_y)  # X_hat^T P^T Y_hat
-        Y_spread = (Y * P1[:, None]).T @ Y - Np * np.outer(mu_y, mu_y)  # Y_hat^T d(P1) Y_hat
-        B = np.linalg.solve(Y_spread.T, A.T).T
-        t = mu_x - B @ mu_y
-        x_spread = np.sum(Pt1 * (X**2).sum(1)) - Np * mu_x @ mu_x
-        previous = sigma2
-        sigma2 = max((x_spread - np.trace(A @ B.T)) / (Np * D), 1e-12)
-        T = Y @ B.T + t
-        if abs(previous - sigma2) <= tolerance * previous:
-            break
-    return AffineResult(B, t, T, sigma2, iteration)
-
-
 def gaussian_kernel(A: np.ndarray, B: np.ndarray, beta: float) -> np.ndarray:
-    squared = (A**2).sum(1)[:, None] + (B**2).sum(1)[None, :] - 2.0 * A @ B.T
-    return np.exp(-np.maximum(squared, 0.0) / (2 * beta**2))
+    return np.exp(-cdist(A, B, "sqeuclidean") / (2 * beta**2))
 
 
 @dataclass

@@ -17,6 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 from pydrake.math import RigidTransform, RotationMatrix
+from scipy.spatial.distance import cdist
+from scipy.spatial.transform import Rotation
 
 from systems.shape_space.space import ShapeSpace
 
@@ -46,21 +48,6 @@ def _skew_columns(v: np.ndarray) -> np.ndarray:
     out[:, 1, 0], out[:, 1, 2] = -v[:, 2], v[:, 0]
     out[:, 2, 0], out[:, 2, 1] = v[:, 1], -v[:, 0]
     return out
-
-
-def _rotation_from_vector(omega: np.ndarray) -> np.ndarray:
-    angle = np.linalg.norm(omega)
-    if angle < 1e-12:
-        return np.eye(3)
-    k = omega / angle
-    K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
-    return np.eye(3) + np.sin(angle) * K + (1 - np.cos(angle)) * K @ K
-
-
-def _squared_distances(A: np.ndarray, B: np.ndarray) -> np.ndarray:
-    """|a_i - b_j|^2 for all pairs (len(A) x len(B))."""
-    squared = (A**2).sum(1)[:, None] + (B**2).sum(1)[None, :] - 2.0 * A @ B.T
-    return np.maximum(squared, 0.0, out=squared)
 
 
 def _check_cloud(points: np.ndarray) -> np.ndarray:
@@ -124,12 +111,11 @@ class Registrar:
         rotation_dofs = [2] if self.upright else [0, 1, 2]
         translation_dofs = [0, 1] if self.upright else [0, 1, 2]
         t0 = t.copy()
+        RS = (self.Y + self.mean) @ R.T  # the model in O turned into W's axes, m x 3 (z = 0)
+        model = RS + t
+        squared = cdist(model, X, "sqeuclidean")
         for iteration in range(1, ITERATIONS + 1):  # noqa: B007 (the count is returned)
-            S = self.Y + self.mean + self.B @ z  # model in O, m x 3
-            RS = S @ R.T
-            model = RS + t
             # E-step: posterior of each model point for each observed point, with a uniform outlier term.
-            squared = _squared_distances(model, X)
             P = np.exp(-squared / (2 * sigma2))
             c = (2 * np.pi * sigma2) ** 1.5 * OUTLIER_WEIGHT / (1 - OUTLIER_WEIGHT) * M / N
             P /= P.sum(0) + c
@@ -156,11 +142,12 @@ class Registrar:
             step = np.linalg.solve(H + 1e-9 * np.eye(len(g)), g)
             omega = np.zeros(3)
             omega[rotation_dofs] = step[: len(rotation_dofs)]
-            R = _rotation_from_vector(omega) @ R
+            R = Rotation.from_rotvec(omega).as_matrix() @ R
             t[translation_dofs] += step[moved]
             z = z + step[latent]
-            model = (self.Y + self.mean + self.B @ z) @ R.T + t
-            squared = _squared_distances(model, X)
+            RS = (self.Y + self.mean + self.B @ z) @ R.T
+            model = RS + t
+            squared = cdist(model, X, "sqeuclidean")
             sigma2 = max(float((P * squared).sum() / (3 * Np)), 1e-8)
         error = float(np.sqrt(squared.min(0)).mean())
         return R, t, z, error, iteration

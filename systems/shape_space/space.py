@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 from pydrake.math import RigidTransform, RotationMatrix
 from scipy.spatial import cKDTree
+from scipy.spatial.transform import Rotation
 
 from systems.shape_space.cpd import FieldInterpolator, deformable_cpd, rigid_cpd
 from systems.shape_space.pca_em import PcaModel, pca_em
@@ -67,10 +68,8 @@ class ShapeSpace:
         p = X_OG.translation()
         star = p + FRAME_PROBE * np.vstack([np.zeros(3), np.eye(3), -np.eye(3)]) @ X_OG.rotation().matrix().T
         moved = self.warp_points(latent, star)
-        a, b = star - star.mean(axis=0), moved - moved.mean(axis=0)
-        U, _, Vt = np.linalg.svd(b.T @ a)
-        R = U @ np.diag([1.0, 1.0, np.linalg.det(U @ Vt)]) @ Vt
-        return RigidTransform(RotationMatrix(R) @ X_OG.rotation(), moved[0])
+        turn, _ = Rotation.align_vectors(moved - moved.mean(axis=0), star - star.mean(axis=0))
+        return RigidTransform(RotationMatrix(turn.as_matrix()) @ X_OG.rotation(), moved[0])
 
     def control_poses_at(self, latent: np.ndarray) -> dict[str, RigidTransform]:
         """All control poses at `latent`, in O.
