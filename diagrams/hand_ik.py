@@ -71,9 +71,15 @@ class DualArmIk:
             body = self.plant.get_body(self.plant.GetBodyIndices(instance)[0])
             self.plant.WeldFrames(self.plant.world_frame(), body.body_frame(), X_WO)
         self.plant.Finalize()
+        for hand in hands.values():
+            for name in ("finger_1_joint", "finger_2_joint"):
+                self.plant.GetJointByName(name, hand).set_default_translation(open_width / 2)
         self.diagram = builder.Build()
+        # Created after the fingers' defaults: everything built from this context (the STOMP sphere
+        # model included) sees the hands as open as Drake's collision checks do.
         self.context = self.diagram.CreateDefaultContext()
         self.plant_context = self.plant.GetMyMutableContextFromRoot(self.context)
+        self.q_default = self.plant.GetPositions(self.plant_context)
         self.grasp_frames = {side: self.plant.GetFrameByName("grasp_frame", hands[side]) for side in SIDES}
         joints = [self.plant.GetJointByName(n, robot) for n in joint_names(1) + joint_names(2)]
         self.arm_indices = np.array([j.position_start() for j in joints])
@@ -83,10 +89,6 @@ class DualArmIk:
         actuators = [self.plant.get_joint_actuator(i) for i in self.plant.GetJointActuatorIndices()]
         effort = {actuator.joint().index(): actuator.effort_limit() for actuator in actuators}
         self.effort_limits = np.array([effort[j.index()] for j in joints])
-        for hand in hands.values():
-            for name in ("finger_1_joint", "finger_2_joint"):
-                self.plant.GetJointByName(name, hand).set_default_translation(open_width / 2)
-        self.q_default = self.plant.GetPositions(self.plant.CreateDefaultContext())
         self._load_or_build_seed_table(scenario, open_width)
 
     def _load_or_build_seed_table(self, scenario: Scenario, open_width: float):

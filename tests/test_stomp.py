@@ -105,3 +105,15 @@ def test_point_set_distance_field_matches_exact_distances():
     distances = Obstacles().add_points(sphere, inflation=0.002).distance(queries, cap=0.3)
     np.testing.assert_allclose(distances[:3], exact[:3] - 0.002, atol=0.006)
     assert distances[3] == pytest.approx(0.3)  # far outside the grid: the cap
+
+
+def test_planning_model_places_every_body_where_drakes_collision_model_does(scenario):
+    # A fresh model whose seed table comes from the cache: no collision query has touched its context.
+    ik = DualArmIk(scenario)
+    stomp = ik.stomp
+    q = np.random.default_rng(4).uniform(ik.lower, ik.upper)
+    poses = stomp.kinematics.body_poses(q)[0]
+    ik.plant.SetPositions(ik.plant_context, ik.full_positions(q))
+    for link, X in zip(stomp.kinematics.links, poses, strict=True):
+        X_drake = ik.plant.EvalBodyPoseInWorld(ik.plant_context, ik.plant.get_body(link.body_index))
+        np.testing.assert_allclose(X, X_drake.GetAsMatrix4(), atol=1e-9)
