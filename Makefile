@@ -24,7 +24,7 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 pick: env
-	$(PY) scripts/pick.py --oracle $(ARGS)
+	$(PY) scripts/pick.py $(ARGS)
 
 test: env
 	DRAKE_DEPRECATION_RUNTIME_SEVERITY=error $(PY) -m pytest -q $(ARGS)

@@ -1,92 +1,158 @@
-"""The autonomous pick: camera -> Segmenter -> PoseEstimator -> ShapeRegistrar -> IK + STOMP -> trajectory.
+"""The autonomous pick diagram: camera -> Segmenter -> PoseEstimator -> ShapeRegistrar -> PickSequencer -> arms.
 
-Nothing here reads the simulator's ground truth: the object's pose, shape and grasps
-come from the camera images at t = 0 through the perception systems, wired to the
-station in one diagram and evaluated there; the plan is then played by the same
-execution diagram as the oracle's (diagrams/pick_simulation.py), and the outcome is
-judged on ground truth only afterwards.
+MakePickDiagram wires the perception systems and the PickSequencer (which plans with
+IK + STOMP on the perceived grasps, the reconstruction as the obstacle, and plays the
+plan) around a station: the simulated one, or the hardware one that talks LCM to a
+robot driver; both expose the same ports. Nothing here reads the simulator's ground
+truth: run_pick judges the outcome on it only afterwards.
 """
 
 import logging
-import time
-from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 from pydrake.common.schema import Transform
+from pydrake.geometry import Meshcat, Rgba
+from pydrake.lcm import DrakeLcmInterface
 from pydrake.math import RigidTransform
-from pydrake.systems.framework import DiagramBuilder
+from pydrake.perception import PointCloud
+from pydrake.systems.framework import Diagram, DiagramBuilder
 
 from diagrams.hand_ik import SIDES, DualArmIk
 from diagrams.objects.instance import HandGrasp, ObjectInfo
-from diagrams.oracle_pick import JointPlan, PlanningError, plan_oracle_pick
+from diagrams.oracle_pick import OPEN_WIDTH, plan_oracle_pick
 from diagrams.perception import AddPerception
-from diagrams.pick_simulation import MakeOracleDiagram, simulate_pick
+from diagrams.pick_simulation import PickOutcome, simulate_pick
 from diagrams.scenario import Scenario
-from diagrams.station import MakeStation
-from systems.shape_registrar import ShapeRegistrar
+from diagrams.station import HAND_INSTANCES, MakeStation
+from systems.joint_plan import JointPlan
+from systems.pick_sequencer import PickSequencer, PickStatus
+from systems.shape_registrar import GraspPoses, ShapeRegistrar
+
+# Perceive once the object has settled on the table, s.
+PERCEIVE_AT_S = 0.5
+# A pick that has not ended by then is stopped, s.
+MAX_PICK_S = 60.0
 
 
-@dataclass
-class Perceived:
-    category: str
-    X_WO: RigidTransform
-    cloud_W: np.ndarray  # the reconstructed whole object
-    grasps_W: dict[str, RigidTransform]
-    seconds: float
+def make_pick_planner(scenario: Scenario):
+    """plan_pick(grasps, cloud_W, q_now) -> JointPlan for the PickSequencer.
+
+    IK on the perceived grasps (as if of an object whose frame is the world's), STOMP for
+    the reach around the reconstructed cloud, straight approach, close, closed-chain lift.
+    Raises PlanningError (a RuntimeError) naming the phase that failed.
+    """
+
+    def plan_pick(grasps: GraspPoses, cloud_W: np.ndarray, q_now: np.ndarray) -> JointPlan:
+        ik = DualArmIk(scenario, obstacle_points_W=cloud_W if len(cloud_W) else None)
+        info = ObjectInfo(
+            grasps={
+                side: HandGrasp(
+                    Transform(grasps.poses_W[f"{side}_pregrasp"]), Transform(grasps.poses_W[f"{side}_grasp"])
+                )
+                for side in SIDES
+            }
+        )
+        plan = plan_oracle_pick(ik, q_now, RigidTransform(), info)
+        plan.grasp_paths_W = _grasp_paths(ik, plan)
+        return plan
+
+    return plan_pick
 
 
-def perceive(scenario: Scenario) -> Perceived:
-    """Runs segmentation, pose estimation and shape registration on the station's first camera images.
+def _grasp_paths(ik: DualArmIk, plan: JointPlan, samples: int = 120) -> dict[str, np.ndarray]:
+    """Each hand's grasp frame origin along the plan, samples x 3 in W (for the viewer)."""
+    trajectory = plan.arm_trajectory()
+    poses = [ik.grasp_frame_poses(trajectory.value(t).ravel()) for t in np.linspace(0, plan.duration, samples)]
+    return {side: np.array([pose[side].translation() for pose in poses]) for side in SIDES}
 
-    Raises:
-        PlanningError: nothing found, or no grasps (with the stage's message).
+
+def MakePickDiagram(
+    scenario: Scenario, meshcat: Meshcat | None = None, hardware: bool = False, lcm: DrakeLcmInterface | None = None
+) -> Diagram:
+    """The whole autonomous pick around the simulated station, or with `hardware`, the LCM one.
+
+    Args:
+        scenario: the run's configuration.
+        meshcat: the simulated station draws itself there.
+        hardware: build the LCM station (diagrams/hardware_station.py) instead of the simulation.
+        lcm: the LCM bus of the hardware station (default: one on scenario.lcm.lcm_url).
     """
     builder = DiagramBuilder()
-    station = builder.AddNamedSystem("station", MakeStation(scenario))
-    _, pose_estimator = AddPerception(builder, station, scenario)
+    if hardware:
+        from diagrams.hardware_station import MakeHardwareStation  # noqa: PLC0415 (LCM only when asked)
+
+        station = builder.AddNamedSystem("station", MakeHardwareStation(scenario, lcm))
+    else:
+        station = builder.AddNamedSystem("station", MakeStation(scenario, meshcat))
+    segmenter, pose_estimator = AddPerception(builder, station, scenario)
     registrar = builder.AddNamedSystem("shape_registrar", ShapeRegistrar())
+    sequencer = builder.AddNamedSystem(
+        "pick_sequencer", PickSequencer(make_pick_planner(scenario), OPEN_WIDTH, PERCEIVE_AT_S)
+    )
+    camera = scenario.camera.name
     builder.Connect(pose_estimator.GetOutputPort("estimate"), registrar.GetInputPort("estimate"))
+    for port, source in (
+        ("color_image", station.GetOutputPort(f"{camera}.rgb_image")),
+        ("depth_image", station.GetOutputPort(f"{camera}.depth_image")),
+        ("segmentation", segmenter.GetOutputPort("segmentation")),
+        ("estimate", pose_estimator.GetOutputPort("estimate")),
+        ("grasp_poses", registrar.GetOutputPort("grasp_poses")),
+        ("reconstructed_cloud_W", registrar.GetOutputPort("reconstructed_cloud_W")),
+        ("position_measured", station.GetOutputPort("centauro.position_measured")),
+    ):
+        builder.Connect(source, sequencer.GetInputPort(port))
+    builder.Connect(sequencer.GetOutputPort("arm_position"), station.GetInputPort("centauro.position"))
+    for hand in HAND_INSTANCES.values():
+        builder.Connect(sequencer.GetOutputPort("hand_width"), station.GetInputPort(f"{hand}.position"))
     diagram = builder.Build()
-    context = diagram.CreateDefaultContext()
-    start = time.perf_counter()
-    estimate = pose_estimator.GetOutputPort("estimate").Eval(pose_estimator.GetMyContextFromRoot(context))
-    if not estimate.found:
-        raise PlanningError(f"perception: {estimate.message}")
-    registrar_context = registrar.GetMyContextFromRoot(context)
-    grasps = registrar.GetOutputPort("grasp_poses").Eval(registrar_context)
-    if not grasps.found:
-        raise PlanningError(f"registration: {grasps.message}")
-    X_WO = registrar.GetOutputPort("X_WO").Eval(registrar_context)
-    cloud = registrar.GetOutputPort("reconstructed_cloud_W").Eval(registrar_context)
-    seconds = time.perf_counter() - start
-    logging.info("perceived a %s in %.2f s (%s)", estimate.category, seconds, grasps.message)
-    return Perceived(estimate.category, X_WO, cloud, grasps.poses_W, seconds)
+    diagram.set_name("autonomous_pick")
+    return diagram
 
 
-def plan_autonomous_pick(scenario: Scenario, perceived: Perceived) -> JointPlan:
-    """The pick plan from perceived grasps; the object's reconstruction is the obstacle for reach planning."""
-    ik = DualArmIk(scenario, obstacle_points_W=perceived.cloud_W)
-    # The perceived grasps, as if of an object whose frame is the world's.
-    grasps = {
-        side: HandGrasp(
-            Transform(perceived.grasps_W[f"{side}_pregrasp"]), Transform(perceived.grasps_W[f"{side}_grasp"])
-        )
-        for side in SIDES
-    }
-    return plan_oracle_pick(ik, np.array(scenario.initial_arm_positions), RigidTransform(), ObjectInfo(grasps=grasps))
+def pick_status(diagram: Diagram, context) -> PickStatus:
+    sequencer = diagram.GetSubsystemByName("pick_sequencer")
+    return sequencer.GetOutputPort("status").Eval(sequencer.GetMyContextFromRoot(context))
 
 
-def run_autonomous_pick(scenario: Scenario, meshcat=None, record=None):
-    """Perceives, plans and simulates the pick; returns (PickOutcome, Perceived).
+def draw_perception(meshcat: Meshcat, diagram: Diagram, context, status: PickStatus):
+    """The camera's object points, the reconstruction and the planned grasp-frame paths, in meshcat."""
+    estimate = diagram.GetSubsystemByName("pose_estimator").GetOutputPort("estimate")
+    registrar = diagram.GetSubsystemByName("shape_registrar").GetOutputPort("reconstructed_cloud_W")
+    seen = estimate.Eval(estimate.get_system().GetMyContextFromRoot(context)).points_W
+    shape = registrar.Eval(registrar.get_system().GetMyContextFromRoot(context))
+    _set_points(meshcat, "perception/camera_points", seen, Rgba(0.1, 0.4, 1.0, 1.0))
+    _set_points(meshcat, "perception/reconstruction", shape, Rgba(1.0, 0.6, 0.0, 1.0))
+    for side, path in getattr(status.plan, "grasp_paths_W", {}).items():
+        meshcat.SetLine(f"perception/grasp_path_{side}", path.T, 3.0, Rgba(0.1, 0.8, 0.2, 1.0))
 
-    Raises:
-        PlanningError: perception, registration or planning failed (names the stage).
-    """
-    start = time.perf_counter()
-    perceived = perceive(scenario)
-    plan = plan_autonomous_pick(scenario, perceived)
-    planning_s = time.perf_counter() - start
-    logging.info("image to trajectory in %.2f s: %.1f s of motion", planning_s, plan.duration)
-    outcome = simulate_pick(MakeOracleDiagram(scenario, plan, meshcat), scenario, plan.duration, meshcat, record)
-    outcome.planning_s = planning_s
-    return outcome, perceived
+
+def _set_points(meshcat, path, points_W, rgba):
+    cloud = PointCloud(len(points_W))
+    cloud.mutable_xyzs()[:] = np.asarray(points_W, dtype=np.float32).T
+    meshcat.SetObject(path, cloud, point_size=0.006, rgba=rgba)
+
+
+def run_pick(scenario: Scenario, meshcat: Meshcat | None = None, record: Path | None = None) -> PickOutcome:
+    """Simulates the autonomous pick until the plan has been played (or a stage failed); judged on ground truth."""
+    diagram = MakePickDiagram(scenario, meshcat)
+    mode = {"last": "", "drawn": False}
+
+    def end_time(context) -> float:
+        status = pick_status(diagram, context)
+        if status.mode != mode["last"]:
+            note = f": {status.message}" if status.mode == "failed" else ""
+            logging.info("t = %5.2f s  %s%s", context.get_time(), status.mode, note)
+            mode["last"] = status.mode
+        if meshcat is not None and status.plan is not None and not mode["drawn"]:
+            draw_perception(meshcat, diagram, context, status)
+            mode["drawn"] = True
+        return context.get_time() if status.mode == "failed" else min(status.end_s, MAX_PICK_S)
+
+    outcome = simulate_pick(diagram, scenario, end_time, meshcat, record)
+    status = pick_status(diagram, outcome.context)
+    outcome.stages = status.stage_seconds
+    outcome.planning_s = status.stage_seconds.get("image_to_trajectory", 0.0)
+    if status.mode == "failed":
+        outcome.failed_stage, outcome.message = status.failed_stage, status.message
+    return outcome

@@ -12,14 +12,13 @@ the table, STOMP plans around them.
 """
 
 import logging
-from dataclasses import dataclass, field
 
 import numpy as np
 from pydrake.math import RigidTransform
-from pydrake.trajectories import PiecewisePolynomial
 
 from diagrams.hand_ik import SIDES, DualArmIk
 from diagrams.objects.instance import ObjectInfo
+from systems.joint_plan import JointPlan
 
 # Fraction of each joint's velocity limit used by the plan's peak speed.
 SPEED_FRACTION = 0.25
@@ -37,38 +36,6 @@ HOLD_S = 2.5
 
 class PlanningError(RuntimeError):
     """No plan: names the phase that failed and why."""
-
-
-@dataclass
-class JointPlan:
-    """Keyframes for the 14 arm joints and the hands' opening width."""
-
-    times: list[float] = field(default_factory=list)
-    arm_q: list[np.ndarray] = field(default_factory=list)
-    hand_width: list[float] = field(default_factory=list)
-    # Time (s) at which each named phase ends.
-    phases: dict[str, float] = field(default_factory=dict)
-
-    def append(self, q: np.ndarray, width: float, duration: float):
-        self.times.append((self.times[-1] if self.times else 0.0) + duration)
-        self.arm_q.append(np.asarray(q, dtype=float))
-        self.hand_width.append(width)
-
-    def arm_trajectory(self) -> PiecewisePolynomial:
-        """Cubic through the keyframes with zero velocity at each one (no overshoot)."""
-        knots = np.column_stack(self.arm_q)
-        return PiecewisePolynomial.CubicHermite(self.times, knots, np.zeros_like(knots))
-
-    def hand_trajectory(self) -> PiecewisePolynomial:
-        return PiecewisePolynomial.FirstOrderHold(self.times, np.array([self.hand_width]))
-
-    def configuration_at(self, phase: str) -> np.ndarray:
-        """The 14 arm joints at the end of a named phase (e.g. "close": grasping, "lift": lifted)."""
-        return self.arm_trajectory().value(self.phases[phase]).ravel()
-
-    @property
-    def duration(self) -> float:
-        return self.times[-1]
 
 
 def move_duration(q_from, q_to, velocity_limits) -> float:

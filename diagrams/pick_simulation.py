@@ -7,6 +7,7 @@ touch it.
 
 import logging
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -14,14 +15,15 @@ import numpy as np
 from pydrake.geometry import Meshcat
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
-from pydrake.systems.framework import Diagram, DiagramBuilder
+from pydrake.systems.framework import Context, Diagram, DiagramBuilder
 from pydrake.systems.primitives import TrajectorySource
 
 from diagrams.hand_ik import DualArmIk
 from diagrams.objects.library import resolve_object
-from diagrams.oracle_pick import JointPlan, PlanningError, plan_oracle_pick
+from diagrams.oracle_pick import PlanningError, plan_oracle_pick
 from diagrams.scenario import Scenario
 from diagrams.station import HAND_INSTANCES, OBJECT_INSTANCE, MakeStation, object_pose_on_table
+from systems.joint_plan import JointPlan
 
 LIFT_SUCCESS_M = 0.10
 HOLD_CHECK_S = 2.0
@@ -43,6 +45,11 @@ class PickOutcome:
     wall_time_s: float = 0.0
     message: str = ""
     planning_s: float = 0.0
+    # The autonomous pick's stage wall times, s, and the stage that stopped it, if one did.
+    stages: dict[str, float] = field(default_factory=dict)
+    failed_stage: str = ""
+    # The simulator's final context (for further inspection).
+    context: object = None
 
 
 def run_oracle_pick(scenario: Scenario, meshcat: Meshcat | None = None, record: Path | None = None) -> PickOutcome:
@@ -109,26 +116,30 @@ def hands_touching_object(plant: MultibodyPlant, plant_context) -> list[str]:
 def simulate_pick(
     diagram: Diagram,
     scenario: Scenario,
-    duration: float,
+    duration: float | Callable[[Context], float],
     meshcat: Meshcat | None = None,
     record: Path | None = None,
 ) -> PickOutcome:
-    """Simulates `duration` seconds and judges the lift on ground truth."""
+    """Simulates until `duration` (s, or a function of the context giving the end time) and judges
+    the lift on ground truth."""
+    end_time = duration if callable(duration) else (lambda context: duration)
     simulator = Simulator(diagram)
     ApplySimulatorConfig(scenario.simulator_config, simulator)
     context = simulator.get_mutable_context()
     plant = station_plant(diagram)
     plant_context = plant.GetMyContextFromRoot(context)
-    body = object_body(plant)
+    body = object_body(plant) if plant.HasModelInstanceNamed(OBJECT_INSTANCE) else None
     z_rest = None
     heights = []
     if meshcat is not None and record is not None:
         meshcat.StartRecording(set_visualizations_while_recording=False)
     start = time.perf_counter()
     simulator.Initialize()
-    for step, t in enumerate(np.arange(SAMPLE_S, duration + 1e-9, SAMPLE_S), start=1):
+    step = 0
+    while (t := (step + 1) * SAMPLE_S) <= end_time(context) + 1e-9:
+        step += 1
         simulator.AdvanceTo(t)
-        z = body.EvalPoseInWorld(plant_context).translation()[2]
+        z = body.EvalPoseInWorld(plant_context).translation()[2] if body is not None else np.nan
         if z_rest is None and t >= 0.4:
             z_rest = z  # resting height, once the object has settled
         heights.append((t, z))
@@ -141,9 +152,10 @@ def simulate_pick(
         record.write_text(meshcat.StaticHtml())
         logging.info("wrote %s", record)
     times, z = np.array(heights).T
-    lift = z - z_rest
+    lift = np.nan_to_num(z - (z_rest if z_rest is not None else z[0]))
+    duration = float(times[-1])
     final_window = times >= duration - HOLD_CHECK_S
-    touching = hands_touching_object(plant, plant_context)
+    touching = hands_touching_object(plant, plant_context) if body is not None else []
     min_hold = float(lift[final_window].min())
     success = bool(min_hold >= LIFT_SUCCESS_M and touching == ["left", "right"])
     message = (
@@ -155,4 +167,4 @@ def simulate_pick(
             else f"lifted but touched only by {touching or 'no hand'}"
         )
     )
-    return PickOutcome(success, float(lift[-1]), min_hold, touching, float(duration), wall, message)
+    return PickOutcome(success, float(lift[-1]), min_hold, touching, duration, wall, message, context=context)

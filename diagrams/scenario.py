@@ -23,6 +23,8 @@ DEFAULT_SCENARIO = SCENARIO_DIR / "default.yaml"
 class ObjectConfig:
     """Which object lies on the table, and where."""
 
+    # False: an empty table (what a pick does when it sees nothing).
+    present: bool = True
     # Category: "watering_can" or "drill".
     category: str = "watering_can"
     # A generated instance: train_<i>, test_<i> (the fixed seeded ones) or extra_<seed>.

@@ -135,7 +135,8 @@ def MakeStation(scenario: Scenario, meshcat: Meshcat | None = None) -> Diagram:
     plant, scene_graph = AddMultibodyPlant(scenario.plant_config, builder)
     robot, hands = AddCentauro(plant, scene_graph, scenario)
     AddTable(plant, scenario)
-    AddObject(plant, scenario)
+    if scenario.object.present:
+        AddObject(plant, scenario)
     plant.Finalize()
 
     _set_pd_gains(plant, robot, scenario.arm_controller.kp * 2, scenario.arm_controller.kd * 2)

@@ -1,6 +1,7 @@
 """Runs one simulated pick of the scenario's object and reports the outcome.
 
-python scripts/pick.py --oracle                      # ground-truth pick, default scenario
+python scripts/pick.py                               # autonomous pick, default scenario
+python scripts/pick.py --oracle                      # ground-truth pick (true pose and grasps)
 python scripts/pick.py --oracle --object drill --instance test_1 --yaw 0.25 --json r.json
 python scripts/pick.py --oracle --object-file my_can.sdf --object watering_can
 python scripts/pick.py --oracle --meshcat --record pick.html
@@ -15,7 +16,7 @@ from pathlib import Path
 
 from pydrake.geometry import Meshcat, MeshcatParams
 
-from diagrams.autonomous_pick import run_autonomous_pick
+from diagrams.autonomous_pick import run_pick
 from diagrams.oracle_pick import PlanningError
 from diagrams.pick_simulation import run_oracle_pick
 from diagrams.scenario import DEFAULT_SCENARIO, load_scenario, replace_object
@@ -68,12 +69,14 @@ def main(argv=None) -> int:
         if args.oracle:
             outcome = run_oracle_pick(scenario, meshcat, args.record)
         else:
-            outcome, _ = run_autonomous_pick(scenario, meshcat, args.record)
+            outcome = run_pick(scenario, meshcat, args.record)
     except (PlanningError, ValueError, FileNotFoundError) as error:
         print(f"error: {error}", file=sys.stderr)
         outcome = None
         report = {"success": False, "error": str(error)}
     if outcome is not None:
+        if outcome.stages:
+            print("stage wall times: " + ", ".join(f"{name} {s:.3f} s" for name, s in outcome.stages.items()))
         print(
             f"{'SUCCESS' if outcome.success else 'FAILURE'}: {outcome.message}; lift {outcome.lift_height_m:.3f} m, "
             f"simulated {outcome.sim_time_s:.1f} s in {outcome.wall_time_s:.1f} s"
@@ -89,6 +92,8 @@ def main(argv=None) -> int:
             "seed": scenario.random_seed,
             "mode": "oracle" if args.oracle else "autonomous",
             "planning_s": outcome.planning_s,
+            "stages": outcome.stages,
+            "failed_stage": outcome.failed_stage,
             "sim_wall_s": outcome.wall_time_s,
             "message": outcome.message,
         }

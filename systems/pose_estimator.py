@@ -17,6 +17,8 @@ spout / chuck; see diagrams/objects/).
 """
 
 import functools
+import hashlib
+import os
 from dataclasses import dataclass, field
 
 import cv2
@@ -30,6 +32,7 @@ from pydrake.systems.sensors import CameraInfo, ImageDepth32F
 from scipy.spatial import cKDTree
 
 from diagrams.objects import catalog
+from diagrams.objects.library import cache_dir
 from systems.segmenter import Segmentation
 
 MIN_POINTS = 50
@@ -86,10 +89,14 @@ class NearestPointField:
     Points outside the grid take the nearest cell's answer; their distance is still exact.
     """
 
-    def __init__(self, points: np.ndarray, margin: float = 0.15):
+    def __init__(self, points: np.ndarray, margin: float = 0.15, index: np.ndarray | None = None):
+        """`index`: the grid, when it was computed before for these points (see category_template)."""
         self.points = points
         self.lower = points.min(axis=0) - margin
         self.shape = np.ceil((points.max(axis=0) + margin - self.lower) / GRID_CELL).astype(int) + 1
+        if index is not None and index.shape == tuple(self.shape):
+            self.index = index
+            return
         centres = self.lower + GRID_CELL * np.stack(np.indices(self.shape), axis=-1).reshape(-1, 3)
         self.index = cKDTree(points).query(centres)[1].astype(np.int32).reshape(self.shape)
 
@@ -102,10 +109,24 @@ class NearestPointField:
 
 @functools.cache
 def category_template(category: str, count: int = 3000) -> tuple[np.ndarray, NearestPointField]:
-    """Surface points (in O) of the category's template instance, and their nearest-point field."""
-    mesh = trimesh.load(catalog.instance_directory(category, TEMPLATE_INSTANCE) / "visual.obj", force="mesh")
+    """Surface points (in O) of the category's template instance, and their nearest-point field.
+
+    The field takes seconds to compute; it is kept in the user's cache, keyed by the mesh and the grid.
+    """
+    mesh_file = catalog.instance_directory(category, TEMPLATE_INSTANCE) / "visual.obj"
+    mesh = trimesh.load(mesh_file, force="mesh")
     points, _ = trimesh.sample.sample_surface_even(mesh, count, seed=0)
-    return points, NearestPointField(points)
+    key = hashlib.sha256(mesh_file.read_bytes() + f"{count} {GRID_CELL}".encode()).hexdigest()[:16]
+    path = cache_dir() / "pose_templates" / f"{category}_{key}.npz"
+    if path.is_file():
+        with np.load(path) as data:
+            return points, NearestPointField(points, index=data["index"])
+    field = NearestPointField(points)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    partial = path.with_suffix(f".{os.getpid()}.tmp.npz")
+    np.savez_compressed(partial, index=field.index)
+    os.replace(partial, path)  # atomic: a concurrent run reads the whole file or none
+    return points, field
 
 
 def _rotation_2d(angle: float) -> np.ndarray:
@@ -198,6 +219,8 @@ class PoseEstimator(LeafSystem):
         self.intrinsics = intrinsics
         self.X_BC = X_BC or RigidTransform()
         self.erode_pixels = erode_pixels
+        for category in catalog.CATEGORIES:  # loaded now, not on the first image
+            category_template(category)
         self.DeclareAbstractInputPort("segmentation", AbstractValue.Make(Segmentation(False)))
         self.DeclareAbstractInputPort("depth_image", AbstractValue.Make(ImageDepth32F()))
         self.DeclareAbstractInputPort("camera_pose", AbstractValue.Make(RigidTransform()))

@@ -76,6 +76,8 @@ class Segmenter(LeafSystem):
         self.model, metadata = segmentation_network.load(weights)
         self.classes = tuple(metadata["classes"])
         self.min_pixels = min_pixels
+        # One inference now: torch's first call is several times slower than the next ones.
+        self.segment(np.zeros((*segmentation_network.INPUT_SIZE[::-1], 3), np.uint8))
         self.DeclareAbstractInputPort("color_image", AbstractValue.Make(ImageRgba8U()))
         self.DeclareAbstractOutputPort(
             "labels", lambda: AbstractValue.Make(np.zeros((0, 0), np.uint8)), self._calc_labels

@@ -1,16 +1,22 @@
-"""The shape registrar system alone, and the autonomous pick (no ground truth until judging) end to end."""
+"""The pick sequencer and the shape registrar alone, and the autonomous pick diagram end to end
+(no ground truth until judging), including its failure paths."""
 
 import numpy as np
+import pytest
 from pydrake.common.value import AbstractValue
 from pydrake.math import RigidTransform
+from pydrake.systems.analysis import Simulator
 
-from diagrams.autonomous_pick import perceive, run_autonomous_pick
-from diagrams.objects.library import resolve_object
+from diagrams.autonomous_pick import PERCEIVE_AT_S, MakePickDiagram, run_pick
 from diagrams.scenario import replace_object
-from diagrams.station import object_pose_on_table
+from systems.joint_plan import JointPlan
+from systems.pick_sequencer import PickSequencer
 from systems.pose_estimator import ObjectEstimate
-from systems.shape_registrar import ShapeRegistrar
+from systems.segmenter import Segmentation
+from systems.shape_registrar import GraspPoses, ShapeRegistrar
 from systems.shape_space.space import POSE_NAMES
+
+Q0 = np.linspace(-0.5, 0.5, 14)
 
 
 def test_shape_registrar_system_alone(scenario):
@@ -34,14 +40,95 @@ def test_shape_registrar_system_alone(scenario):
     assert len(registrar.GetOutputPort("reconstructed_cloud_W").Eval(context)) == 0
 
 
-def test_perception_chain_localises_an_unseen_drill(scenario):
-    drill = replace_object(scenario, category="drill", instance="test_1")
-    perceived = perceive(drill)
-    truth = object_pose_on_table(drill, resolve_object(drill.object))
-    assert perceived.category == "drill"
-    assert np.linalg.norm(perceived.X_WO.translation() - truth.translation()) < 0.03
+def _two_step_plan(grasps, cloud, q_now):
+    plan = JointPlan()
+    plan.append(q_now, 0.1, 0.0)
+    plan.append(q_now + 0.2, 0.1, 1.0)
+    plan.phases["reach"] = plan.duration
+    plan.append(q_now + 0.2, 0.0, 1.0)
+    plan.phases["close"] = plan.duration
+    return plan
+
+
+def _sequencer_context(dut, segmentation_found=True, grasps_found=True):
+    context = dut.CreateDefaultContext()
+    dut.GetInputPort("position_measured").FixValue(context, Q0)
+    mask = np.ones((4, 4), bool)
+    for port, value in (
+        ("segmentation", Segmentation(segmentation_found, "drill", mask, 16, "ok" if segmentation_found else "none")),
+        ("estimate", ObjectEstimate(True, "drill")),
+        ("grasp_poses", GraspPoses(grasps_found, {}, "ok" if grasps_found else "diverged")),
+        ("reconstructed_cloud_W", np.zeros((0, 3))),
+    ):
+        dut.GetInputPort(port).FixValue(context, AbstractValue.Make(value))
+    for port in ("color_image", "depth_image"):
+        dut.GetInputPort(port).FixValue(context, dut.GetInputPort(port).Allocate())
+    return context
+
+
+def _advance(dut, context, t):
+    simulator = Simulator(dut, context)
+    simulator.AdvanceTo(t)
+    return context
+
+
+def test_sequencer_holds_then_plays_the_plan_after_perceiving():
+    dut = PickSequencer(_two_step_plan, hand_width=0.1, perceive_at_s=0.5)
+    context = _sequencer_context(dut)
+    np.testing.assert_array_equal(dut.GetOutputPort("arm_position").Eval(context), Q0)  # before any update
+    _advance(dut, context, 0.3)
+    assert dut.GetOutputPort("status").Eval(context).mode == "waiting"
+    np.testing.assert_array_equal(dut.GetOutputPort("arm_position").Eval(context), Q0)
+    _advance(dut, context, 0.6)
+    status = dut.GetOutputPort("status").Eval(context)
+    assert status.plan is not None and status.plan_start_s >= 0.5
+    assert set(status.stage_seconds) >= {"segmentation", "pose", "registration", "planning", "image_to_trajectory"}
+    _advance(dut, context, status.plan_start_s + 1.5)
+    assert dut.GetOutputPort("status").Eval(context).mode == "close"
+    np.testing.assert_allclose(dut.GetOutputPort("arm_position").Eval(context), Q0 + 0.2)
+    assert dut.GetOutputPort("hand_width").Eval(context)[0] == pytest.approx(0.05)
+    _advance(dut, context, status.plan_start_s + 3.0)
+    assert dut.GetOutputPort("status").Eval(context).mode == "done"
+
+
+@pytest.mark.parametrize(
+    ("segmentation_found", "grasps_found", "planner_fails", "stage"),
+    [(False, True, False, "segmentation"), (True, False, False, "registration"), (True, True, True, "planning")],
+)
+def test_sequencer_stops_at_the_failing_stage_and_holds(segmentation_found, grasps_found, planner_fails, stage):
+    def planner(grasps, cloud, q_now):
+        if planner_fails:
+            raise RuntimeError("pre-grasp: no collision-free IK solution")
+        return _two_step_plan(grasps, cloud, q_now)
+
+    dut = PickSequencer(planner, hand_width=0.1, perceive_at_s=0.1)
+    context = _advance(dut, _sequencer_context(dut, segmentation_found, grasps_found), 1.0)
+    status = dut.GetOutputPort("status").Eval(context)
+    assert status.mode == "failed" and status.failed_stage == stage and status.message.startswith(stage)
+    np.testing.assert_array_equal(dut.GetOutputPort("arm_position").Eval(context), Q0)
+    assert dut.GetOutputPort("hand_width").Eval(context)[0] == 0.1
+
+
+def test_pick_diagram_structure(scenario):
+    diagram = MakePickDiagram(scenario)
+    for name in ("station", "segmenter", "pose_estimator", "shape_registrar", "pick_sequencer"):
+        assert diagram.HasSubsystemNamed(name)
 
 
 def test_autonomous_pick_of_an_unseen_drill(scenario):
-    outcome, _ = run_autonomous_pick(replace_object(scenario, category="drill", instance="test_1", yaw=0.25))
+    outcome = run_pick(replace_object(scenario, category="drill", instance="test_1", yaw=0.25))
     assert outcome.success, outcome.message
+    assert outcome.stages["image_to_trajectory"] > 0 and not outcome.failed_stage
+
+
+def test_empty_table_stops_at_segmentation(scenario):
+    empty = replace_object(scenario, present=False)
+    outcome = run_pick(empty)
+    assert not outcome.success and outcome.failed_stage == "segmentation", outcome.message
+    assert outcome.sim_time_s < PERCEIVE_AT_S + 0.2  # stopped right there
+
+
+def test_object_out_of_reach_stops_at_planning(scenario):
+    far = replace_object(scenario, category="drill", instance="test_0", xy=[0.3, 0.0])
+    outcome = run_pick(far)
+    assert not outcome.success and outcome.failed_stage == "planning", outcome.message

@@ -1,0 +1,38 @@
+"""A pick plan: keyframes of the 14 arm joints and the hands' opening, with named phases."""
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from pydrake.trajectories import PiecewisePolynomial
+
+
+@dataclass
+class JointPlan:
+    """Keyframes for the 14 arm joints and the hands' opening width."""
+
+    times: list[float] = field(default_factory=list)
+    arm_q: list[np.ndarray] = field(default_factory=list)
+    hand_width: list[float] = field(default_factory=list)
+    # Time (s) at which each named phase ends.
+    phases: dict[str, float] = field(default_factory=dict)
+
+    def append(self, q: np.ndarray, width: float, duration: float):
+        self.times.append((self.times[-1] if self.times else 0.0) + duration)
+        self.arm_q.append(np.asarray(q, dtype=float))
+        self.hand_width.append(width)
+
+    def arm_trajectory(self) -> PiecewisePolynomial:
+        """Cubic through the keyframes with zero velocity at each one (no overshoot)."""
+        knots = np.column_stack(self.arm_q)
+        return PiecewisePolynomial.CubicHermite(self.times, knots, np.zeros_like(knots))
+
+    def hand_trajectory(self) -> PiecewisePolynomial:
+        return PiecewisePolynomial.FirstOrderHold(self.times, np.array([self.hand_width]))
+
+    def configuration_at(self, phase: str) -> np.ndarray:
+        """The 14 arm joints at the end of a named phase (e.g. "close": grasping, "lift": lifted)."""
+        return self.arm_trajectory().value(self.phases[phase]).ravel()
+
+    @property
+    def duration(self) -> float:
+        return self.times[-1]
