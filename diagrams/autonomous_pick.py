@@ -13,16 +13,18 @@ from pathlib import Path
 import numpy as np
 from pydrake.common.schema import Transform
 from pydrake.geometry import Meshcat, Rgba
-from pydrake.lcm import DrakeLcmInterface
+from pydrake.lcm import DrakeLcm, DrakeLcmInterface
 from pydrake.math import RigidTransform
 from pydrake.perception import PointCloud
 from pydrake.systems.framework import Diagram, DiagramBuilder
 
 from diagrams.hand_ik import SIDES, DualArmIk
+from diagrams.hardware_station import MakeHardwareStation
 from diagrams.objects.instance import HandGrasp, ObjectInfo
 from diagrams.oracle_pick import OPEN_WIDTH, plan_oracle_pick
 from diagrams.perception import AddPerception
-from diagrams.pick_simulation import PickOutcome, simulate_pick
+from diagrams.pick_simulation import PickOutcome, simulate_pick, station_plant
+from diagrams.robot_driver import MakeRobotDriver
 from diagrams.scenario import Scenario
 from diagrams.station import HAND_INSTANCES, MakeStation
 from systems.joint_plan import JointPlan
@@ -80,8 +82,6 @@ def MakePickDiagram(
     """
     builder = DiagramBuilder()
     if hardware:
-        from diagrams.hardware_station import MakeHardwareStation  # noqa: PLC0415 (LCM only when asked)
-
         station = builder.AddNamedSystem("station", MakeHardwareStation(scenario, lcm))
     else:
         station = builder.AddNamedSystem("station", MakeStation(scenario, meshcat))
@@ -133,26 +133,74 @@ def _set_points(meshcat, path, points_W, rgba):
     meshcat.SetObject(path, cloud, point_size=0.006, rgba=rgba)
 
 
-def run_pick(scenario: Scenario, meshcat: Meshcat | None = None, record: Path | None = None) -> PickOutcome:
-    """Simulates the autonomous pick until the plan has been played (or a stage failed); judged on ground truth."""
-    diagram = MakePickDiagram(scenario, meshcat)
-    mode = {"last": "", "drawn": False}
+def MakeLcmPickWorld(scenario: Scenario, lcm: DrakeLcmInterface, meshcat: Meshcat | None = None) -> Diagram:
+    """The robot driver emulator ("robot_driver") and the hardware-backend pick diagram ("pick") side by side.
 
-    def end_time(context) -> float:
-        status = pick_status(diagram, context)
-        if status.mode != mode["last"]:
+    They share no port: everything between them goes as encoded LCM messages over `lcm`
+    (an in-process memq:// bus), so one simulator steps both in lockstep.
+    """
+    builder = DiagramBuilder()
+    builder.AddNamedSystem("robot_driver", MakeRobotDriver(scenario, lcm, meshcat))
+    builder.AddNamedSystem("pick", MakePickDiagram(scenario, hardware=True, lcm=lcm))
+    world = builder.Build()
+    world.set_name("lcm_pick_world")
+    return world
+
+
+def run_pick(
+    scenario: Scenario, meshcat: Meshcat | None = None, record: Path | None = None, backend: str = "sim"
+) -> PickOutcome:
+    """Simulates the autonomous pick until the plan has been played (or a stage failed); judged on ground truth.
+
+    Args:
+        backend: "sim" (the simulated station) or "lcm-memq" (the hardware station against the
+            robot driver emulator over an in-process LCM bus).
+    """
+    if backend == "sim":
+        diagram = pick = MakePickDiagram(scenario, meshcat)
+        plant = station_plant(diagram)
+    elif backend == "lcm-memq":
+        diagram = MakeLcmPickWorld(scenario, DrakeLcm("memq://"), meshcat)
+        pick = diagram.GetSubsystemByName("pick")
+        plant = station_plant(diagram.GetSubsystemByName("robot_driver"))
+    else:
+        raise ValueError(f"unknown backend {backend!r}: sim or lcm-memq")
+    watch = PickWatcher(pick, meshcat)
+    outcome = simulate_pick(diagram, scenario, watch.end_time, meshcat, record, plant=plant)
+    return watch.finish(outcome)
+
+
+class PickWatcher:
+    """Follows the PickSequencer during a simulation: logs mode changes, draws the perception once,
+    and says when the pick has ended."""
+
+    def __init__(self, pick: Diagram, meshcat: Meshcat | None = None):
+        self.pick, self.meshcat = pick, meshcat
+        self.mode, self.drawn = "", False
+
+    def status(self, context) -> PickStatus:
+        return pick_status(self.pick, context)
+
+    def end_time(self, context) -> float:
+        """When to stop, in context seconds: the plan's end, now if a stage failed, MAX_PICK_S at most."""
+        status = self.status(context)
+        if status.mode != self.mode:
             note = f": {status.message}" if status.mode == "failed" else ""
             logging.info("t = %5.2f s  %s%s", context.get_time(), status.mode, note)
-            mode["last"] = status.mode
-        if meshcat is not None and status.plan is not None and not mode["drawn"]:
-            draw_perception(meshcat, diagram, context, status)
-            mode["drawn"] = True
+            self.mode = status.mode
+        if self.meshcat is not None and status.plan is not None and not self.drawn:
+            draw_perception(self.meshcat, self.pick, context, status)
+            self.drawn = True
         return context.get_time() if status.mode == "failed" else min(status.end_s, MAX_PICK_S)
 
-    outcome = simulate_pick(diagram, scenario, end_time, meshcat, record)
-    status = pick_status(diagram, outcome.context)
-    outcome.stages = status.stage_seconds
-    outcome.planning_s = status.stage_seconds.get("image_to_trajectory", 0.0)
-    if status.mode == "failed":
-        outcome.failed_stage, outcome.message = status.failed_stage, status.message
-    return outcome
+    def finish(self, outcome: PickOutcome) -> PickOutcome:
+        """The outcome with the stages' times and, if one failed, its name and reason."""
+        status = self.status(outcome.context)
+        outcome.stages = status.stage_seconds
+        outcome.planning_s = status.stage_seconds.get("image_to_trajectory", 0.0)
+        if status.mode == "failed":
+            outcome.failed_stage, outcome.message = status.failed_stage, status.message
+        elif status.mode not in ("hold", "done"):  # (the last sample may fall just before the plan's end)
+            outcome.success = False
+            outcome.message = f"stopped in mode {status.mode!r} after {MAX_PICK_S} s"
+        return outcome

@@ -30,6 +30,8 @@ from systems.planning.stomp import Obstacles, Stomp
 
 SIDES = ("left", "right")
 SEED_SAMPLES = 3000
+# Clearance added around a perceived (reconstructed) object for reach planning, m.
+PERCEIVED_SHAPE_MARGIN = 0.015
 OBJECT_SURFACE_POINTS = 6000
 # A hand is symmetric under a half turn about its approach axis z_G.
 HALF_TURN = RigidTransform(RotationMatrix.MakeZRotation(np.pi))
@@ -191,7 +193,8 @@ class DualArmIk:
                     X_WG = (X_WB @ inspector.GetPoseInFrame(geometry)).GetAsMatrix4()
                     obstacles.add_box(X_WG, [shape.width(), shape.depth(), shape.height()])
         if self.obstacle_points_W is not None:
-            obstacles.add_points(self.obstacle_points_W)
+            # A perceived shape is off by up to a centimetre or two where the camera did not see it.
+            obstacles.add_points(self.obstacle_points_W, inflation=PERCEIVED_SHAPE_MARGIN)
         if self.obstacle is not None:
             mesh = trimesh.load(self.obstacle.model_file.parent / "visual.obj", force="mesh")
             points, _ = trimesh.sample.sample_surface_even(mesh, OBJECT_SURFACE_POINTS, seed=0)

@@ -113,24 +113,55 @@ def hands_touching_object(plant: MultibodyPlant, plant_context) -> list[str]:
     return sorted(touching)
 
 
+class LiftJudge:
+    """Judges a pick on the simulator's ground truth: sample() every SAMPLE_S, then outcome()."""
+
+    def __init__(self, plant: MultibodyPlant, context):
+        self.plant, self.plant_context = plant, plant.GetMyContextFromRoot(context)
+        self.body = object_body(plant) if plant.HasModelInstanceNamed(OBJECT_INSTANCE) else None
+        self.z_rest = None
+        self.heights = []
+
+    def sample(self, t: float) -> float:
+        """Records and returns the object origin's height at context time t (NaN without an object), m."""
+        z = self.body.EvalPoseInWorld(self.plant_context).translation()[2] if self.body is not None else np.nan
+        if self.z_rest is None and t >= 0.4:
+            self.z_rest = z  # resting height, once the object has settled
+        self.heights.append((t, z))
+        return z
+
+    def outcome(self) -> PickOutcome:
+        times, z = np.array(self.heights).T if self.heights else (np.zeros(1), np.full(1, np.nan))
+        lift = np.nan_to_num(z - (self.z_rest if self.z_rest is not None else z[0]))
+        duration = float(times[-1])
+        final_window = times >= duration - HOLD_CHECK_S
+        touching = hands_touching_object(self.plant, self.plant_context) if self.body is not None else []
+        min_hold = float(lift[final_window].min())
+        success = bool(min_hold >= LIFT_SUCCESS_M and touching == ["left", "right"])
+        if success:
+            message = "lifted and held by both hands"
+        elif min_hold < LIFT_SUCCESS_M:
+            message = f"not lifted: lowest height over the last {HOLD_CHECK_S} s was {min_hold:.3f} m"
+        else:
+            message = f"lifted but touched only by {touching or 'no hand'}"
+        return PickOutcome(success, float(lift[-1]), min_hold, touching, duration, 0.0, message)
+
+
 def simulate_pick(
     diagram: Diagram,
     scenario: Scenario,
     duration: float | Callable[[Context], float],
     meshcat: Meshcat | None = None,
     record: Path | None = None,
+    plant: MultibodyPlant | None = None,
 ) -> PickOutcome:
     """Simulates until `duration` (s, or a function of the context giving the end time) and judges
-    the lift on ground truth."""
+    the lift on ground truth: `plant`'s (default: the plant of the diagram's "station")."""
     end_time = duration if callable(duration) else (lambda context: duration)
     simulator = Simulator(diagram)
     ApplySimulatorConfig(scenario.simulator_config, simulator)
     context = simulator.get_mutable_context()
-    plant = station_plant(diagram)
-    plant_context = plant.GetMyContextFromRoot(context)
-    body = object_body(plant) if plant.HasModelInstanceNamed(OBJECT_INSTANCE) else None
-    z_rest = None
-    heights = []
+    judge = LiftJudge(plant or station_plant(diagram), context)
     if meshcat is not None and record is not None:
         meshcat.StartRecording(set_visualizations_while_recording=False)
     start = time.perf_counter()
@@ -139,10 +170,7 @@ def simulate_pick(
     while (t := (step + 1) * SAMPLE_S) <= end_time(context) + 1e-9:
         step += 1
         simulator.AdvanceTo(t)
-        z = body.EvalPoseInWorld(plant_context).translation()[2] if body is not None else np.nan
-        if z_rest is None and t >= 0.4:
-            z_rest = z  # resting height, once the object has settled
-        heights.append((t, z))
+        z = judge.sample(t)
         if step % 40 == 0:
             logging.info("t = %4.1f s  object z = %.3f m", t, z)
     wall = time.perf_counter() - start
@@ -151,20 +179,6 @@ def simulate_pick(
         meshcat.PublishRecording()
         record.write_text(meshcat.StaticHtml())
         logging.info("wrote %s", record)
-    times, z = np.array(heights).T
-    lift = np.nan_to_num(z - (z_rest if z_rest is not None else z[0]))
-    duration = float(times[-1])
-    final_window = times >= duration - HOLD_CHECK_S
-    touching = hands_touching_object(plant, plant_context) if body is not None else []
-    min_hold = float(lift[final_window].min())
-    success = bool(min_hold >= LIFT_SUCCESS_M and touching == ["left", "right"])
-    message = (
-        "lifted and held by both hands"
-        if success
-        else (
-            f"not lifted: lowest height over the last {HOLD_CHECK_S} s was {min_hold:.3f} m"
-            if min_hold < LIFT_SUCCESS_M
-            else f"lifted but touched only by {touching or 'no hand'}"
-        )
-    )
-    return PickOutcome(success, float(lift[-1]), min_hold, touching, duration, wall, message, context=context)
+    outcome = judge.outcome()
+    outcome.wall_time_s, outcome.context = wall, context
+    return outcome

@@ -66,6 +66,30 @@ class HandControllerConfig:
 
 
 @dataclass
+class HardwareConfig:
+    """The LCM backend (diagrams/hardware_station.py, scripts/robot_driver.py): channels and safety."""
+
+    # Arm joint commands (lcmt_iiwa_command, 14 joints: left arm then right) and status (lcmt_iiwa_status).
+    arm_command_channel: str = "CENTAURO_COMMAND"
+    arm_status_channel: str = "CENTAURO_STATUS"
+    # Hand opening commands and status (lcmt_schunk_wsg_command / _status, mm).
+    left_hand_command_channel: str = "LEFT_HAND_COMMAND"
+    left_hand_status_channel: str = "LEFT_HAND_STATUS"
+    right_hand_command_channel: str = "RIGHT_HAND_COMMAND"
+    right_hand_status_channel: str = "RIGHT_HAND_STATUS"
+    # The chest camera's colour and depth images (lcmt_image_array, zlib-compressed).
+    camera_channel: str = "CAMERA0_IMAGES"
+    # Period of commands and status messages, s.
+    control_period_s: float = 0.005
+    # Period of camera messages from the driver, s.
+    camera_period_s: float = 0.1
+    # How long to wait for the robot's first status (and images) before giving up, s.
+    status_timeout_s: float = 10.0
+    # A status older than this trips the watchdog: the arms hold where they were, s.
+    watchdog_s: float = 0.25
+
+
+@dataclass
 class Scenario:
     """A complete simulation scenario."""
 
@@ -115,6 +139,7 @@ class Scenario:
     visualization: VisualizationConfig = field(default_factory=VisualizationConfig)
     # LCM for the hardware backend; simulations never touch the network.
     lcm: DrakeLcmParams = field(default_factory=lambda: DrakeLcmParams(lcm_url="memq://null"))
+    hardware: HardwareConfig = field(default_factory=HardwareConfig)
 
 
 def load_scenario(filename: str | Path | None = None, scenario_text: str = "") -> Scenario:

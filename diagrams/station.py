@@ -9,10 +9,11 @@ station of the LCM backend exposes the same names):
            centauro.velocity_estimated (14 each), centauro.state_estimated (28),
            centauro.torque_commanded (14, N m),
            left_hand.state_measured, right_hand.state_measured (2 each: width m, m/s),
-           camera0.rgb_image, camera0.depth_image (32F, m), camera0.label_image
+           camera0.rgb_image, camera0.depth_image (32F, m), camera0.pose (X_WB of the camera body)
 
-The plant is named "plant" inside the diagram; the simulator's ground truth is read
-from it, never through an exported port.
+The plant is named "plant" inside the diagram, the camera "camera0.sensor"; the
+simulator's ground truth (poses, contacts, the label image) is read from them, never
+through an exported port.
 """
 
 import numpy as np
@@ -156,6 +157,13 @@ def MakeStation(scenario: Scenario, meshcat: Meshcat | None = None) -> Diagram:
     return diagram
 
 
+def true_label_image(station: Diagram, context) -> np.ndarray:
+    """Ground truth: the camera's H x W label image (render labels; body index values), from the station's context."""
+    sensor = station.GetSubsystemByName("camera0.sensor")
+    image = sensor.label_image_output_port().Eval(sensor.GetMyContextFromRoot(context))
+    return np.asarray(image.data)[:, :, 0]
+
+
 def _set_pd_gains(plant, instance, kp, kd):
     for index, p, d in zip(plant.GetJointActuatorIndices(instance), kp, kd, strict=True):
         plant.get_joint_actuator(index).set_controller_gains(PdControllerGains(p=p, d=d))
@@ -224,5 +232,4 @@ def _AddCamera(builder, plant, scene_graph, scenario):
     builder.Connect(scene_graph.get_query_output_port(), sensor.query_object_input_port())
     builder.ExportOutput(sensor.color_image_output_port(), f"{config.name}.rgb_image")
     builder.ExportOutput(sensor.depth_image_32F_output_port(), f"{config.name}.depth_image")
-    builder.ExportOutput(sensor.label_image_output_port(), f"{config.name}.label_image")
     builder.ExportOutput(sensor.body_pose_in_world_output_port(), f"{config.name}.pose")

@@ -8,51 +8,44 @@ python scripts/pick.py --oracle --meshcat --record pick.html
 """
 
 import argparse
-import dataclasses
 import json
 import logging
 import sys
 from pathlib import Path
 
 from pydrake.geometry import Meshcat, MeshcatParams
+from scenario_options import add_scenario_options, scenario_arguments, scenario_from_args
 
+from diagrams import lcm_pick
 from diagrams.autonomous_pick import run_pick
+from diagrams.hardware_station import RobotNotResponding
 from diagrams.oracle_pick import PlanningError
 from diagrams.pick_simulation import run_oracle_pick
-from diagrams.scenario import DEFAULT_SCENARIO, load_scenario, replace_object
 
 
 def parse_args(argv=None):
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--scenario", type=Path, default=DEFAULT_SCENARIO, help="scenario YAML file")
-    parser.add_argument("--scenario_text", default="", help="YAML overlaid on the scenario file")
-    parser.add_argument("--object", help="object category (watering_can, drill)")
-    parser.add_argument("--instance", help="generated instance: train_<i>, test_<i>, extra_<seed>")
-    parser.add_argument("--object-file", dest="object_file", help="your own model: .sdf, .urdf, .obj/.ply/.stl")
-    parser.add_argument("--yaw", type=float, help="object yaw relative to the category's presentation, rad")
-    parser.add_argument("--seed", type=int, help="random seed of the run")
+    add_scenario_options(parser)
     parser.add_argument("--oracle", action="store_true", help="pick from the simulator's ground truth")
     parser.add_argument("--meshcat", action="store_true", help="serve a live meshcat view on localhost")
     parser.add_argument("--record", type=Path, help="write a self-contained meshcat replay (.html)")
     parser.add_argument("--json", type=Path, help="write the outcome as JSON")
+    parser.add_argument(
+        "--backend",
+        choices=("sim", "lcm"),
+        default="sim",
+        help="sim: the simulated station; lcm: the hardware station, against a robot over LCM",
+    )
+    parser.add_argument("--lcm-url", dest="lcm_url", help="LCM bus of --backend lcm (default: the scenario's)")
+    parser.add_argument(
+        "--spawn-driver",
+        dest="spawn_driver",
+        action="store_true",
+        help="with --backend lcm: start scripts/robot_driver.py as a subprocess, both in a private "
+        "loopback-only network namespace (in-process over memq:// where namespaces are unavailable)",
+    )
+    parser.add_argument("--in-namespace", dest="in_namespace", action="store_true", help=argparse.SUPPRESS)
     return parser.parse_args(argv)
-
-
-def scenario_from_args(args):
-    scenario = load_scenario(args.scenario, args.scenario_text)
-    changes = {}
-    if args.object:
-        changes["category"] = args.object
-    if args.instance:
-        changes["instance"] = args.instance
-    if args.object_file:
-        changes["file"] = args.object_file
-    if args.yaw is not None:
-        changes["yaw"] = args.yaw
-    scenario = replace_object(scenario, **changes)
-    if args.seed is not None:
-        scenario = dataclasses.replace(scenario, random_seed=args.seed)
-    return scenario
 
 
 def main(argv=None) -> int:
@@ -68,9 +61,18 @@ def main(argv=None) -> int:
 
         if args.oracle:
             outcome = run_oracle_pick(scenario, meshcat, args.record)
-        else:
+        elif args.backend == "sim":
             outcome = run_pick(scenario, meshcat, args.record)
-    except (PlanningError, ValueError, FileNotFoundError) as error:
+        elif args.spawn_driver and not args.in_namespace and lcm_pick.namespaces_available():
+            return lcm_pick.rerun_in_private_namespace(sys.argv)
+        elif args.spawn_driver and not args.in_namespace:
+            logging.warning("no private network namespace here: the driver runs in-process over memq://")
+            outcome = run_pick(scenario, meshcat, args.record, backend="lcm-memq")
+        elif args.spawn_driver:
+            outcome = lcm_pick.run_with_spawned_driver(scenario, scenario_arguments(args))
+        else:
+            outcome = lcm_pick.run_on_robot(scenario, args.lcm_url, meshcat)
+    except (PlanningError, ValueError, FileNotFoundError, RobotNotResponding) as error:
         print(f"error: {error}", file=sys.stderr)
         outcome = None
         report = {"success": False, "error": str(error)}
@@ -91,6 +93,7 @@ def main(argv=None) -> int:
             "yaw": obj.yaw,
             "seed": scenario.random_seed,
             "mode": "oracle" if args.oracle else "autonomous",
+            "backend": args.backend,
             "planning_s": outcome.planning_s,
             "stages": outcome.stages,
             "failed_stage": outcome.failed_stage,

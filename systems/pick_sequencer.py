@@ -100,6 +100,8 @@ class PickSequencer(LeafSystem):
         if current.hold_q is not None and (current.status.mode != "waiting" or context.get_time() < self.perceive_at_s):
             return EventStatus.DidNothing()
         hold_q = current.hold_q if current.hold_q is not None else self._measured.Eval(context).copy()
+        if not np.all(np.isfinite(hold_q)):
+            return EventStatus.DidNothing()  # no status from the robot yet (the hardware station's NaN)
         status = current.status
         if context.get_time() >= self.perceive_at_s:
             status = self._perceive_and_plan(context, hold_q)
@@ -160,7 +162,8 @@ class PickSequencer(LeafSystem):
             output.SetFromVector(state.status.arm_trajectory.value(t).ravel())
         elif state.hold_q is not None:
             output.SetFromVector(state.hold_q)
-        else:  # before the first update: stay where the robot is
+        else:  # before the first update: stay where the robot is (the guard of a hardware station
+            # sends nothing until it has a status)
             output.SetFromVector(self._measured.Eval(context))
 
     def _calc_hand(self, context, output):

@@ -10,7 +10,7 @@ from diagrams import segmentation_data
 from diagrams.objects.library import resolve_object
 from diagrams.perception import AddPerception, MakePoseEstimator
 from diagrams.scenario import load_scenario, replace_object
-from diagrams.station import MakeStation, object_pose_on_table
+from diagrams.station import MakeStation, object_pose_on_table, true_label_image
 from diagrams.synthetic_scenes import CLASSES, SyntheticScene
 from systems import segmentation_network
 from systems.segmenter import DEFAULT_WEIGHTS, Segmentation, Segmenter, dominant_object
@@ -39,7 +39,7 @@ def station_frame(request):
     context = station.CreateDefaultContext()
     plant = station.GetSubsystemByName("plant")
     body = plant.GetBodyIndices(plant.GetModelInstanceByName("object"))[0]
-    labels = np.asarray(station.GetOutputPort("camera0.label_image").Eval(context).data)[:, :, 0]
+    labels = true_label_image(station, context)
     return {
         "scenario": scenario,
         "category": category,

@@ -1,0 +1,189 @@
+"""The hardware station: the simulated station's ports, served over LCM by a robot (or scripts/robot_driver.py).
+
+MakeHardwareStation(scenario) has exactly the ports of diagrams/station.py's MakeStation
+(a test asserts it). Channels, periods and safety limits are scenario.hardware fields; the
+bus is scenario.lcm.
+
+  centauro.position      -> CommandGuard -> IiwaCommandSender -> arm_command_channel (lcmt_iiwa_command)
+  arm_status_channel     -> MessageMonitor -> centauro.position_measured, ... (lcmt_iiwa_status)
+  <side>_hand.position   -> CommandGuard -> SchunkWsgCommandSender -> <side>_hand_command_channel
+  <side>_hand_status_channel -> MessageMonitor -> <side>_hand.state_measured (width m, rate m/s)
+  camera_channel         -> ImageMonitor -> camera0.rgb_image, camera0.depth_image (lcmt_image_array)
+  camera0.pose           <- the robot model: the camera is fixed on the torso
+
+Received messages are decoded with checks (malformed ones are counted and dropped); commands
+leave only after a status has arrived, within the position and velocity limits, and hold when
+the status stops (systems/lcm_safety.py). Call wait_for_robot() before starting a simulator.
+"""
+
+import time
+
+import numpy as np
+from drake import lcmt_iiwa_command, lcmt_schunk_wsg_command
+from pydrake.common.value import AbstractValue
+from pydrake.lcm import DrakeLcm, DrakeLcmInterface
+from pydrake.manipulation import IiwaCommandSender, IiwaControlMode, SchunkWsgCommandSender
+from pydrake.math import RigidTransform
+from pydrake.multibody.plant import AddMultibodyPlantSceneGraph
+from pydrake.systems.framework import Diagram, DiagramBuilder
+from pydrake.systems.lcm import LcmInterfaceSystem, LcmPublisherSystem, LcmSubscriberSystem
+from pydrake.systems.primitives import ConstantValueSource, Demultiplexer, Multiplexer, PassThrough
+
+from diagrams.centauro_description import joint_names
+from diagrams.scenario import Scenario
+from diagrams.station import HAND_INSTANCES, AddCentauro
+from systems.lcm_messages import RawMessage, decode_arm_status, decode_hand_status, decode_images
+from systems.lcm_safety import CommandGuard, ImageMonitor, MessageMonitor
+
+# The first command leaves this many control periods after the start, once the guards have seen a status.
+COMMAND_OFFSET_PERIODS = 3
+
+
+class RobotNotResponding(RuntimeError):
+    """No status (or no images) from the robot within the scenario's status_timeout_s."""
+
+
+class RobotModel:
+    """What the hardware station needs from the robot's model: limits and the camera's pose."""
+
+    def __init__(self, scenario: Scenario):
+        builder = DiagramBuilder()
+        plant, scene_graph = AddMultibodyPlantSceneGraph(builder, time_step=0.0)
+        robot, hands = AddCentauro(plant, scene_graph, scenario)
+        plant.Finalize()
+        context = plant.CreateDefaultContext()
+        joints = [plant.GetJointByName(n, robot) for n in joint_names(1) + joint_names(2)]
+        self.lower = np.array([j.position_lower_limits()[0] for j in joints])
+        self.upper = np.array([j.position_upper_limits()[0] for j in joints])
+        self.velocity_limits = np.array([j.velocity_upper_limits()[0] for j in joints])
+        finger = plant.GetJointByName("finger_1_joint", hands["left"])
+        # Opening width = both fingers' travel.
+        self.hand_upper = 2 * finger.position_upper_limits()[0]
+        self.hand_velocity = 2 * finger.velocity_upper_limits()[0]
+        mount = plant.GetFrameByName("camera_mount")
+        X_WP = plant.EvalBodyPoseInWorld(context, mount.body())
+        self.X_WCameraBody = X_WP @ mount.GetFixedPoseInBodyFrame() @ scenario.camera.X_PB.GetDeterministicValue()
+
+
+def MakeHardwareStation(scenario: Scenario, lcm: DrakeLcmInterface | None = None) -> Diagram:
+    """The LCM station; see the module docstring.
+
+    Args:
+        scenario: channels, periods and limits (scenario.hardware), bus (scenario.lcm), camera.
+        lcm: the bus to use instead of a new DrakeLcm on scenario.lcm (e.g. a shared memq:// one).
+    """
+    config = scenario.hardware
+    lcm = lcm or DrakeLcm(scenario.lcm)
+    model = RobotModel(scenario)
+    builder = DiagramBuilder()
+    builder.AddNamedSystem("lcm", LcmInterfaceSystem(lcm))
+    period = config.control_period_s
+
+    # Arms.
+    status = _AddMonitor(builder, lcm, "centauro.status", config.arm_status_channel, decode_arm_status, 56, config)
+    fields = builder.AddNamedSystem("centauro.status_fields", Demultiplexer([14, 14, 14, 14]))
+    builder.Connect(status.GetOutputPort("values"), fields.get_input_port())
+    for index, name in enumerate(("position_commanded", "position_measured", "velocity_estimated", "torque_commanded")):
+        builder.ExportOutput(fields.get_output_port(index), f"centauro.{name}")
+    state = builder.AddNamedSystem("centauro.state", Multiplexer([14, 14]))
+    builder.Connect(fields.get_output_port(1), state.get_input_port(0))
+    builder.Connect(fields.get_output_port(2), state.get_input_port(1))
+    builder.ExportOutput(state.get_output_port(), "centauro.state_estimated")
+    guard = builder.AddNamedSystem(
+        "centauro.command_guard", CommandGuard(model.lower, model.upper, model.velocity_limits, period, "centauro")
+    )
+    builder.Connect(fields.get_output_port(1), guard.GetInputPort("measured"))
+    builder.Connect(status.GetOutputPort("health"), guard.GetInputPort("status_health"))
+    command = builder.AddNamedSystem("centauro.command", PassThrough(14))
+    builder.ExportInput(command.get_input_port(), "centauro.position")
+    builder.Connect(command.get_output_port(), guard.GetInputPort("desired"))
+    sender = builder.AddNamedSystem("centauro.command_sender", IiwaCommandSender(14, IiwaControlMode.kPositionOnly))
+    builder.Connect(guard.GetOutputPort("command"), sender.GetInputPort("position"))
+    _AddPublisher(builder, lcm, sender, config.arm_command_channel, lcmt_iiwa_command, period)
+
+    # Hands.
+    for side, name in HAND_INSTANCES.items():
+        status_channel = getattr(config, f"{side}_hand_status_channel")
+        hand_status = _AddMonitor(builder, lcm, f"{name}.status", status_channel, decode_hand_status, 2, config)
+        builder.ExportOutput(hand_status.GetOutputPort("values"), f"{name}.state_measured")
+        width = builder.AddNamedSystem(f"{name}.width", Demultiplexer([1, 1]))
+        builder.Connect(hand_status.GetOutputPort("values"), width.get_input_port())
+        hand_guard = builder.AddNamedSystem(
+            f"{name}.command_guard", CommandGuard([0.0], [model.hand_upper], [model.hand_velocity], period, name)
+        )
+        builder.Connect(width.get_output_port(0), hand_guard.GetInputPort("measured"))
+        builder.Connect(hand_status.GetOutputPort("health"), hand_guard.GetInputPort("status_health"))
+        builder.ExportInput(hand_guard.GetInputPort("desired"), f"{name}.position")
+        hand_sender = builder.AddNamedSystem(f"{name}.command_sender", SchunkWsgCommandSender())
+        builder.Connect(hand_guard.GetOutputPort("command"), hand_sender.GetInputPort("position"))
+        channel = getattr(config, f"{side}_hand_command_channel")
+        _AddPublisher(builder, lcm, hand_sender, channel, lcmt_schunk_wsg_command, period)
+
+    # Camera.
+    camera = scenario.camera.name
+    images = builder.AddNamedSystem(
+        f"{camera}.images",
+        ImageMonitor(config.camera_channel, decode_images, 10 * config.camera_period_s, config.control_period_s),
+    )
+    subscriber = builder.AddNamedSystem(
+        f"{camera}.subscriber", LcmSubscriberSystem.Make(config.camera_channel, RawMessage, lcm)
+    )
+    builder.Connect(subscriber.get_output_port(), images.GetInputPort("raw"))
+    builder.ExportOutput(images.GetOutputPort("color_image"), f"{camera}.rgb_image")
+    builder.ExportOutput(images.GetOutputPort("depth_image"), f"{camera}.depth_image")
+    pose = builder.AddNamedSystem(
+        f"{camera}.pose_source", ConstantValueSource(AbstractValue.Make(RigidTransform(model.X_WCameraBody)))
+    )
+    builder.ExportOutput(pose.get_output_port(), f"{camera}.pose")
+    diagram = builder.Build()
+    diagram.set_name("hardware_station")
+    return diagram
+
+
+def _AddMonitor(builder, lcm, name, channel, decode, size, config) -> MessageMonitor:
+    """Subscriber (raw bytes) -> MessageMonitor with NaN values until the first valid message."""
+    subscriber = builder.AddNamedSystem(f"{name}_subscriber", LcmSubscriberSystem.Make(channel, RawMessage, lcm))
+    monitor = builder.AddNamedSystem(
+        name, MessageMonitor(channel, decode, np.full(size, np.nan), config.watchdog_s, config.control_period_s)
+    )
+    builder.Connect(subscriber.get_output_port(), monitor.GetInputPort("raw"))
+    return monitor
+
+
+def _AddPublisher(builder, lcm, sender, channel, lcm_type, period):
+    publisher = builder.AddNamedSystem(
+        f"{channel}.publisher",
+        LcmPublisherSystem.Make(
+            channel,
+            lcm_type,
+            lcm,
+            publish_period=period,
+            publish_offset=COMMAND_OFFSET_PERIODS * period,
+            use_cpp_serializer=True,
+        ),
+    )
+    builder.Connect(sender.get_output_port(), publisher.get_input_port())
+
+
+def wait_for_robot(scenario: Scenario, lcm: DrakeLcmInterface) -> None:
+    """Blocks until the robot's status channels and its camera have each delivered a message.
+
+    The station's own subscribers receive the same messages, so the first status is in the
+    Context once the simulator is initialised.
+
+    Raises:
+        RobotNotResponding: naming the silent channels, after scenario.hardware.status_timeout_s.
+    """
+    config = scenario.hardware
+    channels = [config.arm_status_channel, config.left_hand_status_channel, config.right_hand_status_channel]
+    counts = dict.fromkeys([*channels, config.camera_channel], 0)
+    for channel in counts:
+        lcm.Subscribe(channel, lambda _, channel=channel: counts.__setitem__(channel, counts[channel] + 1))
+    deadline = time.monotonic() + config.status_timeout_s
+    while silent := sorted(channel for channel, count in counts.items() if count == 0):
+        if time.monotonic() > deadline:
+            raise RobotNotResponding(
+                f"no message within {config.status_timeout_s:.1f} s on {', '.join(silent)} ({lcm.get_lcm_url()}): "
+                "is the robot (or scripts/robot_driver.py) running on this LCM bus?"
+            )
+        lcm.HandleSubscriptions(10)

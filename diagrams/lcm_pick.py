@@ -1,0 +1,176 @@
+"""Runs the pick diagram on the LCM backend: against a robot, or against a spawned robot driver.
+
+run_on_robot: the hardware station against whatever answers on the bus (no ground truth).
+run_with_spawned_driver: scripts/robot_driver.py as a subprocess on a UDP multicast bus,
+judged by the driver's own simulator at the end. Multicast must not leave the machine: call
+it inside a private network namespace with only loopback (rerun_in_private_namespace).
+"""
+
+import json
+import logging
+import math
+import os
+import shlex
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import tempfile
+from dataclasses import replace
+from pathlib import Path
+
+from pydrake.geometry import Meshcat
+from pydrake.lcm import DrakeLcm, DrakeLcmInterface
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import Diagram
+
+from diagrams.autonomous_pick import MakePickDiagram, PickWatcher
+from diagrams.hardware_station import wait_for_robot
+from diagrams.paths import REPO_ROOT
+from diagrams.pick_simulation import SAMPLE_S, PickOutcome
+from diagrams.scenario import Scenario
+from systems.lcm_safety import CommandGuard, MessageMonitor
+from systems.pick_sequencer import PickStatus
+
+# The bus inside the private namespace: loopback multicast, never routed (ttl=0).
+NAMESPACE_LCM_URL = "udpm://239.255.76.67:7667?ttl=0"
+NAMESPACE_SETUP = (
+    "ip link set lo up && ip link set lo multicast on && ip route add 224.0.0.0/4 dev lo"
+    # Room for the camera's large messages (per namespace on recent kernels; best effort).
+    " && (sysctl -qw net.core.rmem_max=8388608 net.core.rmem_default=8388608 || true)"
+)
+# A spawned driver needs a few seconds to start (imports, model, renderer).
+DRIVER_START_TIMEOUT_S = 60.0
+
+
+def run_pick_on_robot(
+    scenario: Scenario, lcm: DrakeLcmInterface | None = None, meshcat: Meshcat | None = None
+) -> tuple[PickStatus, list[str]]:
+    """Runs the pick diagram in real time against a robot (or scripts/robot_driver.py) over LCM.
+
+    Nothing is judged here (no ground truth): returns the sequencer's final status and the
+    safety problems seen (tripped watchdogs, rejected messages and commands).
+
+    Raises:
+        RobotNotResponding: no status or images within scenario.hardware.status_timeout_s.
+    """
+    lcm = lcm or DrakeLcm(scenario.lcm)
+    diagram = MakePickDiagram(scenario, hardware=True, lcm=lcm)
+    station = diagram.GetSubsystemByName("station")
+    logging.info("waiting for the robot on %s", lcm.get_lcm_url())
+    wait_for_robot(scenario, lcm)
+    simulator = Simulator(diagram)
+    simulator.set_target_realtime_rate(1.0)
+    context = simulator.get_mutable_context()
+    watch = PickWatcher(diagram, meshcat)
+    simulator.Initialize()
+    planned, problems = False, []
+    while context.get_time() + SAMPLE_S <= watch.end_time(context) + 1e-9:
+        simulator.AdvanceTo(context.get_time() + SAMPLE_S)
+        status = watch.status(context)
+        if status.plan is not None and not planned:
+            # The robot held while we planned; do not replay the lost wall time faster than real time.
+            simulator.ResetStatistics()
+            planned = True
+        problems = safety_problems(station, context)
+        if any("watchdog" in problem for problem in problems):
+            logging.error("stopping: %s", "; ".join(problems))
+            break
+    return watch.status(context), problems
+
+
+def safety_problems(station: Diagram, context) -> list[str]:
+    """What the hardware station's monitors and guards report: tripped watchdogs, rejected input."""
+    problems = []
+    for system in station.GetSystems():
+        system_context = system.GetMyContextFromRoot(context)
+        if isinstance(system, CommandGuard):
+            report = system.GetOutputPort("report").Eval(system_context)
+            if report.tripped:
+                problems.append(f"watchdog: {report.message}")
+            if report.rejected_commands:
+                problems.append(f"{system.get_name()}: {report.rejected_commands} non-finite commands rejected")
+        elif isinstance(system, MessageMonitor):
+            health = system.GetOutputPort("health").Eval(system_context)
+            if health.rejected:
+                problems.append(
+                    f"{health.channel}: {health.rejected} malformed messages rejected ({health.last_error})"
+                )
+    return problems
+
+
+def run_on_robot(scenario: Scenario, lcm_url: str | None = None, meshcat: Meshcat | None = None) -> PickOutcome:
+    """The pick against a robot on the bus; success means the plan was played out with no safety problem."""
+    lcm = DrakeLcm(lcm_url) if lcm_url else DrakeLcm(scenario.lcm)
+    status, problems = run_pick_on_robot(scenario, lcm, meshcat)
+    return _outcome(status, problems)
+
+
+def _outcome(status: PickStatus, problems: list[str]) -> PickOutcome:
+    played = status.mode in ("hold", "done")
+    message = (
+        status.message if status.mode == "failed" else ("plan played out" if played else f"stopped in {status.mode}")
+    )
+    if problems:
+        message += "; " + "; ".join(problems)
+    outcome = PickOutcome(played and not problems, math.nan, math.nan, message=message)
+    outcome.stages, outcome.failed_stage = status.stage_seconds, status.failed_stage
+    outcome.planning_s = status.stage_seconds.get("image_to_trajectory", 0.0)
+    return outcome
+
+
+def namespaces_available() -> bool:
+    """Whether this process may create a private network namespace (root, unshare and ip present)."""
+    if os.geteuid() != 0 or not shutil.which("unshare") or not shutil.which("ip"):
+        return False
+    probe = subprocess.run(["unshare", "-n", "sh", "-c", NAMESPACE_SETUP], capture_output=True, timeout=10)
+    return probe.returncode == 0
+
+
+def rerun_in_private_namespace(argv: list[str]) -> int:
+    """Runs this command again (with --in-namespace) inside a new loopback-only network namespace."""
+    command = shlex.join([sys.executable, *argv, "--in-namespace"])
+    logging.info("entering a private network namespace (loopback only)")
+    return subprocess.call(["unshare", "-n", "sh", "-c", f"{NAMESPACE_SETUP} && exec {command}"])
+
+
+def run_with_spawned_driver(scenario: Scenario, driver_arguments: list[str]) -> PickOutcome:
+    """Starts scripts/robot_driver.py on NAMESPACE_LCM_URL, runs the pick against it, then stops it;
+    the lift is judged by the driver's simulator (its --result file)."""
+    if not _only_loopback():
+        raise RuntimeError("refusing to use UDP multicast outside a private loopback-only network namespace")
+    scenario = replace(
+        scenario,
+        hardware=replace(
+            scenario.hardware, status_timeout_s=max(scenario.hardware.status_timeout_s, DRIVER_START_TIMEOUT_S)
+        ),
+    )
+    with tempfile.TemporaryDirectory() as folder:
+        result = Path(folder) / "driver.json"
+        command = [sys.executable, str(REPO_ROOT / "scripts" / "robot_driver.py"), *driver_arguments]
+        command += ["--lcm-url", NAMESPACE_LCM_URL, "--result", str(result)]
+        driver = subprocess.Popen(command)
+        try:
+            status, problems = run_pick_on_robot(scenario, DrakeLcm(NAMESPACE_LCM_URL))
+        finally:
+            driver.send_signal(signal.SIGTERM)
+            try:
+                driver.wait(timeout=60)
+            except subprocess.TimeoutExpired:
+                driver.kill()
+        outcome = _outcome(status, problems)
+        if not result.is_file():
+            outcome.success, outcome.message = False, f"{outcome.message}; the driver wrote no result"
+            return outcome
+        judged = json.loads(result.read_text())
+    outcome.success = outcome.success and judged["success"]
+    outcome.lift_height_m, outcome.min_hold_height_m = judged["lift_height_m"], judged["min_hold_height_m"]
+    outcome.hands_in_contact = judged["hands_in_contact"]
+    outcome.message = f"{judged['message']} (judged by the driver); pick: {outcome.message}"
+    return outcome
+
+
+def _only_loopback() -> bool:
+    """True when the only network interface is lo (inside the private namespace)."""
+    return [name for _, name in socket.if_nameindex()] == ["lo"]

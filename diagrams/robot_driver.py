@@ -1,0 +1,91 @@
+"""The robot driver emulator: the simulated station behind LCM, as a real Centauro's driver would be.
+
+MakeRobotDriver(scenario, lcm) speaks only LCM (the channels of scenario.hardware): it takes
+arm and hand commands and publishes the arms' and hands' status and the chest camera's
+images. No ground truth is published. Like a robot's own controller it checks what it
+receives: malformed or non-finite commands are counted and dropped (the last good command
+is held), every command is saturated to the joint limits, and before the first command, or
+when commands stop, it holds its last command (at first the scenario's initial pose).
+"""
+
+import numpy as np
+from drake import lcmt_iiwa_status, lcmt_image_array, lcmt_schunk_wsg_status
+from pydrake.geometry import Meshcat
+from pydrake.lcm import DrakeLcmInterface
+from pydrake.manipulation import IiwaStatusSender, SchunkWsgStatusSender
+from pydrake.systems.framework import Diagram, DiagramBuilder
+from pydrake.systems.lcm import LcmInterfaceSystem, LcmPublisherSystem, LcmSubscriberSystem
+from pydrake.systems.primitives import ConstantVectorSource, Saturation
+from pydrake.systems.sensors import ImageToLcmImageArrayT, PixelType
+
+from diagrams.hardware_station import RobotModel
+from diagrams.scenario import Scenario
+from diagrams.station import HAND_INSTANCES, MakeStation
+from systems.lcm_messages import RawMessage, decode_arm_command, decode_hand_command
+from systems.lcm_safety import MessageMonitor
+
+
+def MakeRobotDriver(scenario: Scenario, lcm: DrakeLcmInterface, meshcat: Meshcat | None = None) -> Diagram:
+    """The simulated station wired to LCM; the station is the subsystem "station"."""
+    config = scenario.hardware
+    period = config.control_period_s
+    model = RobotModel(scenario)
+    builder = DiagramBuilder()
+    builder.AddNamedSystem("lcm", LcmInterfaceSystem(lcm))
+    station = builder.AddNamedSystem("station", MakeStation(scenario, meshcat))
+
+    def publish(source, channel, lcm_type, publish_period):
+        publisher = builder.AddNamedSystem(
+            f"{channel}.publisher",
+            LcmPublisherSystem.Make(channel, lcm_type, lcm, publish_period=publish_period, use_cpp_serializer=True),
+        )
+        builder.Connect(source, publisher.get_input_port())
+
+    def receive(name, channel, decode, default, lower, upper, station_input):
+        subscriber = builder.AddNamedSystem(f"{name}_subscriber", LcmSubscriberSystem.Make(channel, RawMessage, lcm))
+        monitor = builder.AddNamedSystem(name, MessageMonitor(channel, decode, default, config.watchdog_s, period))
+        limits = builder.AddNamedSystem(f"{name}_limits", Saturation(lower, upper))
+        builder.Connect(subscriber.get_output_port(), monitor.GetInputPort("raw"))
+        builder.Connect(monitor.GetOutputPort("values"), limits.get_input_port())
+        builder.Connect(limits.get_output_port(), station.GetInputPort(station_input))
+
+    # Arms.
+    q0 = np.array(scenario.initial_arm_positions)
+    receive(
+        "centauro.command", config.arm_command_channel, decode_arm_command, q0, model.lower, model.upper,
+        "centauro.position",
+    )  # fmt: skip
+    status = builder.AddNamedSystem("centauro.status_sender", IiwaStatusSender(14))
+    for port in ("position_commanded", "position_measured", "velocity_estimated", "torque_commanded"):
+        builder.Connect(station.GetOutputPort(f"centauro.{port}"), status.GetInputPort(port))
+    publish(status.get_output_port(), config.arm_status_channel, lcmt_iiwa_status, period)
+
+    # Hands.
+    no_force = builder.AddNamedSystem("hands.force", ConstantVectorSource([0.0]))
+    for side, name in HAND_INSTANCES.items():
+        receive(
+            f"{name}.command", getattr(config, f"{side}_hand_command_channel"), decode_hand_command,
+            np.array([scenario.initial_hand_width]), [0.0], [model.hand_upper], f"{name}.position",
+        )  # fmt: skip
+        hand_status = builder.AddNamedSystem(f"{name}.status_sender", SchunkWsgStatusSender())
+        builder.Connect(station.GetOutputPort(f"{name}.state_measured"), hand_status.get_input_port(0))
+        builder.Connect(no_force.get_output_port(), hand_status.get_input_port(1))
+        publish(
+            hand_status.get_output_port(),
+            getattr(config, f"{side}_hand_status_channel"),
+            lcmt_schunk_wsg_status,
+            period,
+        )
+
+    # Camera: colour and depth only (the label image is the simulator's ground truth).
+    camera = scenario.camera.name
+    images = builder.AddNamedSystem(f"{camera}.image_array", ImageToLcmImageArrayT(do_compress=True))
+    color = images.DeclareImageInputPort[PixelType.kRgba8U](f"{camera}_color")
+    depth = images.DeclareImageInputPort[PixelType.kDepth32F](f"{camera}_depth")
+    builder.Connect(station.GetOutputPort(f"{camera}.rgb_image"), color)
+    builder.Connect(station.GetOutputPort(f"{camera}.depth_image"), depth)
+    publish(images.image_array_t_msg_output_port(), config.camera_channel, lcmt_image_array, config.camera_period_s)
+
+    diagram = builder.Build()
+    diagram.set_name("robot_driver")
+    return diagram

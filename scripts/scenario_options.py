@@ -1,0 +1,37 @@
+"""The command-line options that choose a scenario and its object, shared by pick.py and robot_driver.py."""
+
+import argparse
+import dataclasses
+from pathlib import Path
+
+from diagrams.scenario import DEFAULT_SCENARIO, Scenario, load_scenario, replace_object
+
+
+def add_scenario_options(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--scenario", type=Path, default=DEFAULT_SCENARIO, help="scenario YAML file")
+    parser.add_argument("--scenario_text", default="", help="YAML overlaid on the scenario file")
+    parser.add_argument("--object", help="object category (watering_can, drill)")
+    parser.add_argument("--instance", help="generated instance: train_<i>, test_<i>, extra_<seed>")
+    parser.add_argument("--object-file", dest="object_file", help="your own model: .sdf, .urdf, .obj/.ply/.stl")
+    parser.add_argument("--yaw", type=float, help="object yaw relative to the category's presentation, rad")
+    parser.add_argument("--seed", type=int, help="random seed of the run")
+
+
+def scenario_from_args(args: argparse.Namespace) -> Scenario:
+    """The scenario file, the --scenario_text overlay, then the object options."""
+    scenario = load_scenario(args.scenario, args.scenario_text)
+    changes = {"category": args.object, "instance": args.instance, "file": args.object_file, "yaw": args.yaw}
+    scenario = replace_object(scenario, **{k: v for k, v in changes.items() if v is not None})
+    if args.seed is not None:
+        scenario = dataclasses.replace(scenario, random_seed=args.seed)
+    return scenario
+
+
+def scenario_arguments(args: argparse.Namespace) -> list[str]:
+    """These options as given, to start another script on the same scenario."""
+    forwarded = ["--scenario", str(args.scenario), "--scenario_text", args.scenario_text]
+    for name in ("object", "instance", "object_file", "yaw", "seed"):
+        value = getattr(args, name)
+        if value is not None:
+            forwarded += [f"--{name.replace('_', '-')}", str(value)]
+    return forwarded
