@@ -17,6 +17,7 @@ import socket
 import subprocess
 import sys
 import tempfile
+import time
 from dataclasses import replace
 from pathlib import Path
 
@@ -38,8 +39,10 @@ NAMESPACE_LCM_URL = "udpm://239.255.76.67:7667?ttl=0"
 NAMESPACE_SETUP = (
     "ip link set lo up && ip link set lo multicast on && ip route add 224.0.0.0/4 dev lo"
     # Room for the camera's large messages (per namespace on recent kernels; best effort).
-    " && (sysctl -qw net.core.rmem_max=8388608 net.core.rmem_default=8388608 || true)"
+    " && (sysctl -qw net.core.rmem_max=8388608 net.core.rmem_default=8388608 2>/dev/null || true)"
 )
+# After the plan, the robot holds at least this long on its own clock, s.
+ROBOT_HOLD_S = 2.5
 # A spawned driver needs a few seconds to start (imports, model, renderer).
 DRIVER_START_TIMEOUT_S = 60.0
 
@@ -77,7 +80,24 @@ def run_pick_on_robot(
         if any("watchdog" in problem for problem in problems):
             logging.error("stopping: %s", "; ".join(problems))
             break
+    if not any("watchdog" in problem for problem in problems):
+        _hold_while_the_robot_catches_up(simulator, station)
     return watch.status(context), problems
+
+
+def _hold_while_the_robot_catches_up(simulator: Simulator, station: Diagram, timeout_s: float = 60.0):
+    """Keeps commanding the final hold until the robot's own clock (its status time stamps) has run
+    ROBOT_HOLD_S past the moment the plan ended here: a robot (or a driver) slower than real time
+    has then also held the object that long."""
+    context = simulator.get_context()
+    monitor = station.GetSubsystemByName("centauro.status")
+
+    def robot_time():
+        return monitor.GetOutputPort("health").Eval(monitor.GetMyContextFromRoot(context)).utime / 1e6
+
+    target, deadline = robot_time() + ROBOT_HOLD_S, time.monotonic() + timeout_s
+    while robot_time() < target and time.monotonic() < deadline:
+        simulator.AdvanceTo(context.get_time() + SAMPLE_S)
 
 
 def safety_problems(station: Diagram, context) -> list[str]:

@@ -37,6 +37,7 @@ class LinkHealth:
     rejected: int = 0  # malformed messages dropped
     last_error: str = ""
     received_at: float = -math.inf  # when the last valid message was taken in
+    utime: int = 0  # the sender's timestamp of the last valid message, microseconds
     stale: bool = False  # something arrived once, but nothing valid for longer than stale_after_s
 
 
@@ -83,14 +84,14 @@ class MessageMonitor(LeafSystem):
             return EventStatus.DidNothing()
         health = reception.health
         try:
-            _, values = self.decode(raw)
+            utime, values = self.decode(raw)
         except MalformedMessage as error:
             if health.rejected < LOGGED_REJECTIONS:
                 logging.warning("%s: rejected a message: %s", self.channel, error)
             health = replace(health, rejected=health.rejected + 1, last_error=str(error))
             values = reception.values
         else:
-            health = replace(health, received=health.received + 1, received_at=context.get_time())
+            health = replace(health, received=health.received + 1, received_at=context.get_time(), utime=utime)
         state.get_mutable_abstract_state(self._state).set_value(_Reception(health, raw.sequence, values))
         return EventStatus.Succeeded()
 

@@ -1,0 +1,247 @@
+"""The LCM backend: port parity with the simulation, checked decoding, the command guard and watchdog,
+fault injection, and picks through LCM (in-process over memq://, and across processes in a private
+loopback-only network namespace)."""
+
+import dataclasses
+import json
+import os
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+from drake import lcmt_iiwa_command, lcmt_iiwa_status, lcmt_schunk_wsg_status
+from pydrake.common.value import AbstractValue
+from pydrake.lcm import DrakeLcm
+from pydrake.systems.analysis import Simulator
+
+from diagrams import lcm_pick
+from diagrams.autonomous_pick import run_pick
+from diagrams.hardware_station import MakeHardwareStation, RobotModel, RobotNotResponding, wait_for_robot
+from diagrams.paths import REPO_ROOT
+from diagrams.robot_driver import MakeRobotDriver
+from diagrams.scenario import replace_object
+from diagrams.station import MakeStation
+from systems.lcm_messages import MalformedMessage, RawMessage, decode_arm_status, decode_images
+from systems.lcm_safety import CommandGuard, LinkHealth
+
+
+def port_names(diagram):
+    inputs = {diagram.get_input_port(i).get_name() for i in range(diagram.num_input_ports())}
+    outputs = {diagram.get_output_port(i).get_name() for i in range(diagram.num_output_ports())}
+    return inputs, outputs
+
+
+def test_sim_and_hardware_stations_have_the_same_ports(scenario):
+    assert port_names(MakeHardwareStation(scenario, DrakeLcm("memq://"))) == port_names(MakeStation(scenario))
+
+
+def test_hardware_camera_pose_equals_the_simulated_one(scenario):
+    sim = MakeStation(scenario)
+    hardware = MakeHardwareStation(scenario, DrakeLcm("memq://"))
+    X_sim = sim.GetOutputPort("camera0.pose").Eval(sim.CreateDefaultContext())
+    X_hw = hardware.GetOutputPort("camera0.pose").Eval(hardware.CreateDefaultContext())
+    np.testing.assert_allclose(X_hw.GetAsMatrix4(), X_sim.GetAsMatrix4(), atol=1e-12)
+
+
+def status_message(q, utime=1000, joints=14):
+    message = lcmt_iiwa_status()
+    message.utime, message.num_joints = utime, joints
+    for name in lcmt_iiwa_status.__slots__[2:]:
+        setattr(message, name, list(q) if "position" in name else [0.0] * joints)
+    return message
+
+
+def test_decoding_rejects_garbage_wrong_sizes_and_nan():
+    q = np.linspace(-1, 1, 14)
+    _, values = decode_arm_status(RawMessage(status_message(q).encode(), 1))
+    np.testing.assert_array_equal(values[14:28], q)
+    with pytest.raises(MalformedMessage, match="not a valid lcmt_iiwa_status"):
+        decode_arm_status(RawMessage(b"\x00garbage", 2))
+    with pytest.raises(MalformedMessage, match="7 joints"):
+        decode_arm_status(RawMessage(status_message(q[:7], joints=7).encode(), 3))
+    with pytest.raises(MalformedMessage, match="NaN"):
+        decode_arm_status(RawMessage(status_message(np.full(14, np.nan)).encode(), 4))
+    with pytest.raises(MalformedMessage):
+        decode_images(RawMessage(b"not an image array", 5))
+
+
+def guard_context(guard, desired, measured, health):
+    context = guard.CreateDefaultContext()
+    guard.GetInputPort("desired").FixValue(context, desired)
+    guard.GetInputPort("measured").FixValue(context, measured)
+    guard.GetInputPort("status_health").FixValue(context, AbstractValue.Make(health))
+    return context
+
+
+def test_command_guard_limits_rejects_nan_and_trips_when_status_stops():
+    lower, upper, speed = np.full(2, -1.0), np.full(2, 1.0), np.full(2, 2.0)
+    guard = CommandGuard(lower, upper, speed, period_s=0.01)
+    measured = np.array([0.0, 0.5])
+    context = guard_context(guard, np.array([5.0, 0.5]), measured, LinkHealth("S"))
+    with pytest.raises(RuntimeError, match="no status from the robot"):
+        guard.GetOutputPort("command").Eval(context)  # nothing before a status
+
+    fresh = LinkHealth("S", received=1, received_at=0.0)
+    context = guard_context(guard, np.array([5.0, 0.5]), measured, fresh)
+    simulator = Simulator(guard, context)
+    simulator.AdvanceTo(0.1)  # ten updates towards a target beyond the limit
+    command = guard.GetOutputPort("command").Eval(context)
+    assert command[0] == pytest.approx(min(1.0, 10 * 2.0 * 0.01), abs=0.021) and command[0] <= 1.0
+    assert np.all(np.abs(np.diff(command)) >= 0)  # stays finite and within limits
+    guard.GetInputPort("desired").FixValue(context, np.array([np.nan, 0.0]))
+    simulator.AdvanceTo(0.15)
+    report = guard.GetOutputPort("report").Eval(context)
+    assert report.rejected_commands >= 1 and np.all(np.isfinite(guard.GetOutputPort("command").Eval(context)))
+
+    guard.GetInputPort("status_health").FixValue(context, AbstractValue.Make(dataclasses.replace(fresh, stale=True)))
+    guard.GetInputPort("measured").FixValue(context, np.array([0.3, 0.4]))
+    guard.GetInputPort("desired").FixValue(context, np.array([-0.9, -0.9]))
+    simulator.AdvanceTo(0.3)
+    report = guard.GetOutputPort("report").Eval(context)
+    assert report.tripped and "holding" in report.message
+    np.testing.assert_allclose(guard.GetOutputPort("command").Eval(context), [0.3, 0.4])  # holds, ignores desired
+
+
+def test_no_driver_gives_a_clear_timeout_naming_the_channels(scenario):
+    quick = dataclasses.replace(scenario, hardware=dataclasses.replace(scenario.hardware, status_timeout_s=0.2))
+    with pytest.raises(RobotNotResponding, match="CENTAURO_STATUS.*robot_driver"):
+        wait_for_robot(quick, DrakeLcm("memq://"))
+
+
+class FakeRobot:
+    """Publishes arm and hand status on a memq bus by hand, to drive the hardware station alone."""
+
+    def __init__(self, scenario, lcm, q):
+        self.config, self.lcm, self.q = scenario.hardware, lcm, q
+
+    def publish(self, arm=True):
+        if arm:
+            self.lcm.Publish(self.config.arm_status_channel, status_message(self.q).encode())
+        hand = lcmt_schunk_wsg_status()
+        hand.actual_position_mm = 100.0
+        for channel in (self.config.left_hand_status_channel, self.config.right_hand_status_channel):
+            self.lcm.Publish(channel, hand.encode())
+
+
+def received_commands(lcm, channel):
+    commands = []
+    lcm.Subscribe(channel, lambda data: commands.append(lcmt_iiwa_command.decode(data)))
+    return commands
+
+
+def test_hardware_station_faults_end_in_a_safe_reported_state(scenario):
+    lcm = DrakeLcm("memq://")
+    station = MakeHardwareStation(scenario, lcm)
+    q0 = np.array(scenario.initial_arm_positions)
+    robot = FakeRobot(scenario, lcm, q0)
+    commands = received_commands(lcm, scenario.hardware.arm_command_channel)
+    simulator = Simulator(station)
+    context = simulator.get_mutable_context()
+    station.GetInputPort("centauro.position").FixValue(context, q0 + 0.05)
+    for hand in ("left_hand", "right_hand"):
+        station.GetInputPort(f"{hand}.position").FixValue(context, [0.1])
+    guard = station.GetSubsystemByName("centauro.command_guard")
+    monitor = station.GetSubsystemByName("centauro.status")
+
+    def step(until, arm=True, garbage=False):
+        while context.get_time() < until - 1e-9:
+            robot.publish(arm)
+            if garbage:
+                lcm.Publish(scenario.hardware.arm_status_channel, b"\xffgarbage")
+            simulator.AdvanceTo(context.get_time() + 0.005)
+
+    step(0.2)
+    assert commands, "commands flow once a status has arrived"
+    np.testing.assert_allclose(commands[-1].joint_position, q0 + 0.05, atol=1e-9)
+    # A garbage message: dropped and counted, the last good status is kept.
+    step(0.25, garbage=True)
+    health = monitor.GetOutputPort("health").Eval(monitor.GetMyContextFromRoot(context))
+    assert health.rejected >= 1 and not health.stale
+    # A NaN command: rejected, the last good command is sent instead.
+    station.GetInputPort("centauro.position").FixValue(context, np.full(14, np.nan))
+    step(0.35)
+    report = guard.GetOutputPort("report").Eval(guard.GetMyContextFromRoot(context))
+    assert report.rejected_commands >= 1 and np.all(np.isfinite(commands[-1].joint_position))
+    # A command beyond the joint limits is clamped.
+    model = RobotModel(scenario)
+    station.GetInputPort("centauro.position").FixValue(context, model.upper + 1.0)
+    step(2.5)
+    assert np.all(np.array(commands[-1].joint_position) <= model.upper + 1e-12)
+    # The status stops mid-motion: the watchdog trips and holds the last measured position.
+    station.GetInputPort("centauro.position").FixValue(context, q0 - 0.3)
+    step(3.0, arm=False)
+    report = guard.GetOutputPort("report").Eval(guard.GetMyContextFromRoot(context))
+    assert report.tripped and "no valid status on CENTAURO_STATUS" in report.message
+    np.testing.assert_allclose(commands[-1].joint_position, np.clip(q0, model.lower, model.upper), atol=1e-9)
+
+
+def test_driver_rejects_bad_commands_and_holds(scenario):
+    lcm = DrakeLcm("memq://")
+    driver = MakeRobotDriver(scenario, lcm)
+    simulator = Simulator(driver)
+    context = simulator.get_mutable_context()
+    statuses = []
+    lcm.Subscribe(scenario.hardware.arm_status_channel, lambda data: statuses.append(lcmt_iiwa_status.decode(data)))
+    simulator.AdvanceTo(0.05)
+    assert statuses, "the driver publishes its status from the start"
+    bad = lcmt_iiwa_command()
+    bad.num_joints, bad.joint_position = 14, [float("nan")] * 14
+    lcm.Publish(scenario.hardware.arm_command_channel, bad.encode())
+    simulator.AdvanceTo(0.1)
+    lcm.Publish(scenario.hardware.arm_command_channel, b"garbage")
+    simulator.AdvanceTo(0.3)
+    monitor = driver.GetSubsystemByName("centauro.command")
+    health = monitor.GetOutputPort("health").Eval(monitor.GetMyContextFromRoot(context))
+    assert health.rejected == 2 and health.received == 0
+    np.testing.assert_allclose(statuses[-1].joint_position_commanded, scenario.initial_arm_positions)
+    np.testing.assert_allclose(statuses[-1].joint_position_measured, scenario.initial_arm_positions, atol=0.01)
+
+
+def test_autonomous_pick_through_lcm_in_process(scenario):
+    outcome = run_pick(replace_object(scenario, category="drill", instance="test_1", yaw=0.25), backend="lcm-memq")
+    assert outcome.success, outcome.message
+
+
+# As root (CI), network namespaces must work: these tests then fail rather than skip.
+needs_namespaces = pytest.mark.skipif(
+    os.geteuid() != 0, reason="creating a private network namespace needs root (CI runs as root)"
+)
+
+
+@needs_namespaces
+def test_driver_across_processes_over_udp_in_a_private_namespace(tmp_path):
+    """The driver in its own process; this side only waits for status and images, bounded in time."""
+    client = f"""
+import sys
+from pydrake.lcm import DrakeLcm
+from diagrams.hardware_station import wait_for_robot
+from diagrams.scenario import load_scenario
+lcm = DrakeLcm("{lcm_pick.NAMESPACE_LCM_URL}")
+wait_for_robot(load_scenario(), lcm)
+print("robot answered")
+"""
+    driver = f"{sys.executable} {REPO_ROOT / 'scripts' / 'robot_driver.py'} --duration 8 --lcm-url "
+    driver += f"'{lcm_pick.NAMESPACE_LCM_URL}' --result {tmp_path / 'driver.json'}"
+    script = f"{lcm_pick.NAMESPACE_SETUP} && ({driver} &) && {sys.executable} -c '{client}' && wait"
+    done = subprocess.run(
+        ["unshare", "-n", "sh", "-c", script], capture_output=True, text=True, timeout=240, cwd=REPO_ROOT
+    )
+    assert done.returncode == 0 and "robot answered" in done.stdout, done.stderr[-2000:]
+    deadline = time.monotonic() + 60
+    while not (tmp_path / "driver.json").is_file() and time.monotonic() < deadline:
+        time.sleep(0.5)
+    assert json.loads((tmp_path / "driver.json").read_text())["sim_time_s"] > 0
+
+
+@needs_namespaces
+def test_pick_with_a_spawned_driver_lifts_the_object(tmp_path):
+    """The headline command: the driver as a subprocess, both in one private loopback-only namespace."""
+    report = tmp_path / "r.json"
+    command = [sys.executable, "scripts/pick.py", "--backend", "lcm", "--spawn-driver"]
+    command += ["--object", "drill", "--instance", "test_1", "--yaw", "0.0", "--json", str(report)]
+    done = subprocess.run(command, capture_output=True, text=True, timeout=500, cwd=REPO_ROOT)
+    result = json.loads(report.read_text())
+    assert done.returncode == 0 and result["success"], done.stdout[-3000:] + done.stderr[-3000:]
+    assert result["lift_height_m"] >= 0.10 and result["backend"] == "lcm"
