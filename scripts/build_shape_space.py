@@ -102,6 +102,11 @@ def main():
     parser.add_argument("--folder", type=Path, help="a folder of your own models (meshes or point clouds)")
     parser.add_argument("--poses", type=Path, help="with --folder: YAML with the canonical model's control poses")
     parser.add_argument("--components", type=int, default=8, help="latent dimensions (the paper: 8)")
+    parser.add_argument(
+        "--no-landmarks",
+        action="store_true",
+        help="plain CPD fields: ignore the control poses of instances other than the canonical one",
+    )
     parser.add_argument("--out", type=Path, help="default: models/shape_space_<category>.npz")
     args = parser.parse_args()
     start = time.perf_counter()
@@ -109,10 +114,18 @@ def main():
         if not args.poses:
             parser.error("--folder needs --poses")
         clouds, poses, canonical = folder_instances(args.folder, args.poses)
-        space = build_shape_space(args.category, clouds, poses, args.components, canonical=canonical, align=True)
+        space = build_shape_space(
+            args.category,
+            clouds,
+            poses,
+            args.components,
+            canonical=canonical,
+            align=True,
+            landmarks=not args.no_landmarks,
+        )
     else:
         clouds, poses = generated_instances(args.category, args.extra)
-        space = build_shape_space(args.category, clouds, poses, args.components)
+        space = build_shape_space(args.category, clouds, poses, args.components, landmarks=not args.no_landmarks)
     out = args.out or MODELS_DIR / f"shape_space_{args.category}.npz"
     space.save(out)
     explained = space.pca.variances / space.pca.variances.sum()
