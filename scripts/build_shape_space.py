@@ -1,7 +1,7 @@
 """Builds a category's latent shape space (CPD fields from a canonical instance + PCA-EM).
 
 python scripts/build_shape_space.py --category watering_can          # models/shape_space_watering_can.npz
-python scripts/build_shape_space.py --category drill --extra 8       # also 8 more generated instances
+python scripts/build_shape_space.py --category drill --extra 8       # only 8 more generated instances (default 40)
 python scripts/build_shape_space.py --folder my_cans/ --poses my_cans/poses.yaml --category my_cans
 
 A folder holds one model per file: meshes (.obj, .ply, .stl; surface-sampled) or point
@@ -98,7 +98,7 @@ def main():
     logging.basicConfig(level=logging.INFO, format="%(message)s")
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--category", required=True, help="generated category, or the name of a folder's category")
-    parser.add_argument("--extra", type=int, default=8, help="extra generated instances beyond train_0..7")
+    parser.add_argument("--extra", type=int, default=40, help="extra generated instances beyond train_0..7")
     parser.add_argument("--folder", type=Path, help="a folder of your own models (meshes or point clouds)")
     parser.add_argument("--poses", type=Path, help="with --folder: YAML with the canonical model's control poses")
     parser.add_argument("--components", type=int, default=8, help="latent dimensions (the paper: 8)")
