@@ -1,7 +1,7 @@
 """Builds a category's latent shape space (CPD fields from a canonical instance + PCA-EM).
 
 python scripts/build_shape_space.py --category watering_can          # models/shape_space_watering_can.npz
-python scripts/build_shape_space.py --category drill --extra 8       # also 8 more generated instances
+python scripts/build_shape_space.py --category drill --extra 8       # only 8 more generated instances (default 40)
 python scripts/build_shape_space.py --folder my_cans/ --poses my_cans/poses.yaml --category my_cans
 
 A folder holds one model per file: meshes (.obj, .ply, .stl; surface-sampled) or point
@@ -98,10 +98,15 @@ def main():
     logging.basicConfig(level=logging.INFO, format="%(message)s")
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--category", required=True, help="generated category, or the name of a folder's category")
-    parser.add_argument("--extra", type=int, default=8, help="extra generated instances beyond train_0..7")
+    parser.add_argument("--extra", type=int, default=40, help="extra generated instances beyond train_0..7")
     parser.add_argument("--folder", type=Path, help="a folder of your own models (meshes or point clouds)")
     parser.add_argument("--poses", type=Path, help="with --folder: YAML with the canonical model's control poses")
     parser.add_argument("--components", type=int, default=8, help="latent dimensions (the paper: 8)")
+    parser.add_argument(
+        "--no-landmarks",
+        action="store_true",
+        help="plain CPD fields: ignore the control poses of instances other than the canonical one",
+    )
     parser.add_argument("--out", type=Path, help="default: models/shape_space_<category>.npz")
     args = parser.parse_args()
     start = time.perf_counter()
@@ -109,10 +114,18 @@ def main():
         if not args.poses:
             parser.error("--folder needs --poses")
         clouds, poses, canonical = folder_instances(args.folder, args.poses)
-        space = build_shape_space(args.category, clouds, poses, args.components, canonical=canonical, align=True)
+        space = build_shape_space(
+            args.category,
+            clouds,
+            poses,
+            args.components,
+            canonical=canonical,
+            align=True,
+            landmarks=not args.no_landmarks,
+        )
     else:
         clouds, poses = generated_instances(args.category, args.extra)
-        space = build_shape_space(args.category, clouds, poses, args.components)
+        space = build_shape_space(args.category, clouds, poses, args.components, landmarks=not args.no_landmarks)
     out = args.out or MODELS_DIR / f"shape_space_{args.category}.npz"
     space.save(out)
     explained = space.pca.variances / space.pca.variances.sum()

@@ -111,3 +111,25 @@ def test_shape_space_round_trips_through_its_file(box_space, tmp_path):
 def test_registration_rejects_degenerate_clouds(box_space, bad):
     with pytest.raises(ValueError, match="cloud"):
         Registrar(box_space[0]).register(bad, RigidTransform())
+
+
+def test_deformable_cpd_landmarks_settle_ambiguous_correspondences():
+    # A ring turned about its own axis looks unchanged: CPD alone leaves it where it is; a
+    # landmark (one point and where it must go) makes the field carry that point there.
+    angles = np.linspace(0, 2 * np.pi, 120, endpoint=False)
+    ring = 0.1 * np.column_stack([np.cos(angles), np.sin(angles), np.zeros_like(angles)])
+    turn = Rotation.from_euler("z", 0.4).as_matrix()
+    target = ring @ turn.T
+    landmark = ring[:1]
+    plain = deformable_cpd(ring, target, beta=0.1, lam=1.0, max_iterations=100)
+    guided = deformable_cpd(
+        ring, target, beta=0.1, lam=1.0, max_iterations=100, landmarks=(landmark, landmark @ turn.T)
+    )
+    plain_error = np.linalg.norm(plain.warp(landmark) - landmark @ turn.T)
+    guided_error = np.linalg.norm(guided.warp(landmark) - landmark @ turn.T)
+    assert plain_error > 0.03  # the turn moves the point by 0.039 m
+    assert guided_error < 0.01
+    # The guided field still lays the ring onto the target.
+    assert np.abs(np.linalg.norm(guided.transformed[:, :2], axis=1) - 0.1).max() < 0.005
+    with pytest.raises(ValueError, match="landmarks"):
+        deformable_cpd(ring, target, landmarks=(landmark, np.zeros((2, 3))))

@@ -151,7 +151,7 @@ def gaussian_kernel(A: np.ndarray, B: np.ndarray, beta: float) -> np.ndarray:
 @dataclass
 class DeformableResult:
     source: np.ndarray  # Y, M x D
-    W: np.ndarray  # M x D coefficients of the displacement field
+    W: np.ndarray  # M x D coefficients of the displacement field (without landmarks' own)
     beta: float
     transformed: np.ndarray  # Y + G W
     sigma2: float
@@ -178,6 +178,8 @@ def deformable_cpd(
     w: float = 0.0,
     max_iterations: int = 100,
     tolerance: float = 1e-5,
+    landmarks: tuple[np.ndarray, np.ndarray] | None = None,
+    landmark_weight: float = 20.0,
 ) -> DeformableResult:
     """Non-rigid CPD moving `source` onto `target` by a smooth displacement field.
 
@@ -186,18 +188,32 @@ def deformable_cpd(
         lam: the field's smoothness weight (lambda).
         w: outlier weight in [0, 1).
         tolerance: stop when sigma^2 changes by less than this, relative.
+        landmarks: optional known correspondences (L x D points in the source's frame, L x D
+            where the field must take them), e.g. a grasp point annotated on both shapes. They
+            join the field's points and pull on it like `landmark_weight` fully matched target
+            points each; the result's source, W and transformed leave them out.
     """
     X, Y = _check(target, "target"), _check(source, "source")
     M, D = Y.shape
+    if landmarks is not None:
+        landmark_source, landmark_target = (np.asarray(a, dtype=float).reshape(-1, D) for a in landmarks)
+        if len(landmark_source) != len(landmark_target):
+            raise ValueError("landmarks: as many source as target points are needed")
+        Y = np.vstack([Y, landmark_source])
+        pull = np.full(len(landmark_source), landmark_weight)
+        pull_X = landmark_weight * landmark_target
     G = gaussian_kernel(Y, Y, beta)
     eigenvalues, Q = top_eigenpairs(G, MAX_RANK)
     keep = eigenvalues > LOW_RANK_TOLERANCE * eigenvalues[-1]
     eigenvalues, Q = eigenvalues[keep], Q[:, keep]
-    W = np.zeros((M, D))
+    W = np.zeros_like(Y)
     T = Y.copy()
-    sigma2 = _initial_sigma2(X, Y)
+    sigma2 = _initial_sigma2(X, Y[:M])
     for iteration in range(1, max_iterations + 1):  # noqa: B007 (the count is returned)
-        P, P1, Pt1, PX = _e_step(X, T, sigma2, w)
+        P, P1, Pt1, PX = _e_step(X, T[:M], sigma2, w)
+        if landmarks is not None:
+            # The landmarks are no mixture centroids: each is pulled to its own fixed target.
+            P1, PX = np.concatenate([P1, pull]), np.vstack([PX, pull_X])
         # Solve (G + lam sigma2 dP1^-1) W = dP1^-1 P X - Y, with G = Q L Q^T and Woodbury.
         P1 = np.maximum(P1, 1e-12)
         a = lam * sigma2 / P1  # the diagonal A
@@ -207,10 +223,12 @@ def deformable_cpd(
         core = np.diag(1.0 / eigenvalues) + Q.T @ A_inv_Q
         W = A_inv_b - A_inv_Q @ np.linalg.solve(core, Q.T @ A_inv_b)
         T = Y + Q @ (eigenvalues[:, None] * (Q.T @ W))
+        # sigma^2 from the mixture's points only.
+        P1, PX, Tm = P1[:M], PX[:M], T[:M]
         Np = P1.sum()
         previous = sigma2
-        sigma2 = float(np.sum(Pt1 * (X**2).sum(1)) - 2 * np.sum(PX * T) + np.sum(P1 * (T**2).sum(1))) / (Np * D)
+        sigma2 = float(np.sum(Pt1 * (X**2).sum(1)) - 2 * np.sum(PX * Tm) + np.sum(P1 * (Tm**2).sum(1))) / (Np * D)
         sigma2 = max(sigma2, 1e-12)
         if abs(previous - sigma2) <= tolerance * previous:
             break
-    return DeformableResult(Y, W, beta, T, sigma2, iteration)
+    return DeformableResult(Y[:M], W[:M], beta, T[:M], sigma2, iteration)

@@ -23,6 +23,9 @@ from systems.shape_space.pca_em import PcaModel, pca_em
 # The control poses: the pre-grasp and grasp frame of each hand.
 POSE_NAMES = ("left_pregrasp", "left_grasp", "right_pregrasp", "right_grasp")
 FRAME_PROBE = 0.1  # m: radius of the star of points whose motion turns a control pose
+# m: radius of the star of landmarks that ties the canonical grasp frames to an annotated
+# instance's while its field is built.
+LANDMARK_PROBE = 0.02
 
 
 @dataclass
@@ -142,6 +145,12 @@ def choose_canonical(clouds: dict[str, np.ndarray]) -> str:
     return min(cost, key=cost.get)
 
 
+def grasp_landmarks(X_OG: RigidTransform) -> np.ndarray:
+    """A grasp frame as 7 points (in O): its origin and +-LANDMARK_PROBE along each of its axes."""
+    star = LANDMARK_PROBE * np.vstack([np.zeros(3), np.eye(3), -np.eye(3)])
+    return X_OG.multiply(star.T).T
+
+
 def build_shape_space(
     category: str,
     clouds: dict[str, np.ndarray],
@@ -152,18 +161,23 @@ def build_shape_space(
     lam: float = 1.0,
     canonical: str | None = None,
     align: bool = False,
+    landmarks: bool = True,
 ) -> ShapeSpace:
     """Builds the space from surface clouds (each in its own O frame) of a category's instances.
 
     Args:
         clouds: instance name -> N x 3 surface points.
-        control_poses: instance name -> {POSE_NAMES entry: X_OG}; the canonical instance's are used.
+        control_poses: instance name -> {POSE_NAMES entry: X_OG}; the canonical instance's are the
+            space's. Where another instance has them too, its field must carry the canonical grasp
+            frames onto its own (landmarks in CPD): the handles then correspond, which CPD's nearest
+            surfaces alone often get wrong.
         components: latent size (clipped to the number of instances - 1).
         canonical_points: how many of the canonical cloud's points carry the field.
         beta, lam: the CPD fields' kernel width (m) and smoothness weight.
         canonical: the canonical instance's name; default: the medoid (needs its control poses).
         align: the clouds' frames differ (a user's folder): align each rigidly to the canonical first.
             Generated instances share the category's O frame and need no alignment.
+        landmarks: let the other instances' control poses, where given, guide their fields.
     """
     if len(clouds) < 2:
         raise ValueError(f"a shape space needs at least 2 instances, got {len(clouds)}")
@@ -179,8 +193,21 @@ def build_shape_space(
         if name == canonical:
             fields.append(np.zeros(source.size))
             continue
-        aligned = rigid_cpd(cloud, source, w=0.05).transformed if align else cloud
-        result = deformable_cpd(source, aligned, beta=beta, lam=lam, w=0.05, max_iterations=150)
+        guide = None
+        if landmarks and name in control_poses:
+            targets = np.vstack([grasp_landmarks(control_poses[name][f"{side}_grasp"]) for side in ("left", "right")])
+            sources = np.vstack(
+                [grasp_landmarks(control_poses[canonical][f"{side}_grasp"]) for side in ("left", "right")]
+            )
+            guide = (sources, targets)
+        if align:
+            rigid = rigid_cpd(cloud, source, w=0.05)
+            aligned = rigid.transformed
+            if guide is not None:
+                guide = (guide[0], rigid.s * guide[1] @ rigid.R.T + rigid.t)
+        else:
+            aligned = cloud
+        result = deformable_cpd(source, aligned, beta=beta, lam=lam, w=0.05, max_iterations=150, landmarks=guide)
         logging.info(
             "%s: CPD %d iterations, Chamfer after %.4f m", name, result.iterations, chamfer(result.transformed, aligned)
         )
