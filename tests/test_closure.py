@@ -7,6 +7,7 @@ from pydrake.math import RollPitchYaw, RotationMatrix
 from diagrams.hand_ik import DualArmIk
 from diagrams.objects.library import resolve_object
 from diagrams.oracle_pick import plan_oracle_pick
+from diagrams.scenario import replace_object
 from diagrams.station import object_pose_on_table
 from systems.planning.closure import (
     ClosureConstraint,
@@ -40,6 +41,7 @@ def test_rpy_matches_drake():
 
 @pytest.fixture(scope="module")
 def lift_problem(scenario):
+    scenario = replace_object(scenario, category="watering_can", instance="test_0", yaw=0.0)  # a fixed problem
     model = resolve_object(scenario.object)
     X_WO = object_pose_on_table(scenario, model)
     ik = DualArmIk(scenario, obstacle=model, X_WO=X_WO)

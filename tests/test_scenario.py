@@ -15,7 +15,7 @@ def test_default_scenario_loads():
 def test_overlay_changes_only_what_it_names():
     scenario = load_scenario(scenario_text="{object: {yaw: 0.25}, random_seed: 7}")
     assert scenario.object.yaw == 0.25 and scenario.random_seed == 7
-    assert scenario.object.instance == "test_0"
+    assert scenario.object.instance == "test_1"
 
 
 def test_missing_file(tmp_path):
