@@ -15,7 +15,6 @@ from pydrake.common.schema import Transform
 from pydrake.geometry import Meshcat, Rgba
 from pydrake.lcm import DrakeLcm, DrakeLcmInterface
 from pydrake.math import RigidTransform
-from pydrake.perception import PointCloud
 from pydrake.systems.framework import Diagram, DiagramBuilder
 
 from diagrams.hand_ik import SIDES, DualArmIk
@@ -29,6 +28,7 @@ from diagrams.scenario import Scenario
 from diagrams.station import HAND_INSTANCES, MakeStation
 from systems.joint_plan import JointPlan
 from systems.pick_sequencer import PickSequencer, PickStatus
+from systems.pose_estimator import to_point_cloud
 from systems.shape_registrar import GraspPoses, ShapeRegistrar
 
 # Perceive once the object has settled on the table, s.
@@ -47,14 +47,8 @@ def make_pick_planner(scenario: Scenario):
 
     def plan_pick(grasps: GraspPoses, cloud_W: np.ndarray, q_now: np.ndarray) -> JointPlan:
         ik = DualArmIk(scenario, obstacle_points_W=cloud_W if len(cloud_W) else None)
-        info = ObjectInfo(
-            grasps={
-                side: HandGrasp(
-                    Transform(grasps.poses_W[f"{side}_pregrasp"]), Transform(grasps.poses_W[f"{side}_grasp"])
-                )
-                for side in SIDES
-            }
-        )
+        poses = {name: Transform(X_WG) for name, X_WG in grasps.poses_W.items()}
+        info = ObjectInfo(grasps={side: HandGrasp(poses[f"{side}_pregrasp"], poses[f"{side}_grasp"]) for side in SIDES})
         plan = plan_oracle_pick(ik, q_now, RigidTransform(), info)
         plan.grasp_paths_W = _grasp_paths(ik, plan)
         return plan
@@ -65,8 +59,8 @@ def make_pick_planner(scenario: Scenario):
 def _grasp_paths(ik: DualArmIk, plan: JointPlan, samples: int = 120) -> dict[str, np.ndarray]:
     """Each hand's grasp frame origin along the plan, samples x 3 in W (for the viewer)."""
     trajectory = plan.arm_trajectory()
-    poses = [ik.grasp_frame_poses(trajectory.value(t).ravel()) for t in np.linspace(0, plan.duration, samples)]
-    return {side: np.array([pose[side].translation() for pose in poses]) for side in SIDES}
+    q = np.column_stack([trajectory.value(t) for t in np.linspace(0, plan.duration, samples)]).T
+    return {side: X[:, :3, 3] for side, X in zip(SIDES, ik.stomp.end_effectors.poses(q), strict=True)}
 
 
 def MakePickDiagram(
@@ -115,22 +109,16 @@ def pick_status(diagram: Diagram, context) -> PickStatus:
     return sequencer.GetOutputPort("status").Eval(sequencer.GetMyContextFromRoot(context))
 
 
-def draw_perception(meshcat: Meshcat, diagram: Diagram, context, status: PickStatus):
-    """The camera's object points, the reconstruction and the planned grasp-frame paths, in meshcat."""
-    estimate = diagram.GetSubsystemByName("pose_estimator").GetOutputPort("estimate")
-    registrar = diagram.GetSubsystemByName("shape_registrar").GetOutputPort("reconstructed_cloud_W")
-    seen = estimate.Eval(estimate.get_system().GetMyContextFromRoot(context)).points_W
-    shape = registrar.Eval(registrar.get_system().GetMyContextFromRoot(context))
-    _set_points(meshcat, "perception/camera_points", seen, Rgba(0.1, 0.4, 1.0, 1.0))
-    _set_points(meshcat, "perception/reconstruction", shape, Rgba(1.0, 0.6, 0.0, 1.0))
-    for side, path in getattr(status.plan, "grasp_paths_W", {}).items():
-        meshcat.SetLine(f"perception/grasp_path_{side}", path.T, 3.0, Rgba(0.1, 0.8, 0.2, 1.0))
-
-
-def _set_points(meshcat, path, points_W, rgba):
-    cloud = PointCloud(len(points_W))
-    cloud.mutable_xyzs()[:] = np.asarray(points_W, dtype=np.float32).T
-    meshcat.SetObject(path, cloud, point_size=0.006, rgba=rgba)
+def draw_perception(meshcat: Meshcat, status: PickStatus):
+    """What the plan was made from (the camera's object points, the reconstruction) and the planned
+    grasp-frame paths, in meshcat."""
+    for path, points_W, rgba in (
+        ("perception/camera_points", status.seen_points_W, Rgba(0.1, 0.4, 1.0, 1.0)),
+        ("perception/reconstruction", status.reconstruction_W, Rgba(1.0, 0.6, 0.0, 1.0)),
+    ):
+        meshcat.SetObject(path, to_point_cloud(points_W), point_size=0.006, rgba=rgba)
+    for side, path_W in status.plan.grasp_paths_W.items():
+        meshcat.SetLine(f"perception/grasp_path_{side}", path_W.T, 3.0, Rgba(0.1, 0.8, 0.2, 1.0))
 
 
 def MakeLcmPickWorld(scenario: Scenario, lcm: DrakeLcmInterface, meshcat: Meshcat | None = None) -> Diagram:
@@ -189,7 +177,7 @@ class PickWatcher:
             logging.info("t = %5.2f s  %s%s", context.get_time(), status.mode, note)
             self.mode = status.mode
         if self.meshcat is not None and status.plan is not None and not self.drawn:
-            draw_perception(self.meshcat, self.pick, context, status)
+            draw_perception(self.meshcat, status)
             self.drawn = True
         return context.get_time() if status.mode == "failed" else min(status.end_s, MAX_PICK_S)
 

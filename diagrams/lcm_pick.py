@@ -68,7 +68,7 @@ def run_pick_on_robot(
     context = simulator.get_mutable_context()
     watch = PickWatcher(diagram, meshcat)
     simulator.Initialize()
-    planned, problems = False, []
+    planned, tripped, problems = False, False, []
     while context.get_time() + SAMPLE_S <= watch.end_time(context) + 1e-9:
         simulator.AdvanceTo(context.get_time() + SAMPLE_S)
         status = watch.status(context)
@@ -76,11 +76,11 @@ def run_pick_on_robot(
             # The robot held while we planned; do not replay the lost wall time faster than real time.
             simulator.ResetStatistics()
             planned = True
-        problems = safety_problems(station, context)
-        if any("watchdog" in problem for problem in problems):
+        tripped, problems = safety_problems(station, context)
+        if tripped:
             logging.error("stopping: %s", "; ".join(problems))
             break
-    if not any("watchdog" in problem for problem in problems):
+    if not tripped:
         _hold_while_the_robot_catches_up(simulator, station)
     return watch.status(context), problems
 
@@ -100,13 +100,14 @@ def _hold_while_the_robot_catches_up(simulator: Simulator, station: Diagram, tim
         simulator.AdvanceTo(context.get_time() + SAMPLE_S)
 
 
-def safety_problems(station: Diagram, context) -> list[str]:
-    """What the hardware station's monitors and guards report: tripped watchdogs, rejected input."""
-    problems = []
+def safety_problems(station: Diagram, context) -> tuple[bool, list[str]]:
+    """What the hardware station's monitors and guards report: (a watchdog tripped, the problems in words)."""
+    tripped, problems = False, []
     for system in station.GetSystems():
         system_context = system.GetMyContextFromRoot(context)
         if isinstance(system, CommandGuard):
             report = system.GetOutputPort("report").Eval(system_context)
+            tripped |= report.tripped
             if report.tripped:
                 problems.append(f"watchdog: {report.message}")
             if report.rejected_commands:
@@ -117,7 +118,7 @@ def safety_problems(station: Diagram, context) -> list[str]:
                 problems.append(
                     f"{health.channel}: {health.rejected} malformed messages rejected ({health.last_error})"
                 )
-    return problems
+    return tripped, problems
 
 
 def run_on_robot(scenario: Scenario, lcm_url: str | None = None, meshcat: Meshcat | None = None) -> PickOutcome:

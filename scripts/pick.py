@@ -10,6 +10,7 @@ python scripts/pick.py --oracle --meshcat --record pick.html
 import argparse
 import json
 import logging
+import math
 import sys
 from pathlib import Path
 
@@ -79,14 +80,16 @@ def main(argv=None) -> int:
     if outcome is not None:
         if outcome.stages:
             print("stage wall times: " + ", ".join(f"{name} {s:.3f} s" for name, s in outcome.stages.items()))
-        print(
-            f"{'SUCCESS' if outcome.success else 'FAILURE'}: {outcome.message}; lift {outcome.lift_height_m:.3f} m, "
-            f"simulated {outcome.sim_time_s:.1f} s in {outcome.wall_time_s:.1f} s"
-        )
+        summary = f"{'SUCCESS' if outcome.success else 'FAILURE'}: {outcome.message}"
+        if math.isfinite(outcome.lift_height_m):  # unknown against a real robot
+            summary += f"; lift {outcome.lift_height_m:.3f} m"
+        if outcome.sim_time_s > 0:
+            summary += f", simulated {outcome.sim_time_s:.1f} s in {outcome.wall_time_s:.1f} s"
+        print(summary)
         report = {
             "success": outcome.success,
-            "lift_height_m": outcome.lift_height_m,
-            "min_hold_height_m": outcome.min_hold_height_m,
+            "lift_height_m": outcome.lift_height_m if math.isfinite(outcome.lift_height_m) else None,
+            "min_hold_height_m": outcome.min_hold_height_m if math.isfinite(outcome.min_hold_height_m) else None,
             "hands_in_contact": outcome.hands_in_contact,
             "object": obj.category,
             "instance": obj.file or obj.instance,

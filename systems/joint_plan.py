@@ -15,6 +15,8 @@ class JointPlan:
     hand_width: list[float] = field(default_factory=list)
     # Time (s) at which each named phase ends.
     phases: dict[str, float] = field(default_factory=dict)
+    # For the viewer: each hand's grasp frame origin along the plan, samples x 3 in W (may stay empty).
+    grasp_paths_W: dict[str, np.ndarray] = field(default_factory=dict)
 
     def append(self, q: np.ndarray, width: float, duration: float):
         self.times.append((self.times[-1] if self.times else 0.0) + duration)

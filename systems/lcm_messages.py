@@ -62,10 +62,13 @@ def decode_arm_status(raw: RawMessage, joints: int = 14) -> tuple[int, np.ndarra
     message = _decode(lcmt_iiwa_status, raw)
     if message.num_joints != joints:
         raise MalformedMessage(f"status for {message.num_joints} joints, expected {joints}")
-    fields = ("joint_position_commanded", "joint_position_measured", "joint_velocity_estimated")
-    values = [_finite(name, getattr(message, name), joints) for name in fields]
-    values.append(_finite("joint_torque_commanded", message.joint_torque_commanded, joints))
-    return message.utime, np.concatenate(values)
+    fields = (
+        "joint_position_commanded",
+        "joint_position_measured",
+        "joint_velocity_estimated",
+        "joint_torque_commanded",
+    )
+    return message.utime, np.concatenate([_finite(name, getattr(message, name), joints) for name in fields])
 
 
 def decode_arm_command(raw: RawMessage, joints: int = 14) -> tuple[int, np.ndarray]:

@@ -138,7 +138,7 @@ class GuardReport:
     tripped: bool = False  # the status went stale: holding, for good
     rejected_commands: int = 0  # non-finite commands dropped
     message: str = "waiting for the robot's status"
-    hold: np.ndarray | None = field(default=None, repr=False)
+    command: np.ndarray | None = field(default=None, repr=False)  # what is sent; None before a status
 
 
 class CommandGuard(LeafSystem):
@@ -178,9 +178,9 @@ class CommandGuard(LeafSystem):
             age = context.get_time() - health.received_at
             message = f"{self.name}: no valid status on {health.channel} for {age:.3f} s: holding position"
             logging.error(message)
-            report = replace(report, tripped=True, message=message, hold=measured)
+            report = replace(report, tripped=True, message=message, command=measured)
         else:
-            last = report.hold if report.armed else measured
+            last = report.command if report.armed else measured
             desired = self._desired.Eval(context)
             if not np.all(np.isfinite(desired)):
                 if report.armed:  # (before, the controller has had no status to start from either)
@@ -189,15 +189,15 @@ class CommandGuard(LeafSystem):
                     report = replace(report, rejected_commands=report.rejected_commands + 1)
                 desired = last
             step = np.clip(np.clip(desired, self.lower, self.upper) - last, -self.max_step, self.max_step)
-            report = replace(report, armed=True, message="commanding", hold=last + step)
+            report = replace(report, armed=True, message="commanding", command=last + step)
         state.get_mutable_abstract_state(self._state).set_value(report)
         return EventStatus.Succeeded()
 
     def _calc_command(self, context, output):
         report = context.get_abstract_state(self._state).get_value()
-        if report.hold is None:
+        if report.command is None:
             raise RuntimeError(f"{self.name}: no status from the robot yet, so no command is sent")
-        output.SetFromVector(report.hold)
+        output.SetFromVector(report.command)
 
     def _calc_report(self, context, output):
         output.set_value(context.get_abstract_state(self._state).get_value())

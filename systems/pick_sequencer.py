@@ -12,6 +12,7 @@ Modes: waiting -> (reach -> approach -> close -> lift -> hold: the plan's phases
 or failed.
 """
 
+import dataclasses
 import logging
 import math
 import time
@@ -45,6 +46,10 @@ class PickStatus:
     stage_seconds: dict[str, float] = field(default_factory=dict)
     plan: JointPlan | None = None
     plan_start_s: float = math.inf
+    # What the plan was made from, for the viewer: the camera's object points and the
+    # reconstructed whole shape, N x 3 in W, m.
+    seen_points_W: np.ndarray | None = None
+    reconstruction_W: np.ndarray | None = None
     # The plan's trajectories, built once: arm joints (14, rad) and hand opening (1, m) over plan time.
     arm_trajectory: PiecewisePolynomial | None = None
     hand_trajectory: PiecewisePolynomial | None = None
@@ -97,14 +102,18 @@ class PickSequencer(LeafSystem):
 
     def _update(self, context, state) -> EventStatus:
         current = context.get_abstract_state(self._state).get_value()
-        if current.hold_q is not None and (current.status.mode != "waiting" or context.get_time() < self.perceive_at_s):
+        if current.status.mode != "waiting":
             return EventStatus.DidNothing()
-        hold_q = current.hold_q if current.hold_q is not None else self._measured.Eval(context).copy()
-        if not np.all(np.isfinite(hold_q)):
-            return EventStatus.DidNothing()  # no status from the robot yet (the hardware station's NaN)
-        status = current.status
-        if context.get_time() >= self.perceive_at_s:
-            status = self._perceive_and_plan(context, hold_q)
+        hold_q = current.hold_q
+        if hold_q is None:  # latch where the robot is, once its status has arrived (the hardware station's NaN)
+            hold_q = self._measured.Eval(context).copy()
+            if not np.all(np.isfinite(hold_q)):
+                return EventStatus.DidNothing()
+        elif context.get_time() < self.perceive_at_s:
+            return EventStatus.DidNothing()
+        status = (
+            self._perceive_and_plan(context, hold_q) if context.get_time() >= self.perceive_at_s else current.status
+        )
         state.get_mutable_abstract_state(self._state).set_value(_State(status, hold_q))
         return EventStatus.Succeeded()
 
@@ -149,8 +158,9 @@ class PickSequencer(LeafSystem):
         # The robot holds while the computer thinks: the plan starts once it exists.
         start_s = context.get_time() + time.perf_counter() - event_start
         return PickStatus(
-            "planned", "", "planned", seconds, plan, start_s, plan.arm_trajectory(), plan.hand_trajectory()
-        )
+            "planned", "", "planned", seconds, plan, start_s, estimate.points_W, cloud,
+            plan.arm_trajectory(), plan.hand_trajectory(),
+        )  # fmt: skip
 
     def _held(self, context) -> _State:
         return context.get_abstract_state(self._state).get_value()
@@ -177,7 +187,7 @@ class PickSequencer(LeafSystem):
     def _calc_status(self, context, output):
         status = self._held(context).status
         if status.plan is not None:
-            status = PickStatus(**{**status.__dict__, "mode": _phase(status, context.get_time())})
+            status = dataclasses.replace(status, mode=_phase(status, context.get_time()))
         output.set_value(status)
 
 

@@ -4,13 +4,14 @@
 import numpy as np
 import pytest
 from pydrake.common.value import AbstractValue
+from pydrake.geometry import Meshcat, MeshcatParams
 from pydrake.math import RigidTransform
 from pydrake.systems.analysis import Simulator
 
-from diagrams.autonomous_pick import PERCEIVE_AT_S, MakePickDiagram, run_pick
+from diagrams.autonomous_pick import PERCEIVE_AT_S, MakePickDiagram, draw_perception, run_pick
 from diagrams.scenario import replace_object
 from systems.joint_plan import JointPlan
-from systems.pick_sequencer import PickSequencer
+from systems.pick_sequencer import PickSequencer, PickStatus
 from systems.pose_estimator import ObjectEstimate
 from systems.segmenter import Segmentation
 from systems.shape_registrar import GraspPoses, ShapeRegistrar
@@ -56,7 +57,7 @@ def _sequencer_context(dut, segmentation_found=True, grasps_found=True):
     mask = np.ones((4, 4), bool)
     for port, value in (
         ("segmentation", Segmentation(segmentation_found, "drill", mask, 16, "ok" if segmentation_found else "none")),
-        ("estimate", ObjectEstimate(True, "drill")),
+        ("estimate", ObjectEstimate(True, "drill", points_W=np.ones((7, 3)))),
         ("grasp_poses", GraspPoses(grasps_found, {}, "ok" if grasps_found else "diverged")),
         ("reconstructed_cloud_W", np.zeros((0, 3))),
     ):
@@ -83,6 +84,7 @@ def test_sequencer_holds_then_plays_the_plan_after_perceiving():
     status = dut.GetOutputPort("status").Eval(context)
     assert status.plan is not None and status.plan_start_s >= 0.5
     assert set(status.stage_seconds) >= {"segmentation", "pose", "registration", "planning", "image_to_trajectory"}
+    assert status.seen_points_W.shape == (7, 3) and status.reconstruction_W.shape == (0, 3)
     _advance(dut, context, status.plan_start_s + 1.5)
     assert dut.GetOutputPort("status").Eval(context).mode == "close"
     np.testing.assert_allclose(dut.GetOutputPort("arm_position").Eval(context), Q0 + 0.2)
@@ -107,6 +109,17 @@ def test_sequencer_stops_at_the_failing_stage_and_holds(segmentation_found, gras
     assert status.mode == "failed" and status.failed_stage == stage and status.message.startswith(stage)
     np.testing.assert_array_equal(dut.GetOutputPort("arm_position").Eval(context), Q0)
     assert dut.GetOutputPort("hand_width").Eval(context)[0] == 0.1
+
+
+def test_viewer_draws_what_the_plan_was_made_from():
+    plan = _two_step_plan(None, None, Q0)
+    plan.grasp_paths_W = {"left": np.zeros((5, 3)), "right": np.ones((5, 3))}
+    points = np.random.default_rng(0).uniform(size=(50, 3))
+    status = PickStatus("planned", plan=plan, seen_points_W=points, reconstruction_W=points[:10])
+    meshcat = Meshcat(MeshcatParams(host="localhost"))
+    draw_perception(meshcat, status)
+    for path in ("camera_points", "reconstruction", "grasp_path_left", "grasp_path_right"):
+        assert meshcat.HasPath(f"/drake/perception/{path}")
 
 
 def test_pick_diagram_structure(scenario):
