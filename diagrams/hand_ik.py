@@ -239,17 +239,20 @@ class DualArmIk:
             position_tolerance: metres. angle_tolerance: radians.
             min_distance: if not None, every robot/table geometry pair stays this far apart (m).
             allow_half_turn: also try each target turned by pi about z_G (the hands are symmetric).
-            restarts: extra initial guesses from the seed table when q_guess fails.
+            restarts: extra initial guesses from the seed table. With min_distance, all of them are
+                solved (the collision stage needs alternatives); without, only when q_guess fails.
         """
         q_guess = np.asarray(q_guess, dtype=float)
         flips = (False, True) if allow_half_turn else (False,)
+        seeds = self._seeds(X_WG, restarts) if restarts else []
         # The arms are kinematically independent: solve each alone (7 joints, many starts),
         # then both together with the collision constraint, from the per-arm answers.
         per_arm = {}
         for side in SIDES:
-            starts = [q_guess] + (self._seeds(X_WG, restarts) if restarts else [])
             per_arm[side] = []
-            for start, flip in itertools.product(starts, flips):
+            for start, flip in itertools.product([q_guess, *seeds], flips):
+                if min_distance is None and per_arm[side] and start is not q_guess:
+                    break  # solved from q_guess: the seeds would only add answers farther from it
                 target = {side: X_WG[side] @ HALF_TURN if flip else X_WG[side]}
                 result = self._solve_once(target, start, q_guess, position_tolerance, angle_tolerance, None)
                 if result.success:
