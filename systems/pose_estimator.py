@@ -74,11 +74,7 @@ def depth_to_points(depth: np.ndarray, mask: np.ndarray, intrinsics: CameraInfo)
 
 def voxel_thin(points: np.ndarray, size: float = VOXEL) -> np.ndarray:
     """One point (the first) per occupied voxel: near surfaces no longer outweigh far ones."""
-    cells = np.floor(points / size).astype(np.int64)
-    cells -= cells.min(axis=0)
-    span = cells.max(axis=0) + 1
-    keys = (cells[:, 0] * span[1] + cells[:, 1]) * span[2] + cells[:, 2]
-    _, first = np.unique(keys, return_index=True)
+    _, first = np.unique(np.floor(points / size).astype(np.int64), axis=0, return_index=True)
     return points[np.sort(first)]
 
 
@@ -141,17 +137,21 @@ def _fit_yaw_translation(points_W, yaw, xy, z, field: NearestPointField, iterati
 
     Returns (yaw, xy, mean distance in metres).
     """
-    for _ in range(iterations + 1):
+
+    def nearest(yaw, xy):
         in_O = np.column_stack([(points_W[:, :2] - xy) @ _rotation_2d(yaw), points_W[:, 2] - z])
-        distance, index = field.query(in_O)
-        error = float(distance.mean())
+        return field.query(in_O)
+
+    for _ in range(iterations):
+        _, index = nearest(yaw, xy)
         # Best rotation + translation taking the matched template points (in O) to the observations (in W).
         a, b = field.points[index, :2], points_W[:, :2]
         a_mean, b_mean = a.mean(axis=0), b.mean(axis=0)
         H = (a - a_mean).T @ (b - b_mean)
         yaw = np.arctan2(H[0, 1] - H[1, 0], H[0, 0] + H[1, 1])
         xy = b_mean - _rotation_2d(yaw) @ a_mean
-    return yaw, xy, error
+    distance, _ = nearest(yaw, xy)  # the error of the pose returned
+    return yaw, xy, float(distance.mean())
 
 
 def estimate_pose(
