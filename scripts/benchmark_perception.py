@@ -8,7 +8,6 @@ python scripts/benchmark_perception.py --scenes 60 --json perception.json
 """
 
 import argparse
-import json
 import logging
 import platform
 import time
@@ -17,6 +16,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import torch
+from json_report import write_json
 from pydrake.common.value import AbstractValue
 from pydrake.systems.sensors import ImageDepth32F, ImageRgba8U
 
@@ -190,8 +190,7 @@ def main():
     ):
         print(f"{key:32s} {value:10.4f}  {target}")
     if args.json:
-        args.json.write_text(json.dumps(results, indent=2))
-        print(f"wrote {args.json}")
+        write_json(args.json, results)
     if args.figure and tiles:
         rows_of_tiles = [np.hstack(tiles[i : i + 3]) for i in range(0, len(tiles) - len(tiles) % 3 or 1, 3)]
         cv2.imwrite(str(args.figure), cv2.cvtColor(np.vstack(rows_of_tiles), cv2.COLOR_RGB2BGR))

@@ -15,12 +15,12 @@ python scripts/benchmark_planner.py --runs 50 --json planner.json
 """
 
 import argparse
-import json
 import logging
 import time
 from pathlib import Path
 
 import numpy as np
+from json_report import write_json
 from pydrake.multibody.inverse_kinematics import MinimumDistanceLowerBoundConstraint
 from pydrake.planning import KinematicTrajectoryOptimization
 from pydrake.solvers import Solve
@@ -194,8 +194,7 @@ def main():
             f"{r['runtime_s_mean']:12.3f} {r['runtime_s_std']:12.3f} {r['min_clearance_m']:12.4f} {dev:>12s}"
         )
     if args.json:
-        args.json.write_text(json.dumps(results, indent=2))
-        print(f"wrote {args.json}")
+        write_json(args.json, results)
 
 
 if __name__ == "__main__":

@@ -9,7 +9,6 @@ python scripts/benchmark_registration.py --trials 30 --json registration.json
 """
 
 import argparse
-import json
 import logging
 import time
 from pathlib import Path
@@ -17,6 +16,7 @@ from pathlib import Path
 import numpy as np
 import pycpd
 import trimesh
+from json_report import write_json
 
 from diagrams.objects import catalog
 from diagrams.objects.library import load_info
@@ -186,8 +186,7 @@ def main():
             f"{1000 * r['ours_error_m']:12.2f} {1000 * r['pycpd_error_m']:12.2f}"
         )
     if args.json:
-        args.json.write_text(json.dumps(results, indent=2))
-        print(f"wrote {args.json}")
+        write_json(args.json, results)
 
 
 if __name__ == "__main__":

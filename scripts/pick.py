@@ -8,12 +8,12 @@ python scripts/pick.py --oracle --meshcat --record pick.html
 """
 
 import argparse
-import json
 import logging
 import math
 import sys
 from pathlib import Path
 
+from json_report import write_json
 from pydrake.geometry import Meshcat, MeshcatParams
 from scenario_options import add_scenario_options, scenario_arguments, scenario_from_args
 
@@ -88,8 +88,8 @@ def main(argv=None) -> int:
         print(summary)
         report = {
             "success": outcome.success,
-            "lift_height_m": outcome.lift_height_m if math.isfinite(outcome.lift_height_m) else None,
-            "min_hold_height_m": outcome.min_hold_height_m if math.isfinite(outcome.min_hold_height_m) else None,
+            "lift_height_m": outcome.lift_height_m,  # NaN (null) against a real robot
+            "min_hold_height_m": outcome.min_hold_height_m,
             "hands_in_contact": outcome.hands_in_contact,
             "object": obj.category,
             "instance": obj.file or obj.instance,
@@ -104,7 +104,7 @@ def main(argv=None) -> int:
             "message": outcome.message,
         }
     if args.json:
-        args.json.write_text(json.dumps(report, indent=2))
+        write_json(args.json, report)
     return 0 if report["success"] else 1
 
 

@@ -10,13 +10,13 @@ matrices) and, with --reconstruction FILE.ply, the whole inferred shape.
 """
 
 import argparse
-import json
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
 import open3d as o3d
+from json_report import write_json
 from pydrake.math import RigidTransform, RotationMatrix
 
 from systems.shape_space.registration import Registrar
@@ -73,8 +73,7 @@ def main(argv=None) -> int:
         o3d.io.write_point_cloud(str(args.reconstruction), cloud)
         print(f"wrote {args.reconstruction}")
     if args.json:
-        args.json.write_text(json.dumps(report, indent=2))
-        print(f"wrote {args.json}")
+        write_json(args.json, report)
     return 0
 
 

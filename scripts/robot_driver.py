@@ -10,12 +10,12 @@ Use udpm:// only inside a private network namespace (see README, "LCM backend").
 """
 
 import argparse
-import json
 import logging
 import signal
 import sys
 from pathlib import Path
 
+from json_report import write_json
 from pydrake.lcm import DrakeLcm
 from pydrake.systems.analysis import Simulator
 from scenario_options import add_scenario_options, scenario_from_args
@@ -79,7 +79,7 @@ def main(argv=None) -> int:
             "sim_time_s": context.get_time(),
             "rejected_commands": rejected,
         }
-        args.result.write_text(json.dumps(report, indent=2))
+        write_json(args.result, report)
     return 0
 
 

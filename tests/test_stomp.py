@@ -10,7 +10,7 @@ from diagrams.objects.library import resolve_object
 from diagrams.oracle_pick import world_grasps
 from diagrams.station import object_pose_on_table
 from systems.planning.kinematics import gravity_torques
-from systems.planning.stomp import Obstacles, StompConfig
+from systems.planning.stomp import Obstacles
 
 # Both hands start under the table top, at its front edge: the straight move collides.
 BELOW_TABLE = np.array([0, 0.15, 0, -0.1, 0, 0, 0, 0, -0.15, 0, -0.1, 0, 0, 0.0])
@@ -74,11 +74,6 @@ def _colliding_configuration(ik) -> np.ndarray:
         if ik.in_collision(q):
             return q
     raise AssertionError("no colliding sample found")
-
-
-def test_stomp_config_defaults_are_sane():
-    config = StompConfig()
-    assert config.keyframes >= 8 and config.rollouts > config.reused_rollouts and 0 < config.noise_decay <= 1
 
 
 def test_torque_and_duration_cost_terms_match_hand_computation(planning):

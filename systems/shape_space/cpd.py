@@ -35,28 +35,37 @@ def _initial_sigma2(X, Y) -> float:
     return float((M * np.sum(X**2) + N * np.sum(Y**2) - 2 * np.sum(X.sum(0) * Y.sum(0))) / (D * M * N))
 
 
+def gmm_posteriors(squared: np.ndarray, sigma2: float, w: float, dimension: int) -> np.ndarray:
+    """Posteriors of M isotropic Gaussian centroids (variance sigma2) for N points in `dimension`-D, with a uniform
+    outlier component of weight w, from the M x N squared distances: overwritten in place, returned.
+
+    A point far from every centroid (its column underflows to 0) just contributes nothing.
+    """
+    M, N = squared.shape
+    P = squared
+    P *= squared.dtype.type(-0.5 / sigma2)
+    np.exp(P, out=P)
+    c = (2 * np.pi * sigma2) ** (dimension / 2) * w / (1 - w) * M / N if w > 0 else 0.0
+    denominator = P.sum(0, dtype=np.float64) + c
+    inverse = np.divide(1.0, denominator, out=np.zeros_like(denominator), where=denominator > 0)
+    P *= np.minimum(inverse, np.finfo(P.dtype).max).astype(P.dtype)
+    return P
+
+
 def _e_step(X, T, sigma2, w):
-    """Posterior P (M x N) of each centroid for each point, with P1 = P 1, Pt1 = P^T 1 and PX = P X.
+    """P1 = P 1, Pt1 = P^T 1 and PX = P X for the posteriors P (M x N) of the centroids T for the points X.
 
     The M x N work runs in float32 (twice the speed; the posteriors need no more), the
     sums come back in float64.
     """
-    M, D = T.shape
-    N = X.shape[0]
     X32, T32 = X.astype(np.float32), T.astype(np.float32)
-    P = T32 @ X32.T
-    P *= -2.0
-    P += (T32**2).sum(1)[:, None]
-    P += (X32**2).sum(1)[None, :]
-    np.maximum(P, 0.0, out=P)
-    P *= np.float32(-0.5 / sigma2)
-    np.exp(P, out=P)
-    c = (2 * np.pi * sigma2) ** (D / 2) * w / (1 - w) * M / N if w > 0 else 0.0
-    denominator = P.sum(0, dtype=np.float64) + c
-    # A point far from every centroid (its column underflowed to 0) just contributes nothing.
-    inverse = np.divide(1.0, denominator, out=np.zeros_like(denominator), where=denominator > 0)
-    P *= np.minimum(inverse, np.finfo(np.float32).max).astype(np.float32)
-    return P, P.sum(1, dtype=np.float64), P.sum(0, dtype=np.float64), (P @ X32).astype(np.float64)
+    squared = T32 @ X32.T
+    squared *= -2.0
+    squared += (T32**2).sum(1)[:, None]
+    squared += (X32**2).sum(1)[None, :]
+    np.maximum(squared, 0.0, out=squared)
+    P = gmm_posteriors(squared, sigma2, w, X.shape[1])
+    return P.sum(1, dtype=np.float64), P.sum(0, dtype=np.float64), (P @ X32).astype(np.float64)
 
 
 @dataclass
@@ -87,7 +96,7 @@ def rigid_cpd(
     sigma2 = _initial_sigma2(X, Y)
     T = Y
     for iteration in range(1, max_iterations + 1):  # noqa: B007 (the count is returned)
-        P, P1, Pt1, PX = _e_step(X, T, sigma2, w)
+        P1, Pt1, PX = _e_step(X, T, sigma2, w)
         Np = P1.sum()
         mu_x, mu_y = Pt1 @ X / Np, P1 @ Y / Np
         A = PX.T @ Y - Np * np.outer(mu_x, mu_y)  # = X_hat^T P^T Y_hat
@@ -206,11 +215,10 @@ def deformable_cpd(
     eigenvalues, Q = top_eigenpairs(G, MAX_RANK)
     keep = eigenvalues > LOW_RANK_TOLERANCE * eigenvalues[-1]
     eigenvalues, Q = eigenvalues[keep], Q[:, keep]
-    W = np.zeros_like(Y)
     T = Y.copy()
     sigma2 = _initial_sigma2(X, Y[:M])
     for iteration in range(1, max_iterations + 1):  # noqa: B007 (the count is returned)
-        P, P1, Pt1, PX = _e_step(X, T[:M], sigma2, w)
+        P1, Pt1, PX = _e_step(X, T[:M], sigma2, w)
         if landmarks is not None:
             # The landmarks are no mixture centroids: each is pulled to its own fixed target.
             P1, PX = np.concatenate([P1, pull]), np.vstack([PX, pull_X])

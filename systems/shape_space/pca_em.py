@@ -49,7 +49,7 @@ def pca_em(
     for _ in range(iterations):
         # E-step: latent coordinates of each sample; M-step: the subspace that best explains them.
         X = np.linalg.solve(C.T @ C, C.T @ Yc.T)
-        C_next = Yc.T @ X.T @ np.linalg.inv(X @ X.T)
+        C_next = np.linalg.solve(X @ X.T, X @ Yc).T  # Yc^T X^T (X X^T)^-1; X X^T is symmetric
         change = np.linalg.norm(C_next - C) / max(np.linalg.norm(C), 1e-300)
         C = C_next
         if change < tolerance:

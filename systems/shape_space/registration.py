@@ -20,6 +20,7 @@ from pydrake.math import RigidTransform, RotationMatrix
 from scipy.spatial.distance import cdist
 from scipy.spatial.transform import Rotation
 
+from systems.shape_space.cpd import gmm_posteriors
 from systems.shape_space.space import ShapeSpace
 
 MODEL_POINTS = 400
@@ -106,7 +107,7 @@ class Registrar:
         q = len(self.inverse_variances)
         z = np.zeros(q)
         sigma2 = INITIAL_SIGMA**2
-        N, M = len(X), len(self.Y)
+        M = len(self.Y)
         # Upright: turn about z only, and the origin stays on the support surface (the initial height).
         rotation_dofs = [2] if self.upright else [0, 1, 2]
         translation_dofs = [0, 1] if self.upright else [0, 1, 2]
@@ -114,11 +115,10 @@ class Registrar:
         RS = (self.Y + self.mean) @ R.T  # the model in O turned into W's axes, m x 3 (z = 0)
         model = RS + t
         squared = cdist(model, X, "sqeuclidean")
+        translation_jacobian = np.broadcast_to(np.eye(3)[:, translation_dofs], (M, 3, len(translation_dofs)))
         for iteration in range(1, ITERATIONS + 1):  # noqa: B007 (the count is returned)
             # E-step: posterior of each model point for each observed point, with a uniform outlier term.
-            P = np.exp(-squared / (2 * sigma2))
-            c = (2 * np.pi * sigma2) ** 1.5 * OUTLIER_WEIGHT / (1 - OUTLIER_WEIGHT) * M / N
-            P /= P.sum(0) + c
+            P = gmm_posteriors(squared.copy(), sigma2, OUTLIER_WEIGHT, 3)
             P1 = P.sum(1)
             Np = P1.sum()
             if Np < 1e-9:
@@ -126,7 +126,6 @@ class Registrar:
             targets = P @ X  # m x 3, = P1_m * mean target
             # Gauss-Newton on sum_m P1_m |s_m - target_m / P1_m|^2 / (2 sigma2) + prior.
             residual = targets - P1[:, None] * model  # = P1_m (target_m - s_m)
-            translation_jacobian = np.broadcast_to(np.eye(3)[:, translation_dofs], (M, 3, len(translation_dofs)))
             J = np.concatenate(
                 [_skew_columns(RS)[:, :, rotation_dofs], translation_jacobian, R @ self.B], axis=2
             )  # m x 3 x (rotation + translation + q)
