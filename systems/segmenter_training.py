@@ -68,7 +68,11 @@ def train(
 
 @torch.no_grad()
 def predict_labels(model: RefineNetLite, rgb: np.ndarray, batch_size: int = 16) -> np.ndarray:
-    """Per-pixel argmax classes of N x H x W x 3 uint8 images."""
+    """Per-pixel argmax classes of N x H x W x 3 uint8 images at the network's input size.
+
+    The raw network, for the training record; the Segmenter system adds flip averaging and
+    camera-resolution upsampling, measured by scripts/benchmark_perception.py.
+    """
     out = [model(to_input(rgb[i : i + batch_size])).argmax(1).numpy() for i in range(0, len(rgb), batch_size)]
     return np.concatenate(out).astype(np.uint8)
 
