@@ -16,6 +16,9 @@ leave only after a status has arrived, within the position and velocity limits, 
 the status stops (systems/lcm_safety.py). Call wait_for_robot() before starting a simulator.
 """
 
+import contextlib
+import functools
+import math
 import time
 
 import numpy as np
@@ -32,7 +35,7 @@ from pydrake.systems.primitives import ConstantValueSource, Demultiplexer, Multi
 from diagrams.centauro_description import joint_names
 from diagrams.scenario import Scenario
 from diagrams.station import HAND_INSTANCES, AddCentauro
-from systems.lcm_messages import RawMessage, decode_arm_status, decode_hand_status, decode_images
+from systems.lcm_messages import MalformedMessage, RawMessage, decode_arm_status, decode_hand_status, decode_images
 from systems.lcm_safety import CommandGuard, ImageMonitor, MessageMonitor
 
 # The first command leaves this many control periods after the start, once the guards have seen a status.
@@ -165,11 +168,13 @@ def _AddPublisher(builder, lcm, sender, channel, lcm_type, period):
     builder.Connect(sender.get_output_port(), publisher.get_input_port())
 
 
-def wait_for_robot(scenario: Scenario, lcm: DrakeLcmInterface) -> None:
-    """Blocks until the robot's status channels and its camera have each delivered a message.
+def wait_for_robot(scenario: Scenario, lcm: DrakeLcmInterface, robot_time_s: float = 0.0) -> None:
+    """Blocks until the robot's status channels and its camera have each delivered a message, and
+    the robot's own clock (its arm status time stamp) reads at least robot_time_s.
 
     The station's own subscribers receive the same messages, so the first status is in the
-    Context once the simulator is initialised.
+    Context once the simulator is initialised. (A simulated robot's clock starts at 0 and may run
+    behind ours: robot_time_s lets its scene settle first; a real robot's clock is far past it.)
 
     Raises:
         RobotNotResponding: naming the silent channels, after scenario.hardware.status_timeout_s.
@@ -177,13 +182,22 @@ def wait_for_robot(scenario: Scenario, lcm: DrakeLcmInterface) -> None:
     config = scenario.hardware
     channels = [config.arm_status_channel, config.left_hand_status_channel, config.right_hand_status_channel]
     counts = dict.fromkeys([*channels, config.camera_channel], 0)
+    robot_clock = {"s": -math.inf}
+
+    def count(channel, data):
+        counts[channel] += 1
+        if channel == config.arm_status_channel:
+            with contextlib.suppress(MalformedMessage):
+                robot_clock["s"] = decode_arm_status(RawMessage(data, counts[channel]))[0] / 1e6
+
     for channel in counts:
-        lcm.Subscribe(channel, lambda _, channel=channel: counts.__setitem__(channel, counts[channel] + 1))
+        lcm.Subscribe(channel, functools.partial(count, channel))
     deadline = time.monotonic() + config.status_timeout_s
-    while silent := sorted(channel for channel, count in counts.items() if count == 0):
+    while (silent := sorted(channel for channel, n in counts.items() if n == 0)) or robot_clock["s"] < robot_time_s:
         if time.monotonic() > deadline:
+            problem = f"no message on {', '.join(silent)}" if silent else f"its clock not yet at {robot_time_s} s"
             raise RobotNotResponding(
-                f"no message within {config.status_timeout_s:.1f} s on {', '.join(silent)} ({lcm.get_lcm_url()}): "
+                f"after {config.status_timeout_s:.1f} s, {problem} ({lcm.get_lcm_url()}): "
                 "is the robot (or scripts/robot_driver.py) running on this LCM bus?"
             )
         lcm.HandleSubscriptions(10)

@@ -26,7 +26,7 @@ from pydrake.lcm import DrakeLcm, DrakeLcmInterface
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Diagram
 
-from diagrams.autonomous_pick import MakePickDiagram, PickWatcher
+from diagrams.autonomous_pick import PERCEIVE_AT_S, MakePickDiagram, PickWatcher
 from diagrams.hardware_station import wait_for_robot
 from diagrams.paths import REPO_ROOT
 from diagrams.pick_simulation import SAMPLE_S, PickOutcome
@@ -62,7 +62,7 @@ def run_pick_on_robot(
     diagram = MakePickDiagram(scenario, hardware=True, lcm=lcm)
     station = diagram.GetSubsystemByName("station")
     logging.info("waiting for the robot on %s", lcm.get_lcm_url())
-    wait_for_robot(scenario, lcm)
+    wait_for_robot(scenario, lcm, robot_time_s=PERCEIVE_AT_S)  # a simulated scene has settled by then
     simulator = Simulator(diagram)
     simulator.set_target_realtime_rate(1.0)
     context = simulator.get_mutable_context()

@@ -237,10 +237,10 @@ print("robot answered")
 
 @needs_namespaces
 def test_pick_with_a_spawned_driver_lifts_the_object(tmp_path):
-    """The headline command: the driver as a subprocess, both in one private loopback-only namespace."""
+    """The headline command on the default scenario (an unseen can): the driver as a subprocess,
+    both in one private loopback-only namespace."""
     report = tmp_path / "r.json"
-    command = [sys.executable, "scripts/pick.py", "--backend", "lcm", "--spawn-driver"]
-    command += ["--object", "drill", "--instance", "test_1", "--yaw", "0.0", "--json", str(report)]
+    command = [sys.executable, "scripts/pick.py", "--backend", "lcm", "--spawn-driver", "--json", str(report)]
     done = subprocess.run(command, capture_output=True, text=True, timeout=500, cwd=REPO_ROOT)
     result = json.loads(report.read_text())
     assert done.returncode == 0 and result["success"], done.stdout[-3000:] + done.stderr[-3000:]
