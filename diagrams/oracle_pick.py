@@ -30,6 +30,8 @@ CLOSE_S = 1.0
 LIFT_HEIGHT = 0.15  # m: aimed for
 MIN_LIFT_HEIGHT = 0.12  # m: lifting stops early, but not below this, where the arms run out of reach
 LIFT_STEPS = 6
+# Orientation tolerances of the hands during the lift, tried in turn, rad.
+LIFT_ANGLE_TOLERANCES = (0.08, 0.15)
 APPROACH_STEPS = 3
 HOLD_S = 2.5
 
@@ -97,7 +99,13 @@ def plan_oracle_pick(ik: DualArmIk, q_start: np.ndarray, X_WO: RigidTransform, i
     for height in np.linspace(0.0, LIFT_HEIGHT, LIFT_STEPS + 1)[1:]:
         up = RigidTransform([0.0, 0.0, height])
         targets = {side: up @ grasp_poses[side] for side in SIDES}
-        result = ik.solve(targets, q, angle_tolerance=0.08, min_distance=None, allow_half_turn=False, restarts=12)
+        # Where the hands cannot keep their orientation (the arms near the edge of their reach), let them tilt more.
+        for tolerance in LIFT_ANGLE_TOLERANCES:
+            result = ik.solve(
+                targets, q, angle_tolerance=tolerance, min_distance=None, allow_half_turn=False, restarts=12
+            )
+            if result.success:
+                break
         if not result.success:
             if lifted >= MIN_LIFT_HEIGHT:
                 break
