@@ -226,6 +226,7 @@ class PoseEstimator(LeafSystem):
         self.erode_pixels = erode_pixels
         for category in catalog.CATEGORIES:  # loaded now, not on the first image
             category_template(category)
+            catalog.mean_box_centre(category)
         self.DeclareAbstractInputPort("segmentation", AbstractValue.Make(Segmentation(False)))
         self.DeclareAbstractInputPort("depth_image", AbstractValue.Make(ImageDepth32F()))
         self.DeclareAbstractInputPort("camera_pose", AbstractValue.Make(RigidTransform()))
