@@ -2,13 +2,14 @@
 VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
-APT_PACKAGES := libusb-1.0-0 libegl1 libegl-mesa0 libgl1-mesa-dri libgl1
+APT_PACKAGES := libusb-1.0-0 libegl1 libegl-mesa0 libgl1-mesa-dri libgl1 chromium
 
 .PHONY: env apt pick test lint objects segmenter benchmark-perception clean
 
 env: apt $(STAMP)
 
-# System libraries: open3d needs libusb; VTK renders headless through EGL.
+# System packages: open3d needs libusb; VTK renders headless through EGL; the viewer test screenshots
+# meshcat with headless chromium.
 apt:
 	@missing=$$(for p in $(APT_PACKAGES); do dpkg -s $$p >/dev/null 2>&1 || echo $$p; done); \
 	if [ -n "$$missing" ]; then \

@@ -152,9 +152,17 @@ def MakeStation(scenario: Scenario, meshcat: Meshcat | None = None) -> Diagram:
 
     if meshcat is not None:
         MeshcatVisualizer.AddToBuilder(builder, scene_graph, meshcat, MeshcatVisualizerParams(role=Role.kIllustration))
+        _frame_the_table(meshcat, scenario)
     diagram = builder.Build()
     diagram.set_name("station")
     return diagram
+
+
+def _frame_the_table(meshcat: Meshcat, scenario: Scenario):
+    """Meshcat's camera in front of the robot, to its left, looking at the space between the chest and the table."""
+    x, y, _ = scenario.table_xyz
+    target = np.array([0.6 * x, y, scenario.pelvis_height - 0.15])
+    meshcat.SetCameraPose(camera_in_world=target + [1.5, 1.3, 0.55], target_in_world=target)
 
 
 def true_label_image(station: Diagram, context) -> np.ndarray:
