@@ -2,9 +2,13 @@
 
 import numpy as np
 import pytest
+import trimesh
 from pydrake.math import RigidTransform, RotationMatrix
 from scipy.spatial.transform import Rotation
 
+from diagrams.objects import catalog
+from diagrams.objects.library import load_info
+from systems.shape_registrar import shape_space_file
 from systems.shape_space.cpd import deformable_cpd, rigid_cpd
 from systems.shape_space.pca_em import pca_em
 from systems.shape_space.registration import Registrar
@@ -133,3 +137,23 @@ def test_deformable_cpd_landmarks_settle_ambiguous_correspondences():
     assert np.abs(np.linalg.norm(guided.transformed[:, :2], axis=1) - 0.1).max() < 0.005
     with pytest.raises(ValueError, match="landmarks"):
         deformable_cpd(ring, target, landmarks=(landmark, np.zeros((2, 3))))
+
+
+@pytest.mark.parametrize("category", ["watering_can", "drill"])
+@pytest.mark.parametrize("yaw_offset", [0.15, np.pi + 0.1])
+def test_registration_of_a_training_instance_from_a_full_view(category, yaw_offset):
+    """Near-exact pose, also from an initial pose turned the wrong way round (the pose estimator's flip);
+    grasps within the latent space's reach of a training instance."""
+    registrar = Registrar(ShapeSpace.load(shape_space_file(category)))
+    directory = catalog.instance_directory(category, "train_2")
+    surface = trimesh.sample.sample_surface_even(trimesh.load(directory / "visual.obj", force="mesh"), 3000, seed=1)[0]
+    X_WO = RigidTransform(RotationMatrix.MakeZRotation(0.3), [0.7, 0.05, 0.76])
+    X_WO_initial = RigidTransform(RotationMatrix.MakeZRotation(0.3 + yaw_offset), [0.71, 0.04, 0.76])
+    result = registrar.register(X_WO.multiply(surface.T).T, X_WO_initial)
+    assert np.linalg.norm(result.X_WO.translation() - X_WO.translation()) < 0.003
+    assert result.X_WO.rotation().InvertAndCompose(X_WO.rotation()).ToAngleAxis().angle() < np.radians(1.0)
+    info = load_info(directory / "info.yaml")
+    for side in ("left", "right"):
+        X_WG = X_WO @ info.grasps[side].grasp.GetDeterministicValue()
+        X_GG = X_WG.InvertAndCompose(result.grasp_poses_W[f"{side}_grasp"])
+        assert np.linalg.norm(X_GG.translation()) < 0.02 and X_GG.rotation().ToAngleAxis().angle() < np.radians(12)
