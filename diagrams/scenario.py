@@ -5,6 +5,7 @@ on the command line is merged on top of the file, field by field.
 """
 
 import dataclasses
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -97,6 +98,9 @@ class Scenario:
     random_seed: int = 0
     # The object on the table.
     object: ObjectConfig = field(default_factory=ObjectConfig)
+    # Misalignment experiment (paper §V-B, which used 0.2): the yaw of the estimated pose handed to
+    # the shape registration is turned by an offset uniform in +-this, drawn from random_seed, rad.
+    registration_yaw_noise: float = 0.0
     # Height of the robot's pelvis frame above the floor, metres.
     pelvis_height: float = 1.0
     # Table base frame position in the world (the floor under its centre), metres.
@@ -173,6 +177,8 @@ def validate(scenario: Scenario) -> None:
     for name in ("kp", "kd"):
         if len(getattr(scenario.arm_controller, name)) != 7:
             raise ValueError(f"arm_controller.{name} must have 7 entries (joints 1..7)")
+    if not 0 <= scenario.registration_yaw_noise <= math.pi:
+        raise ValueError(f"registration_yaw_noise must lie in [0, pi] rad, got {scenario.registration_yaw_noise}")
     if scenario.object.mass <= 0 or scenario.object.scale <= 0:
         raise ValueError("object.mass and object.scale must be positive")
 

@@ -1,0 +1,163 @@
+"""The paper's simulated pick experiment (§V-B) as trials, and its statistics.
+
+Each object is placed at yaw +0.25, 0 and -0.25 rad and picked K times; every trial
+has its own seed, from which the +-0.2 rad yaw offset of the pose handed to the
+registration (Scenario.registration_yaw_noise) and every other random draw come.
+A trial runs the whole autonomous pick (diagrams/autonomous_pick.py) and is judged
+on the simulator's ground truth.
+"""
+
+import dataclasses
+import logging
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from pydrake.common.yaml import yaml_dump_typed, yaml_load_typed
+
+from diagrams.objects import catalog
+from diagrams.scenario import Scenario, replace_object
+from systems.pick_sequencer import STAGES
+
+PAPER_YAWS = (0.25, 0.0, -0.25)  # rad
+PAPER_YAW_NOISE = 0.2  # rad
+# The pipeline's stages in order, then the motion itself ("execution": the plan was played but
+# the object was not lifted and held by both hands).
+COMPONENTS = STAGES[1:] + ("execution",)
+TIMED_STAGES = STAGES[1:] + ("image_to_trajectory",)
+
+
+@dataclass
+class Trial:
+    """One pick of the experiment."""
+
+    name: str  # the object's name in the report: the generated instance, or the model file's stem
+    yaw: float  # rad
+    index: int  # 0..K-1 at this object and yaw
+    scenario: Scenario
+
+    def __reduce__(self):  # for worker processes: Drake's config structs do not pickle, their YAML does
+        return _trial_from_yaml, (self.name, self.yaw, self.index, yaml_dump_typed(self.scenario))
+
+
+def _trial_from_yaml(name: str, yaw: float, index: int, scenario_yaml: str) -> Trial:
+    return Trial(name, yaw, index, yaml_load_typed(schema=Scenario, data=scenario_yaml))
+
+
+def generated_objects(category: str, split: str = "test") -> dict[str, dict]:
+    """{name: ObjectConfig changes} of a category's generated instances of one split (e.g. the 3 test cans)."""
+    return {n: {"instance": n, "file": ""} for n in catalog.instance_names(category) if n.startswith(f"{split}_")}
+
+
+def file_objects(paths: list[Path]) -> dict[str, dict]:
+    """{name: ObjectConfig changes} of a user's model files, named by their stems (made unique)."""
+    objects = {}
+    for path in paths:
+        if not path.is_file():
+            raise FileNotFoundError(f"object file not found: {path}")
+        name, n = path.stem, 1
+        while name in objects:
+            n += 1
+            name = f"{path.stem}_{n}"
+        objects[name] = {"file": str(path)}
+    return objects
+
+
+def make_trials(
+    base: Scenario,
+    category: str,
+    objects: dict[str, dict],
+    trials: int,
+    yaws=PAPER_YAWS,
+    yaw_noise: float = PAPER_YAW_NOISE,
+) -> list[Trial]:
+    """Every object at every yaw, `trials` times; trial n of the list gets the seed base.random_seed + n."""
+    if trials < 1:
+        raise ValueError(f"trials must be >= 1, got {trials}")
+    catalog.category_module(category)  # a clear error for an unknown category
+    out = []
+    for name, changes in objects.items():
+        for yaw in yaws:
+            for index in range(trials):
+                scenario = replace_object(base, category=category, yaw=float(yaw), **changes)
+                scenario = dataclasses.replace(
+                    scenario, random_seed=base.random_seed + len(out), registration_yaw_noise=yaw_noise
+                )
+                out.append(Trial(name, float(yaw), index, scenario))
+    return out
+
+
+def run_trial(trial: Trial) -> dict:
+    """Runs one autonomous pick in simulation; a JSON-ready record of what happened."""
+    from diagrams.autonomous_pick import run_pick  # (heavy: torch, the shape spaces)
+    from diagrams.oracle_pick import PlanningError
+    from systems.pose_noise import draw_yaw_offset
+
+    scenario = trial.scenario
+    record = {
+        "name": trial.name,
+        "yaw": trial.yaw,
+        "trial": trial.index,
+        "seed": scenario.random_seed,
+        "registration_yaw_offset_rad": draw_yaw_offset(scenario.registration_yaw_noise, scenario.random_seed),
+    }
+    try:
+        outcome = run_pick(scenario)
+    except (PlanningError, ValueError, FileNotFoundError) as error:  # e.g. a model that cannot be loaded
+        logging.warning("trial %s yaw %+.2f #%d: %s", trial.name, trial.yaw, trial.index, error)
+        return record | {"success": False, "failed_stage": "setup", "message": str(error), "stages": {}}
+    failed_stage = outcome.failed_stage or ("" if outcome.success else "execution")
+    return record | {
+        "success": bool(outcome.success),
+        "lift_height_m": outcome.lift_height_m,
+        "hands_in_contact": outcome.hands_in_contact,
+        "failed_stage": failed_stage,
+        "message": outcome.message,
+        "stages": outcome.stages,
+        "sim_wall_s": outcome.wall_time_s,
+    }
+
+
+def _rate(successes: int, attempts: int) -> float:
+    return successes / attempts if attempts else float("nan")
+
+
+def summarize(records: list[dict]) -> dict:
+    """Success per object (and per yaw), per pipeline component, and the stage times' statistics.
+
+    Returns a dict with success_rate, per_instance[name] = {success_rate, successes, attempts,
+    per_yaw}, components[c] = {success_rate, reached} (of the trials that reached c, the share
+    that passed it), and stages[f"{stage}_s_{mean|std|median}"] over the trials that timed it.
+    """
+    per_instance = {}
+    for name in dict.fromkeys(r["name"] for r in records):
+        mine = [r for r in records if r["name"] == name]
+        per_yaw = {}
+        for yaw in dict.fromkeys(r["yaw"] for r in mine):
+            at_yaw = [r["success"] for r in mine if r["yaw"] == yaw]
+            per_yaw[f"{yaw:+.2f}"] = _rate(sum(at_yaw), len(at_yaw))
+        successes = sum(r["success"] for r in mine)
+        per_instance[name] = {
+            "success_rate": _rate(successes, len(mine)),
+            "successes": successes,
+            "attempts": len(mine),
+            "per_yaw": per_yaw,
+        }
+    components = {}
+    reached = [r for r in records if r["failed_stage"] != "setup"]
+    for component in COMPONENTS:
+        failed = sum(r["failed_stage"] == component for r in reached)
+        components[component] = {"success_rate": _rate(len(reached) - failed, len(reached)), "reached": len(reached)}
+        reached = [r for r in reached if r["failed_stage"] != component]
+    stages = {}
+    for stage in TIMED_STAGES:
+        seconds = np.array([r["stages"][stage] for r in records if stage in r["stages"]])
+        for statistic, value in (("mean", np.mean), ("std", np.std), ("median", np.median)):
+            stages[f"{stage}_s_{statistic}"] = float(value(seconds)) if len(seconds) else float("nan")
+    return {
+        "success_rate": _rate(sum(r["success"] for r in records), len(records)),
+        "trials": len(records),
+        "per_instance": per_instance,
+        "components": components,
+        "stages": stages,
+    }

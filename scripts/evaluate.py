@@ -1,0 +1,263 @@
+"""The paper's simulated experiment (§V-B, Tables II and III): autonomous picks of unseen objects.
+
+Each object at yaw +0.25, 0 and -0.25 rad, K seeded trials each, with a yaw offset
+uniform in +-0.2 rad on the pose handed to the shape registration. Prints the success
+table (Table II form) and the per-component runtime table (Table III form), writes JSON
+and a PNG figure.
+
+python scripts/evaluate.py --trials 3                          # the 3 test cans, 27 picks
+python scripts/evaluate.py --trials 3 --category drill --json drills.json
+python scripts/evaluate.py --trials 2 --category watering_can --object-files my_cans/*.sdf
+python scripts/evaluate.py --trials 3 --jobs 2                 # two picks at a time (timings then share the CPU)
+"""
+
+import argparse
+import dataclasses
+import logging
+import os
+import platform
+import sys
+import time
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from multiprocessing import get_context
+from pathlib import Path
+
+from json_report import write_json
+
+from diagrams.evaluation import (
+    COMPONENTS,
+    PAPER_YAW_NOISE,
+    PAPER_YAWS,
+    TIMED_STAGES,
+    file_objects,
+    generated_objects,
+    make_trials,
+    run_trial,
+    summarize,
+)
+from diagrams.scenario import DEFAULT_SCENARIO, load_scenario
+
+# The paper's figures (Table II: the three test cans; Table III: the real robot's pipeline, s).
+PAPER_CAN_SUCCESS = {"test_0": 0.75, "test_1": 1.00, "test_2": 0.60}
+PAPER_RUNTIME_S = {"segmentation": 0.74, "pose": 0.12, "registration": 4.51, "planning": 0.96,
+                   "image_to_trajectory": 6.27}  # fmt: skip
+# What the project must reach (SPEC): success on every object.
+TARGET_SUCCESS = {"watering_can": 0.95, "drill": 0.90}
+STAGE_LABELS = {
+    "segmentation": "semantic segmentation",
+    "pose": "pose estimation",
+    "registration": "grasp generation (registration)",
+    "planning": "trajectory optimization",
+    "image_to_trajectory": "complete pipeline (image to trajectory; pick)",
+    "execution": "execution (reach, grasp, lift, hold)",
+}
+
+
+def parse_args(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--trials", type=int, default=3, help="picks per object and yaw (K)")
+    parser.add_argument("--category", default="watering_can", choices=("watering_can", "drill"))
+    parser.add_argument(
+        "--object-files", dest="object_files", type=Path, nargs="+", help="your own models instead of the test set"
+    )
+    parser.add_argument("--instances", nargs="+", help="generated instances instead of the test set (e.g. test_1)")
+    parser.add_argument("--yaws", type=float, nargs="+", default=list(PAPER_YAWS), help="object yaws, rad")
+    parser.add_argument(
+        "--yaw-noise", dest="yaw_noise", type=float, default=PAPER_YAW_NOISE, help="registration yaw noise, +-rad"
+    )
+    parser.add_argument("--jobs", type=int, default=1, help="picks run at a time (separate processes)")
+    parser.add_argument("--seed", type=int, help="seed of the first trial (trial n gets seed + n)")
+    parser.add_argument("--scenario", type=Path, default=DEFAULT_SCENARIO, help="scenario YAML file")
+    parser.add_argument("--scenario_text", default="", help="YAML overlaid on the scenario file")
+    parser.add_argument("--json", type=Path, help="write the summary and every trial as JSON")
+    parser.add_argument("--figure", type=Path, help="PNG figure (default: --json's name, .png)")
+    args = parser.parse_args(argv)
+    if args.jobs < 1:
+        parser.error("--jobs must be >= 1")
+    return args
+
+
+class ProgressBar:
+    """A one-line bar on a terminal (a line per step otherwise), with the estimated time left."""
+
+    def __init__(self, total: int, width: int = 30):
+        self.total, self.width, self.done, self.start = total, width, 0, time.perf_counter()
+        self.tty = sys.stderr.isatty()
+
+    def step(self, text: str):
+        self.done += 1
+        elapsed = time.perf_counter() - self.start
+        left = elapsed / self.done * (self.total - self.done)
+        filled = round(self.width * self.done / self.total)
+        bar = f"[{'#' * filled}{'.' * (self.width - filled)}] {self.done}/{self.total}  {left / 60:4.1f} min left"
+        if self.tty:
+            sys.stderr.write(f"\r\033[K{text}\n{bar}")
+        else:
+            sys.stderr.write(f"{bar}  {text}\n")
+        sys.stderr.flush()
+
+    def close(self):
+        if self.tty:
+            sys.stderr.write("\n")
+
+
+def describe(record: dict) -> str:
+    offset = record["registration_yaw_offset_rad"]
+    head = f"{record['name']} yaw {record['yaw']:+.2f} #{record['trial']} (offset {offset:+.3f})"
+    if record["success"]:
+        return f"{head}: SUCCESS, lift {record['lift_height_m']:.3f} m, image to trajectory " + (
+            f"{record['stages']['image_to_trajectory']:.2f} s"
+        )
+    return f"{head}: FAILED at {record['failed_stage']}: {record['message']}"
+
+
+def _quiet_worker():
+    logging.basicConfig(level=logging.WARNING, format="%(message)s", force=True)
+    import torch
+
+    torch.set_num_threads(1)
+
+
+def run_all(trials, jobs: int) -> list[dict]:
+    """Runs the trials (in order of the list in the result), `jobs` at a time, with a progress bar."""
+    bar = ProgressBar(len(trials))
+    records = [None] * len(trials)
+    if jobs == 1:
+        for n, trial in enumerate(trials):
+            records[n] = run_trial(trial)
+            bar.step(describe(records[n]))
+    else:
+        for variable in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+            os.environ.setdefault(variable, "1")  # one thread per worker: `jobs` picks share the cores
+        with ProcessPoolExecutor(jobs, mp_context=get_context("spawn"), initializer=_quiet_worker) as pool:
+            futures = {pool.submit(run_trial, trial): n for n, trial in enumerate(trials)}
+            for future in as_completed(futures):
+                records[futures[future]] = future.result()
+                bar.step(describe(records[futures[future]]))
+    bar.close()
+    return records
+
+
+def _rate_cell(rate: float, attempts: int) -> str:
+    return f"{100 * rate:.0f} % ({attempts})"
+
+
+def print_tables(summary: dict, category: str, trials: int, yaw_noise: float):
+    yaws = next(iter(summary["per_instance"].values()))["per_yaw"].keys()
+    print(f"\nSuccess rate ({category}, {trials} trial(s) per yaw, yaw noise +-{yaw_noise:.2f} rad), Table II form")
+    print(f"{'object':<16}{'success (attempts)':>20}" + "".join(f"{'yaw ' + y:>12}" for y in yaws) + f"{'paper':>8}")
+    for name, row in summary["per_instance"].items():
+        paper = PAPER_CAN_SUCCESS.get(name) if category == "watering_can" else None
+        cells = "".join(f"{100 * rate:>11.0f}%" for rate in row["per_yaw"].values())
+        paper_cell = f"{100 * paper:>7.0f}%" if paper is not None else f"{'-':>8}"
+        print(f"{name:<16}{_rate_cell(row['success_rate'], row['attempts']):>20}{cells}{paper_cell}")
+    print(f"{'all':<16}{_rate_cell(summary['success_rate'], summary['trials']):>20}")
+
+    print("\nRuntime and success per component; paper Table III form (paper: real robot)")
+    print(f"{'component':<46}{'runtime [s]':>18}{'median':>9}{'success':>10}{'paper [s]':>11}")
+    stages = summary["stages"]
+    for component in COMPONENTS + ("image_to_trajectory",):
+        if component in TIMED_STAGES:
+            mean, std = stages[f"{component}_s_mean"], stages[f"{component}_s_std"]
+            runtime, median = f"{mean:.3f} +- {std:.3f}", f"{stages[f'{component}_s_median']:.3f}"
+        else:
+            runtime = median = "-"
+        if component == "image_to_trajectory":
+            rate = summary["success_rate"]  # the complete pipeline's success is the pick's
+        else:
+            rate = summary["components"][component]["success_rate"]
+        paper = PAPER_RUNTIME_S.get(component)
+        print(
+            f"{STAGE_LABELS[component]:<46}{runtime:>18}{median:>9}{100 * rate:>8.0f} %"
+            + (f"{paper:>11.2f}" if paper else f"{'-':>11}")
+        )
+
+
+def draw_figure(path: Path, summary: dict, records: list[dict], category: str):
+    """Success per object and yaw (bars) beside the stage times (box plots, the paper's means as crosses)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    figure, (left, right) = plt.subplots(1, 2, figsize=(12, 4.5))
+    names = list(summary["per_instance"])
+    yaws = list(summary["per_instance"][names[0]]["per_yaw"])
+    width = 0.8 / len(yaws)
+    for k, yaw in enumerate(yaws):
+        rates = [100 * summary["per_instance"][n]["per_yaw"][yaw] for n in names]
+        left.bar(np.arange(len(names)) + (k - (len(yaws) - 1) / 2) * width, rates, width, label=f"yaw {yaw} rad")
+    if category in TARGET_SUCCESS:
+        left.axhline(100 * TARGET_SUCCESS[category], color="k", linestyle="--", linewidth=1, label="target")
+    if category == "watering_can":
+        paper = [100 * PAPER_CAN_SUCCESS[n] if n in PAPER_CAN_SUCCESS else np.nan for n in names]
+        left.plot(np.arange(len(names)), paper, "rx", markersize=10, label="paper (per can)")
+    left.set_xticks(np.arange(len(names)), names, rotation=20)
+    left.set_ylim(0, 130)  # room for the legend above the bars
+    left.set_yticks(range(0, 101, 20))
+    left.set_ylabel("success rate [%]")
+    left.set_title(f"{category}: {summary['trials']} picks, {100 * summary['success_rate']:.0f} % lifted")
+    left.legend(fontsize=8, loc="upper center", ncol=3)
+
+    data = [[r["stages"][s] for r in records if s in r["stages"]] for s in TIMED_STAGES]
+    shown = [k for k, d in enumerate(data) if d]
+    if shown:
+        right.boxplot([data[k] for k in shown], positions=shown)
+        right.plot(range(len(TIMED_STAGES)), [PAPER_RUNTIME_S[s] for s in TIMED_STAGES], "rx", markersize=10,
+                   label="paper (real robot)")  # fmt: skip
+    right.set_xticks(range(len(TIMED_STAGES)), ["segment.", "pose", "registr.", "planning", "image to traj."])
+    right.set_yscale("log")
+    right.set_ylabel("wall time [s]")
+    right.set_title("stage runtimes")
+    right.legend(fontsize=8)
+    figure.tight_layout()
+    figure.savefig(path, dpi=110)
+    plt.close(figure)
+    print(f"wrote {path}")
+
+
+def main(argv=None) -> int:
+    logging.basicConfig(level=logging.WARNING, format="%(message)s")
+    args = parse_args(argv)
+    try:
+        base = load_scenario(args.scenario, args.scenario_text)
+        if args.seed is not None:
+            base = dataclasses.replace(base, random_seed=args.seed)
+        if args.object_files:
+            objects = file_objects(args.object_files)
+        elif args.instances:
+            objects = {n: {"instance": n, "file": ""} for n in args.instances}
+        else:
+            objects = generated_objects(args.category)
+        trials = make_trials(base, args.category, objects, args.trials, args.yaws, args.yaw_noise)
+    except (ValueError, FileNotFoundError) as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
+    print(
+        f"{len(trials)} autonomous picks: {len(objects)} {args.category} object(s) x {len(args.yaws)} yaw(s) x "
+        f"{args.trials} trial(s), registration yaw noise +-{args.yaw_noise:.2f} rad, {args.jobs} at a time"
+    )
+    records = run_all(trials, args.jobs)
+    summary = summarize(records)
+    print_tables(summary, args.category, args.trials, args.yaw_noise)
+    report = {
+        "category": args.category,
+        "trials_per_yaw": args.trials,
+        "yaws": args.yaws,
+        "yaw_noise_rad": args.yaw_noise,
+        "first_seed": base.random_seed,
+        "jobs": args.jobs,
+        "machine": f"{platform.processor() or platform.machine()}, {platform.system()}",
+        **summary,
+        "records": records,
+    }
+    if args.json:
+        write_json(args.json, report)
+    figure = args.figure or (args.json.with_suffix(".png") if args.json else Path(f"evaluation_{args.category}.png"))
+    draw_figure(figure, summary, records, args.category)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

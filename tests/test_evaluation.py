@@ -1,0 +1,125 @@
+"""The yaw-noise system, the evaluation's trials and statistics, and scripts/evaluate.py end to end."""
+
+import dataclasses
+import json
+import pickle
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from pydrake.common.value import AbstractValue
+from pydrake.math import RigidTransform, RollPitchYaw
+
+from diagrams.autonomous_pick import MakePickDiagram
+from diagrams.evaluation import COMPONENTS, Trial, file_objects, generated_objects, make_trials, summarize
+from systems.pose_estimator import ObjectEstimate
+from systems.pose_noise import PoseYawOffset, draw_yaw_offset
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
+import evaluate  # noqa: E402
+
+
+def test_yaw_offset_is_seeded_uniform_and_bounded():
+    draws = np.array([draw_yaw_offset(0.2, seed) for seed in range(400)])
+    assert np.all(np.abs(draws) <= 0.2)
+    assert draws.min() < -0.18 and draws.max() > 0.18 and abs(draws.mean()) < 0.02  # spread over the range
+    assert draw_yaw_offset(0.2, 7) == draw_yaw_offset(0.2, 7) != draw_yaw_offset(0.2, 8)
+    assert draw_yaw_offset(0.0, 7) == 0.0
+    with pytest.raises(ValueError, match="amplitude"):
+        draw_yaw_offset(float("nan"), 0)
+
+
+def test_pose_yaw_offset_turns_the_estimate_about_the_object_origin():
+    dut = PoseYawOffset(0.15)
+    context = dut.CreateDefaultContext()
+    X_WO = RigidTransform(RollPitchYaw(0.0, 0.0, 0.4), [0.7, -0.1, 0.76])
+    points = np.random.default_rng(0).normal(size=(50, 3))
+    dut.get_input_port().FixValue(context, AbstractValue.Make(ObjectEstimate(True, "drill", X_WO, points)))
+    out = dut.get_output_port().Eval(context)
+    np.testing.assert_allclose(out.X_WO.translation(), X_WO.translation())
+    np.testing.assert_allclose(RollPitchYaw(out.X_WO.rotation()).vector(), [0.0, 0.0, 0.55], atol=1e-12)
+    np.testing.assert_array_equal(out.points_W, points)
+    assert out.category == "drill"
+
+    dut.get_input_port().FixValue(context, AbstractValue.Make(ObjectEstimate(False, message="nothing")))
+    assert not dut.get_output_port().Eval(context).found
+
+
+def test_pick_diagram_inserts_the_noise_only_when_asked(scenario):
+    assert not MakePickDiagram(scenario).HasSubsystemNamed("registration_yaw_noise")
+    noisy = MakePickDiagram(dataclasses.replace(scenario, registration_yaw_noise=0.2, random_seed=3))
+    offset = noisy.GetSubsystemByName("registration_yaw_noise").yaw_offset_rad
+    assert offset == draw_yaw_offset(0.2, 3)
+
+
+def test_trials_cover_objects_yaws_and_have_their_own_seeds(scenario):
+    trials = make_trials(scenario, "watering_can", generated_objects("watering_can"), trials=2)
+    assert len(trials) == 3 * 3 * 2
+    assert {t.name for t in trials} == {"test_0", "test_1", "test_2"}
+    assert {t.yaw for t in trials} == {0.25, 0.0, -0.25}
+    seeds = [t.scenario.random_seed for t in trials]
+    assert len(set(seeds)) == len(seeds) and seeds[0] == scenario.random_seed
+    assert all(t.scenario.registration_yaw_noise == 0.2 for t in trials)
+    assert trials[-1].scenario.object.instance == "test_2" and trials[-1].scenario.object.yaw == -0.25
+    copy = pickle.loads(pickle.dumps(trials[5]))  # the worker processes get them pickled
+    assert isinstance(copy, Trial) and copy.scenario.random_seed == trials[5].scenario.random_seed
+    assert copy.scenario.object == trials[5].scenario.object
+
+    with pytest.raises(ValueError, match="trials"):
+        make_trials(scenario, "watering_can", generated_objects("watering_can"), trials=0)
+    with pytest.raises(FileNotFoundError, match="nope.sdf"):
+        file_objects([Path("nope.sdf")])
+
+
+def _record(name, yaw, success, failed_stage="", seconds=1.0):
+    stages = {} if failed_stage == "segmentation" else {"segmentation": 0.1, "pose": 0.05}
+    if success or failed_stage == "execution":
+        stages |= {"registration": 0.2, "planning": seconds - 0.35, "image_to_trajectory": seconds}
+    return {"name": name, "yaw": yaw, "success": success, "failed_stage": failed_stage, "stages": stages}
+
+
+def test_summary_counts_success_per_object_yaw_and_component():
+    records = [
+        _record("a", 0.25, True, seconds=1.0),
+        _record("a", 0.0, True, seconds=2.0),
+        _record("a", 0.0, False, "execution", seconds=3.0),
+        _record("b", 0.25, False, "segmentation"),
+        _record("b", 0.0, False, "registration"),
+        _record("b", 0.0, True, seconds=4.0),
+    ]
+    summary = summarize(records)
+    assert summary["success_rate"] == pytest.approx(0.5) and summary["trials"] == 6
+    assert summary["per_instance"]["a"]["success_rate"] == pytest.approx(2 / 3)
+    assert summary["per_instance"]["a"]["per_yaw"] == {"+0.25": 1.0, "+0.00": 0.5}
+    assert summary["per_instance"]["b"]["attempts"] == 3 and summary["per_instance"]["b"]["successes"] == 1
+    components = summary["components"]
+    assert list(components) == list(COMPONENTS)
+    assert components["segmentation"] == {"success_rate": pytest.approx(5 / 6), "reached": 6}
+    assert components["pose"] == {"success_rate": 1.0, "reached": 5}
+    assert components["registration"] == {"success_rate": pytest.approx(4 / 5), "reached": 5}
+    assert components["execution"] == {"success_rate": pytest.approx(3 / 4), "reached": 4}
+    stages = summary["stages"]
+    assert stages["image_to_trajectory_s_median"] == pytest.approx(2.5)  # of 1, 2, 3, 4
+    assert stages["image_to_trajectory_s_mean"] == pytest.approx(2.5)
+    assert stages["image_to_trajectory_s_std"] == pytest.approx(np.std([1, 2, 3, 4]))
+    assert stages["segmentation_s_mean"] == pytest.approx(0.1)
+
+
+def test_evaluate_script_end_to_end(tmp_path, capsys):
+    """One pick of one unseen can at one yaw, with the registration's yaw noise: tables, JSON and figure."""
+    report = tmp_path / "evaluation.json"
+    assert (
+        evaluate.main(["--trials", "1", "--instances", "test_1", "--yaws", "0", "--seed", "5", "--json", str(report)])
+        == 0
+    )
+    results = json.loads(report.read_text())
+    assert results["per_instance"]["test_1"]["success_rate"] == 1.0, results["records"]
+    assert results["success_rate"] == 1.0
+    assert 0.1 < results["stages"]["image_to_trajectory_s_median"] < 30
+    (record,) = results["records"]
+    assert record["seed"] == 5 and record["registration_yaw_offset_rad"] == pytest.approx(draw_yaw_offset(0.2, 5))
+    printed = capsys.readouterr().out
+    assert "Table II form" in printed and "complete pipeline" in printed
+    png = report.with_suffix(".png").read_bytes()
+    assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 10_000
