@@ -29,12 +29,19 @@ from diagrams.station import HAND_INSTANCES, MakeStation
 from systems.joint_plan import JointPlan
 from systems.pick_sequencer import PickSequencer, PickStatus
 from systems.pose_estimator import to_point_cloud
+from systems.pose_noise import PoseYawOffset, draw_yaw_offset
 from systems.shape_registrar import GraspPoses, ShapeRegistrar
 
 # Perceive once the object has settled on the table, s.
 PERCEIVE_AT_S = 0.5
 # A pick that has not ended by then is stopped, s.
 MAX_PICK_S = 60.0
+# The hands close this much further along their approach axis z_G than the perceived grasp, m:
+# registration is off by 1-2 cm, and the fingertips reach only 2.5 cm past the grasp frame, so a
+# hand that stops short can close on the handle's edge and lose it in the lift (the paper's
+# real-robot failure, §V-C: "the approaching pose ... should be closer to the object").
+GRASP_DEPTH_MARGIN = 0.01
+DEEPER = RigidTransform([0.0, 0.0, GRASP_DEPTH_MARGIN])
 
 
 def make_pick_planner(scenario: Scenario):
@@ -42,12 +49,17 @@ def make_pick_planner(scenario: Scenario):
 
     IK on the perceived grasps (as if of an object whose frame is the world's), STOMP for
     the reach around the reconstructed cloud, straight approach, close, closed-chain lift.
+    The robot model (and its IK seed table) is built here, once.
     Raises PlanningError (a RuntimeError) naming the phase that failed.
     """
 
+    ik = DualArmIk(scenario)  # the robot model and its IK seed table: built once, not per image
+
     def plan_pick(grasps: GraspPoses, cloud_W: np.ndarray, q_now: np.ndarray) -> JointPlan:
-        ik = DualArmIk(scenario, obstacle_points_W=cloud_W if len(cloud_W) else None)
+        ik.set_obstacle_points(cloud_W if len(cloud_W) else None)
         poses = {name: Transform(X_WG) for name, X_WG in grasps.poses_W.items()}
+        for side in SIDES:
+            poses[f"{side}_grasp"] = Transform(grasps.poses_W[f"{side}_grasp"] @ DEEPER)
         info = ObjectInfo(grasps={side: HandGrasp(poses[f"{side}_pregrasp"], poses[f"{side}_grasp"]) for side in SIDES})
         plan = plan_oracle_pick(ik, q_now, RigidTransform(), info)
         plan.grasp_paths_W = _grasp_paths(ik, plan)
@@ -81,11 +93,17 @@ def MakePickDiagram(
         station = builder.AddNamedSystem("station", MakeStation(scenario, meshcat))
     segmenter, pose_estimator = AddPerception(builder, station, scenario)
     registrar = builder.AddNamedSystem("shape_registrar", ShapeRegistrar())
+    estimate_to_register = pose_estimator.GetOutputPort("estimate")
+    if scenario.registration_yaw_noise > 0:
+        offset = draw_yaw_offset(scenario.registration_yaw_noise, scenario.random_seed)
+        noise = builder.AddNamedSystem("registration_yaw_noise", PoseYawOffset(offset))
+        builder.Connect(estimate_to_register, noise.get_input_port())
+        estimate_to_register = noise.get_output_port()
     sequencer = builder.AddNamedSystem(
         "pick_sequencer", PickSequencer(make_pick_planner(scenario), OPEN_WIDTH, PERCEIVE_AT_S)
     )
     camera = scenario.camera.name
-    builder.Connect(pose_estimator.GetOutputPort("estimate"), registrar.GetInputPort("estimate"))
+    builder.Connect(estimate_to_register, registrar.GetInputPort("estimate"))
     for port, source in (
         ("color_image", station.GetOutputPort(f"{camera}.rgb_image")),
         ("depth_image", station.GetOutputPort(f"{camera}.depth_image")),

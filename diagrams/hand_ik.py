@@ -142,6 +142,12 @@ class DualArmIk:
             seeds.append(q)
         return seeds
 
+    def set_obstacle_points(self, points_W: np.ndarray | None):
+        """The object as seen (N x 3 in W, or None) for the plans that follow: the robot model and
+        its seed table are kept, only the obstacles change."""
+        self.obstacle_points_W = points_W
+        self.__dict__.pop("planning_obstacles", None)  # (a cached_property: rebuilt on next use)
+
     def full_positions(self, q_arms: np.ndarray) -> np.ndarray:
         q = self.q_default.copy()
         q[self.arm_indices] = q_arms

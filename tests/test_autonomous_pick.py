@@ -3,13 +3,25 @@
 
 import numpy as np
 import pytest
+import trimesh
 from pydrake.common.value import AbstractValue
 from pydrake.geometry import Meshcat, MeshcatParams
 from pydrake.math import RigidTransform
 from pydrake.systems.analysis import Simulator
 
-from diagrams.autonomous_pick import PERCEIVE_AT_S, MakePickDiagram, draw_perception, run_pick
+from diagrams.autonomous_pick import (
+    GRASP_DEPTH_MARGIN,
+    PERCEIVE_AT_S,
+    MakePickDiagram,
+    draw_perception,
+    make_pick_planner,
+    run_pick,
+)
+from diagrams.hand_ik import DualArmIk
+from diagrams.objects.library import resolve_object
+from diagrams.oracle_pick import world_grasps
 from diagrams.scenario import replace_object
+from diagrams.station import object_pose_on_table
 from systems.joint_plan import JointPlan
 from systems.pick_sequencer import PickSequencer, PickStatus
 from systems.pose_estimator import ObjectEstimate
@@ -120,6 +132,28 @@ def test_viewer_draws_what_the_plan_was_made_from():
     draw_perception(meshcat, status)
     for path in ("camera_points", "reconstruction", "grasp_path_left", "grasp_path_right"):
         assert meshcat.HasPath(f"/drake/perception/{path}")
+
+
+def test_pick_planner_closes_the_hands_deeper_than_the_perceived_grasp(scenario):
+    """The grasp targets are the perceived ones moved GRASP_DEPTH_MARGIN along each hand's approach axis;
+    one planner (one robot model) plans for successive clouds."""
+    model = resolve_object(scenario.object)
+    X_WO = object_pose_on_table(scenario, model)
+    poses = {
+        f"{side}_{kind}": X
+        for kind in ("pregrasp", "grasp")
+        for side, X in world_grasps(X_WO, model.info, kind).items()
+    }
+    plan_pick = make_pick_planner(scenario)
+    q0 = np.array(scenario.initial_arm_positions)
+    surface = X_WO.multiply(trimesh.load(model.model_file.parent / "visual.obj", force="mesh").sample(2000).T).T
+    for cloud in (surface, np.zeros((0, 3))):
+        plan = plan_pick(GraspPoses(True, poses), cloud, q0)
+        reached = DualArmIk(scenario).grasp_frame_poses(plan.configuration_at("approach"))
+        for side in ("left", "right"):
+            X_GR = poses[f"{side}_grasp"].InvertAndCompose(reached[side])
+            # (within the IK's position tolerance: a 2 mm box in W)
+            assert np.linalg.norm(X_GR.translation() - [0, 0, GRASP_DEPTH_MARGIN]) < 0.002 * np.sqrt(3) + 1e-4
 
 
 def test_pick_diagram_structure(scenario):
