@@ -103,3 +103,26 @@ def test_extra_instances_on_demand(tmp_path, monkeypatch):
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
     model = resolve_object(ObjectConfig(category="drill", instance="extra_42"))
     assert model.model_file.is_file() and model.info.name == "extra_42"
+
+
+def test_a_users_mesh_becomes_a_model_placed_like_the_category(tmp_path, monkeypatch):
+    """Any origin and units in, a model on its bottom face with its extent centred like the category's out."""
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    mesh = catalog.generate("watering_can", "extra_7").visual_mesh()
+    mesh.apply_translation([300.0, -200.0, 50.0])  # a stranger's origin ...
+    mesh.apply_scale(1000.0)  # ... in millimetres
+    mesh.export(tmp_path / "my_can.obj")
+    config = ObjectConfig(category="watering_can", file=str(tmp_path / "my_can.obj"), mass=0.8, scale=0.001)
+    model = resolve_object(config)
+    converted = trimesh.load(model.model_file.parent / "visual.obj", force="mesh")
+    lo, hi = converted.bounds
+    assert lo[2] == pytest.approx(0.0, abs=1e-6)
+    np.testing.assert_allclose((lo + hi)[:2] / 2, catalog.mean_box_centre("watering_can"), atol=1e-6)
+    np.testing.assert_allclose(hi - lo, (mesh.bounds[1] - mesh.bounds[0]) / 1000, rtol=1e-6)
+    assert list(model.model_file.parent.glob("collision_*.obj")) and model.info is None
+
+    with pytest.raises(FileNotFoundError, match="nope.obj"):
+        resolve_object(ObjectConfig(file=str(tmp_path / "nope.obj")))
+    (tmp_path / "notes.txt").write_text("not a model")
+    with pytest.raises(ValueError, match="unsupported object file"):
+        resolve_object(ObjectConfig(file=str(tmp_path / "notes.txt")))

@@ -93,15 +93,18 @@ def _user_model(path: Path, config, yaw: float) -> ObjectModel:
         return ObjectModel(path, info, yaw)
     if suffix not in MESH_SUFFIXES:
         raise ValueError(f"unsupported object file {path.name}: use one of {MODEL_SUFFIXES + MESH_SUFFIXES}")
-    return ObjectModel(mesh_to_sdf(path, config.mass, config.scale), info, yaw)
+    return ObjectModel(mesh_to_sdf(path, config.mass, config.scale, config.category), info, yaw)
 
 
-def mesh_to_sdf(path: Path, mass: float, scale: float) -> Path:
+def mesh_to_sdf(path: Path, mass: float, scale: float, category: str) -> Path:
     """Converts a mesh into a cached SDF with convex collision pieces; returns the SDF path.
 
-    The mesh is taken as z up; its frame is moved to the centre of its bottom face.
+    The mesh is taken as z up and x along the category's functional axis (can: spout). Its
+    frame is moved onto its bottom face, with the centre of its extent where the category's
+    training instances have theirs (catalog.mean_box_centre): a scenario's object.xy then
+    puts a user's can where it puts a generated one.
     """
-    digest = hashlib.sha256(path.read_bytes() + f"{mass}:{scale}".encode()).hexdigest()[:16]
+    digest = hashlib.sha256(path.read_bytes() + f"{mass}:{scale}:{category}".encode()).hexdigest()[:16]
     directory = cache_dir() / "user_objects" / f"{path.stem}_{digest}"
     sdf_path = directory / "model.sdf"
     if sdf_path.is_file():
@@ -111,7 +114,8 @@ def mesh_to_sdf(path: Path, mass: float, scale: float) -> Path:
         raise ValueError(f"{path} holds no triangle mesh")
     mesh.apply_scale(scale)
     lo, hi = mesh.bounds
-    mesh.apply_translation([-(lo[0] + hi[0]) / 2, -(lo[1] + hi[1]) / 2, -lo[2]])
+    box_centre_xy = catalog.mean_box_centre(category)
+    mesh.apply_translation([box_centre_xy[0] - (lo[0] + hi[0]) / 2, box_centre_xy[1] - (lo[1] + hi[1]) / 2, -lo[2]])
     pieces = convex_decomposition(mesh)
     directory.mkdir(parents=True, exist_ok=True)
     export_obj(mesh, directory / "visual.obj")
