@@ -7,7 +7,6 @@ where it stands: a MultibodyPlant built from the same files as the station.
 import functools
 import hashlib
 import itertools
-import os
 from dataclasses import dataclass
 
 import numpy as np
@@ -21,7 +20,7 @@ from pydrake.solvers import Solve
 from pydrake.systems.framework import DiagramBuilder
 
 from diagrams.centauro_description import joint_names
-from diagrams.objects.library import ObjectModel, cache_dir
+from diagrams.objects.library import ObjectModel, cache_dir, save_npz_atomically
 from diagrams.paths import SDF_DIR
 from diagrams.scenario import Scenario
 from diagrams.station import HAND_INSTANCES, AddCentauro, AddTable, make_parser
@@ -103,10 +102,7 @@ class DualArmIk:
                 self._seed_poses = {side: data[side] for side in SIDES}
             return
         self._build_seed_table(scenario.random_seed, SEED_SAMPLES)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        partial = path.with_suffix(f".{os.getpid()}.tmp.npz")
-        np.savez(partial, q=self._seed_q, **self._seed_poses)
-        os.replace(partial, path)  # atomic: a concurrent run reads the whole file or none
+        save_npz_atomically(path, q=self._seed_q, **self._seed_poses)
 
     def _build_seed_table(self, seed: int, samples: int = SEED_SAMPLES):
         """Random collision-free arm configurations and the grasp frame poses they reach.

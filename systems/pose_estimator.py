@@ -18,7 +18,6 @@ spout / chuck; see diagrams/objects/).
 
 import functools
 import hashlib
-import os
 from dataclasses import dataclass, field
 
 import cv2
@@ -32,7 +31,7 @@ from pydrake.systems.sensors import CameraInfo, ImageDepth32F
 from scipy.spatial import cKDTree
 
 from diagrams.objects import catalog
-from diagrams.objects.library import cache_dir
+from diagrams.objects.library import cache_dir, save_npz_atomically
 from systems.segmenter import Segmentation
 
 MIN_POINTS = 50
@@ -123,10 +122,7 @@ def category_template(category: str, count: int = 3000) -> tuple[np.ndarray, Nea
         with np.load(path) as data:
             return points, NearestPointField(points, index=data["index"])
     field = NearestPointField(points)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    partial = path.with_suffix(f".{os.getpid()}.tmp.npz")
-    np.savez_compressed(partial, index=field.index)
-    os.replace(partial, path)  # atomic: a concurrent run reads the whole file or none
+    save_npz_atomically(path, index=field.index)
     return points, field
 
 

@@ -40,6 +40,14 @@ def cache_dir() -> Path:
     return Path(root) / "dualarm"
 
 
+def save_npz_atomically(path: Path, **arrays: np.ndarray) -> None:
+    """np.savez_compressed to `path` through a temporary file: a concurrent reader sees the whole file or none."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    partial = path.with_suffix(f".{os.getpid()}.tmp.npz")
+    np.savez_compressed(partial, **arrays)
+    os.replace(partial, path)
+
+
 def load_info(path: Path) -> ObjectInfo:
     try:
         return yaml_load_typed(schema=ObjectInfo, data=path.read_text())
