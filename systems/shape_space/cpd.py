@@ -135,6 +135,10 @@ class FieldInterpolator:
         coefficients = scipy.linalg.cho_solve(self.factor, values)
         return gaussian_kernel(np.atleast_2d(points), self.anchors, self.beta) @ coefficients
 
+    def weights(self, points: np.ndarray) -> np.ndarray:
+        """K x M: the field at `points` is weights @ values, for any values at the anchors (it is linear)."""
+        return scipy.linalg.cho_solve(self.factor, gaussian_kernel(self.anchors, np.atleast_2d(points), self.beta)).T
+
 
 def top_eigenpairs(G: np.ndarray, rank: int, power_iterations: int = 2) -> tuple[np.ndarray, np.ndarray]:
     """The `rank` largest eigenpairs (ascending) of a symmetric PSD matrix, by randomised subspace iteration.
@@ -160,7 +164,6 @@ def gaussian_kernel(A: np.ndarray, B: np.ndarray, beta: float) -> np.ndarray:
 @dataclass
 class DeformableResult:
     source: np.ndarray  # Y, M x D
-    W: np.ndarray  # M x D coefficients of the displacement field (without landmarks' own)
     beta: float
     transformed: np.ndarray  # Y + G W
     sigma2: float
@@ -200,7 +203,7 @@ def deformable_cpd(
         landmarks: optional known correspondences (L x D points in the source's frame, L x D
             where the field must take them), e.g. a grasp point annotated on both shapes. They
             join the field's points and pull on it like `landmark_weight` fully matched target
-            points each; the result's source, W and transformed leave them out.
+            points each; the result's source and transformed leave them out.
     """
     X, Y = _check(target, "target"), _check(source, "source")
     M, D = Y.shape
@@ -239,4 +242,4 @@ def deformable_cpd(
         sigma2 = max(sigma2, 1e-12)
         if abs(previous - sigma2) <= tolerance * previous:
             break
-    return DeformableResult(Y[:M], W[:M], beta, T[:M], sigma2, iteration)
+    return DeformableResult(Y[:M], beta, T[:M], sigma2, iteration)

@@ -77,8 +77,8 @@ class Registrar:
         M = len(space.canonical_points)
         self.model_index = np.linspace(0, M - 1, min(MODEL_POINTS, M)).astype(int)
         components = space.pca.components.reshape(len(space.pca.variances), M, 3)
-        self.Y = space.canonical_points[self.model_index]
-        self.mean = space.pca.mean.reshape(M, 3)[self.model_index]
+        # The model points at z = 0: the canonical points moved by the mean field, m x 3 in O.
+        self.mean_shape = (space.canonical_points + space.pca.mean.reshape(M, 3))[self.model_index]
         self.B = np.transpose(components[:, self.model_index, :], (1, 2, 0))  # m x 3 x q
         self.inverse_variances = 1.0 / np.maximum(space.pca.variances, 1e-12)
 
@@ -109,12 +109,12 @@ class Registrar:
         q = len(self.inverse_variances)
         z = np.zeros(q)
         sigma2 = INITIAL_SIGMA**2
-        M = len(self.Y)
+        M = len(self.mean_shape)
         # Upright: turn about z only, and the origin stays on the support surface (the initial height).
         rotation_dofs = [2] if self.upright else [0, 1, 2]
         translation_dofs = [0, 1] if self.upright else [0, 1, 2]
         t0 = t.copy()
-        RS = (self.Y + self.mean) @ R.T  # the model in O turned into W's axes, m x 3 (z = 0)
+        RS = self.mean_shape @ R.T  # the model in O turned into W's axes, m x 3 (z = 0)
         model = RS + t
         squared = cdist(model, X, "sqeuclidean")
         translation_jacobian = np.broadcast_to(np.eye(3)[:, translation_dofs], (M, 3, len(translation_dofs)))
@@ -146,7 +146,7 @@ class Registrar:
             R = Rotation.from_rotvec(omega).as_matrix() @ R
             t[translation_dofs] += step[moved]
             z = z + step[latent]
-            RS = (self.Y + self.mean + self.B @ z) @ R.T
+            RS = (self.mean_shape + self.B @ z) @ R.T
             model = RS + t
             squared = cdist(model, X, "sqeuclidean")
             sigma2 = max(float((P * squared).sum() / (3 * Np)), 1e-8)

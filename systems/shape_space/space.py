@@ -54,7 +54,18 @@ class ShapeSpace:
 
     def reconstruct(self, latent: np.ndarray) -> np.ndarray:
         """The whole inferred surface (K x 3, in O): the dense canonical surface carried by the field."""
-        return self.warp_points(latent, self.canonical_surface)
+        at_zero, per_component = self._surface_warp
+        return at_zero + np.tensordot(np.ravel(latent), per_component, axes=1)
+
+    @functools.cached_property
+    def _surface_warp(self) -> tuple[np.ndarray, np.ndarray]:
+        """reconstruct() is affine in the latent vector: the surface at z = 0 (K x 3), and what each
+        latent component adds to it (q x K x 3). Computed once, not per registration."""
+        M = len(self.canonical_points)
+        weights = self._interpolator.weights(self.canonical_surface)  # K x M
+        at_zero = self.canonical_surface + weights @ self.pca.mean.reshape(M, 3)
+        per_component = np.einsum("km,qmd->qkd", weights, self.pca.components.reshape(-1, M, 3))
+        return at_zero, per_component
 
     def warp_points(self, latent: np.ndarray, points: np.ndarray) -> np.ndarray:
         """Any points (K x 3, in the canonical O) carried by the field at `latent`."""
@@ -68,8 +79,7 @@ class ShapeSpace:
     def warp_pose(self, latent: np.ndarray, X_OG: RigidTransform) -> RigidTransform:
         """A control pose carried by the field: its origin moves with the field, and it turns by the
         rotation that best fits (Kabsch) how the field moves a small star of points around it."""
-        p = X_OG.translation()
-        star = p + FRAME_PROBE * np.vstack([np.zeros(3), np.eye(3), -np.eye(3)]) @ X_OG.rotation().matrix().T
+        star = grasp_landmarks(X_OG, FRAME_PROBE)
         moved = self.warp_points(latent, star)
         turn, _ = Rotation.align_vectors(moved - moved.mean(axis=0), star - star.mean(axis=0))
         return RigidTransform(RotationMatrix(turn.as_matrix()) @ X_OG.rotation(), moved[0])
@@ -145,9 +155,9 @@ def choose_canonical(clouds: dict[str, np.ndarray]) -> str:
     return min(cost, key=cost.get)
 
 
-def grasp_landmarks(X_OG: RigidTransform) -> np.ndarray:
-    """A grasp frame as 7 points (in O): its origin and +-LANDMARK_PROBE along each of its axes."""
-    star = LANDMARK_PROBE * np.vstack([np.zeros(3), np.eye(3), -np.eye(3)])
+def grasp_landmarks(X_OG: RigidTransform, radius: float = LANDMARK_PROBE) -> np.ndarray:
+    """A grasp frame as 7 points (in O): its origin and +-radius along each of its axes."""
+    star = radius * np.vstack([np.zeros(3), np.eye(3), -np.eye(3)])
     return X_OG.multiply(star.T).T
 
 
