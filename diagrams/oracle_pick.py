@@ -18,10 +18,8 @@ from pydrake.math import RigidTransform
 
 from diagrams.hand_ik import SIDES, DualArmIk
 from diagrams.objects.instance import ObjectInfo
-from systems.joint_plan import JointPlan
+from systems.joint_plan import JointPlan, move_duration
 
-# Fraction of each joint's velocity limit used by the plan's peak speed.
-SPEED_FRACTION = 0.25
 # Shortest duration of one move between keyframes, seconds.
 MIN_SEGMENT_S = 0.8
 OPEN_WIDTH = 0.1  # m
@@ -38,15 +36,6 @@ HOLD_S = 2.5
 
 class PlanningError(RuntimeError):
     """No plan: names the phase that failed and why."""
-
-
-def move_duration(q_from, q_to, velocity_limits) -> float:
-    """Duration of a zero-velocity-to-zero-velocity cubic that peaks at SPEED_FRACTION of the limits.
-
-    A cubic Hermite segment with zero end velocities peaks at 1.5 * |dq| / T.
-    """
-    dq = np.abs(np.asarray(q_to) - np.asarray(q_from))
-    return max(MIN_SEGMENT_S, float(np.max(1.5 * dq / (SPEED_FRACTION * velocity_limits))))
 
 
 def world_grasps(X_WO: RigidTransform, info: ObjectInfo, kind: str) -> dict[str, RigidTransform]:
@@ -67,7 +56,7 @@ def plan_oracle_pick(ik: DualArmIk, q_start: np.ndarray, X_WO: RigidTransform, i
     if not pregrasp.success:
         raise PlanningError(f"pre-grasp: no collision-free IK solution ({pregrasp.message})")
     for q in _reach_path(ik, q_start, pregrasp.q):
-        plan.append(q, OPEN_WIDTH, move_duration(plan.arm_q[-1], q, ik.velocity_limits))
+        plan.append(q, OPEN_WIDTH, move_duration(plan.arm_q[-1], q, ik.velocity_limits, MIN_SEGMENT_S))
     plan.phases["reach"] = plan.duration
 
     # Straight approach along each hand's z axis, keeping the solution branch.
@@ -86,7 +75,7 @@ def plan_oracle_pick(ik: DualArmIk, q_start: np.ndarray, X_WO: RigidTransform, i
         result = ik.solve(targets, q, min_distance=None, allow_half_turn=False, restarts=0)
         if not result.success:
             raise PlanningError(f"approach step {step}: IK failed ({result.message})")
-        plan.append(result.q, OPEN_WIDTH, move_duration(q, result.q, ik.velocity_limits))
+        plan.append(result.q, OPEN_WIDTH, move_duration(q, result.q, ik.velocity_limits, MIN_SEGMENT_S))
         q = result.q
     plan.phases["approach"] = plan.duration
     plan.append(q, CLOSED_WIDTH, CLOSE_S)
@@ -110,7 +99,7 @@ def plan_oracle_pick(ik: DualArmIk, q_start: np.ndarray, X_WO: RigidTransform, i
             if lifted >= MIN_LIFT_HEIGHT:
                 break
             raise PlanningError(f"lift to {height:.3f} m: IK failed ({result.message})")
-        plan.append(result.q, CLOSED_WIDTH, move_duration(q, result.q, ik.velocity_limits))
+        plan.append(result.q, CLOSED_WIDTH, move_duration(q, result.q, ik.velocity_limits, MIN_SEGMENT_S))
         q, lifted = result.q, height
     plan.phases["lift"] = plan.duration
     plan.append(q, CLOSED_WIDTH, HOLD_S)

@@ -7,6 +7,7 @@ controllers; before a plan arrives, and after a failed one, it holds the
 configuration it was told to hold. A failed plan is reported, never executed.
 """
 
+import itertools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -14,11 +15,11 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import BasicVector, EventStatus, LeafSystem
 from pydrake.trajectories import PiecewisePolynomial
 
+from systems.joint_plan import move_duration
 from systems.planning.closure import ClosureConstraint
 from systems.planning.stomp import Obstacles, Stomp
 
-SPEED_FRACTION = 0.25  # of each joint's velocity limit, between keyframes
-MIN_SEGMENT_S = 0.1
+MIN_SEGMENT_S = 0.1  # s: STOMP's keyframes are close together
 
 
 @dataclass
@@ -42,8 +43,7 @@ class PlanResult:
 def time_parameterise(keyframes: np.ndarray, velocity_limits: np.ndarray, start_time: float) -> PiecewisePolynomial:
     """A shape-preserving cubic through the keyframes (no overshoot: it stays within their range),
     each segment long enough to move at SPEED_FRACTION of the velocity limits, at rest at both ends."""
-    steps = np.abs(np.diff(keyframes, axis=0)) / (SPEED_FRACTION * velocity_limits)
-    durations = np.maximum(steps.max(axis=1), MIN_SEGMENT_S)
+    durations = [move_duration(a, b, velocity_limits, MIN_SEGMENT_S) for a, b in itertools.pairwise(keyframes)]
     times = start_time + np.concatenate([[0.0], np.cumsum(durations)])
     return PiecewisePolynomial.CubicShapePreserving(times, keyframes.T, zero_end_point_derivatives=True)
 
