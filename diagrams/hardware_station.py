@@ -180,24 +180,38 @@ def wait_for_robot(scenario: Scenario, lcm: DrakeLcmInterface, robot_time_s: flo
         RobotNotResponding: naming the silent channels, after scenario.hardware.status_timeout_s.
     """
     config = scenario.hardware
-    channels = [config.arm_status_channel, config.left_hand_status_channel, config.right_hand_status_channel]
-    counts = dict.fromkeys([*channels, config.camera_channel], 0)
+    decoders = {
+        config.arm_status_channel: decode_arm_status,
+        config.left_hand_status_channel: decode_hand_status,
+        config.right_hand_status_channel: decode_hand_status,
+        config.camera_channel: decode_images,
+    }
+    counts = dict.fromkeys(decoders, 0)  # valid messages only: a malformed one is no sign of a working robot
     robot_clock = {"s": -math.inf}
+    waiting = True  # (DrakeLcm cannot unsubscribe: afterwards the callbacks return at once)
 
     def count(channel, data):
-        counts[channel] += 1
-        if channel == config.arm_status_channel:
-            with contextlib.suppress(MalformedMessage):
-                robot_clock["s"] = decode_arm_status(RawMessage(data, counts[channel]))[0] / 1e6
+        if not waiting:
+            return
+        with contextlib.suppress(MalformedMessage):
+            utime, _ = decoders[channel](RawMessage(data, counts[channel] + 1))
+            counts[channel] += 1
+            if channel == config.arm_status_channel:
+                robot_clock["s"] = utime / 1e6
 
     for channel in counts:
         lcm.Subscribe(channel, functools.partial(count, channel))
     deadline = time.monotonic() + config.status_timeout_s
-    while (silent := sorted(channel for channel, n in counts.items() if n == 0)) or robot_clock["s"] < robot_time_s:
-        if time.monotonic() > deadline:
-            problem = f"no message on {', '.join(silent)}" if silent else f"its clock not yet at {robot_time_s} s"
-            raise RobotNotResponding(
-                f"after {config.status_timeout_s:.1f} s, {problem} ({lcm.get_lcm_url()}): "
-                "is the robot (or scripts/robot_driver.py) running on this LCM bus?"
-            )
-        lcm.HandleSubscriptions(10)
+    try:
+        while (silent := sorted(c for c, n in counts.items() if n == 0)) or robot_clock["s"] < robot_time_s:
+            if time.monotonic() > deadline:
+                problem = (
+                    f"no valid message on {', '.join(silent)}" if silent else f"its clock not yet at {robot_time_s} s"
+                )
+                raise RobotNotResponding(
+                    f"after {config.status_timeout_s:.1f} s, {problem} ({lcm.get_lcm_url()}): "
+                    "is the robot (or scripts/robot_driver.py) running on this LCM bus?"
+                )
+            lcm.HandleSubscriptions(10)
+    finally:
+        waiting = False

@@ -110,6 +110,34 @@ def test_no_driver_gives_a_clear_timeout_naming_the_channels(scenario):
         wait_for_robot(quick, DrakeLcm("memq://"))
 
 
+class ScriptedBus:
+    """Stands in for DrakeLcm in wait_for_robot: every HandleSubscriptions delivers the same messages."""
+
+    def __init__(self, messages: dict[str, bytes]):
+        self.messages, self.handlers = messages, {}
+
+    def Subscribe(self, channel, handler):
+        self.handlers[channel] = handler
+
+    def HandleSubscriptions(self, timeout_ms):
+        for channel, data in self.messages.items():
+            self.handlers[channel](data)
+        return len(self.messages)
+
+    def get_lcm_url(self):
+        return "scripted://"
+
+
+def test_waiting_for_the_robot_counts_only_valid_messages(scenario):
+    """A valid arm status beside garbage on the hand and camera channels is not a working robot."""
+    config = dataclasses.replace(scenario.hardware, status_timeout_s=0.1)
+    quick = dataclasses.replace(scenario, hardware=config)
+    garbage = {c: b"garbage" for c in (config.left_hand_status_channel, config.right_hand_status_channel)}
+    bus = ScriptedBus({config.arm_status_channel: status_message(np.zeros(14)).encode(), **garbage})
+    with pytest.raises(RobotNotResponding, match="no valid message on CAMERA0_IMAGES, LEFT_HAND_STATUS, RIGHT_HAND"):
+        wait_for_robot(quick, bus)
+
+
 class FakeRobot:
     """Publishes arm and hand status on a memq bus by hand, to drive the hardware station alone."""
 
