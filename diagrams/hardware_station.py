@@ -30,7 +30,7 @@ from pydrake.math import RigidTransform
 from pydrake.multibody.plant import AddMultibodyPlantSceneGraph
 from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.systems.lcm import LcmInterfaceSystem, LcmPublisherSystem, LcmSubscriberSystem
-from pydrake.systems.primitives import ConstantValueSource, Demultiplexer, Multiplexer, PassThrough
+from pydrake.systems.primitives import ConstantValueSource, Demultiplexer, Multiplexer
 
 from diagrams.centauro_description import joint_names
 from diagrams.scenario import Scenario
@@ -97,9 +97,7 @@ def MakeHardwareStation(scenario: Scenario, lcm: DrakeLcmInterface | None = None
     )
     builder.Connect(fields.get_output_port(1), guard.GetInputPort("measured"))
     builder.Connect(status.GetOutputPort("health"), guard.GetInputPort("status_health"))
-    command = builder.AddNamedSystem("centauro.command", PassThrough(14))
-    builder.ExportInput(command.get_input_port(), "centauro.position")
-    builder.Connect(command.get_output_port(), guard.GetInputPort("desired"))
+    builder.ExportInput(guard.GetInputPort("desired"), "centauro.position")
     sender = builder.AddNamedSystem("centauro.command_sender", IiwaCommandSender(14, IiwaControlMode.kPositionOnly))
     builder.Connect(guard.GetOutputPort("command"), sender.GetInputPort("position"))
     _AddPublisher(builder, lcm, sender, config.arm_command_channel, lcmt_iiwa_command, period)
