@@ -34,12 +34,7 @@ DEPTH_NOISE = 0.002  # m, standard deviation
 
 
 def true_grasps(category: str, instance: str):
-    info = load_info(catalog.instance_directory(category, instance) / "info.yaml")
-    return {
-        f"{side}_{kind}": getattr(info.grasps[side], kind).GetDeterministicValue()
-        for side in ("left", "right")
-        for kind in ("pregrasp", "grasp")
-    }
+    return load_info(catalog.instance_directory(category, instance) / "info.yaml").control_poses()
 
 
 def pose_errors(X_est, X_true) -> tuple[float, float]:

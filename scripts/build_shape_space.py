@@ -64,12 +64,7 @@ def generated_instances(category: str, extra: int):
     for name in names:
         directory = generated_instance_directory(category, name)
         clouds[name] = sample_mesh(directory / "visual.obj")
-        info = load_info(directory / "info.yaml")
-        poses[name] = {
-            f"{side}_{kind}": getattr(info.grasps[side], kind).GetDeterministicValue()
-            for side in ("left", "right")
-            for kind in ("pregrasp", "grasp")
-        }
+        poses[name] = load_info(directory / "info.yaml").control_poses()
     return clouds, poses
 
 

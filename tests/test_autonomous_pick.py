@@ -19,7 +19,6 @@ from diagrams.autonomous_pick import (
 )
 from diagrams.hand_ik import DualArmIk
 from diagrams.objects.library import resolve_object
-from diagrams.oracle_pick import world_grasps
 from diagrams.scenario import replace_object
 from diagrams.station import object_pose_on_table
 from systems.joint_plan import JointPlan
@@ -139,14 +138,11 @@ def test_pick_planner_closes_the_hands_deeper_than_the_perceived_grasp(scenario)
     one planner (one robot model) plans for successive clouds."""
     model = resolve_object(scenario.object)
     X_WO = object_pose_on_table(scenario, model)
-    poses = {
-        f"{side}_{kind}": X
-        for kind in ("pregrasp", "grasp")
-        for side, X in world_grasps(X_WO, model.info, kind).items()
-    }
+    poses = {name: X_WO @ X_OG for name, X_OG in model.info.control_poses().items()}
     plan_pick = make_pick_planner(scenario)
     q0 = np.array(scenario.initial_arm_positions)
-    surface = X_WO.multiply(trimesh.load(model.model_file.parent / "visual.obj", force="mesh").sample(2000).T).T
+    mesh = trimesh.load(model.model_file.parent / "visual.obj", force="mesh")
+    surface = X_WO.multiply(trimesh.sample.sample_surface_even(mesh, 2000, seed=0)[0].T).T
     for cloud in (surface, np.zeros((0, 3))):
         plan = plan_pick(GraspPoses(True, poses), cloud, q0)
         reached = DualArmIk(scenario).grasp_frame_poses(plan.configuration_at("approach"))

@@ -59,6 +59,14 @@ class ObjectInfo:
     # Ground-truth grasps keyed by hand: "left" and "right".
     grasps: dict[str, HandGrasp] = field(default_factory=dict)
 
+    def control_poses(self) -> dict[str, RigidTransform]:
+        """X_OG by control pose name, "<side>_pregrasp" and "<side>_grasp" (as in a shape space)."""
+        return {
+            f"{side}_{kind}": getattr(grasp, kind).GetDeterministicValue()
+            for side, grasp in self.grasps.items()
+            for kind in ("pregrasp", "grasp")
+        }
+
 
 def make_grasp(point, approach, handle_axis) -> HandGrasp:
     """Builds a HandGrasp from the grasp point, approach direction and handle axis (all in O)."""
