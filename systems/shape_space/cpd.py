@@ -135,10 +135,6 @@ class FieldInterpolator:
         coefficients = scipy.linalg.cho_solve(self.factor, values)
         return gaussian_kernel(np.atleast_2d(points), self.anchors, self.beta) @ coefficients
 
-    def weights(self, points: np.ndarray) -> np.ndarray:
-        """K x M: the field at `points` is weights @ values, for any values at the anchors (it is linear)."""
-        return scipy.linalg.cho_solve(self.factor, gaussian_kernel(self.anchors, np.atleast_2d(points), self.beta)).T
-
 
 def top_eigenpairs(G: np.ndarray, rank: int, power_iterations: int = 2) -> tuple[np.ndarray, np.ndarray]:
     """The `rank` largest eigenpairs (ascending) of a symmetric PSD matrix, by randomised subspace iteration.

@@ -81,6 +81,7 @@ class Registrar:
         self.mean_shape = (space.canonical_points + space.pca.mean.reshape(M, 3))[self.model_index]
         self.B = np.transpose(components[:, self.model_index, :], (1, 2, 0))  # m x 3 x q
         self.inverse_variances = 1.0 / np.maximum(space.pca.variances, 1e-12)
+        space.reconstruct(np.zeros(space.latent_size))  # its one-off precomputation now, not in the first register()
 
     def register(self, observed_W: np.ndarray, X_WO_initial: RigidTransform) -> Registration:
         """Fits pose and shape to observed points (N x 3, W) from an initial pose; the best hypothesis wins.

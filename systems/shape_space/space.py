@@ -61,11 +61,11 @@ class ShapeSpace:
     def _surface_warp(self) -> tuple[np.ndarray, np.ndarray]:
         """reconstruct() is affine in the latent vector: the surface at z = 0 (K x 3), and what each
         latent component adds to it (q x K x 3). Computed once, not per registration."""
-        M = len(self.canonical_points)
-        weights = self._interpolator.weights(self.canonical_surface)  # K x M
-        at_zero = self.canonical_surface + weights @ self.pca.mean.reshape(M, 3)
-        per_component = np.einsum("km,qmd->qkd", weights, self.pca.components.reshape(-1, M, 3))
-        return at_zero, per_component
+        M, K = len(self.canonical_points), len(self.canonical_surface)
+        fields = np.vstack([self.pca.mean, self.pca.components]).reshape(-1, M, 3)  # (1 + q) x M x 3
+        moved = self._interpolator(fields.transpose(1, 0, 2).reshape(M, -1), self.canonical_surface)
+        moved = moved.reshape(K, -1, 3).transpose(1, 0, 2)  # (1 + q) x K x 3
+        return self.canonical_surface + moved[0], moved[1:]
 
     def warp_points(self, latent: np.ndarray, points: np.ndarray) -> np.ndarray:
         """Any points (K x 3, in the canonical O) carried by the field at `latent`."""
