@@ -17,6 +17,7 @@ import numpy as np
 import pycpd
 import trimesh
 from json_report import write_json
+from scipy.spatial import cKDTree
 
 from diagrams.objects import catalog
 from diagrams.objects.library import load_info
@@ -27,7 +28,7 @@ from systems.segmenter import Segmentation
 from systems.shape_registrar import shape_space_file
 from systems.shape_space.cpd import deformable_cpd
 from systems.shape_space.registration import Registrar
-from systems.shape_space.space import ShapeSpace, chamfer
+from systems.shape_space.space import ShapeSpace
 
 NOMINAL_XY = (0.73, 0.0)  # m, where the scenario puts the object
 DEPTH_NOISE = 0.002  # m, standard deviation
@@ -43,12 +44,20 @@ def pose_errors(X_est, X_true) -> tuple[float, float]:
     return translation, angle
 
 
+def chamfer_to_mesh(points: np.ndarray, mesh: trimesh.Trimesh, samples: int = 20000) -> float:
+    """Symmetric Chamfer distance (m) between points and a true surface: the mean of the points' distances
+    to the surface and of a dense even sampling of the surface's distances to the points."""
+    to_surface = trimesh.proximity.closest_point(mesh, points)[1].mean()
+    dense = trimesh.sample.sample_surface_even(mesh, samples, seed=0)[0]
+    return 0.5 * float(to_surface + cKDTree(points).query(dense)[0].mean())
+
+
 def registration_trials(trials: int, seed: int, categories=tuple(catalog.CATEGORIES)):
     scenario = load_scenario()
     rng = np.random.default_rng(seed)
     estimator = MakePoseEstimator(scenario)
     registrars = {c: Registrar(ShapeSpace.load(shape_space_file(c))) for c in categories}
-    surfaces = {}
+    meshes = {}
     rows = []
     scene = None
     for trial in range(trials):
@@ -64,13 +73,14 @@ def registration_trials(trials: int, seed: int, categories=tuple(catalog.CATEGOR
         depth = frame.depth + rng.normal(0, DEPTH_NOISE, frame.depth.shape).astype(np.float32)
         estimate = estimator.estimate(Segmentation(True, category, mask, int(mask.sum())), depth, frame.X_WC)
         start = time.perf_counter()
-        result = registrars[category].register(estimate.points_W, estimate.X_WO)
+        result = registrars[category].register(estimate.points_W, estimate.X_WO, estimate.viewpoint_W)
         seconds = time.perf_counter() - start
 
-        if (category, instance) not in surfaces:
-            mesh = trimesh.load(catalog.instance_directory(category, instance) / "visual.obj", force="mesh")
-            surfaces[(category, instance)] = trimesh.sample.sample_surface_even(mesh, 3000, seed=0)[0]
-        truth_W = X_WO_true.multiply(surfaces[(category, instance)].T).T
+        if (category, instance) not in meshes:
+            meshes[(category, instance)] = trimesh.load(
+                catalog.instance_directory(category, instance) / "visual.obj", force="mesh"
+            )
+        reconstructed_O = X_WO_true.inverse().multiply(result.reconstructed_W.T).T
         errors = {
             name: pose_errors(result.grasp_poses_W[name], X_WO_true @ X_OG)
             for name, X_OG in true_grasps(category, instance).items()
@@ -84,7 +94,7 @@ def registration_trials(trials: int, seed: int, categories=tuple(catalog.CATEGOR
             "initial_yaw_error_rad": pose_errors(estimate.X_WO, X_WO_true)[1],
             "grasp_translation_error_m": float(np.mean([e[0] for e in errors.values()])),
             "grasp_angle_error_rad": float(np.mean([e[1] for e in errors.values()])),
-            "chamfer_m": chamfer(result.reconstructed_W, truth_W),
+            "chamfer_m": chamfer_to_mesh(reconstructed_O, meshes[(category, instance)]),
         }
         rows.append(row)
         logging.info(

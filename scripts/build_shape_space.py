@@ -32,7 +32,7 @@ from diagrams.objects.library import generated_instance_directory, load_info
 from diagrams.paths import MODELS_DIR
 from systems.shape_space.space import POSE_NAMES, build_shape_space
 
-CLOUD_POINTS = 2000
+CLOUD_POINTS = 8000  # per model: all of them for the canonical surface, a thinned 2000 as CPD's target
 MESH_SUFFIXES = {".obj", ".stl", ".ply"}
 CLOUD_SUFFIXES = {".pcd", ".ply"}
 

@@ -39,6 +39,14 @@ def main(argv=None) -> int:
     parser.add_argument("--space", type=Path, required=True, help="shape space (.npz) from build_shape_space.py")
     parser.add_argument("--cloud", type=Path, required=True, help="observed points (.ply, .pcd, .xyz, .pts)")
     parser.add_argument("--initial-xyz-yaw", type=float, nargs=4, metavar=("X", "Y", "Z", "YAW"))
+    parser.add_argument(
+        "--viewpoint",
+        type=float,
+        nargs=3,
+        metavar=("X", "Y", "Z"),
+        help="where the cloud was seen from (the camera's position, m, in the cloud's frame): only the model's "
+        "points visible from there are matched; without it, all are",
+    )
     parser.add_argument("--any-orientation", action="store_true", help="not upright: search the full 3D rotation")
     parser.add_argument("--json", type=Path, help="write the result here")
     parser.add_argument("--reconstruction", type=Path, help="write the inferred full shape here (.ply)")
@@ -53,7 +61,7 @@ def main(argv=None) -> int:
             (x, y), z, yaw = np.median(finite[:, :2], axis=0), np.min(finite[:, 2]) if len(finite) else 0.0, 0.0
         X_WO_initial = RigidTransform(RotationMatrix.MakeZRotation(yaw), [x, y, z])
         start = time.perf_counter()
-        result = Registrar(space, upright=not args.any_orientation).register(points, X_WO_initial)
+        result = Registrar(space, upright=not args.any_orientation).register(points, X_WO_initial, args.viewpoint)
         seconds = time.perf_counter() - start
     except (FileNotFoundError, ValueError) as error:
         print(f"error: {error}", file=sys.stderr)

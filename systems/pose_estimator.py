@@ -58,6 +58,7 @@ class ObjectEstimate:
     X_WO: RigidTransform = field(default_factory=RigidTransform)
     points_W: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))  # N x 3, metres
     message: str = ""
+    viewpoint_W: np.ndarray | None = None  # where the points were seen from: the camera's position in W, m
 
 
 def depth_to_points(depth: np.ndarray, mask: np.ndarray, intrinsics: CameraInfo) -> np.ndarray:
@@ -256,7 +257,9 @@ class PoseEstimator(LeafSystem):
         X_WO = estimate_pose(
             points_W, segmentation.category, support, self._free_space_test(segmentation.mask, depth, X_WC)
         )
-        return ObjectEstimate(True, segmentation.category, X_WO, points_W, f"{len(points_W)} points")
+        return ObjectEstimate(
+            True, segmentation.category, X_WO, points_W, f"{len(points_W)} points", X_WC.translation()
+        )
 
     def _free_space_test(self, mask, depth, X_WC):
         """f(points_W) -> fraction of the points the camera would have seen but sees through.

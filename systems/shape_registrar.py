@@ -63,7 +63,7 @@ class ShapeRegistrar(LeafSystem):
             cache.set_value(_Result(estimate.X_WO, None, f"no shape space for category {estimate.category!r}"))
             return
         try:
-            registration = registrar.register(estimate.points_W, estimate.X_WO)
+            registration = registrar.register(estimate.points_W, estimate.X_WO, estimate.viewpoint_W)
         except ValueError as error:
             cache.set_value(_Result(estimate.X_WO, None, str(error)))
             return

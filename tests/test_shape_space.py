@@ -11,7 +11,7 @@ from diagrams.objects.library import load_info
 from systems.shape_registrar import shape_space_file
 from systems.shape_space.cpd import deformable_cpd, rigid_cpd
 from systems.shape_space.pca_em import pca_em
-from systems.shape_space.registration import Registrar
+from systems.shape_space.registration import Registrar, visible_from
 from systems.shape_space.space import POSE_NAMES, ShapeSpace, build_shape_space
 
 
@@ -106,6 +106,8 @@ def test_shape_space_round_trips_through_its_file(box_space, tmp_path):
     loaded = ShapeSpace.load(tmp_path / "space.npz")
     z = np.array([0.1, -0.2, 0.0, 0.05]) * np.sqrt(space.pca.variances)
     np.testing.assert_allclose(loaded.shape(z), space.shape(z), atol=1e-5)
+    for name, X_OG in space.control_poses_at(z).items():
+        np.testing.assert_allclose(loaded.control_poses_at(z)[name].GetAsMatrix4(), X_OG.GetAsMatrix4(), atol=1e-5)
     assert loaded.canonical_name == space.canonical_name and loaded.latent_size == 4
     with pytest.raises(FileNotFoundError, match="build_shape_space.py"):
         ShapeSpace.load(tmp_path / "missing.npz")
@@ -115,6 +117,22 @@ def test_shape_space_round_trips_through_its_file(box_space, tmp_path):
 def test_registration_rejects_degenerate_clouds(box_space, bad):
     with pytest.raises(ValueError, match="cloud"):
         Registrar(box_space[0]).register(bad, RigidTransform())
+
+
+@pytest.mark.parametrize("bad", [[0.0, np.nan, 1.0], [0.0, 1.0]])
+def test_registration_rejects_a_bad_viewpoint(box_space, bad):
+    points = box_family(0.1, 0.06, 0.08)
+    with pytest.raises(ValueError, match="viewpoint"):
+        Registrar(box_space[0]).register(points, RigidTransform(), viewpoint_W=bad)
+
+
+def test_visible_from_keeps_the_near_side_of_a_sphere():
+    directions = np.random.default_rng(3).normal(size=(2000, 3))
+    sphere = 0.1 * directions / np.linalg.norm(directions, axis=1, keepdims=True) + [0.7, 0.0, 0.8]
+    viewpoint = np.array([0.7, 0.0, 1.8])  # straight above
+    visible = visible_from(sphere, viewpoint)
+    height = sphere[:, 2] - 0.8
+    assert visible[height > 0.02].mean() > 0.95 and visible[height < -0.02].mean() < 0.02
 
 
 def test_deformable_cpd_landmarks_settle_ambiguous_correspondences():
@@ -139,21 +157,48 @@ def test_deformable_cpd_landmarks_settle_ambiguous_correspondences():
         deformable_cpd(ring, target, landmarks=(landmark, np.zeros((2, 3))))
 
 
+def true_grasp_errors(category, instance, X_WO, grasp_poses_W):
+    """Translation (m) and angle (rad) of each registered grasp frame against the generator's."""
+    info = load_info(catalog.instance_directory(category, instance) / "info.yaml")
+    errors = []
+    for side in ("left", "right"):
+        X_GG = (X_WO @ info.grasps[side].grasp.GetDeterministicValue()).InvertAndCompose(grasp_poses_W[f"{side}_grasp"])
+        errors.append((np.linalg.norm(X_GG.translation()), X_GG.rotation().ToAngleAxis().angle()))
+    return errors
+
+
 @pytest.mark.parametrize("category", ["watering_can", "drill"])
 @pytest.mark.parametrize("yaw_offset", [0.15, np.pi + 0.1])
 def test_registration_of_a_training_instance_from_a_full_view(category, yaw_offset):
-    """Near-exact pose, also from an initial pose turned the wrong way round (the pose estimator's flip);
-    grasps within the latent space's reach of a training instance."""
+    """Near-exact, also from an initial pose turned the wrong way round (the pose estimator's flip). The
+    origin may trade a few mm against the latent shape; the grasps, learnt with the shape, are within 1 cm."""
     registrar = Registrar(ShapeSpace.load(shape_space_file(category)))
     directory = catalog.instance_directory(category, "train_2")
     surface = trimesh.sample.sample_surface_even(trimesh.load(directory / "visual.obj", force="mesh"), 3000, seed=1)[0]
     X_WO = RigidTransform(RotationMatrix.MakeZRotation(0.3), [0.7, 0.05, 0.76])
     X_WO_initial = RigidTransform(RotationMatrix.MakeZRotation(0.3 + yaw_offset), [0.71, 0.04, 0.76])
     result = registrar.register(X_WO.multiply(surface.T).T, X_WO_initial)
-    assert np.linalg.norm(result.X_WO.translation() - X_WO.translation()) < 0.003
+    assert np.linalg.norm(result.X_WO.translation() - X_WO.translation()) < 0.005
     assert result.X_WO.rotation().InvertAndCompose(X_WO.rotation()).ToAngleAxis().angle() < np.radians(1.0)
-    info = load_info(directory / "info.yaml")
-    for side in ("left", "right"):
-        X_WG = X_WO @ info.grasps[side].grasp.GetDeterministicValue()
-        X_GG = X_WG.InvertAndCompose(result.grasp_poses_W[f"{side}_grasp"])
-        assert np.linalg.norm(X_GG.translation()) < 0.02 and X_GG.rotation().ToAngleAxis().angle() < np.radians(12)
+    for translation, angle in true_grasp_errors(category, "train_2", X_WO, result.grasp_poses_W):
+        assert translation < 0.01 and angle < np.radians(4)
+
+
+@pytest.mark.parametrize("instance", ["test_0", "test_1"])
+def test_registration_from_a_single_view_uses_the_viewpoint(instance):
+    """An unseen drill seen from one side: the seen front pulls the whole model towards the camera (grasps
+    15-20 mm off) unless the registrar knows where the camera was and matches the model's visible side only."""
+    registrar = Registrar(ShapeSpace.load(shape_space_file("drill")))
+    yaw = catalog.presentation_yaw("drill") - 0.25
+    X_WO = RigidTransform(RotationMatrix.MakeZRotation(yaw), [0.73, 0.0, 0.76])
+    mesh = trimesh.load(catalog.instance_directory("drill", instance) / "visual.obj", force="mesh")
+    surface_W = X_WO.multiply(trimesh.sample.sample_surface_even(mesh, 6000, seed=5)[0].T).T
+    camera = np.array([0.2, 0.0, 1.6])
+    seen = surface_W[visible_from(surface_W, camera)]
+    worst = {}
+    for viewpoint in (None, camera):
+        result = registrar.register(seen, X_WO, viewpoint)
+        worst[viewpoint is not None] = max(
+            e[0] for e in true_grasp_errors("drill", instance, X_WO, result.grasp_poses_W)
+        )
+    assert worst[True] < 0.015 and worst[True] < worst[False] - 0.003, worst

@@ -77,6 +77,10 @@ class RigidResult:
     sigma2: float
     iterations: int
 
+    def transform(self, points: np.ndarray) -> np.ndarray:
+        """s R p + t for any points (K x D)."""
+        return self.s * np.atleast_2d(points) @ self.R.T + self.t
+
 
 def rigid_cpd(
     source: np.ndarray,

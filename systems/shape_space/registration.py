@@ -8,7 +8,10 @@ Gauss-Newton step (analytic Jacobians in rotation, translation and z) on
 
     sum_mn p_mn |x_n - s_m|^2 / (2 sigma^2) + (1/2) sum_k z_k^2 / var_k,
 
-the latent prior keeping the shape plausible. Several yaw hypotheses around the
+the latent prior keeping the shape plausible. Given the viewpoint the cloud was seen from,
+only the model points visible from it (hidden point removal) are mixture centroids: else
+the seen front pulls the model's unseen back towards the camera too (a 1-2 cm bias along
+the view ray on cans and drills). Several yaw hypotheses around the
 initial pose (and the pose turned end for end) are run and the best fit kept, against the
 local minima where one end of an object is registered onto the other.
 """
@@ -16,6 +19,7 @@ local minima where one end of an object is registered onto the other.
 from dataclasses import dataclass
 
 import numpy as np
+import open3d as o3d
 from pydrake.math import RigidTransform, RotationMatrix
 from scipy.spatial.distance import cdist
 from scipy.spatial.transform import Rotation
@@ -23,7 +27,7 @@ from scipy.spatial.transform import Rotation
 from systems.shape_space.cpd import gmm_posteriors
 from systems.shape_space.space import ShapeSpace
 
-MODEL_POINTS = 400
+MODEL_POINTS = 800
 OBSERVED_POINTS = 500
 OUTLIER_WEIGHT = 0.1
 ITERATIONS = 40
@@ -32,6 +36,8 @@ ITERATIONS = 40
 YAW_HYPOTHESES = (0.0, -0.35, 0.35, np.pi)
 INITIAL_SIGMA = 0.02  # m
 TRANSLATION_PRIOR = 0.02  # m: standard deviation of the origin about the initial estimate
+CONVERGED = 1e-3  # stop when sigma^2 changes by less than this, relative
+VISIBILITY_EVERY = 5  # iterations between visibility updates
 
 
 @dataclass
@@ -51,6 +57,17 @@ def _skew_columns(v: np.ndarray) -> np.ndarray:
     out[:, 1, 0], out[:, 1, 2] = -v[:, 2], v[:, 0]
     out[:, 2, 0], out[:, 2, 1] = v[:, 1], -v[:, 0]
     return out
+
+
+def visible_from(points_W: np.ndarray, viewpoint_W: np.ndarray) -> np.ndarray:
+    """Which points (N x 3, W) of a surface sampling are visible from the viewpoint (3, W): a boolean mask,
+    by open3d's hidden point removal (Katz et al. 2007)."""
+    cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points_W))
+    radius = 100.0 * float(np.linalg.norm(points_W - viewpoint_W, axis=1).max())
+    _, index = cloud.hidden_point_removal(np.asarray(viewpoint_W, dtype=float), radius)
+    mask = np.zeros(len(points_W), dtype=bool)
+    mask[index] = True
+    return mask
 
 
 def _check_cloud(points: np.ndarray) -> np.ndarray:
@@ -76,27 +93,36 @@ class Registrar:
         self.prior_weight = prior_weight
         M = len(space.canonical_points)
         self.model_index = np.linspace(0, M - 1, min(MODEL_POINTS, M)).astype(int)
-        components = space.pca.components.reshape(len(space.pca.variances), M, 3)
+        mean_field, components = space.field_basis()
         # The model points at z = 0: the canonical points moved by the mean field, m x 3 in O.
-        self.mean_shape = (space.canonical_points + space.pca.mean.reshape(M, 3))[self.model_index]
+        self.mean_shape = (space.canonical_points + mean_field)[self.model_index]
         self.B = np.transpose(components[:, self.model_index, :], (1, 2, 0))  # m x 3 x q
         self.inverse_variances = 1.0 / np.maximum(space.pca.variances, 1e-12)
         space.reconstruct(np.zeros(space.latent_size))  # its one-off precomputation now, not in the first register()
 
-    def register(self, observed_W: np.ndarray, X_WO_initial: RigidTransform) -> Registration:
+    def register(
+        self, observed_W: np.ndarray, X_WO_initial: RigidTransform, viewpoint_W: np.ndarray | None = None
+    ) -> Registration:
         """Fits pose and shape to observed points (N x 3, W) from an initial pose; the best hypothesis wins.
 
+        viewpoint_W: where the points were seen from (the camera's position in W, m); None: the
+            model's points all take part, as if the object were seen from everywhere.
+
         Raises:
-            ValueError: fewer than 20 finite points, or not an N x 3 array.
+            ValueError: fewer than 20 finite points, not an N x 3 array, or a viewpoint that is not 3 finite numbers.
         """
         X = _check_cloud(observed_W)
+        if viewpoint_W is not None:
+            viewpoint_W = np.asarray(viewpoint_W, dtype=float)
+            if viewpoint_W.shape != (3,) or not np.all(np.isfinite(viewpoint_W)):
+                raise ValueError(f"the viewpoint must be 3 finite numbers (m, in W), got {viewpoint_W!r}")
         if len(X) > OBSERVED_POINTS:
             X = X[np.random.default_rng(0).choice(len(X), OBSERVED_POINTS, replace=False)]
         best = None
         for offset in YAW_HYPOTHESES:
             X0 = RigidTransform(RotationMatrix.MakeZRotation(offset)) @ X_WO_initial
             X0 = RigidTransform(X0.rotation(), X_WO_initial.translation())  # turn about the object's origin
-            result = self._fit(X, X0)
+            result = self._fit(X, X0, viewpoint_W)
             if best is None or result[3] < best[3]:
                 best = result
         R, t, z, error, iterations = best
@@ -105,7 +131,7 @@ class Registrar:
         poses = {name: X_WO @ X_OG for name, X_OG in self.space.control_poses_at(z).items()}
         return Registration(X_WO, z, shape_W, poses, error, iterations)
 
-    def _fit(self, X, X_WO0):
+    def _fit(self, X, X_WO0, viewpoint_W):
         R, t = X_WO0.rotation().matrix(), X_WO0.translation().copy()
         q = len(self.inverse_variances)
         z = np.zeros(q)
@@ -120,8 +146,14 @@ class Registrar:
         squared = cdist(model, X, "sqeuclidean")
         translation_jacobian = np.broadcast_to(np.eye(3)[:, translation_dofs], (M, 3, len(translation_dofs)))
         for iteration in range(1, ITERATIONS + 1):  # noqa: B007 (the count is returned)
-            # E-step: posterior of each model point for each observed point, with a uniform outlier term.
-            P = gmm_posteriors(squared.copy(), sigma2, OUTLIER_WEIGHT, 3)
+            # E-step: posterior of each (visible) model point for each observed point, with a uniform outlier term.
+            if viewpoint_W is None:
+                P = gmm_posteriors(squared.copy(), sigma2, OUTLIER_WEIGHT, 3)
+            else:
+                if iteration % VISIBILITY_EVERY == 1:
+                    visible = visible_from(model, viewpoint_W)
+                P = np.zeros_like(squared)
+                P[visible] = gmm_posteriors(squared[visible], sigma2, OUTLIER_WEIGHT, 3)
             P1 = P.sum(1)
             Np = P1.sum()
             if Np < 1e-9:
@@ -150,6 +182,8 @@ class Registrar:
             RS = (self.mean_shape + self.B @ z) @ R.T
             model = RS + t
             squared = cdist(model, X, "sqeuclidean")
-            sigma2 = max(float((P * squared).sum() / (3 * Np)), 1e-8)
+            previous, sigma2 = sigma2, max(float((P * squared).sum() / (3 * Np)), 1e-8)
+            if abs(previous - sigma2) < CONVERGED * previous:
+                break
         error = float(np.sqrt(squared.min(0)).mean())
         return R, t, z, error, iteration

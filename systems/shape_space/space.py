@@ -1,10 +1,13 @@
 """A category's latent shape space (Rodriguez & Behnke 2018; paper §IV-A).
 
 Offline: a canonical instance's surface points Y (in O) are deformed by CPD onto each
-training instance; the displacement fields V_i = T_i - Y (flattened, 3 M numbers) go
-through PCA-EM. A latent vector z gives the field V(z) = mean + z C, the shape
-Y + V(z), and, interpolated off the points, the warp of any other point, such as the
-canonical instance's grasp control poses.
+training instance, giving displacement fields V_i = T_i - Y (3 M numbers). Each PCA-EM
+sample is V_i followed by how the instance's grasp frames sit against the canonical
+ones (the moves of a small star of points about each grasp frame, scaled by
+`grasp_weight`): a latent vector z then decodes the field V(z), the shape Y + V(z),
+and the grasp frames together. A field carries a grasp frame poorly (the frames lie
+off the surface, where CPD's correspondences slide along handles); a training
+instance's true frames, learnt beside its field, do not.
 """
 
 import functools
@@ -22,10 +25,15 @@ from systems.shape_space.pca_em import PcaModel, pca_em
 
 # The control poses: the pre-grasp and grasp frame of each hand.
 POSE_NAMES = ("left_pregrasp", "left_grasp", "right_pregrasp", "right_grasp")
-FRAME_PROBE = 0.1  # m: radius of the star of points whose motion turns a control pose
+GRASP_NAMES = ("left_grasp", "right_grasp")
+FRAME_PROBE = 0.1  # m: radius of the star of points that stands for a grasp frame in the latent space
 # m: radius of the star of landmarks that ties the canonical grasp frames to an annotated
 # instance's while its field is built.
 LANDMARK_PROBE = 0.02
+# m: kernel width that carries the field from the canonical points onto the dense surface. Narrower
+# than the fields' own beta, whose smoothing blurs thin parts (drill handles: 8.8 -> 4.5 mm from the
+# true surface with 0.02).
+SURFACE_WARP_WIDTH = 0.02
 
 
 @dataclass
@@ -33,20 +41,30 @@ class ShapeSpace:
     category: str
     canonical_name: str
     canonical_points: np.ndarray  # M x 3, in the canonical O frame, metres
-    pca: PcaModel  # over flattened M x 3 displacement fields
+    pca: PcaModel  # over [flattened M x 3 displacement field, grasp_weight * flattened grasp stars' moves]
     beta: float  # width of the fields' Gaussian kernel, metres
     control_poses: dict[str, RigidTransform]  # canonical X_OG per POSE_NAMES entry
     instance_names: list[str]
     # A denser sampling of the canonical surface (K x 3, in O), warped for reconstructions.
     canonical_surface: np.ndarray
+    grasp_weight: float  # how the grasp stars' moves are scaled in the PCA samples
 
     @property
     def latent_size(self) -> int:
         return len(self.pca.variances)
 
+    @property
+    def field_size(self) -> int:
+        return self.canonical_points.size
+
+    def field_basis(self) -> tuple[np.ndarray, np.ndarray]:
+        """The field at z = 0 (M x 3) and what each latent component adds to it (q x M x 3)."""
+        M, n = len(self.canonical_points), self.field_size
+        return self.pca.mean[:n].reshape(M, 3), self.pca.components[:, :n].reshape(-1, M, 3)
+
     def field(self, latent: np.ndarray) -> np.ndarray:
         """Displacements (M x 3) of the canonical points at latent vector `latent`."""
-        return self.pca.decode(latent)[0].reshape(-1, 3)
+        return self.pca.decode(latent)[0, : self.field_size].reshape(-1, 3)
 
     def shape(self, latent: np.ndarray) -> np.ndarray:
         """The deformed canonical points (M x 3, in O) at `latent`."""
@@ -61,42 +79,29 @@ class ShapeSpace:
     def _surface_warp(self) -> tuple[np.ndarray, np.ndarray]:
         """reconstruct() is affine in the latent vector: the surface at z = 0 (K x 3), and what each
         latent component adds to it (q x K x 3). Computed once, not per registration."""
+        mean, components = self.field_basis()
         M, K = len(self.canonical_points), len(self.canonical_surface)
-        fields = np.vstack([self.pca.mean, self.pca.components]).reshape(-1, M, 3)  # (1 + q) x M x 3
-        moved = self._interpolator(fields.transpose(1, 0, 2).reshape(M, -1), self.canonical_surface)
+        fields = np.concatenate([mean[None], components])  # (1 + q) x M x 3
+        interpolate = FieldInterpolator(self.canonical_points, SURFACE_WARP_WIDTH)
+        moved = interpolate(fields.transpose(1, 0, 2).reshape(M, -1), self.canonical_surface)
         moved = moved.reshape(K, -1, 3).transpose(1, 0, 2)  # (1 + q) x K x 3
         return self.canonical_surface + moved[0], moved[1:]
-
-    def warp_points(self, latent: np.ndarray, points: np.ndarray) -> np.ndarray:
-        """Any points (K x 3, in the canonical O) carried by the field at `latent`."""
-        points = np.atleast_2d(points)
-        return points + self._interpolator(self.field(latent), points)
-
-    @functools.cached_property
-    def _interpolator(self) -> FieldInterpolator:
-        return FieldInterpolator(self.canonical_points, self.beta)
-
-    def warp_pose(self, latent: np.ndarray, X_OG: RigidTransform) -> RigidTransform:
-        """A control pose carried by the field: its origin moves with the field, and it turns by the
-        rotation that best fits (Kabsch) how the field moves a small star of points around it."""
-        star = grasp_landmarks(X_OG, FRAME_PROBE)
-        moved = self.warp_points(latent, star)
-        turn, _ = Rotation.align_vectors(moved - moved.mean(axis=0), star - star.mean(axis=0))
-        return RigidTransform(RotationMatrix(turn.as_matrix()) @ X_OG.rotation(), moved[0])
 
     def control_poses_at(self, latent: np.ndarray) -> dict[str, RigidTransform]:
         """All control poses at `latent`, in O.
 
-        Each grasp is warped by the field; each pre-grasp keeps its canonical pose relative to its
-        grasp (it lies off the surface, where the field fades out and says little).
+        Each grasp frame is the rigid fit to its decoded star; each pre-grasp keeps its canonical pose
+        relative to its grasp.
         """
+        decoded = self.pca.decode(latent)[0, self.field_size :] / self.grasp_weight
+        moves = decoded.reshape(len(GRASP_NAMES), -1, 3)
         poses = {}
-        for side in ("left", "right"):
-            X_OG = self.control_poses[f"{side}_grasp"]
-            X_GP = X_OG.InvertAndCompose(self.control_poses[f"{side}_pregrasp"])
-            poses[f"{side}_grasp"] = self.warp_pose(latent, X_OG)
-            poses[f"{side}_pregrasp"] = poses[f"{side}_grasp"] @ X_GP
-        return poses
+        for name, move in zip(GRASP_NAMES, moves, strict=True):
+            X_OG = self.control_poses[name]
+            X_GP = X_OG.InvertAndCompose(self.control_poses[name.replace("grasp", "pregrasp")])
+            poses[name] = fit_frame(grasp_landmarks(X_OG, FRAME_PROBE) + move)
+            poses[name.replace("grasp", "pregrasp")] = poses[name] @ X_GP
+        return {name: poses[name] for name in POSE_NAMES}
 
     def save(self, path: Path):
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -113,6 +118,7 @@ class ShapeSpace:
             control_poses=np.stack([self.control_poses[n].GetAsMatrix4() for n in POSE_NAMES]),
             instance_names=np.array(self.instance_names),
             canonical_surface=self.canonical_surface.astype(np.float32),
+            grasp_weight=self.grasp_weight,
         )
 
     @staticmethod
@@ -138,9 +144,13 @@ class ShapeSpace:
                     {n: RigidTransform(m) for n, m in zip(POSE_NAMES, data["control_poses"], strict=True)},
                     [str(n) for n in data["instance_names"]],
                     data["canonical_surface"].astype(float),
+                    float(data["grasp_weight"]),
                 )
         except (KeyError, ValueError, OSError) as error:
-            raise ValueError(f"{path} is not a shape space file ({error})") from None
+            raise ValueError(
+                f"{path} is not a shape space file of this version ({error}); "
+                "rebuild it with scripts/build_shape_space.py"
+            ) from None
 
 
 def chamfer(a: np.ndarray, b: np.ndarray) -> float:
@@ -157,8 +167,18 @@ def choose_canonical(clouds: dict[str, np.ndarray]) -> str:
 
 def grasp_landmarks(X_OG: RigidTransform, radius: float = LANDMARK_PROBE) -> np.ndarray:
     """A grasp frame as 7 points (in O): its origin and +-radius along each of its axes."""
-    star = radius * np.vstack([np.zeros(3), np.eye(3), -np.eye(3)])
-    return X_OG.multiply(star.T).T
+    return X_OG.multiply(_star(radius).T).T
+
+
+def _star(radius: float) -> np.ndarray:
+    return radius * np.vstack([np.zeros(3), np.eye(3), -np.eye(3)])
+
+
+def fit_frame(star: np.ndarray) -> RigidTransform:
+    """The frame (X_OG) whose grasp_landmarks best fit (Kabsch) a moved star of 7 points."""
+    reference = _star(1.0)  # centred, like any star: its origin is its mean
+    turn, _ = Rotation.align_vectors(star - star.mean(axis=0), reference)
+    return RigidTransform(RotationMatrix(turn.as_matrix()), star.mean(axis=0))
 
 
 def build_shape_space(
@@ -172,55 +192,81 @@ def build_shape_space(
     canonical: str | None = None,
     align: bool = False,
     landmarks: bool = True,
+    target_points: int = 2000,
+    grasp_weight: float = 10.0,
 ) -> ShapeSpace:
     """Builds the space from surface clouds (each in its own O frame) of a category's instances.
 
     Args:
-        clouds: instance name -> N x 3 surface points.
+        clouds: instance name -> N x 3 surface points. The canonical one's, all of them, is the
+            surface that reconstructions warp: give it dense.
         control_poses: instance name -> {POSE_NAMES entry: X_OG}; the canonical instance's are the
-            space's. Where another instance has them too, its field must carry the canonical grasp
-            frames onto its own (landmarks in CPD): the handles then correspond, which CPD's nearest
-            surfaces alone often get wrong.
+            space's. Where another instance has them too, they are its grasp frames in the space, and
+            its field must carry the canonical grasp frames onto them (landmarks in CPD): the handles
+            then correspond, which CPD's nearest surfaces alone often get wrong. Elsewhere the
+            instance's field carries the canonical frames.
         components: latent size (clipped to the number of instances - 1).
         canonical_points: how many of the canonical cloud's points carry the field.
         beta, lam: the CPD fields' kernel width (m) and smoothness weight.
         canonical: the canonical instance's name; default: the medoid (needs its control poses).
         align: the clouds' frames differ (a user's folder): align each rigidly to the canonical first.
             Generated instances share the category's O frame and need no alignment.
-        landmarks: let the other instances' control poses, where given, guide their fields.
+        landmarks: let the other instances' control poses, where given, guide their fields and be
+            their grasp frames.
+        target_points: at most this many points of each other cloud are CPD's target.
+        grasp_weight: scale of the grasp stars' moves (m) against the fields' (m) in the PCA samples;
+            > 1 spends the latent components on what moves the grasps (10: cans' grasps 12.5 -> 8.4 mm
+            median when the true fields of the unseen test cans are projected, 8 components).
     """
     if len(clouds) < 2:
         raise ValueError(f"a shape space needs at least 2 instances, got {len(clouds)}")
     if canonical is None:
-        with_poses = {n: c for n, c in clouds.items() if n in control_poses}
+        with_poses = {n: _thin(c, target_points) for n, c in clouds.items() if n in control_poses}
         if not with_poses:
             raise ValueError("no instance has control poses: give them for at least the canonical model")
         canonical = choose_canonical(with_poses)
     surface = clouds[canonical]
-    source = surface[np.linspace(0, len(surface) - 1, min(canonical_points, len(surface))).astype(int)]
-    fields = []
+    source = _thin(surface, canonical_points)
+    canonical_grasps = control_poses[canonical]
+    canonical_stars = np.vstack([grasp_landmarks(canonical_grasps[n], FRAME_PROBE) for n in GRASP_NAMES])
+    samples = []
     for name, cloud in clouds.items():
         if name == canonical:
-            fields.append(np.zeros(source.size))
+            samples.append(np.zeros(source.size + canonical_stars.size))
             continue
-        guide = None
-        if landmarks and name in control_poses:
-            targets = np.vstack([grasp_landmarks(control_poses[name][f"{side}_grasp"]) for side in ("left", "right")])
-            sources = np.vstack(
-                [grasp_landmarks(control_poses[canonical][f"{side}_grasp"]) for side in ("left", "right")]
-            )
-            guide = (sources, targets)
+        target = _thin(cloud, target_points)
+        to_canonical = _identity
         if align:
-            rigid = rigid_cpd(cloud, source, w=0.05)
-            aligned = rigid.transformed
-            if guide is not None:
-                guide = (guide[0], rigid.s * guide[1] @ rigid.R.T + rigid.t)
-        else:
-            aligned = cloud
-        result = deformable_cpd(source, aligned, beta=beta, lam=lam, w=0.05, max_iterations=150, landmarks=guide)
+            rigid = rigid_cpd(target, source, w=0.05)
+            target = rigid.transformed
+            to_canonical = rigid.transform
+        grasps = control_poses.get(name) if landmarks else None
+        guide = None
+        if grasps is not None:
+            guide = (
+                np.vstack([grasp_landmarks(canonical_grasps[n]) for n in GRASP_NAMES]),
+                to_canonical(np.vstack([grasp_landmarks(grasps[n]) for n in GRASP_NAMES])),
+            )
+        result = deformable_cpd(source, target, beta=beta, lam=lam, w=0.05, max_iterations=150, landmarks=guide)
         logging.info(
-            "%s: CPD %d iterations, Chamfer after %.4f m", name, result.iterations, chamfer(result.transformed, aligned)
+            "%s: CPD %d iterations, Chamfer after %.4f m", name, result.iterations, chamfer(result.transformed, target)
         )
-        fields.append((result.transformed - source).ravel())
-    pca = pca_em(np.array(fields), min(components, len(clouds) - 1))
-    return ShapeSpace(category, canonical, source, pca, beta, control_poses[canonical], list(clouds), surface)
+        if grasps is not None:
+            stars = to_canonical(np.vstack([grasp_landmarks(grasps[n], FRAME_PROBE) for n in GRASP_NAMES]))
+        else:
+            stars = result.warp(canonical_stars)
+        field = (result.transformed - source).ravel()
+        samples.append(np.concatenate([field, grasp_weight * (stars - canonical_stars).ravel()]))
+    pca = pca_em(np.array(samples), min(components, len(clouds) - 1))
+    return ShapeSpace(category, canonical, source, pca, beta, canonical_grasps, list(clouds), surface, grasp_weight)
+
+
+def _identity(points: np.ndarray) -> np.ndarray:
+    return points
+
+
+def _thin(points: np.ndarray, count: int) -> np.ndarray:
+    """At most `count` of the points, a seeded random choice."""
+    if len(points) <= count:
+        return points
+    return points[np.sort(np.random.default_rng(0).choice(len(points), count, replace=False))]
