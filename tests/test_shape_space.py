@@ -11,7 +11,7 @@ from diagrams.objects.library import load_info
 from systems.shape_registrar import shape_space_file
 from systems.shape_space.cpd import deformable_cpd, rigid_cpd
 from systems.shape_space.pca_em import pca_em
-from systems.shape_space.registration import Registrar, visible_from
+from systems.shape_space.registration import Registrar, grasp_shift, visible_from
 from systems.shape_space.space import POSE_NAMES, ShapeSpace, build_shape_space
 
 
@@ -202,3 +202,23 @@ def test_registration_from_a_single_view_uses_the_viewpoint(instance):
             e[0] for e in true_grasp_errors("drill", instance, X_WO, result.grasp_poses_W)
         )
     assert worst[True] < 0.015 and worst[True] < worst[False] - 0.003, worst
+
+
+def handle_front(offset, count=800, seed=0):
+    """The upper half (seen from above) of a 12 mm handle tube along x, 10 cm long, its axis through `offset` (W)."""
+    rng = np.random.default_rng(seed)
+    angle = rng.uniform(0, np.pi, count)
+    along = rng.uniform(-0.05, 0.05, count)
+    return np.column_stack([along, 0.012 * np.cos(angle), 0.012 * np.sin(angle)]) + offset
+
+
+def test_grasp_shift_moves_a_grasp_across_its_handle_onto_the_seen_points():
+    seen = handle_front([0.7, 0.0, 0.8], seed=1)
+    # The model's handle lies 6 mm off sideways and 8 mm low, and 2 cm along the handle (which cannot be seen).
+    model = handle_front([0.72, 0.006, 0.792], seed=2)
+    X_WG = RigidTransform([0.72, 0.006, 0.792])  # x_G along the handle
+    shift = grasp_shift(X_WG, model, seen)
+    np.testing.assert_allclose(shift, [0.0, -0.006, 0.008], atol=0.0015)
+    # Too little seen about the grasp (a few points, or the handle 6 cm away): left where it is.
+    np.testing.assert_array_equal(grasp_shift(X_WG, model, seen[:10]), np.zeros(3))
+    np.testing.assert_array_equal(grasp_shift(X_WG, model, seen + [0.0, 0.06, 0.0]), np.zeros(3))

@@ -11,7 +11,8 @@ Gauss-Newton step (analytic Jacobians in rotation, translation and z) on
 the latent prior keeping the shape plausible. Given the viewpoint the cloud was seen from,
 only the model points visible from it (hidden point removal) are mixture centroids: else
 the seen front pulls the model's unseen back towards the camera too (a 1-2 cm bias along
-the view ray on cans and drills). Several yaw hypotheses around the
+the view ray on cans and drills); each decoded grasp frame is then moved across its handle
+onto the points seen about it (grasp_shift). Several yaw hypotheses around the
 initial pose (and the pose turned end for end) are run and the best fit kept, against the
 local minima where one end of an object is registered onto the other.
 """
@@ -21,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 import open3d as o3d
 from pydrake.math import RigidTransform, RotationMatrix
+from scipy.spatial import cKDTree
 from scipy.spatial.distance import cdist
 from scipy.spatial.transform import Rotation
 
@@ -38,6 +40,10 @@ INITIAL_SIGMA = 0.02  # m
 TRANSLATION_PRIOR = 0.02  # m: standard deviation of the origin about the initial estimate
 CONVERGED = 1e-3  # stop when sigma^2 changes by less than this, relative
 VISIBILITY_EVERY = 5  # iterations between visibility updates
+# Local re-placing of each grasp frame on what is seen about it (with a viewpoint only).
+GRASP_REGION = 0.04  # m: radius about a grasp frame
+GRASP_MATCH = 0.015  # m: a model point farther than this from every seen point has no match
+GRASP_SHIFT_LIMIT = 0.03  # m: a longer shift is not trusted (the handle is not where the latent put it)
 
 
 @dataclass
@@ -68,6 +74,29 @@ def visible_from(points_W: np.ndarray, viewpoint_W: np.ndarray) -> np.ndarray:
     mask = np.zeros(len(points_W), dtype=bool)
     mask[index] = True
     return mask
+
+
+def grasp_shift(X_WG: RigidTransform, model_W: np.ndarray, observed_W: np.ndarray) -> np.ndarray:
+    """How far (3, W, m) to move a grasp frame so that the model's surface about it lies on the points seen
+    there: translation-only ICP of the model points (its visible side, N x 3, W) within GRASP_REGION of the
+    frame onto the observed points (K x 3, W) there. It moves across the handle only: along the handle's axis
+    (x_G) a handle looks the same. Zero where too little is seen or the shift would exceed GRASP_SHIFT_LIMIT.
+    """
+    origin, axis = X_WG.translation(), X_WG.rotation().col(0)
+    model = model_W[np.linalg.norm(model_W - origin, axis=1) < GRASP_REGION]
+    seen = observed_W[np.linalg.norm(observed_W - origin, axis=1) < GRASP_REGION]
+    shift = np.zeros(3)
+    if len(model) < 10 or len(seen) < 20:
+        return shift
+    tree = cKDTree(seen)
+    for _ in range(10):
+        distance, index = tree.query(model + shift)
+        matched = distance < GRASP_MATCH
+        if matched.sum() < 10:
+            return np.zeros(3)
+        step = (seen[index[matched]] - model[matched] - shift).mean(axis=0)
+        shift += step - axis * (step @ axis)
+    return shift if np.linalg.norm(shift) < GRASP_SHIFT_LIMIT else np.zeros(3)
 
 
 def _check_cloud(points: np.ndarray) -> np.ndarray:
@@ -111,11 +140,12 @@ class Registrar:
         Raises:
             ValueError: fewer than 20 finite points, not an N x 3 array, or a viewpoint that is not 3 finite numbers.
         """
-        X = _check_cloud(observed_W)
+        observed = _check_cloud(observed_W)
         if viewpoint_W is not None:
             viewpoint_W = np.asarray(viewpoint_W, dtype=float)
             if viewpoint_W.shape != (3,) or not np.all(np.isfinite(viewpoint_W)):
                 raise ValueError(f"the viewpoint must be 3 finite numbers (m, in W), got {viewpoint_W!r}")
+        X = observed
         if len(X) > OBSERVED_POINTS:
             X = X[np.random.default_rng(0).choice(len(X), OBSERVED_POINTS, replace=False)]
         best = None
@@ -129,6 +159,12 @@ class Registrar:
         X_WO = RigidTransform(RotationMatrix(R), t)
         shape_W = X_WO.multiply(self.space.reconstruct(z).T).T
         poses = {name: X_WO @ X_OG for name, X_OG in self.space.control_poses_at(z).items()}
+        if viewpoint_W is not None:
+            seen_model = shape_W[visible_from(shape_W, viewpoint_W)]
+            for side in ("left", "right"):
+                shift = RigidTransform(grasp_shift(poses[f"{side}_grasp"], seen_model, observed))
+                for kind in ("grasp", "pregrasp"):
+                    poses[f"{side}_{kind}"] = shift @ poses[f"{side}_{kind}"]
         return Registration(X_WO, z, shape_W, poses, error, iterations)
 
     def _fit(self, X, X_WO0, viewpoint_W):
