@@ -42,6 +42,9 @@ MAX_PICK_S = 60.0
 # real-robot failure, §V-C: "the approaching pose ... should be closer to the object").
 GRASP_DEPTH_MARGIN = 0.01
 DEEPER = RigidTransform([0.0, 0.0, GRASP_DEPTH_MARGIN])
+# The reconstruction, thinned to about this many points, is the reach's obstacle: the margin about it
+# (hand_ik.PERCEIVED_SHAPE_MARGIN) was set for a cloud this dense, and planning cost grows with it.
+OBSTACLE_POINTS = 2000
 
 
 def make_pick_planner(scenario: Scenario):
@@ -56,7 +59,7 @@ def make_pick_planner(scenario: Scenario):
     ik = DualArmIk(scenario)  # the robot model and its IK seed table: built once, not per image
 
     def plan_pick(grasps: GraspPoses, cloud_W: np.ndarray, q_now: np.ndarray) -> JointPlan:
-        ik.set_obstacle_points(cloud_W if len(cloud_W) else None)
+        ik.set_obstacle_points(cloud_W[:: max(1, len(cloud_W) // OBSTACLE_POINTS)] if len(cloud_W) else None)
         poses = {name: Transform(X_WG) for name, X_WG in grasps.poses_W.items()}
         for side in SIDES:
             poses[f"{side}_grasp"] = Transform(grasps.poses_W[f"{side}_grasp"] @ DEEPER)

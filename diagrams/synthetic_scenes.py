@@ -31,6 +31,7 @@ from pydrake.systems.sensors import RgbdSensor
 
 from diagrams.centauro_description import joint_names
 from diagrams.objects import catalog
+from diagrams.objects.library import generated_instance_directory
 from diagrams.scenario import Scenario
 from diagrams.station import AddCentauro, make_parser
 
@@ -86,6 +87,7 @@ class SyntheticScene:
         cameras: int = 3,
         categories=CLASSES[1:],
         camera_jitter: bool = True,
+        instances: list[str] | None = None,
     ):
         """Args:
         scenario: robot, camera and nominal table placement.
@@ -93,6 +95,7 @@ class SyntheticScene:
         split: whose instances ("train" or "test").
         cameras: how many camera poses to choose from per frame.
         camera_jitter: perturb the cameras about the chest mount (else all sit at the nominal pose).
+        instances: these instances of each category instead of the split's (any generated name, e.g. extra_101).
         """
         self.rng = rng
         builder = DiagramBuilder()
@@ -109,10 +112,9 @@ class SyntheticScene:
         self.objects = []  # (category, instance, body)
         parser = make_parser(plant)
         for category in categories:
-            for name in catalog.instance_names(category):
-                if not name.startswith(split):
-                    continue
-                model_file = catalog.instance_directory(category, name) / "model.sdf"
+            names = instances or [n for n in catalog.instance_names(category) if n.startswith(split)]
+            for name in names:
+                model_file = generated_instance_directory(category, name) / "model.sdf"
                 color = random_color(rng, saturated=rng.uniform() < 0.8)
                 text = recoloured_sdf(model_file, color, f"{category}_{name}")
                 (instance,) = parser.AddModelsFromString(text, "sdf")

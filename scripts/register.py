@@ -2,11 +2,14 @@
 
 python scripts/register.py --space models/shape_space_watering_can.npz --cloud can.ply --json out.json
 python scripts/register.py --space my_space.npz --cloud scan.pcd --initial-xyz-yaw 0.7 0 0.76 0.1 --any-orientation
+python scripts/register.py --space models/shape_space_drill.npz --cloud view.ply --viewpoint 0.2 0 1.6  # a single view
 
 The cloud is in your world frame (metres). Without --initial-xyz-yaw the search starts
 at the cloud's lowest-centre point with yaw 0 (and the yaw hypotheses of the registrar).
 Writes the refined pose X_WO, the latent vector, the warped grasp poses (as 4 x 4
-matrices) and, with --reconstruction FILE.ply, the whole inferred shape.
+matrices) and, with --reconstruction FILE.ply, the whole inferred shape. Give --viewpoint
+(the camera's position) for a single view: the model's unseen side then stays out of the
+fit, and each grasp is re-placed on the points seen about it.
 """
 
 import argparse

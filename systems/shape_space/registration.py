@@ -11,10 +11,11 @@ Gauss-Newton step (analytic Jacobians in rotation, translation and z) on
 the latent prior keeping the shape plausible. Given the viewpoint the cloud was seen from,
 only the model points visible from it (hidden point removal) are mixture centroids: else
 the seen front pulls the model's unseen back towards the camera too (a 1-2 cm bias along
-the view ray on cans and drills); each decoded grasp frame is then moved across its handle
-onto the points seen about it (grasp_shift). Several yaw hypotheses around the
-initial pose (and the pose turned end for end) are run and the best fit kept, against the
-local minima where one end of an object is registered onto the other.
+the view ray on cans and drills); each decoded grasp frame (not its pre-grasp) is then moved
+across its handle onto the points seen about it (grasp_shift), and the reconstruction there
+with it. Several yaw hypotheses around the initial pose (and the pose turned end for end)
+are run and the best fit kept, against the local minima where one end of an object is
+registered onto the other.
 """
 
 from dataclasses import dataclass
@@ -161,10 +162,16 @@ class Registrar:
         poses = {name: X_WO @ X_OG for name, X_OG in self.space.control_poses_at(z).items()}
         if viewpoint_W is not None:
             seen_model = shape_W[visible_from(shape_W, viewpoint_W)]
+            moves = np.zeros_like(shape_W)
             for side in ("left", "right"):
-                shift = RigidTransform(grasp_shift(poses[f"{side}_grasp"], seen_model, observed))
-                for kind in ("grasp", "pregrasp"):
-                    poses[f"{side}_{kind}"] = shift @ poses[f"{side}_{kind}"]
+                # The pre-grasp, a stand-off in free space, stays: a reach planned to it need not change.
+                origin = poses[f"{side}_grasp"].translation()
+                shift = grasp_shift(poses[f"{side}_grasp"], seen_model, observed)
+                poses[f"{side}_grasp"] = RigidTransform(shift) @ poses[f"{side}_grasp"]
+                # The handle is where it was seen: the reconstruction about the grasp moves with it, fading out.
+                fade = np.exp(-np.sum((shape_W - origin) ** 2, axis=1) / (2 * (GRASP_REGION / 2) ** 2))
+                moves += fade[:, None] * shift
+            shape_W = shape_W + moves
         return Registration(X_WO, z, shape_W, poses, error, iterations)
 
     def _fit(self, X, X_WO0, viewpoint_W):
