@@ -59,11 +59,14 @@ def chamfer_to_mesh(points: np.ndarray, mesh: trimesh.Trimesh, samples: int = 20
     return 0.5 * float(to_surface + cKDTree(points).query(dense)[0].mean())
 
 
-def registration_trials(trials: int, seed: int, instances=TEST_INSTANCES, categories=tuple(catalog.CATEGORIES)):
+def registration_trials(
+    trials: int, seed: int, instances=TEST_INSTANCES, categories=tuple(catalog.CATEGORIES), space_dir: Path | None = None
+):
     scenario = load_scenario()
     rng = np.random.default_rng(seed)
     estimator = MakePoseEstimator(scenario)
-    registrars = {c: Registrar(ShapeSpace.load(shape_space_file(c))) for c in categories}
+    files = {c: space_dir / shape_space_file(c).name if space_dir else shape_space_file(c) for c in categories}
+    registrars = {c: Registrar(ShapeSpace.load(files[c])) for c in categories}
     meshes = {}
     rows = []
     scene = None
@@ -170,9 +173,10 @@ def main():
         help="instances of each category, taken in turn (e.g. extra_101 extra_102: generated on first use)",
     )
     parser.add_argument("--cpd-sizes", type=int, nargs="*", default=[500, 1000, 2000])
+    parser.add_argument("--space-dir", type=Path, help="read shape_space_<category>.npz from here (default: models/)")
     parser.add_argument("--json", type=Path)
     args = parser.parse_args()
-    rows = registration_trials(args.trials, args.seed, args.instances)
+    rows = registration_trials(args.trials, args.seed, args.instances, space_dir=args.space_dir)
     cpd_rows = cpd_comparison(args.cpd_sizes)
     results = {"trials": args.trials, "seed": args.seed, "instances": args.instances}
     for category in catalog.CATEGORIES:

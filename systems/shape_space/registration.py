@@ -179,38 +179,44 @@ class Registrar:
         q = len(self.inverse_variances)
         z = np.zeros(q)
         sigma2 = INITIAL_SIGMA**2
-        M = len(self.mean_shape)
         # Upright: turn about z only, and the origin stays on the support surface (the initial height).
         rotation_dofs = [2] if self.upright else [0, 1, 2]
         translation_dofs = [0, 1] if self.upright else [0, 1, 2]
+        moved = slice(len(rotation_dofs), len(rotation_dofs) + len(translation_dofs))
+        latent = slice(moved.stop, None)
         t0 = t.copy()
         RS = self.mean_shape @ R.T  # the model in O turned into W's axes, m x 3 (z = 0)
         model = RS + t
-        squared = cdist(model, X, "sqeuclidean")
-        translation_jacobian = np.broadcast_to(np.eye(3)[:, translation_dofs], (M, 3, len(translation_dofs)))
+        # The mixture's centroids: the model points visible from the viewpoint (all without one). Only
+        # their rows of the posteriors are ever non-zero, so only they are computed.
+        rows = np.arange(len(model))
+        squared = None
+        X32 = X.astype(np.float32)
         for iteration in range(1, ITERATIONS + 1):  # noqa: B007 (the count is returned)
-            # E-step: posterior of each (visible) model point for each observed point, with a uniform outlier term.
-            if viewpoint_W is None:
-                P = gmm_posteriors(squared.copy(), sigma2, OUTLIER_WEIGHT, 3)
-            else:
-                if iteration % VISIBILITY_EVERY == 1:
-                    visible = visible_from(model, viewpoint_W)
-                P = np.zeros_like(squared)
-                P[visible] = gmm_posteriors(squared[visible], sigma2, OUTLIER_WEIGHT, 3)
-            P1 = P.sum(1)
+            if viewpoint_W is not None and iteration % VISIBILITY_EVERY == 1:
+                rows = np.flatnonzero(visible_from(model, viewpoint_W))
+                squared = None
+            if squared is None:
+                squared = cdist(model[rows], X, "sqeuclidean").astype(np.float32)
+            # E-step: posterior of each centroid for each observed point, with a uniform outlier term (in
+            # float32, twice the speed; the sums come back in float64).
+            P = gmm_posteriors(squared, sigma2, OUTLIER_WEIGHT, 3)
+            P1 = P.sum(1, dtype=np.float64)
             Np = P1.sum()
             if Np < 1e-9:
                 break
-            targets = P @ X  # m x 3, = P1_m * mean target
             # Gauss-Newton on sum_m P1_m |s_m - target_m / P1_m|^2 / (2 sigma2) + prior.
-            residual = targets - P1[:, None] * model  # = P1_m (target_m - s_m)
+            residual = (P @ X32).astype(float) - P1[:, None] * model[rows]  # = P1_m (target_m - s_m)
             J = np.concatenate(
-                [_skew_columns(RS)[:, :, rotation_dofs], translation_jacobian, R @ self.B], axis=2
-            )  # m x 3 x (rotation + translation + q)
-            H = np.einsum("m,mia,mib->ab", P1, J, J) / sigma2
-            g = np.einsum("mia,mi->a", J, residual) / sigma2
-            moved = slice(len(rotation_dofs), len(rotation_dofs) + len(translation_dofs))
-            latent = slice(moved.stop, None)
+                [
+                    _skew_columns(RS[rows])[:, :, rotation_dofs],
+                    np.broadcast_to(np.eye(3)[:, translation_dofs], (len(rows), 3, len(translation_dofs))),
+                    R @ self.B[rows],
+                ],
+                axis=2,
+            ).reshape(3 * len(rows), -1)  # (3 rows) x (rotation + translation + q)
+            H = (J * np.repeat(P1, 3)[:, None]).T @ J / sigma2
+            g = J.T @ residual.ravel() / sigma2
             # Priors: a plausible shape, and an origin near the initial estimate.
             H[latent, latent] += self.prior_weight * np.diag(self.inverse_variances)
             g[latent] -= self.prior_weight * self.inverse_variances * z
@@ -224,9 +230,9 @@ class Registrar:
             z = z + step[latent]
             RS = (self.mean_shape + self.B @ z) @ R.T
             model = RS + t
-            squared = cdist(model, X, "sqeuclidean")
-            previous, sigma2 = sigma2, max(float((P * squared).sum() / (3 * Np)), 1e-8)
+            squared = cdist(model[rows], X, "sqeuclidean").astype(np.float32)
+            previous, sigma2 = sigma2, max(float(np.vdot(P, squared)) / (3 * Np), 1e-8)
             if abs(previous - sigma2) < CONVERGED * previous:
                 break
-        error = float(np.sqrt(squared.min(0)).mean())
+        error = float(np.sqrt(cdist(model, X, "sqeuclidean").min(0)).mean())
         return R, t, z, error, iteration
