@@ -60,7 +60,11 @@ def chamfer_to_mesh(points: np.ndarray, mesh: trimesh.Trimesh, samples: int = 20
 
 
 def registration_trials(
-    trials: int, seed: int, instances=TEST_INSTANCES, categories=tuple(catalog.CATEGORIES), space_dir: Path | None = None
+    trials: int,
+    seed: int,
+    instances=TEST_INSTANCES,
+    categories=tuple(catalog.CATEGORIES),
+    space_dir: Path | None = None,
 ):
     scenario = load_scenario()
     rng = np.random.default_rng(seed)
