@@ -37,8 +37,13 @@ NOMINAL_XY = (0.73, 0.0)  # m, where the scenario puts the object
 DEPTH_NOISE = 0.002  # m, standard deviation
 TEST_INSTANCES = ("test_0", "test_1", "test_2")
 # grasp_*: the mean over the four control poses; grasp_frame_*: the two grasp frames alone.
-METRICS = ("grasp_translation_error_m", "grasp_frame_translation_error_m", "grasp_angle_error_rad", "chamfer_m")
-METRICS += ("registration_s",)
+METRICS = (
+    "grasp_translation_error_m",
+    "grasp_frame_translation_error_m",
+    "grasp_angle_error_rad",
+    "chamfer_m",
+    "registration_s",
+)
 
 
 def true_grasps(category: str, instance: str):
@@ -69,8 +74,8 @@ def registration_trials(
     scenario = load_scenario()
     rng = np.random.default_rng(seed)
     estimator = MakePoseEstimator(scenario)
-    files = {c: space_dir / shape_space_file(c).name if space_dir else shape_space_file(c) for c in categories}
-    registrars = {c: Registrar(ShapeSpace.load(files[c])) for c in categories}
+    spaces = {c: space_dir / shape_space_file(c).name if space_dir else shape_space_file(c) for c in categories}
+    registrars = {c: Registrar(ShapeSpace.load(path)) for c, path in spaces.items()}
     meshes = {}
     rows = []
     scene = None

@@ -84,13 +84,15 @@ def folder_instances(folder: Path, poses_file: Path):
     spec = yaml.safe_load(poses_file.read_text())
     if not isinstance(spec, dict) or "canonical" not in spec or "poses" not in spec:
         raise SystemExit(f"error: {poses_file} needs 'canonical' (a model's file name) and its 'poses'")
-    clouds = {p.name: load_model_points(p) for p in files}
+    # The pose file is checked before any model is sampled: a mistake in it costs nothing.
     poses = {spec["canonical"]: parse_poses(spec["poses"], poses_file)}
     for model, model_poses in (spec.get("others") or {}).items():
         poses[model] = parse_poses(model_poses, poses_file, model)
-    unknown = sorted(set(poses) - set(clouds))
+    names = sorted(p.name for p in files)
+    unknown = sorted(set(poses) - set(names))
     if unknown:
-        raise SystemExit(f"error: {poses_file} gives poses of {unknown}, not among the models {sorted(clouds)}")
+        raise SystemExit(f"error: {poses_file} gives poses of {unknown}, not among the models {names}")
+    clouds = {p.name: load_model_points(p) for p in files}
     return clouds, poses, spec["canonical"]
 
 

@@ -222,7 +222,7 @@ def build_shape_space(
             first), so the fields start local: from the clouds' whole spread, CPD slid the points along
             the surface (37 mm RMS field between two copies of one drill) and the latent components
             learnt that noise (2 cm -> 10 mm, and the unseen test drills' fields warp the canonical surface
-            to 2.0-2.2 mm Chamfer instead of 4.0-4.3 mm).
+            to 2.0-2.2 mm Chamfer instead of 4.1-4.3 mm).
     """
     if len(clouds) < 2:
         raise ValueError(f"a shape space needs at least 2 instances, got {len(clouds)}")
