@@ -4,8 +4,9 @@ Frames: C is the depth camera (x right, y down, z along the optical axis), W the
 world (z up), O the object (origin on its support surface, z up, x towards the
 spout / chuck; see diagrams/objects/).
 
-  * points: the mask's pixels with a valid depth (NaN, inf and 0 are holes), eroded
-    by a few pixels (edges mix object and background), back-projected and moved to W.
+  * points: the mask's pixels with a valid depth (NaN, inf and 0 are holes), back-projected
+    and moved to W. The pose fit below takes only the mask's interior (eroded by a few
+    pixels: edges mix object and background).
   * z_O is the world's up axis (the category prior: objects stand upright), and the
     origin's height is the support surface's, measured in a ring of pixels around the mask.
   * yaw and origin (x, y): the points' principal horizontal axis and extent give a
@@ -233,33 +234,40 @@ class PoseEstimator(LeafSystem):
     def estimate(self, segmentation: Segmentation, depth: np.ndarray, X_WB: RigidTransform) -> ObjectEstimate:
         if not segmentation.found:
             return ObjectEstimate(False, message=f"no object to localise ({segmentation.message})")
-        mask = segmentation.mask
-        if self.erode_pixels:
-            # Edge pixels mix object and background depth; drop them when enough remain.
-            kernel = np.ones((2 * self.erode_pixels + 1,) * 2, np.uint8)
-            eroded = cv2.erode(mask.astype(np.uint8), kernel).astype(bool)
-            if np.count_nonzero(eroded) >= MIN_POINTS:
-                mask = eroded
-        points_C = depth_to_points(depth, mask, self.intrinsics)
-        if len(points_C) < MIN_POINTS:
+        X_WC = X_WB @ self.X_BC
+        points_W = self._object_points_W(segmentation.mask, depth, X_WC)
+        if len(points_W) < MIN_POINTS:
             return ObjectEstimate(
                 False,
                 segmentation.category,
-                message=f"only {len(points_C)} of {segmentation.pixel_count} object pixels have a valid depth",
+                message=f"only {len(points_W)} of {segmentation.pixel_count} object pixels have a valid depth",
             )
-        X_WC = X_WB @ self.X_BC
-        points_W = X_WC.multiply(points_C.T).T
-        # Far strays (a wrongly segmented patch of wall or table) are not part of the object.
-        near = np.linalg.norm(points_W - np.median(points_W, axis=0), axis=1) < MAX_OBJECT_RADIUS
-        if np.count_nonzero(near) >= MIN_POINTS:
-            points_W = points_W[near]
-        support = self.support_height(segmentation.mask, depth, X_WC, points_W)
+        # The pose fit takes the mask's interior: edge pixels mix object and background depth. The
+        # estimate keeps every point: the silhouette's edge is the shape's extent, and the shape
+        # registration weighs strays down itself (cans' Chamfer 4.8 -> 3.5 mm with the edges).
+        fit_points_W = points_W
+        if self.erode_pixels:
+            kernel = np.ones((2 * self.erode_pixels + 1,) * 2, np.uint8)
+            eroded = cv2.erode(segmentation.mask.astype(np.uint8), kernel).astype(bool)
+            interior_W = self._object_points_W(eroded, depth, X_WC)
+            if len(interior_W) >= MIN_POINTS:
+                fit_points_W = interior_W
+        support = self.support_height(segmentation.mask, depth, X_WC, fit_points_W)
         X_WO = estimate_pose(
-            points_W, segmentation.category, support, self._free_space_test(segmentation.mask, depth, X_WC)
+            fit_points_W, segmentation.category, support, self._free_space_test(segmentation.mask, depth, X_WC)
         )
         return ObjectEstimate(
             True, segmentation.category, X_WO, points_W, f"{len(points_W)} points", X_WC.translation()
         )
+
+    def _object_points_W(self, mask, depth, X_WC) -> np.ndarray:
+        """The mask's pixels with a valid depth, in W (N x 3), less far strays."""
+        points_W = X_WC.multiply(depth_to_points(depth, mask, self.intrinsics).T).T
+        if len(points_W) < MIN_POINTS:
+            return points_W
+        # Far strays (a wrongly segmented patch of wall or table) are not part of the object.
+        near = np.linalg.norm(points_W - np.median(points_W, axis=0), axis=1) < MAX_OBJECT_RADIUS
+        return points_W[near] if np.count_nonzero(near) >= MIN_POINTS else points_W
 
     def _free_space_test(self, mask, depth, X_WC):
         """f(points_W) -> fraction of the points the camera would have seen but sees through.

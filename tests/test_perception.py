@@ -100,6 +100,9 @@ def test_pose_estimator_alone_on_true_mask(station_frame):
     assert yaw_error(estimate.X_WO, station_frame["X_WO"]) < YAW_TOLERANCE
     cloud = estimator.GetOutputPort("point_cloud").Eval(context)
     assert cloud.size() == len(estimate.points_W) > 1000
+    # The pose fit leaves the mask's edge out, the object's cloud keeps it: the silhouette is the shape's extent.
+    depth = np.asarray(station_frame["depth"].data)[:, :, 0]
+    assert len(estimate.points_W) == np.count_nonzero(mask & np.isfinite(depth) & (depth > 0))
 
 
 def test_pose_estimator_survives_depth_holes_and_reports_no_depth(station_frame):

@@ -3,8 +3,9 @@
 The model is the canonical shape deformed by the latent vector z and moved by X_WO:
 s_m = R (y_m + v_m(z)) + t. Like CPD, the observed points are samples of a Gaussian
 mixture centred on the s_m with an outlier component, so points on the unseen side
-of the model simply get no weight. EM alternates the posteriors (E-step) with one
-Gauss-Newton step (analytic Jacobians in rotation, translation and z) on
+of the model simply get no weight. The observed points are first thinned to one per voxel:
+surfaces the camera sees at a slant then weigh as much as those facing it. EM alternates
+the posteriors (E-step) with one Gauss-Newton step (analytic Jacobians in rotation, translation and z) on
 
     sum_mn p_mn |x_n - s_m|^2 / (2 sigma^2) + (1/2) sum_k z_k^2 / var_k,
 
@@ -27,11 +28,13 @@ from scipy.spatial import cKDTree
 from scipy.spatial.distance import cdist
 from scipy.spatial.transform import Rotation
 
+from systems.pose_estimator import voxel_thin
 from systems.shape_space.cpd import gmm_posteriors
 from systems.shape_space.space import ShapeSpace
 
 MODEL_POINTS = 800
 OBSERVED_POINTS = 500
+THINNING_VOXEL = 0.002  # m: the first voxel size tried when thinning the observed cloud
 OUTLIER_WEIGHT = 0.1
 ITERATIONS = 40
 # Yaw offsets (rad) tried about the initial pose; pi: the pose estimator's end-for-end flip (seen on
@@ -100,6 +103,20 @@ def grasp_shift(X_WG: RigidTransform, model_W: np.ndarray, observed_W: np.ndarra
     return shift if np.linalg.norm(shift) < GRASP_SHIFT_LIMIT else np.zeros(3)
 
 
+def evenly_thinned(points: np.ndarray, count: int) -> np.ndarray:
+    """At most `count` of the points (N x 3), one per voxel, the voxel grown until few enough remain.
+
+    A camera samples the surfaces facing it densely and those it sees at a slant sparsely. Thinned at
+    random, the fit would weigh the facing side most: on a can seen from behind and above, the model
+    then settled 6.5 mm towards the camera (mean over 30 views; 1.3 mm with this thinning)."""
+    size = THINNING_VOXEL
+    thinned = voxel_thin(points, size)
+    while len(thinned) > count:
+        size *= 1.2
+        thinned = voxel_thin(points, size)
+    return thinned
+
+
 def _check_cloud(points: np.ndarray) -> np.ndarray:
     points = np.asarray(points, dtype=float)
     if points.ndim != 2 or points.shape[1] != 3:
@@ -146,9 +163,7 @@ class Registrar:
             viewpoint_W = np.asarray(viewpoint_W, dtype=float)
             if viewpoint_W.shape != (3,) or not np.all(np.isfinite(viewpoint_W)):
                 raise ValueError(f"the viewpoint must be 3 finite numbers (m, in W), got {viewpoint_W!r}")
-        X = observed
-        if len(X) > OBSERVED_POINTS:
-            X = X[np.random.default_rng(0).choice(len(X), OBSERVED_POINTS, replace=False)]
+        X = evenly_thinned(observed, OBSERVED_POINTS)
         best = None
         for offset in YAW_HYPOTHESES:
             X0 = RigidTransform(RotationMatrix.MakeZRotation(offset)) @ X_WO_initial
