@@ -19,8 +19,8 @@ in that model's frame (metres, degrees):
 
 Where other models' poses are given, they guide those models' CPD fields (landmarks: handle
 onto handle) and are learnt as their grasp frames; the transferred grasps then come out
-much closer (a folder of 6 cans, 4 components: 30-38 mm with the canonical's poses alone,
-17-19 mm with all six models' poses; see tests/test_build_shape_space_cli.py).
+much closer (a folder of 6 cans, 4 components: 32-39 mm with the canonical's poses alone,
+14-21 mm with all six models' poses; see tests/test_build_shape_space_cli.py).
 """
 
 import argparse

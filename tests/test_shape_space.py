@@ -224,7 +224,7 @@ def handle_front(offset, count=800, seed=0):
     return np.column_stack([along, 0.012 * np.cos(angle), 0.012 * np.sin(angle)]) + offset
 
 
-def test_grasp_shift_moves_a_grasp_across_its_handle_onto_the_seen_points():
+def test_grasp_shift_moves_a_grasp_across_a_straight_handle_onto_the_seen_points():
     seen = handle_front([0.7, 0.0, 0.8], seed=1)
     # The model's handle lies 6 mm off sideways and 8 mm low, and 2 cm along the handle (which cannot be seen).
     model = handle_front([0.72, 0.006, 0.792], seed=2)
@@ -234,3 +234,23 @@ def test_grasp_shift_moves_a_grasp_across_its_handle_onto_the_seen_points():
     # Too little seen about the grasp (a few points, or the handle 6 cm away): left where it is.
     np.testing.assert_array_equal(grasp_shift(X_WG, model, seen[:10]), np.zeros(3))
     np.testing.assert_array_equal(grasp_shift(X_WG, model, seen + [0.0, 0.06, 0.0]), np.zeros(3))
+
+
+def arc_handle(centre, radius=0.06, count=3000, seed=0):
+    """A 12 mm tube bent into a half circle in the xz plane, bulging towards -x (a can's rear handle), W."""
+    rng = np.random.default_rng(seed)
+    t = rng.uniform(np.pi / 2, 3 * np.pi / 2, count)
+    around = rng.uniform(0, 2 * np.pi, count)
+    axis = np.column_stack([np.cos(t), np.zeros(count), np.sin(t)])
+    tube = 0.012 * (np.cos(around)[:, None] * axis + np.sin(around)[:, None] * [0.0, 1.0, 0.0])
+    return centre + radius * axis + tube
+
+
+def test_grasp_shift_places_a_grasp_along_a_bent_handle():
+    """At an arc's apex the handle's bend is seen: the model's handle, 12 mm too low there, is moved up."""
+    seen = arc_handle(np.array([0.7, 0.0, 0.9]), seed=1)
+    seen = seen[seen[:, 0] < 0.7 - 0.03]  # the seen back half of the arc
+    model = arc_handle(np.array([0.7, 0.0, 0.888]), seed=2)
+    X_WG = RigidTransform(RotationMatrix.MakeYRotation(-np.pi / 2), [0.64, 0.0, 0.888])  # the apex, x_G up the handle
+    shift = grasp_shift(X_WG, model, seen)
+    np.testing.assert_allclose(shift, [0.0, 0.0, 0.012], atol=0.003)
