@@ -4,8 +4,9 @@ The model is the canonical shape deformed by the latent vector z and moved by X_
 s_m = R (y_m + v_m(z)) + t. Like CPD, the observed points are samples of a Gaussian
 mixture centred on the s_m with an outlier component, so points on the unseen side
 of the model simply get no weight. The observed points are first thinned evenly (farthest
-point sampling): surfaces the camera sees at a slant then weigh as much as those facing it. EM alternates
-the posteriors (E-step) with one Gauss-Newton step (analytic Jacobians in rotation, translation and z) on
+point sampling): surfaces the camera sees at a slant then weigh as much as those facing
+it. EM alternates the posteriors (E-step) with one Gauss-Newton step (analytic Jacobians
+in rotation, translation and z) on
 
     sum_mn p_mn |x_n - s_m|^2 / (2 sigma^2) + (1/2) sum_k z_k^2 / var_k,
 
