@@ -81,16 +81,15 @@ def visible_from(points_W: np.ndarray, viewpoint_W: np.ndarray) -> np.ndarray:
     return mask
 
 
-def grasp_shift(X_WG: RigidTransform, model_W: np.ndarray, observed_W: np.ndarray) -> np.ndarray:
-    """How far (3, W, m) to move a grasp frame so that the model's surface about it lies on the points seen
-    there: translation-only point-to-plane ICP of the model points (its visible side, N x 3, W) within
-    GRASP_REGION of the frame onto the observed points (K x 3, W) there. Along a straight handle the seen
+def grasp_shift(origin_W: np.ndarray, model_W: np.ndarray, observed_W: np.ndarray) -> np.ndarray:
+    """How far (3, W, m) to move a grasp frame at origin_W (3, W, m) so that the model's surface about it lies
+    on the points seen there: translation-only point-to-plane ICP of the model points (its visible side, N x 3,
+    W) within GRASP_REGION of the frame onto the observed points (K x 3, W) there. Along a straight handle the seen
     normals say nothing and the damped steps leave the frame be; where the handle bends (an arc's apex) they
     place it along the handle too. Zero where too little is seen or the shift would exceed GRASP_SHIFT_LIMIT.
     """
-    origin = X_WG.translation()
-    model = model_W[np.linalg.norm(model_W - origin, axis=1) < GRASP_REGION]
-    seen = observed_W[np.linalg.norm(observed_W - origin, axis=1) < GRASP_REGION]
+    model = model_W[np.linalg.norm(model_W - origin_W, axis=1) < GRASP_REGION]
+    seen = observed_W[np.linalg.norm(observed_W - origin_W, axis=1) < GRASP_REGION]
     shift = np.zeros(3)
     if len(model) < 10 or len(seen) < 20:
         return shift
@@ -186,7 +185,7 @@ class Registrar:
             for side in ("left", "right"):
                 # The pre-grasp moves with its grasp: the approach between them stays along z_G.
                 origin = poses[f"{side}_grasp"].translation()
-                shift = grasp_shift(poses[f"{side}_grasp"], seen_model, observed)
+                shift = grasp_shift(origin, seen_model, observed)
                 for kind in ("grasp", "pregrasp"):
                     poses[f"{side}_{kind}"] = RigidTransform(shift) @ poses[f"{side}_{kind}"]
                 # The handle is where it was seen: the reconstruction about the grasp moves with it, fading out.
