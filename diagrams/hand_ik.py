@@ -30,7 +30,7 @@ from systems.planning.stomp import Obstacles, Stomp
 SIDES = ("left", "right")
 SEED_SAMPLES = 3000
 # Clearance added around a perceived (reconstructed) object for reach planning, m. The reconstructions
-# are 3.5-7 mm off (Chamfer, single views); 1.5 cm around the accurate drills left STOMP's reach without a
+# are 2.8-4.1 mm off (Chamfer, single views); 1.5 cm around the accurate drills left STOMP's reach without a
 # path to the pre-grasp in its 2 s (unseen drills 17/24 picks; 1 cm: see the README's evaluation).
 PERCEIVED_SHAPE_MARGIN = 0.01
 OBJECT_SURFACE_POINTS = 6000

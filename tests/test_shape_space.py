@@ -214,6 +214,12 @@ def test_registration_from_a_single_view_uses_the_viewpoint(instance):
             e[0] for e in true_grasp_errors("drill", instance, X_WO, result.grasp_poses_W)
         )
     assert worst[True] < 0.008 and worst[True] < worst[False], worst
+    # Each grasp was moved onto the seen handle, and its pre-grasp with it: the approach between them is as decoded.
+    decoded = {n: result.X_WO @ X for n, X in registrar.space.control_poses_at(result.latent).items()}
+    for side in ("left", "right"):
+        grasp, pregrasp = result.grasp_poses_W[f"{side}_grasp"], result.grasp_poses_W[f"{side}_pregrasp"]
+        moved = grasp.translation() - decoded[f"{side}_grasp"].translation()
+        np.testing.assert_allclose(pregrasp.translation() - decoded[f"{side}_pregrasp"].translation(), moved, atol=1e-9)
 
 
 def handle_front(offset, count=800, seed=0):
@@ -228,12 +234,12 @@ def test_grasp_shift_moves_a_grasp_across_a_straight_handle_onto_the_seen_points
     seen = handle_front([0.7, 0.0, 0.8], seed=1)
     # The model's handle lies 6 mm off sideways and 8 mm low, and 2 cm along the handle (which cannot be seen).
     model = handle_front([0.72, 0.006, 0.792], seed=2)
-    X_WG = RigidTransform([0.72, 0.006, 0.792])  # x_G along the handle
-    shift = grasp_shift(X_WG, model, seen)
+    origin = np.array([0.72, 0.006, 0.792])  # the model's grasp, on its handle's axis
+    shift = grasp_shift(origin, model, seen)
     np.testing.assert_allclose(shift, [0.0, -0.006, 0.008], atol=0.0015)
     # Too little seen about the grasp (a few points, or the handle 6 cm away): left where it is.
-    np.testing.assert_array_equal(grasp_shift(X_WG, model, seen[:10]), np.zeros(3))
-    np.testing.assert_array_equal(grasp_shift(X_WG, model, seen + [0.0, 0.06, 0.0]), np.zeros(3))
+    np.testing.assert_array_equal(grasp_shift(origin, model, seen[:10]), np.zeros(3))
+    np.testing.assert_array_equal(grasp_shift(origin, model, seen + [0.0, 0.06, 0.0]), np.zeros(3))
 
 
 def arc_handle(centre, radius=0.06, count=3000, seed=0):
@@ -251,6 +257,5 @@ def test_grasp_shift_places_a_grasp_along_a_bent_handle():
     seen = arc_handle(np.array([0.7, 0.0, 0.9]), seed=1)
     seen = seen[seen[:, 0] < 0.7 - 0.03]  # the seen back half of the arc
     model = arc_handle(np.array([0.7, 0.0, 0.888]), seed=2)
-    X_WG = RigidTransform(RotationMatrix.MakeYRotation(-np.pi / 2), [0.64, 0.0, 0.888])  # the apex, x_G up the handle
-    shift = grasp_shift(X_WG, model, seen)
+    shift = grasp_shift(np.array([0.64, 0.0, 0.888]), model, seen)  # the model's grasp at its apex
     np.testing.assert_allclose(shift, [0.0, 0.0, 0.012], atol=0.003)
