@@ -1,36 +1,44 @@
-"""The autonomous pick diagram: camera -> Segmenter -> PoseEstimator -> ShapeRegistrar -> PickSequencer -> arms.
+"""The pick diagram: the design card's chain of stages around a station.
 
-MakePickDiagram wires the perception systems and the PickSequencer (which plans with
-IK + STOMP on the perceived grasps, the reconstruction as the obstacle, and plays the
-plan) around a station: the simulated one, or the hardware one that talks LCM to a
-robot driver; both expose the same ports. Nothing here reads the simulator's ground
-truth: run_pick judges the outcome on it only afterwards.
+  station.camera0 -> camera_latch -> segmenter -> pose_estimator -> [registration_yaw_noise] ->
+  shape_registrar -> stomp_planner -> trajectory_source -> station.centauro.position
+  pick_sequencer: asks camera_latch for a frame, stomp_planner for plans, hand_command for the hands.
+
+MakePickDiagram wires it around the simulated station or the hardware one that talks LCM to a
+robot driver (both expose the same ports). With perception="ground_truth", a ground-truth source
+(the object's true grasp frames and surface) stands where camera_latch ... shape_registrar were: the
+same planner, trajectory source and sequencer (the "oracle" pick). Nothing else reads the
+simulator's ground truth: run_pick judges the outcome on it only afterwards.
 """
 
 import logging
 from pathlib import Path
 
 import numpy as np
-from pydrake.common.schema import Transform
+import trimesh
+from pydrake.common.value import AbstractValue
 from pydrake.geometry import Meshcat, Rgba
 from pydrake.lcm import DrakeLcm, DrakeLcmInterface
-from pydrake.math import RigidTransform
 from pydrake.systems.framework import Diagram, DiagramBuilder
+from pydrake.systems.primitives import ConstantValueSource
 
-from diagrams.hand_ik import SIDES, DualArmIk
 from diagrams.hardware_station import MakeHardwareStation
-from diagrams.objects.instance import HandGrasp, ObjectInfo
-from diagrams.oracle_pick import OPEN_WIDTH, plan_oracle_pick
+from diagrams.objects.library import resolve_object
 from diagrams.perception import AddPerception
 from diagrams.pick_simulation import PickOutcome, simulate_pick, station_plant
+from diagrams.planning_scene import make_dual_arm_ik, true_grasp_poses
 from diagrams.robot_driver import MakeRobotDriver
 from diagrams.scenario import Scenario
-from diagrams.station import HAND_INSTANCES, MakeStation
-from systems.joint_plan import JointPlan
-from systems.pick_sequencer import PickSequencer, PickStatus
+from diagrams.station import HAND_INSTANCES, MakeStation, object_pose_on_table
+from systems.camera_latch import CameraLatch
+from systems.hand_command import HandCommandSource
+from systems.pick_sequencer import PickSequencer, PickStatus, lift_task
+from systems.planner import StompPlanner
+from systems.planning.pick_motions import PickMotions, PlanningError
 from systems.pose_estimator import to_point_cloud
 from systems.pose_noise import PoseYawOffset, draw_yaw_offset
 from systems.shape_registrar import GraspPoses, ShapeRegistrar
+from systems.trajectory_source import JointTrajectorySource
 
 # Perceive once the object has settled on the table, s.
 PERCEIVE_AT_S = 0.5
@@ -41,88 +49,118 @@ MAX_PICK_S = 60.0
 # hand that stops short can close on the handle's edge and lose it in the lift (the paper's
 # real-robot failure, §V-C: "the approaching pose ... should be closer to the object").
 GRASP_DEPTH_MARGIN = 0.01
-DEEPER = RigidTransform([0.0, 0.0, GRASP_DEPTH_MARGIN])
-# The reconstruction, thinned to about this many points, is the reach's obstacle: the margin about it
-# (hand_ik.PERCEIVED_SHAPE_MARGIN) was set for a cloud this dense, and planning cost grows with it.
-OBSTACLE_POINTS = 2000
-
-
-def make_pick_planner(scenario: Scenario):
-    """plan_pick(grasps, cloud_W, q_now) -> JointPlan for the PickSequencer.
-
-    IK on the perceived grasps (as if of an object whose frame is the world's), STOMP for
-    the reach around the reconstructed cloud, straight approach, close, closed-chain lift.
-    The robot model (and its IK seed table) is built here, once.
-    Raises PlanningError (a RuntimeError) naming the phase that failed.
-    """
-
-    ik = DualArmIk(scenario)  # the robot model and its IK seed table: built once, not per image
-
-    def plan_pick(grasps: GraspPoses, cloud_W: np.ndarray, q_now: np.ndarray) -> JointPlan:
-        ik.set_obstacle_points(cloud_W[:: max(1, len(cloud_W) // OBSTACLE_POINTS)] if len(cloud_W) else None)
-        poses = {name: Transform(X_WG) for name, X_WG in grasps.poses_W.items()}
-        for side in SIDES:
-            poses[f"{side}_grasp"] = Transform(grasps.poses_W[f"{side}_grasp"] @ DEEPER)
-        info = ObjectInfo(grasps={side: HandGrasp(poses[f"{side}_pregrasp"], poses[f"{side}_grasp"]) for side in SIDES})
-        plan = plan_oracle_pick(ik, q_now, RigidTransform(), info)
-        plan.grasp_paths_W = _grasp_paths(ik, plan)
-        return plan
-
-    return plan_pick
-
-
-def _grasp_paths(ik: DualArmIk, plan: JointPlan, samples: int = 120) -> dict[str, np.ndarray]:
-    """Each hand's grasp frame origin along the plan, samples x 3 in W (for the viewer)."""
-    trajectory = plan.arm_trajectory()
-    q = np.column_stack([trajectory.value(t) for t in np.linspace(0, plan.duration, samples)]).T
-    return {side: X[:, :3, 3] for side, X in zip(SIDES, ik.stomp.end_effectors.poses(q), strict=True)}
+# The ground-truth source's object surface: this many points (the planner thins to its own density).
+TRUE_SURFACE_POINTS = 4000
+PERCEPTION_SOURCES = ("camera", "ground_truth")
 
 
 def MakePickDiagram(
-    scenario: Scenario, meshcat: Meshcat | None = None, hardware: bool = False, lcm: DrakeLcmInterface | None = None
+    scenario: Scenario,
+    meshcat: Meshcat | None = None,
+    hardware: bool = False,
+    lcm: DrakeLcmInterface | None = None,
+    perception: str = "camera",
 ) -> Diagram:
-    """The whole autonomous pick around the simulated station, or with `hardware`, the LCM one.
+    """The whole pick around the simulated station, or with `hardware`, the LCM one.
 
     Args:
         scenario: the run's configuration.
         meshcat: the simulated station draws itself there.
         hardware: build the LCM station (diagrams/hardware_station.py) instead of the simulation.
         lcm: the LCM bus of the hardware station (default: one on scenario.lcm.lcm_url).
+        perception: "camera" (the autonomous chain) or "ground_truth" (the object's true grasp frames
+            and surface, from the scenario: the oracle pick).
+
+    Raises:
+        PlanningError: ground truth asked for an object that has no grasp frames.
     """
+    if perception not in PERCEPTION_SOURCES:
+        raise ValueError(f"unknown perception {perception!r}: one of {PERCEPTION_SOURCES}")
     builder = DiagramBuilder()
     if hardware:
         station = builder.AddNamedSystem("station", MakeHardwareStation(scenario, lcm))
     else:
         station = builder.AddNamedSystem("station", MakeStation(scenario, meshcat))
-    segmenter, pose_estimator = AddPerception(builder, station, scenario)
+    motions = PickMotions(make_dual_arm_ik(scenario))
+    if hardware:  # the robot holds while the computer thinks: the plan starts once it exists
+        motions.ik.stomp.config.time_limit_s = scenario.planning.hardware_time_limit_s
+        latency_s = 0.0
+    else:  # simulated planning takes a fixed time, whatever the machine: iterations, not seconds, limit STOMP
+        motions.ik.stomp.config.time_limit_s = np.inf
+        latency_s = scenario.planning.latency_s
+    motions.ik.stomp.config.seed = scenario.random_seed
+    margin = GRASP_DEPTH_MARGIN if perception == "camera" else 0.0
+    planner = builder.AddNamedSystem("stomp_planner", StompPlanner(motions, latency_s, margin))
+    source = builder.AddNamedSystem("trajectory_source", JointTrajectorySource())
+    hands = builder.AddNamedSystem("hand_command", HandCommandSource())
+    sequencer = builder.AddNamedSystem("pick_sequencer", PickSequencer(lift_task(), PERCEIVE_AT_S))
+
+    measured = station.GetOutputPort("centauro.position_measured")
+    if perception == "camera":
+        grasps, cloud = _AddCameraPerception(builder, station, sequencer, scenario)
+    else:
+        grasps, cloud = _AddGroundTruth(builder, scenario)
+    builder.Connect(grasps, planner.GetInputPort("grasp_poses"))
+    builder.Connect(cloud, planner.GetInputPort("obstacle_cloud_W"))
+    builder.Connect(grasps, sequencer.GetInputPort("grasp_poses"))
+    builder.Connect(sequencer.GetOutputPort("plan_request"), planner.GetInputPort("request"))
+    builder.Connect(planner.GetOutputPort("plan"), source.GetInputPort("plan"))
+    builder.Connect(planner.GetOutputPort("plan"), sequencer.GetInputPort("plan"))
+    builder.Connect(measured, source.GetInputPort("position_measured"))
+    builder.Connect(measured, sequencer.GetInputPort("position_measured"))
+    builder.Connect(source.GetOutputPort("position"), station.GetInputPort("centauro.position"))
+    builder.Connect(sequencer.GetOutputPort("hand_command"), hands.GetInputPort("command"))
+    for side, hand in HAND_INSTANCES.items():
+        builder.Connect(hands.GetOutputPort("width"), station.GetInputPort(f"{hand}.position"))
+        builder.Connect(station.GetOutputPort(f"{hand}.state_measured"), sequencer.GetInputPort(f"{side}_hand_state"))
+    diagram = builder.Build()
+    diagram.set_name("pick")
+    return diagram
+
+
+def _AddCameraPerception(builder, station, sequencer, scenario):
+    """camera -> camera_latch -> segmenter -> pose_estimator -> [yaw noise] -> shape_registrar; the
+    sequencer triggers the latch and reads each stage's result. Returns the registrar's grasp poses and
+    reconstructed cloud ports."""
+    camera = scenario.camera.name
+    latch = builder.AddNamedSystem("camera_latch", CameraLatch())
+    for port, source in (("color_image", "rgb_image"), ("depth_image", "depth_image"), ("camera_pose", "pose")):
+        builder.Connect(station.GetOutputPort(f"{camera}.{source}"), latch.GetInputPort(port))
+    builder.Connect(sequencer.GetOutputPort("trigger"), latch.GetInputPort("trigger"))
+    builder.Connect(latch.GetOutputPort("frame_id"), sequencer.GetInputPort("frame_id"))
+    segmenter, pose_estimator = AddPerception(
+        builder, *(latch.GetOutputPort(p) for p in ("color_image", "depth_image", "camera_pose")), scenario
+    )
     registrar = builder.AddNamedSystem("shape_registrar", ShapeRegistrar())
-    estimate_to_register = pose_estimator.GetOutputPort("estimate")
+    estimate = pose_estimator.GetOutputPort("estimate")
     if scenario.registration_yaw_noise > 0:
         offset = draw_yaw_offset(scenario.registration_yaw_noise, scenario.random_seed)
         noise = builder.AddNamedSystem("registration_yaw_noise", PoseYawOffset(offset))
-        builder.Connect(estimate_to_register, noise.get_input_port())
-        estimate_to_register = noise.get_output_port()
-    sequencer = builder.AddNamedSystem(
-        "pick_sequencer", PickSequencer(make_pick_planner(scenario), OPEN_WIDTH, PERCEIVE_AT_S)
+        builder.Connect(estimate, noise.get_input_port())
+        estimate = noise.get_output_port()
+    builder.Connect(estimate, registrar.GetInputPort("estimate"))
+    builder.Connect(segmenter.GetOutputPort("segmentation"), sequencer.GetInputPort("segmentation"))
+    builder.Connect(pose_estimator.GetOutputPort("estimate"), sequencer.GetInputPort("estimate"))
+    cloud = registrar.GetOutputPort("reconstructed_cloud_W")
+    builder.Connect(cloud, sequencer.GetInputPort("reconstructed_cloud_W"))
+    return registrar.GetOutputPort("grasp_poses"), cloud
+
+
+def _AddGroundTruth(builder, scenario):
+    """Sources of the object's true grasp frames and surface where the station puts it (the oracle)."""
+    try:
+        poses = true_grasp_poses(scenario)
+    except ValueError as error:
+        raise PlanningError(str(error)) from error
+    model = resolve_object(scenario.object)
+    mesh = trimesh.load(model.model_file.parent / "visual.obj", force="mesh")
+    X_WO = object_pose_on_table(scenario, model)
+    surface = X_WO.multiply(trimesh.sample.sample_surface_even(mesh, TRUE_SURFACE_POINTS, seed=0)[0].T).T
+    grasps = builder.AddNamedSystem(
+        "ground_truth.grasp_poses", ConstantValueSource(AbstractValue.Make(GraspPoses(True, poses, "ground truth")))
     )
-    camera = scenario.camera.name
-    builder.Connect(estimate_to_register, registrar.GetInputPort("estimate"))
-    for port, source in (
-        ("color_image", station.GetOutputPort(f"{camera}.rgb_image")),
-        ("depth_image", station.GetOutputPort(f"{camera}.depth_image")),
-        ("segmentation", segmenter.GetOutputPort("segmentation")),
-        ("estimate", pose_estimator.GetOutputPort("estimate")),
-        ("grasp_poses", registrar.GetOutputPort("grasp_poses")),
-        ("reconstructed_cloud_W", registrar.GetOutputPort("reconstructed_cloud_W")),
-        ("position_measured", station.GetOutputPort("centauro.position_measured")),
-    ):
-        builder.Connect(source, sequencer.GetInputPort(port))
-    builder.Connect(sequencer.GetOutputPort("arm_position"), station.GetInputPort("centauro.position"))
-    for hand in HAND_INSTANCES.values():
-        builder.Connect(sequencer.GetOutputPort("hand_width"), station.GetInputPort(f"{hand}.position"))
-    diagram = builder.Build()
-    diagram.set_name("autonomous_pick")
-    return diagram
+    cloud = builder.AddNamedSystem("ground_truth.object_cloud_W", ConstantValueSource(AbstractValue.Make(surface)))
+    return grasps.get_output_port(), cloud.get_output_port()
 
 
 def pick_status(diagram: Diagram, context) -> PickStatus:
@@ -137,9 +175,11 @@ def draw_perception(meshcat: Meshcat, status: PickStatus):
         ("perception/camera_points", status.seen_points_W, Rgba(0.1, 0.4, 1.0, 1.0)),
         ("perception/reconstruction", status.reconstruction_W, Rgba(1.0, 0.6, 0.0, 1.0)),
     ):
-        meshcat.SetObject(path, to_point_cloud(points_W), point_size=0.006, rgba=rgba)
-    for side, path_W in status.plan.grasp_paths_W.items():
-        meshcat.SetLine(f"perception/grasp_path_{side}", path_W.T, 3.0, Rgba(0.1, 0.8, 0.2, 1.0))
+        if points_W is not None:  # (a ground-truth pick sees nothing)
+            meshcat.SetObject(path, to_point_cloud(points_W), point_size=0.006, rgba=rgba)
+    for index, paths in enumerate(status.grasp_paths_W):
+        for side, path_W in paths.items():
+            meshcat.SetLine(f"perception/grasp_path_{index}_{side}", path_W.T, 3.0, Rgba(0.1, 0.8, 0.2, 1.0))
 
 
 def MakeLcmPickWorld(scenario: Scenario, lcm: DrakeLcmInterface, meshcat: Meshcat | None = None) -> Diagram:
@@ -157,16 +197,21 @@ def MakeLcmPickWorld(scenario: Scenario, lcm: DrakeLcmInterface, meshcat: Meshca
 
 
 def run_pick(
-    scenario: Scenario, meshcat: Meshcat | None = None, record: Path | None = None, backend: str = "sim"
+    scenario: Scenario,
+    meshcat: Meshcat | None = None,
+    record: Path | None = None,
+    backend: str = "sim",
+    perception: str = "camera",
 ) -> PickOutcome:
-    """Simulates the autonomous pick until the plan has been played (or a stage failed); judged on ground truth.
+    """Simulates the pick until it is done (or a stage failed), then judges it on ground truth.
 
     Args:
         backend: "sim" (the simulated station) or "lcm-memq" (the hardware station against the
             robot driver emulator over an in-process LCM bus).
+        perception: "camera" (autonomous) or "ground_truth" (the oracle pick).
     """
     if backend == "sim":
-        diagram = pick = MakePickDiagram(scenario, meshcat)
+        diagram = pick = MakePickDiagram(scenario, meshcat, perception=perception)
         plant = station_plant(diagram)
     elif backend == "lcm-memq":
         diagram = MakeLcmPickWorld(scenario, DrakeLcm("memq://"), meshcat)
@@ -180,36 +225,41 @@ def run_pick(
 
 
 class PickWatcher:
-    """Follows the PickSequencer during a simulation: logs mode changes, draws the perception once,
-    and says when the pick has ended."""
+    """Follows the PickSequencer during a simulation: logs mode changes, draws what each plan was made
+    from, and says when the pick has ended."""
 
     def __init__(self, pick: Diagram, meshcat: Meshcat | None = None):
         self.pick, self.meshcat = pick, meshcat
-        self.mode, self.drawn = "", False
+        self.mode, self.drawn_plans = "", 0
 
     def status(self, context) -> PickStatus:
         return pick_status(self.pick, context)
 
     def end_time(self, context) -> float:
-        """When to stop, in context seconds: the plan's end, now if a stage failed, MAX_PICK_S at most."""
+        """When to stop, in context seconds: now if the pick is done or failed, else MAX_PICK_S."""
         status = self.status(context)
         if status.mode != self.mode:
             note = f": {status.message}" if status.mode == "failed" else ""
             logging.info("t = %5.2f s  %s%s", context.get_time(), status.mode, note)
             self.mode = status.mode
-        if self.meshcat is not None and status.plan is not None and not self.drawn:
+        if self.meshcat is not None and len(status.grasp_paths_W) > self.drawn_plans:
             draw_perception(self.meshcat, status)
-            self.drawn = True
-        return context.get_time() if status.mode == "failed" else min(status.end_s, MAX_PICK_S)
+            self.drawn_plans = len(status.grasp_paths_W)
+        return context.get_time() if status.mode in ("done", "failed") else MAX_PICK_S
 
     def finish(self, outcome: PickOutcome) -> PickOutcome:
-        """The outcome with the stages' times and, if one failed, its name and reason."""
+        """The outcome with the stages' times, the closure deviations and, if a stage failed, its name and reason."""
         status = self.status(outcome.context)
         outcome.stages = status.stage_seconds
         outcome.planning_s = status.stage_seconds.get("image_to_trajectory", 0.0)
+        outcome.closure = {
+            "max_translation_dev_m": status.closure_translation_dev_m,
+            "max_orientation_dev_rad": status.closure_orientation_dev_rad,
+        }
         if status.mode == "failed":
+            outcome.success = False
             outcome.failed_stage, outcome.message = status.failed_stage, status.message
-        elif status.mode not in ("hold", "done"):  # (the last sample may fall just before the plan's end)
+        elif status.mode != "done":
             outcome.success = False
             outcome.message = f"stopped in mode {status.mode!r} after {MAX_PICK_S} s"
         return outcome

@@ -17,14 +17,13 @@ from pydrake.common.yaml import yaml_dump_typed, yaml_load_typed
 
 from diagrams.objects import catalog
 from diagrams.scenario import Scenario, replace_object
-from systems.pick_sequencer import STAGES
 
 PAPER_YAWS = (0.25, 0.0, -0.25)  # rad
 PAPER_YAW_NOISE = 0.2  # rad
 # The pipeline's stages in order, then the motion itself ("execution": the plan was played but
 # the object was not lifted and held by both hands).
-COMPONENTS = STAGES[1:] + ("execution",)
-TIMED_STAGES = STAGES[1:] + ("image_to_trajectory",)
+COMPONENTS = ("segmentation", "pose", "registration", "planning", "grasp", "execution")
+TIMED_STAGES = ("segmentation", "pose", "registration", "planning", "image_to_trajectory")
 
 
 @dataclass
@@ -90,7 +89,7 @@ def make_trials(
 def run_trial(trial: Trial) -> dict:
     """Runs one autonomous pick in simulation; a JSON-ready record of what happened."""
     from diagrams.autonomous_pick import run_pick  # (heavy: torch, the shape spaces)
-    from diagrams.oracle_pick import PlanningError
+    from systems.planning.pick_motions import PlanningError
     from systems.pose_noise import draw_yaw_offset
 
     scenario = trial.scenario
@@ -114,6 +113,7 @@ def run_trial(trial: Trial) -> dict:
         "failed_stage": failed_stage,
         "message": outcome.message,
         "stages": outcome.stages,
+        "closure": outcome.closure,
         "sim_wall_s": outcome.wall_time_s,
     }
 

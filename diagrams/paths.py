@@ -1,9 +1,5 @@
-"""Where the repository's model files live, independent of the working directory."""
+"""Where the repository's model files live (defined in systems/paths.py, below both packages)."""
 
-from pathlib import Path
+from systems.paths import MODELS_DIR, PACKAGE_NAME, PACKAGE_XML, REPO_ROOT, SDF_DIR
 
-REPO_ROOT = Path(__file__).resolve().parent.parent
-SDF_DIR = REPO_ROOT / "sdf"
-MODELS_DIR = REPO_ROOT / "models"
-PACKAGE_XML = SDF_DIR / "package.xml"
-PACKAGE_NAME = "dualarm"
+__all__ = ["MODELS_DIR", "PACKAGE_NAME", "PACKAGE_XML", "REPO_ROOT", "SDF_DIR"]

@@ -1,8 +1,8 @@
-"""Wires the perception stages to a station: camera -> Segmenter -> PoseEstimator."""
+"""Wires the perception stages to a camera: colour image -> Segmenter -> PoseEstimator <- depth, pose."""
 
 from pathlib import Path
 
-from pydrake.systems.framework import Diagram, DiagramBuilder
+from pydrake.systems.framework import DiagramBuilder, OutputPort
 
 from diagrams.scenario import Scenario
 from systems.pose_estimator import PoseEstimator
@@ -16,17 +16,23 @@ def MakePoseEstimator(scenario: Scenario) -> PoseEstimator:
     return PoseEstimator(core.intrinsics(), core.sensor_pose_in_camera_body())
 
 
-def AddPerception(builder: DiagramBuilder, station: Diagram, scenario: Scenario, weights: Path = DEFAULT_WEIGHTS):
-    """Adds and connects the segmenter and the pose estimator to the station's camera ports.
+def AddPerception(
+    builder: DiagramBuilder,
+    color_image: OutputPort,
+    depth_image: OutputPort,
+    camera_pose: OutputPort,
+    scenario: Scenario,
+    weights: Path = DEFAULT_WEIGHTS,
+):
+    """Adds the segmenter and the pose estimator, fed by a camera's (or a camera latch's) ports.
 
     Returns:
         (segmenter, pose_estimator)
     """
-    camera = scenario.camera.name
     segmenter = builder.AddNamedSystem("segmenter", Segmenter(weights))
     pose_estimator = builder.AddNamedSystem("pose_estimator", MakePoseEstimator(scenario))
-    builder.Connect(station.GetOutputPort(f"{camera}.rgb_image"), segmenter.GetInputPort("color_image"))
+    builder.Connect(color_image, segmenter.GetInputPort("color_image"))
     builder.Connect(segmenter.GetOutputPort("segmentation"), pose_estimator.GetInputPort("segmentation"))
-    builder.Connect(station.GetOutputPort(f"{camera}.depth_image"), pose_estimator.GetInputPort("depth_image"))
-    builder.Connect(station.GetOutputPort(f"{camera}.pose"), pose_estimator.GetInputPort("camera_pose"))
+    builder.Connect(depth_image, pose_estimator.GetInputPort("depth_image"))
+    builder.Connect(camera_pose, pose_estimator.GetInputPort("camera_pose"))
     return segmenter, pose_estimator

@@ -15,15 +15,10 @@ import numpy as np
 from pydrake.geometry import Meshcat
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
-from pydrake.systems.framework import Context, Diagram, DiagramBuilder
-from pydrake.systems.primitives import TrajectorySource
+from pydrake.systems.framework import Context, Diagram
 
-from diagrams.hand_ik import DualArmIk
-from diagrams.objects.library import resolve_object
-from diagrams.oracle_pick import PlanningError, plan_oracle_pick
 from diagrams.scenario import Scenario
-from diagrams.station import HAND_INSTANCES, OBJECT_INSTANCE, MakeStation, object_pose_on_table
-from systems.joint_plan import JointPlan
+from diagrams.station import HAND_INSTANCES, OBJECT_INSTANCE
 
 LIFT_SUCCESS_M = 0.10
 HOLD_CHECK_S = 2.0
@@ -48,43 +43,11 @@ class PickOutcome:
     # The autonomous pick's stage wall times, s, and the stage that stopped it, if one did.
     stages: dict[str, float] = field(default_factory=dict)
     failed_stage: str = ""
+    # The largest deviations of the hands' relative pose along the played held moves (lift, carry, ...):
+    # {"max_translation_dev_m": m, "max_orientation_dev_rad": rad}, NaN without a held move.
+    closure: dict[str, float] = field(default_factory=dict)
     # The simulator's final context (for further inspection).
     context: object = None
-
-
-def run_oracle_pick(scenario: Scenario, meshcat: Meshcat | None = None, record: Path | None = None) -> PickOutcome:
-    """Plans the pick from the simulator's true object pose and grasp frames, then simulates it.
-
-    Raises:
-        PlanningError: no plan (names the phase), or the object model has no grasp frames.
-    """
-    model = resolve_object(scenario.object)
-    if model.info is None:
-        raise PlanningError(f"{model.model_file} has no grasp frames (info.yaml beside it): the oracle needs them")
-    X_WO = object_pose_on_table(scenario, model)  # where the station places it, before it settles
-    start = time.perf_counter()
-    ik = DualArmIk(scenario, obstacle=model, X_WO=X_WO)
-    plan = plan_oracle_pick(ik, np.array(scenario.initial_arm_positions), X_WO, model.info)
-    planning_s = time.perf_counter() - start
-    logging.info("planned in %.2f s: %.1f s of motion", planning_s, plan.duration)
-    diagram = MakeOracleDiagram(scenario, plan, meshcat)
-    outcome = simulate_pick(diagram, scenario, plan.duration, meshcat, record)
-    outcome.planning_s = planning_s
-    return outcome
-
-
-def MakeOracleDiagram(scenario: Scenario, plan: JointPlan, meshcat: Meshcat | None = None) -> Diagram:
-    """Station + trajectory sources playing `plan` into the arm and hand position ports."""
-    builder = DiagramBuilder()
-    station = builder.AddNamedSystem("station", MakeStation(scenario, meshcat))
-    arm_source = builder.AddNamedSystem("centauro.trajectory_source", TrajectorySource(plan.arm_trajectory()))
-    hand_source = builder.AddNamedSystem("hands.trajectory_source", TrajectorySource(plan.hand_trajectory()))
-    builder.Connect(arm_source.get_output_port(), station.GetInputPort("centauro.position"))
-    for name in HAND_INSTANCES.values():
-        builder.Connect(hand_source.get_output_port(), station.GetInputPort(f"{name}.position"))
-    diagram = builder.Build()
-    diagram.set_name("oracle_pick")
-    return diagram
 
 
 def station_plant(diagram: Diagram) -> MultibodyPlant:

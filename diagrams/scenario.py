@@ -91,6 +91,18 @@ class HardwareConfig:
 
 
 @dataclass
+class PlanningConfig:
+    """How the pick's planner stage runs."""
+
+    # In simulation, context seconds from a plan request to its trajectory (the robot holds meanwhile).
+    # A fixed time, never the wall time planning took: the same seed plans and moves the same on a busy
+    # or an idle machine. STOMP is then limited by iterations only.
+    latency_s: float = 0.3
+    # On the hardware backend the plan starts as soon as it exists; STOMP gives up after this, s.
+    hardware_time_limit_s: float = 2.0
+
+
+@dataclass
 class Scenario:
     """A complete simulation scenario."""
 
@@ -112,6 +124,7 @@ class Scenario:
     )
     # Initial hand opening width, metres (0 closed, 0.12 fully open).
     initial_hand_width: float = 0.1
+    planning: PlanningConfig = field(default_factory=PlanningConfig)
     arm_controller: ArmControllerConfig = field(default_factory=ArmControllerConfig)
     hand_controller: HandControllerConfig = field(default_factory=HandControllerConfig)
     # Multibody plant: discrete SAP at 1 ms.
@@ -169,18 +182,58 @@ def load_scenario(filename: str | Path | None = None, scenario_text: str = "") -
 
 
 def validate(scenario: Scenario) -> None:
-    """Checks what the schema cannot express; raises ValueError naming the field."""
+    """Checks what the schema cannot express; raises ValueError naming the field.
+
+    Every number must be finite (a NaN yaw would otherwise abort deep inside Drake), and lie where
+    the robot, table and object make sense.
+    """
+    _check_finite("", scenario)
+    obj = scenario.object
     if len(scenario.initial_arm_positions) != 14:
         raise ValueError(f"initial_arm_positions must have 14 entries, got {len(scenario.initial_arm_positions)}")
-    if len(scenario.object.xy) != 2:
-        raise ValueError(f"object.xy must have 2 entries, got {scenario.object.xy}")
+    if len(obj.xy) != 2:
+        raise ValueError(f"object.xy must have 2 entries, got {obj.xy}")
+    if len(scenario.table_xyz) != 3:
+        raise ValueError(f"table_xyz must have 3 entries, got {scenario.table_xyz}")
     for name in ("kp", "kd"):
         if len(getattr(scenario.arm_controller, name)) != 7:
             raise ValueError(f"arm_controller.{name} must have 7 entries (joints 1..7)")
     if not 0 <= scenario.registration_yaw_noise <= math.pi:
         raise ValueError(f"registration_yaw_noise must lie in [0, pi] rad, got {scenario.registration_yaw_noise}")
-    if scenario.object.mass <= 0 or scenario.object.scale <= 0:
-        raise ValueError("object.mass and object.scale must be positive")
+    if not abs(obj.yaw) <= 2 * math.pi:
+        raise ValueError(f"object.yaw must lie in [-2 pi, 2 pi] rad, got {obj.yaw}")
+    if not all(abs(v) <= MAX_TABLE_OFFSET_M for v in obj.xy):
+        raise ValueError(f"object.xy must lie within {MAX_TABLE_OFFSET_M} m of the table's centre, got {obj.xy}")
+    if not 0 < obj.mass <= MAX_OBJECT_MASS_KG:
+        raise ValueError(f"object.mass must lie in (0, {MAX_OBJECT_MASS_KG}] kg, got {obj.mass}")
+    if obj.scale <= 0:
+        raise ValueError(f"object.scale must be positive, got {obj.scale}")
+    if not 0 <= scenario.planning.latency_s <= 10:
+        raise ValueError(f"planning.latency_s must lie in [0, 10] s, got {scenario.planning.latency_s}")
+    if scenario.planning.hardware_time_limit_s <= 0:
+        raise ValueError(
+            f"planning.hardware_time_limit_s must be positive, got {scenario.planning.hardware_time_limit_s}"
+        )
+
+
+# Bounds of the scenario's physical fields.
+MAX_TABLE_OFFSET_M = 1.0
+MAX_OBJECT_MASS_KG = 20.0
+
+
+def _check_finite(path: str, value) -> None:
+    """Raises ValueError naming the first NaN or infinite number in a (nested) scenario field."""
+    if isinstance(value, bool) or value is None:
+        return
+    if isinstance(value, float | int):
+        if not math.isfinite(value):
+            raise ValueError(f"{path} must be finite, got {value}")
+    elif isinstance(value, list | tuple):
+        for index, item in enumerate(value):
+            _check_finite(f"{path}[{index}]", item)
+    elif dataclasses.is_dataclass(value) and not isinstance(value, type):
+        for item in dataclasses.fields(value):
+            _check_finite(f"{path}.{item.name}" if path else item.name, getattr(value, item.name))
 
 
 def replace_object(scenario: Scenario, **changes) -> Scenario:

@@ -47,9 +47,10 @@ STAGE_LABELS = {
     "segmentation": "semantic segmentation",
     "pose": "pose estimation",
     "registration": "grasp generation (registration)",
-    "planning": "trajectory optimization",
+    "planning": "trajectory optimization (the reach)",
+    "grasp": "grasp (both hands hold something)",
     "image_to_trajectory": "complete pipeline (image to trajectory; pick)",
-    "execution": "execution (reach, grasp, lift, hold)",
+    "execution": "execution (lifted and held by both hands)",
 }
 
 

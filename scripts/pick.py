@@ -1,7 +1,7 @@
 """Runs one simulated pick of the scenario's object and reports the outcome.
 
 python scripts/pick.py                               # autonomous pick, default scenario
-python scripts/pick.py --oracle                      # ground-truth pick (true pose and grasps)
+python scripts/pick.py --oracle                      # the same diagram, ground truth in place of perception
 python scripts/pick.py --oracle --object drill --instance test_1 --yaw 0.25 --json r.json
 python scripts/pick.py --oracle --object-file my_can.sdf --object watering_can
 python scripts/pick.py --oracle --meshcat --record pick.html
@@ -20,14 +20,17 @@ from scenario_options import add_scenario_options, scenario_arguments, scenario_
 from diagrams import lcm_pick
 from diagrams.autonomous_pick import run_pick
 from diagrams.hardware_station import RobotNotResponding
-from diagrams.oracle_pick import PlanningError
-from diagrams.pick_simulation import run_oracle_pick
+from systems.planning.pick_motions import PlanningError
 
 
 def parse_args(argv=None):
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     add_scenario_options(parser)
-    parser.add_argument("--oracle", action="store_true", help="pick from the simulator's ground truth")
+    parser.add_argument(
+        "--oracle",
+        action="store_true",
+        help="the same pick diagram with the object's true grasp frames and surface in place of perception",
+    )
     parser.add_argument("--meshcat", action="store_true", help="serve a live meshcat view on localhost")
     parser.add_argument("--record", type=Path, help="write a self-contained meshcat replay (.html)")
     parser.add_argument("--json", type=Path, help="write the outcome as JSON")
@@ -60,10 +63,9 @@ def main(argv=None) -> int:
         obj = scenario.object
         print(f"object: {obj.category}/{obj.file or obj.instance}, yaw {obj.yaw:+.3f} rad")
 
-        if args.oracle:
-            outcome = run_oracle_pick(scenario, meshcat, args.record)
-        elif args.backend == "sim":
-            outcome = run_pick(scenario, meshcat, args.record)
+        if args.backend == "sim":
+            perception = "ground_truth" if args.oracle else "camera"
+            outcome = run_pick(scenario, meshcat, args.record, perception=perception)
         elif args.spawn_driver and not args.in_namespace and lcm_pick.namespaces_available():
             return lcm_pick.rerun_in_private_namespace(sys.argv)
         elif args.spawn_driver and not args.in_namespace:
@@ -99,6 +101,7 @@ def main(argv=None) -> int:
             "backend": args.backend,
             "planning_s": outcome.planning_s,
             "stages": outcome.stages,
+            "closure": outcome.closure,
             "failed_stage": outcome.failed_stage,
             "sim_wall_s": outcome.wall_time_s,
             "message": outcome.message,

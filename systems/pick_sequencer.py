@@ -1,14 +1,13 @@
-"""The pick sequencer: perceive once, plan once, then play the plan phase by phase.
+"""The pick sequencer: a state machine over the pick's phases. It only sequences.
 
-Its mode lives in the Context (abstract state). At the first update at or after
-`perceive_at_s` it pulls the perception chain through its inputs, one stage at a
-time so that each stage's wall time is measured (camera, segmentation, pose,
-registration), then asks `plan_pick` for a JointPlan and plays it. The plan starts
-after the wall time that perceiving and planning took, as it would on the real
-robot, which holds its position while the computer thinks. A failure at any stage
-holds the arms where they are, keeps the hands as they were, and names the stage.
+It asks the camera latch for a frame, reads each perception stage's result once (timing it and
+naming the stage that found nothing), then walks through the task's phases: a motion phase sends
+a PlanRequest to the planner stage and waits for its PlanResult and for the trajectory to be
+played; a hand phase sends a HandCommand and, after closing, checks the measured hand openings.
+A failure at any point leaves the arms holding where they are (the trajectory source holds the
+last played trajectory's end) and names the stage.
 
-Modes: waiting -> (reach -> approach -> close -> lift -> hold: the plan's phases) -> done,
+Modes: waiting -> perceiving -> (the task's phases, e.g. reach, approach, close, lift, hold) -> done,
 or failed.
 """
 
@@ -16,23 +15,52 @@ import dataclasses
 import logging
 import math
 import time
-from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
 from pydrake.common.value import AbstractValue
+from pydrake.math import RigidTransform
 from pydrake.systems.framework import BasicVector, EventStatus, LeafSystem
-from pydrake.systems.sensors import ImageDepth32F, ImageRgba8U
-from pydrake.trajectories import PiecewisePolynomial
 
-from systems.joint_plan import JointPlan
+from systems.hand_command import HandCommand
+from systems.planner import PlanRequest, PlanResult
+from systems.planning.pick_motions import CLOSED_WIDTH, OPEN_WIDTH
 from systems.pose_estimator import ObjectEstimate
 from systems.segmenter import Segmentation
 from systems.shape_registrar import GraspPoses
 
-# plan_pick(grasp poses in W, reconstructed cloud in W (N x 3), measured arm joints (14)) -> JointPlan.
-PlanPick = Callable[[GraspPoses, np.ndarray, np.ndarray], JointPlan]
 STAGES = ("camera", "segmentation", "pose", "registration", "planning")
+CLOSE_S = 1.0  # s: the hands close over this long
+SETTLE_S = 0.5  # s: then the grip settles before it is checked
+# A hand whose measured opening is below this after closing holds nothing, m.
+MIN_GRASPED_WIDTH = 0.004
+LIFT_HEIGHT = 0.15  # m: aimed for
+MIN_LIFT_FRACTION = 0.8  # of it: near the edge of the arms' reach a lower lift will do (0.12 m)
+HOLD_S = 2.5  # s
+
+
+@dataclass(frozen=True)
+class Phase:
+    """One step of a task: a motion (path set), a hand command (hand_width set), or a wait."""
+
+    name: str
+    path: str = ""  # a PlanRequest path: "free", "straight" or "held"
+    targets: str = ""  # "free"/"straight": the grasp poses named so
+    X_motion_W: RigidTransform | None = None  # "held": the object's motion in W
+    min_fraction: float = 1.0  # "held": the shortest share of the motion's translation that will do
+    hand_width: float | None = None  # m
+    wait_s: float = 0.0
+
+
+def lift_task(lift_height: float = LIFT_HEIGHT) -> tuple[Phase, ...]:
+    """The paper's task: reach the pre-grasps, approach, close both hands, lift the object, hold it."""
+    return (
+        Phase("reach", path="free", targets="pregrasp"),
+        Phase("approach", path="straight", targets="grasp"),
+        Phase("close", hand_width=CLOSED_WIDTH, wait_s=SETTLE_S),
+        Phase("lift", path="held", X_motion_W=RigidTransform([0.0, 0.0, lift_height]), min_fraction=MIN_LIFT_FRACTION),
+        Phase("hold", wait_s=HOLD_S),
+    )
 
 
 @dataclass
@@ -40,170 +68,218 @@ class PickStatus:
     """Where the pick stands. Times are context (simulation or robot) seconds."""
 
     mode: str = "waiting"
-    failed_stage: str = ""  # one of STAGES when mode == "failed"
+    failed_stage: str = ""  # one of STAGES, or "grasp", when mode == "failed"
     message: str = ""
-    # Wall seconds of each stage, and "image_to_trajectory": segmentation to plan, the camera excluded.
+    # Wall seconds of each perception stage and of the first plan ("planning"); "image_to_trajectory":
+    # segmentation to the first trajectory, the camera excluded; "planning_total": every plan of the pick.
     stage_seconds: dict[str, float] = field(default_factory=dict)
-    plan: JointPlan | None = None
-    plan_start_s: float = math.inf
-    # What the plan was made from, for the viewer: the camera's object points and the
-    # reconstructed whole shape, N x 3 in W, m.
+    phase_index: int = -1  # into the task's phases
+    phase_start_s: float = 0.0
+    perceive_id: int = 0  # the camera frame asked for
+    request: PlanRequest = field(default_factory=PlanRequest)
+    accounted_plan_id: int = -1  # the last plan whose times and deviations are recorded here
+    hand: HandCommand = field(default_factory=lambda: HandCommand(OPEN_WIDTH, OPEN_WIDTH))
+    hold_q: np.ndarray | None = None  # 14 arm joints where the robot was first measured, rad
+    plan_end_q: np.ndarray | None = None  # where the last played trajectory ends, rad
+    # Largest closure deviations over the held moves' played trajectories, m and rad (NaN: none yet).
+    closure_translation_dev_m: float = math.nan
+    closure_orientation_dev_rad: float = math.nan
+    # For the viewer: the camera's object points and the reconstructed shape (N x 3 in W), and each
+    # plan's grasp-frame paths.
     seen_points_W: np.ndarray | None = None
     reconstruction_W: np.ndarray | None = None
-    # The plan's trajectories, built once: arm joints (14, rad) and hand opening (1, m) over plan time.
-    arm_trajectory: PiecewisePolynomial | None = None
-    hand_trajectory: PiecewisePolynomial | None = None
-
-    @property
-    def end_s(self) -> float:
-        """When the plan has been played out (inf until there is one)."""
-        return self.plan_start_s + self.plan.duration if self.plan is not None else math.inf
-
-
-@dataclass
-class _State:
-    status: PickStatus = field(default_factory=PickStatus)
-    hold_q: np.ndarray | None = None  # 14 arm joints held before and instead of a plan
+    grasp_paths_W: list[dict[str, np.ndarray]] = field(default_factory=list)
 
 
 class PickSequencer(LeafSystem):
-    """Perceive -> plan -> reach -> approach -> close hands -> lift -> hold.
+    """Sequences a pick: camera frame, perception results, plan requests, hand commands.
 
-    Input ports:
-        color_image, depth_image: the camera's images (pulled first, to time the camera alone).
-        segmentation: from the Segmenter. estimate: ObjectEstimate from the PoseEstimator.
-        grasp_poses: GraspPoses from the ShapeRegistrar. reconstructed_cloud_W: N x 3, m.
-        position_measured: the arms' 14 measured joint positions, rad.
-    Output ports:
-        arm_position: 14 commanded joint positions, rad.
-        hand_width: commanded opening of both hands, m.
-        status: PickStatus.
+    .. pydrake_system::
+
+        name: PickSequencer
+        input_ports:
+        - position_measured
+        - left_hand_state
+        - right_hand_state
+        - plan
+        - frame_id (optional)
+        - segmentation (optional)
+        - estimate (optional)
+        - grasp_poses
+        - reconstructed_cloud_W (optional)
+        output_ports:
+        - trigger
+        - plan_request
+        - hand_command
+        - status
+
+    ``position_measured`` (14, rad); ``<side>_hand_state`` (2: opening m, rate m/s); ``plan`` (PlanResult);
+    ``frame_id`` (1) from the camera latch; the perception stages' results (Segmentation, ObjectEstimate,
+    GraspPoses, N x 3 cloud). Without ``frame_id`` (a ground-truth source in place of perception) the
+    sequencer starts planning at once. ``trigger`` (1): the camera frame wanted; ``plan_request``
+    (PlanRequest); ``hand_command`` (HandCommand); ``status`` (PickStatus).
+
+    Args:
+        phases: the task (e.g. lift_task()).
+        perceive_at_s: when to take the camera frame (the object has settled), s.
     """
 
-    def __init__(self, plan_pick: PlanPick, hand_width: float, perceive_at_s: float = 0.5, period_s: float = 0.01):
+    def __init__(self, phases: tuple[Phase, ...], perceive_at_s: float = 0.5, period_s: float = 0.01):
         super().__init__()
-        self.plan_pick, self.hand_width, self.perceive_at_s = plan_pick, hand_width, perceive_at_s
-        self._inputs = {
-            "color_image": self.DeclareAbstractInputPort("color_image", AbstractValue.Make(ImageRgba8U())),
-            "depth_image": self.DeclareAbstractInputPort("depth_image", AbstractValue.Make(ImageDepth32F())),
-            "segmentation": self.DeclareAbstractInputPort("segmentation", AbstractValue.Make(Segmentation(False))),
-            "estimate": self.DeclareAbstractInputPort("estimate", AbstractValue.Make(ObjectEstimate(False))),
-            "grasp_poses": self.DeclareAbstractInputPort("grasp_poses", AbstractValue.Make(GraspPoses(False))),
-            "reconstructed_cloud_W": self.DeclareAbstractInputPort(
-                "reconstructed_cloud_W", AbstractValue.Make(np.zeros((0, 3)))
-            ),
-        }
-        self._measured = self.DeclareVectorInputPort("position_measured", 14)
-        self._state = self.DeclareAbstractState(AbstractValue.Make(_State()))
-        self.DeclareVectorOutputPort("arm_position", BasicVector(14), self._calc_arm)
-        self.DeclareVectorOutputPort("hand_width", BasicVector(1), self._calc_hand)
-        self.DeclareAbstractOutputPort("status", lambda: AbstractValue.Make(PickStatus()), self._calc_status)
+        self.phases, self.perceive_at_s = phases, perceive_at_s
+        self.DeclareVectorInputPort("position_measured", 14)
+        for side in ("left", "right"):
+            self.DeclareVectorInputPort(f"{side}_hand_state", 2)
+        self.DeclareAbstractInputPort("plan", AbstractValue.Make(PlanResult()))
+        self.DeclareVectorInputPort("frame_id", 1)
+        for name, model in (
+            ("segmentation", Segmentation(False)),
+            ("estimate", ObjectEstimate(False)),
+            ("grasp_poses", GraspPoses(False)),
+            ("reconstructed_cloud_W", np.zeros((0, 3))),
+        ):
+            self.DeclareAbstractInputPort(name, AbstractValue.Make(model))
+        self._state = self.DeclareAbstractState(AbstractValue.Make(PickStatus()))
+        status = {self.abstract_state_ticket(self._state)}
+        self.DeclareVectorOutputPort("trigger", BasicVector(1), self._calc_trigger, status)
+        for name, model, attribute in (
+            ("plan_request", PlanRequest(), "request"),
+            ("hand_command", HandCommand(), "hand"),
+        ):
+            self.DeclareAbstractOutputPort(
+                name,
+                lambda model=model: AbstractValue.Make(model),
+                lambda c, o, attribute=attribute: o.set_value(getattr(self._status(c), attribute)),
+                status,
+            )
+        self.DeclareAbstractOutputPort(
+            "status", lambda: AbstractValue.Make(PickStatus()), lambda c, o: o.set_value(self._status(c)), status
+        )
         self.DeclarePeriodicUnrestrictedUpdateEvent(period_s, 0.0, self._update)
 
-    def _update(self, context, state) -> EventStatus:
-        current = context.get_abstract_state(self._state).get_value()
-        if current.status.mode != "waiting":
-            return EventStatus.DidNothing()
-        hold_q = current.hold_q
-        if hold_q is None:  # latch where the robot is, once its status has arrived (the hardware station's NaN)
-            hold_q = self._measured.Eval(context).copy()
-            if not np.all(np.isfinite(hold_q)):
-                return EventStatus.DidNothing()
-        elif context.get_time() < self.perceive_at_s:
-            return EventStatus.DidNothing()
-        status = (
-            self._perceive_and_plan(context, hold_q) if context.get_time() >= self.perceive_at_s else current.status
-        )
-        state.get_mutable_abstract_state(self._state).set_value(_State(status, hold_q))
-        return EventStatus.Succeeded()
+    def _calc_trigger(self, context, output):
+        output.SetFromVector([self._status(context).perceive_id])
 
-    def _perceive_and_plan(self, context, q_now: np.ndarray) -> PickStatus:
-        event_start = time.perf_counter()
-        self._inputs["color_image"].Eval(context)
-        self._inputs["depth_image"].Eval(context)
-        seconds = {"camera": time.perf_counter() - event_start}
-
-        def timed(stage, port):
-            start = time.perf_counter()
-            value = self._inputs[port].Eval(context)
-            seconds[stage] = time.perf_counter() - start
-            return value
-
-        def failed(stage, message):
-            logging.warning("pick stopped at %s: %s", stage, message)
-            return PickStatus("failed", stage, f"{stage}: {message}", seconds)
-
-        segmentation = timed("segmentation", "segmentation")
-        logging.info("segmentation: %s (%.3f s)", segmentation.message, seconds["segmentation"])
-        if not segmentation.found:
-            return failed("segmentation", segmentation.message)
-        estimate = timed("pose", "estimate")
-        logging.info("pose: %s (%.3f s)", estimate.message, seconds["pose"])
-        if not estimate.found:
-            return failed("pose", estimate.message)
-        grasps = timed("registration", "grasp_poses")
-        logging.info("registration: %s (%.3f s)", grasps.message, seconds["registration"])
-        if not grasps.found:
-            return failed("registration", grasps.message)
-        cloud = self._inputs["reconstructed_cloud_W"].Eval(context)
-        start = time.perf_counter()
-        try:
-            plan = self.plan_pick(grasps, cloud, q_now)
-        except RuntimeError as error:  # PlanningError and IK/solver failures
-            seconds["planning"] = time.perf_counter() - start
-            return failed("planning", str(error))
-        seconds["planning"] = time.perf_counter() - start
-        seconds["image_to_trajectory"] = sum(seconds[s] for s in STAGES[1:])
-        logging.info("planning: %.1f s of motion (%.3f s)", plan.duration, seconds["planning"])
-        # The robot holds while the computer thinks: the plan starts once it exists.
-        start_s = context.get_time() + time.perf_counter() - event_start
-        return PickStatus(
-            "planned", "", "planned", seconds, plan, start_s, estimate.points_W, cloud,
-            plan.arm_trajectory(), plan.hand_trajectory(),
-        )  # fmt: skip
-
-    def _held(self, context) -> _State:
+    def _status(self, context) -> PickStatus:
         return context.get_abstract_state(self._state).get_value()
 
-    def _calc_arm(self, context, output):
-        state = self._held(context)
-        t = _plan_time(state.status, context.get_time())
-        if t is not None:
-            output.SetFromVector(state.status.arm_trajectory.value(t).ravel())
-        elif state.hold_q is not None:
-            output.SetFromVector(state.hold_q)
-        else:  # before the first update: stay where the robot is (the guard of a hardware station
-            # sends nothing until it has a status)
-            output.SetFromVector(self._measured.Eval(context))
-
-    def _calc_hand(self, context, output):
-        status = self._held(context).status
-        t = _plan_time(status, context.get_time())
-        if t is not None:
-            output.SetFromVector(status.hand_trajectory.value(t).ravel())
+    def _update(self, context, state) -> EventStatus:
+        before = self._status(context)
+        if before.mode in ("done", "failed"):
+            return EventStatus.DidNothing()
+        status = dataclasses.replace(before, stage_seconds=dict(before.stage_seconds))
+        t = context.get_time()
+        if before.mode == "waiting":
+            self._wait(context, status, t)
+        elif before.mode == "perceiving":
+            if self.GetInputPort("frame_id").Eval(context)[0] >= status.perceive_id:
+                self._perceive(context, status, t)
         else:
-            output.SetFromVector([self.hand_width])
+            self._follow_phase(context, status, t)
+        state.get_mutable_abstract_state(self._state).set_value(status)
+        return EventStatus.Succeeded()
 
-    def _calc_status(self, context, output):
-        status = self._held(context).status
-        if status.plan is not None:
-            status = dataclasses.replace(status, mode=_phase(status, context.get_time()))
-        output.set_value(status)
+    def _wait(self, context, status: PickStatus, t: float):
+        if status.hold_q is None:
+            measured = self.GetInputPort("position_measured").Eval(context)
+            if not np.all(np.isfinite(measured)):  # (the hardware station's NaN before the robot's status)
+                return
+            status.hold_q = status.plan_end_q = measured.copy()
+        if t < self.perceive_at_s:
+            return
+        if self.GetInputPort("frame_id").HasValue(context):
+            status.mode, status.perceive_id = "perceiving", status.perceive_id + 1
+        else:  # a ground-truth source in place of perception
+            self._start_phase(context, status, 0, t)
 
+    def _perceive(self, context, status: PickStatus, t: float):
+        """Reads each perception stage's result once, in order, timing it; the first that found nothing
+        ends the pick."""
+        seconds = status.stage_seconds
+        for stage, port in (("segmentation", "segmentation"), ("pose", "estimate"), ("registration", "grasp_poses")):
+            started = time.perf_counter()
+            result = self.GetInputPort(port).Eval(context)
+            seconds[stage] = time.perf_counter() - started
+            logging.info("%s: %s (%.3f s)", stage, result.message, seconds[stage])
+            if not result.found:
+                self._fail(status, stage, result.message)
+                return
+            if port == "estimate":
+                status.seen_points_W = result.points_W
+        status.reconstruction_W = self.GetInputPort("reconstructed_cloud_W").Eval(context)
+        self._start_phase(context, status, 0, t)
 
-def _plan_time(status: PickStatus, t: float) -> float | None:
-    """Seconds into the plan at context time t (held at its end), or None before it starts."""
-    if status.plan is None or t < status.plan_start_s:
-        return None
-    return min(t - status.plan_start_s, status.plan.duration)
+    def _start_phase(self, context, status: PickStatus, index: int, t: float):
+        status.phase_index, status.phase_start_s = index, t
+        if index >= len(self.phases):
+            status.mode = "done"
+            return
+        phase = self.phases[index]
+        status.mode = phase.name
+        if phase.path:
+            status.request = PlanRequest(
+                status.request.id + 1 if status.request.id >= 0 else 1,
+                phase.name,
+                status.plan_end_q,
+                phase.path,
+                phase.targets,
+                phase.X_motion_W if phase.X_motion_W is not None else RigidTransform(),
+                phase.min_fraction,
+            )
+        elif phase.hand_width is not None:
+            status.hand = HandCommand(phase.hand_width, status.hand.at(t), t, CLOSE_S)
 
+    def _follow_phase(self, context, status: PickStatus, t: float):
+        phase = self.phases[status.phase_index]
+        if phase.path:
+            plan = self.GetInputPort("plan").Eval(context)
+            if plan.id != status.request.id:
+                return  # not planned yet
+            if not plan.success:
+                self._fail(status, "planning", plan.message)
+                return
+            if status.accounted_plan_id != plan.id:
+                self._account(status, plan)
+            if t + 1e-9 < plan.end_s:
+                return
+            status.plan_end_q = plan.trajectory.value(plan.end_s).ravel()
+        elif phase.hand_width is not None:
+            if t + 1e-9 < status.hand.end_s + phase.wait_s:
+                return
+            if phase.hand_width == CLOSED_WIDTH and not self._holding(context, status):
+                return
+        elif t + 1e-9 < status.phase_start_s + phase.wait_s:
+            return
+        self._start_phase(context, status, status.phase_index + 1, t)
 
-def _phase(status: PickStatus, t: float) -> str:
-    """The plan's phase at context time t: the first named phase that has not ended yet."""
-    if t < status.plan_start_s:
-        return "planned"
-    elapsed = t - status.plan_start_s
-    for name, end in sorted(status.plan.phases.items(), key=lambda item: item[1]):
-        if elapsed < end:
-            return name
-    return "done"
+    def _account(self, status: PickStatus, plan: PlanResult):
+        """Records a plan's wall time and, for a held move, its closure deviations."""
+        status.accounted_plan_id = plan.id
+        seconds = status.stage_seconds
+        if "planning" not in seconds:  # the first plan: image to trajectory
+            seconds["planning"] = plan.planning_s
+            perception = [seconds[s] for s in ("segmentation", "pose", "registration") if s in seconds]
+            seconds["image_to_trajectory"] = sum(perception) + plan.planning_s
+            logging.info("planning: %s (%.3f s)", plan.message, plan.planning_s)
+        seconds["planning_total"] = seconds.get("planning_total", 0.0) + plan.planning_s
+        status.grasp_paths_W = [*status.grasp_paths_W, plan.grasp_paths_W]
+        if math.isfinite(plan.closure_translation_dev_m):
+            status.closure_translation_dev_m = np.nanmax(
+                [status.closure_translation_dev_m, plan.closure_translation_dev_m]
+            )
+            status.closure_orientation_dev_rad = np.nanmax(
+                [status.closure_orientation_dev_rad, plan.closure_orientation_dev_rad]
+            )
+
+    def _holding(self, context, status: PickStatus) -> bool:
+        for side in ("left", "right"):
+            width = self.GetInputPort(f"{side}_hand_state").Eval(context)[0]
+            if width < MIN_GRASPED_WIDTH:
+                self._fail(status, "grasp", f"the {side} hand closed on nothing (opening {width * 1000:.1f} mm)")
+                return False
+        return True
+
+    def _fail(self, status: PickStatus, stage: str, message: str):
+        logging.warning("pick stopped at %s: %s", stage, message)
+        status.mode, status.failed_stage = "failed", stage
+        status.message = message if message.startswith(stage) else f"{stage}: {message}"

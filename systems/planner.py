@@ -1,92 +1,196 @@
-"""The STOMP planner and the trajectory source as Drake systems.
+"""The planner stage: plan requests with Cartesian goals in, timed joint trajectories out.
 
-StompPlanner is event-driven: each new PlanRequest (a new `id`) on its input is
-planned once, in a discrete update, and the PlanResult is kept in abstract state.
-JointTrajectorySource plays a successful plan at context time to the arm
-controllers; before a plan arrives, and after a failed one, it holds the
-configuration it was told to hold. A failed plan is reported, never executed.
+Each new PlanRequest (a new `id`) is planned once, in a discrete update, from the grasp poses and
+the obstacle cloud on the inputs (perception, or a ground-truth source), and the PlanResult is kept
+in abstract state. The result becomes current `latency_s` of context time after the request: in
+simulation that is the planning latency the scenario asks for (sim time, never wall time, so a
+busy machine plans the same), and the trajectory starts then, from the request's q_start.
 """
 
-import itertools
+import logging
+import math
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
 from pydrake.common.value import AbstractValue
-from pydrake.systems.framework import BasicVector, EventStatus, LeafSystem
+from pydrake.math import RigidTransform
+from pydrake.systems.framework import EventStatus, LeafSystem
 from pydrake.trajectories import PiecewisePolynomial
 
-from systems.joint_plan import move_duration
-from systems.planning.closure import ClosureConstraint
-from systems.planning.stomp import Obstacles, Stomp
+from systems.planning.ik import SIDES
+from systems.planning.pick_motions import (
+    HELD_SEGMENT_S,
+    SPARSE_SEGMENT_S,
+    STOMP_SEGMENT_S,
+    PickMotions,
+    PlanningError,
+    time_parameterise,
+)
+from systems.shape_registrar import GraspPoses
 
-MIN_SEGMENT_S = 0.1  # s: STOMP's keyframes are close together
+# The reconstruction, thinned to about this many points, is the reach's obstacle: the margin about it
+# (ik.PERCEIVED_SHAPE_MARGIN) was set for a cloud this dense, and planning cost grows with it.
+OBSTACLE_POINTS = 2000
+# Motions the planner knows.
+PATHS = ("free", "straight", "held")
 
 
 @dataclass
 class PlanRequest:
+    """What to plan. Goals are Cartesian: hand poses named in the grasp_poses input, or a held move."""
+
     id: int = -1  # a new id asks for a new plan
-    q_start: np.ndarray = field(default_factory=lambda: np.zeros(14))
-    q_goal: np.ndarray = field(default_factory=lambda: np.zeros(14))
-    closure: ClosureConstraint | None = None
-    start_time: float = 0.0  # s, when the trajectory should begin
+    phase: str = ""  # the pick's phase it serves ("reach", "approach", "lift", ...), for messages
+    q_start: np.ndarray = field(default_factory=lambda: np.zeros(14))  # rad; the robot holds here meanwhile
+    # "free": both hands to the `targets` poses around the obstacles (STOMP when the straight move collides);
+    # "straight": each hand on a line to its `targets` pose; "held": both hands hold the object and move it
+    # by `X_motion_W` under the closure and orientation constraints.
+    path: str = "free"
+    targets: str = "pregrasp"  # "pregrasp" or "grasp": the grasp_poses input's <side>_<targets> poses
+    X_motion_W: RigidTransform = field(default_factory=RigidTransform)  # held moves: X_WG -> X_motion_W X_WG
+    # Held moves: where the whole translation is out of reach, shorter ones down to this fraction will do.
+    min_fraction: float = 1.0
 
 
 @dataclass
 class PlanResult:
+    """A plan, or why there is none. Times are context seconds."""
+
     id: int = -1
+    phase: str = ""
     success: bool = False
-    trajectory: PiecewisePolynomial | None = None  # 14 joints over time, starting at start_time
+    trajectory: PiecewisePolynomial | None = None  # 14 arm joints over context time
     message: str = "no plan requested"
-    planning_s: float = 0.0
+    planning_s: float = 0.0  # wall time the planning took (reported, never simulated)
+    # Held moves: the largest deviation of the hands' relative pose along the played trajectory
+    # (every 10 ms), m and rad; NaN for other motions.
+    closure_translation_dev_m: float = math.nan
+    closure_orientation_dev_rad: float = math.nan
+    # Each hand's grasp frame origin along the trajectory, samples x 3 in W (for the viewer).
+    grasp_paths_W: dict[str, np.ndarray] = field(default_factory=dict)
+
+    @property
+    def end_s(self) -> float:
+        return self.trajectory.end_time() if self.trajectory is not None else math.inf
 
 
-def time_parameterise(keyframes: np.ndarray, velocity_limits: np.ndarray, start_time: float) -> PiecewisePolynomial:
-    """A shape-preserving cubic through the keyframes (no overshoot: it stays within their range),
-    each segment long enough to move at SPEED_FRACTION of the velocity limits, at rest at both ends."""
-    durations = [move_duration(a, b, velocity_limits, MIN_SEGMENT_S) for a, b in itertools.pairwise(keyframes)]
-    times = start_time + np.concatenate([[0.0], np.cumsum(durations)])
-    return PiecewisePolynomial.CubicShapePreserving(times, keyframes.T, zero_end_point_derivatives=True)
+@dataclass
+class _Planning:
+    current: PlanResult = field(default_factory=PlanResult)
+    pending: PlanResult | None = None  # planned, not yet current (its latency has not passed)
+    pending_at: float = math.inf  # context time at which `pending` becomes current, s
 
 
 class StompPlanner(LeafSystem):
-    """Input `request` (PlanRequest); output `plan` (PlanResult), kept in abstract state."""
+    """The pick's motion planner (IK + STOMP) as an event-driven stage.
 
-    def __init__(self, stomp: Stomp, obstacles: Obstacles, velocity_limits: np.ndarray, period_s: float = 0.01):
+    .. pydrake_system::
+
+        name: StompPlanner
+        input_ports:
+        - request
+        - grasp_poses
+        - obstacle_cloud_W
+        output_ports:
+        - plan
+
+    Inputs: ``request`` (PlanRequest); ``grasp_poses`` (GraspPoses, X_WG of each hand's pre-grasp and
+    grasp); ``obstacle_cloud_W`` (N x 3 points of the object, m, in W: the reach's obstacle).
+    Output: ``plan`` (PlanResult of the latest request whose latency has passed).
+
+    Args:
+        motions: the planning core (robot model, IK, STOMP).
+        latency_s: context seconds from a request to its result; the trajectory starts then.
+        grasp_depth_margin: the "grasp" targets are moved this far along each hand's approach axis z_G, m
+            (a perceived grasp can be 1-2 cm off; a hand that stops short closes on a handle's edge).
+    """
+
+    def __init__(self, motions: PickMotions, latency_s: float, grasp_depth_margin: float = 0.0, period_s=0.01):
         super().__init__()
-        self.stomp, self.obstacles, self.velocity_limits = stomp, obstacles, np.asarray(velocity_limits)
+        self.motions, self.latency_s = motions, latency_s
+        self.deeper = RigidTransform([0.0, 0.0, grasp_depth_margin])
         self.DeclareAbstractInputPort("request", AbstractValue.Make(PlanRequest()))
-        self._result = self.DeclareAbstractState(AbstractValue.Make(PlanResult()))
-        self.DeclareStateOutputPort("plan", self._result)
-        self.DeclarePeriodicUnrestrictedUpdateEvent(period_s, 0.0, self._maybe_plan)
-
-    def _maybe_plan(self, context, state) -> EventStatus:
-        request = self.get_input_port(0).Eval(context)
-        current = context.get_abstract_state(self._result).get_value()
-        if request.id == current.id:
-            return EventStatus.DidNothing()
-        result = self.stomp.plan(request.q_start, request.q_goal, self.obstacles, request.closure)
-        trajectory = None
-        if result.success:
-            trajectory = time_parameterise(result.trajectory, self.velocity_limits, request.start_time)
-        state.get_mutable_abstract_state(self._result).set_value(
-            PlanResult(request.id, result.success, trajectory, result.message, result.seconds)
+        self.DeclareAbstractInputPort("grasp_poses", AbstractValue.Make(GraspPoses(False)))
+        self.DeclareAbstractInputPort("obstacle_cloud_W", AbstractValue.Make(np.zeros((0, 3))))
+        self._state = self.DeclareAbstractState(AbstractValue.Make(_Planning()))
+        self.DeclareAbstractOutputPort(
+            "plan",
+            lambda: AbstractValue.Make(PlanResult()),
+            self._calc_plan,
+            {self.abstract_state_ticket(self._state)},
         )
+        self.DeclarePeriodicUnrestrictedUpdateEvent(period_s, 0.0, self._update)
+
+    def _update(self, context, state) -> EventStatus:
+        planning = context.get_abstract_state(self._state).get_value()
+        t = context.get_time()
+        request = self.GetInputPort("request").Eval(context)
+        known = {planning.current.id, planning.pending.id if planning.pending else None}
+        current, pending, pending_at = planning.current, planning.pending, planning.pending_at
+        if request.id >= 0 and request.id not in known:
+            pending_at = t + self.latency_s
+            pending = self.plan(request, pending_at, context)
+        if pending is not None and t + 1e-9 >= pending_at:
+            current, pending, pending_at = pending, None, math.inf
+        if current is planning.current and pending is planning.pending:
+            return EventStatus.DidNothing()
+        state.get_mutable_abstract_state(self._state).set_value(_Planning(current, pending, pending_at))
         return EventStatus.Succeeded()
 
+    def plan(self, request: PlanRequest, start_s: float, context) -> PlanResult:
+        """Plans `request`; the trajectory starts at context time start_s."""
+        started = time.perf_counter()
+        motions = self.motions
+        result = PlanResult(request.id, request.phase)
+        try:
+            if request.path not in PATHS:
+                raise PlanningError(f"unknown path {request.path!r} (one of {PATHS})")
+            held = None
+            if request.path == "held":
+                held = motions.held_move(request.q_start, request.X_motion_W, request.min_fraction)
+                keyframes, min_segment = held.keyframes, HELD_SEGMENT_S
+            else:
+                targets = self._targets(request, context)
+                if request.path == "free":
+                    cloud = self.GetInputPort("obstacle_cloud_W").Eval(context)
+                    motions.ik.set_obstacle_points(
+                        cloud[:: max(1, len(cloud) // OBSTACLE_POINTS)] if len(cloud) else None
+                    )
+                    keyframes = motions.reach(request.q_start, targets)
+                    min_segment = STOMP_SEGMENT_S if len(keyframes) > 3 else SPARSE_SEGMENT_S
+                else:
+                    keyframes, min_segment = motions.straight(request.q_start, targets), SPARSE_SEGMENT_S
+            trajectory = time_parameterise(keyframes, motions.ik.velocity_limits, start_s, min_segment)
+            if held is not None:
+                t_dev, o_dev = motions.closure_deviations(trajectory, held)
+                result.closure_translation_dev_m, result.closure_orientation_dev_rad = t_dev, o_dev
+                if t_dev >= motions.closure.t_max or o_dev >= motions.closure.o_max:
+                    raise PlanningError(
+                        f"the played trajectory leaves the closure constraint ({t_dev * 1000:.1f} mm, {o_dev:.3f} rad)"
+                    )
+            result.success, result.trajectory, result.message = True, trajectory, f"{len(keyframes)} keyframes"
+            result.grasp_paths_W = self._grasp_paths(trajectory)
+        except PlanningError as error:
+            result.message = f"{request.phase}: {error}"
+            logging.warning("planning failed: %s", result.message)
+        result.planning_s = time.perf_counter() - started
+        return result
 
-class JointTrajectorySource(LeafSystem):
-    """Input `plan` (PlanResult); output `position` (14): the plan at context time, else `hold`."""
+    def _targets(self, request: PlanRequest, context) -> dict[str, RigidTransform]:
+        grasps = self.GetInputPort("grasp_poses").Eval(context)
+        if not grasps.found:
+            raise PlanningError(f"no grasp poses ({grasps.message})")
+        if request.targets not in ("pregrasp", "grasp"):
+            raise PlanningError(f"unknown targets {request.targets!r} (pregrasp or grasp)")
+        deeper = self.deeper if request.targets == "grasp" else RigidTransform()
+        return {side: grasps.poses_W[f"{side}_{request.targets}"] @ deeper for side in SIDES}
 
-    def __init__(self, hold: np.ndarray):
-        super().__init__()
-        self.hold = np.asarray(hold, dtype=float)
-        self.DeclareAbstractInputPort("plan", AbstractValue.Make(PlanResult()))
-        self.DeclareVectorOutputPort("position", BasicVector(len(self.hold)), self._calc)
+    def _grasp_paths(self, trajectory: PiecewisePolynomial, samples: int = 60) -> dict[str, np.ndarray]:
+        times = np.linspace(trajectory.start_time(), trajectory.end_time(), samples)
+        q = np.array([trajectory.value(t).ravel() for t in times])
+        poses = self.motions.ik.stomp.end_effectors.poses(q)
+        return {side: X[:, :3, 3] for side, X in zip(SIDES, poses, strict=True)}
 
-    def _calc(self, context, output):
-        plan = self.get_input_port(0).Eval(context)
-        if not plan.success or plan.trajectory is None:
-            output.SetFromVector(self.hold)
-            return
-        t = np.clip(context.get_time(), plan.trajectory.start_time(), plan.trajectory.end_time())
-        output.SetFromVector(plan.trajectory.value(t).ravel())
+    def _calc_plan(self, context, output):
+        output.set_value(context.get_abstract_state(self._state).get_value().current)

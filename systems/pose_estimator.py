@@ -32,7 +32,7 @@ from pydrake.systems.sensors import CameraInfo, ImageDepth32F
 from scipy.spatial import cKDTree
 
 from diagrams.objects import catalog
-from diagrams.objects.library import cache_dir, save_npz_atomically
+from systems.paths import cache_dir, save_npz_atomically
 from systems.segmenter import Segmentation
 
 MIN_POINTS = 50
@@ -228,8 +228,14 @@ class PoseEstimator(LeafSystem):
         self.DeclareAbstractInputPort("segmentation", AbstractValue.Make(Segmentation(False)))
         self.DeclareAbstractInputPort("depth_image", AbstractValue.Make(ImageDepth32F()))
         self.DeclareAbstractInputPort("camera_pose", AbstractValue.Make(RigidTransform()))
-        self.DeclareAbstractOutputPort("estimate", lambda: AbstractValue.Make(ObjectEstimate(False)), self._calc)
-        self.DeclareAbstractOutputPort("point_cloud", lambda: AbstractValue.Make(PointCloud()), self._calc_cloud)
+        # Computed from the inputs alone (not from time): a latched frame is localised once.
+        inputs = {self.all_input_ports_ticket()}
+        self.DeclareAbstractOutputPort(
+            "estimate", lambda: AbstractValue.Make(ObjectEstimate(False)), self._calc, inputs
+        )
+        self.DeclareAbstractOutputPort(
+            "point_cloud", lambda: AbstractValue.Make(PointCloud()), self._calc_cloud, inputs
+        )
 
     def estimate(self, segmentation: Segmentation, depth: np.ndarray, X_WB: RigidTransform) -> ObjectEstimate:
         if not segmentation.found:

@@ -37,7 +37,7 @@ class PoseYawOffset(LeafSystem):
         self.yaw_offset_rad = float(yaw_offset_rad)
         model = AbstractValue.Make(ObjectEstimate(False))
         self.DeclareAbstractInputPort("estimate", model)
-        self.DeclareAbstractOutputPort("estimate", model.Clone, self._calc)
+        self.DeclareAbstractOutputPort("estimate", model.Clone, self._calc, {self.all_input_ports_ticket()})
 
     def _calc(self, context, output):
         estimate = self.get_input_port().Eval(context)

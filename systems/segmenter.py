@@ -11,8 +11,8 @@ from pydrake.systems.framework import LeafSystem
 from pydrake.systems.sensors import ImageRgba8U
 from torch.nn import functional as F
 
-from diagrams.paths import MODELS_DIR
 from systems import segmentation_network
+from systems.paths import MODELS_DIR
 
 DEFAULT_WEIGHTS = MODELS_DIR / "segmenter.pt"
 
@@ -79,10 +79,17 @@ class Segmenter(LeafSystem):
         # One inference now: torch's first call is several times slower than the next ones.
         self.segment(np.zeros((*segmentation_network.INPUT_SIZE[::-1], 3), np.uint8))
         self.DeclareAbstractInputPort("color_image", AbstractValue.Make(ImageRgba8U()))
+        # Computed from the image alone (not from time): an image that does not change is segmented once.
+        inputs = {self.all_input_ports_ticket()}
         self.DeclareAbstractOutputPort(
-            "labels", lambda: AbstractValue.Make(np.zeros((0, 0), np.uint8)), self._calc_labels
+            "labels", lambda: AbstractValue.Make(np.zeros((0, 0), np.uint8)), self._calc_labels, inputs
         )
-        self.DeclareAbstractOutputPort("segmentation", lambda: AbstractValue.Make(Segmentation(False)), self._calc_mask)
+        self.DeclareAbstractOutputPort(
+            "segmentation",
+            lambda: AbstractValue.Make(Segmentation(False)),
+            self._calc_mask,
+            inputs,
+        )
 
     def segment(self, rgb: np.ndarray) -> np.ndarray:
         """H x W x 3 uint8 -> H x W uint8 class ids.

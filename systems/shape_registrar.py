@@ -8,7 +8,7 @@ from pydrake.common.value import AbstractValue
 from pydrake.math import RigidTransform
 from pydrake.systems.framework import LeafSystem, ValueProducer
 
-from diagrams.paths import MODELS_DIR
+from systems.paths import MODELS_DIR
 from systems.pose_estimator import ObjectEstimate
 from systems.shape_space.registration import Registrar
 from systems.shape_space.space import ShapeSpace

@@ -14,12 +14,12 @@ from systems.planning.kinematics import centauro_kinematics, gravity_torques
 def robot(scenario):
     builder = DiagramBuilder()
     plant, scene_graph = AddMultibodyPlantSceneGraph(builder, time_step=0.0)
-    AddCentauro(plant, scene_graph, scenario)
+    _, hands = AddCentauro(plant, scene_graph, scenario)
     plant.Finalize()
     diagram = builder.Build()
     context = diagram.CreateDefaultContext()
     plant_context = plant.GetMyMutableContextFromRoot(context)
-    kinematics, spheres = centauro_kinematics(plant, scene_graph, plant_context)
+    kinematics, spheres = centauro_kinematics(plant, scene_graph, plant_context, joint_names(1) + joint_names(2), hands)
     joints = [plant.GetJointByName(n) for n in joint_names(1) + joint_names(2)]
     return plant, scene_graph, plant_context, kinematics, spheres, joints
 

@@ -9,7 +9,6 @@ convex pieces with CoACD and written as an SDF into the cache.
 
 import hashlib
 import logging
-import os
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -19,6 +18,7 @@ from pydrake.common.yaml import yaml_load_typed
 
 from diagrams.objects import catalog
 from diagrams.objects.instance import ObjectInfo, export_obj, object_sdf
+from systems.paths import cache_dir
 
 MESH_SUFFIXES = (".obj", ".ply", ".stl")
 MODEL_SUFFIXES = (".sdf", ".urdf")
@@ -33,19 +33,6 @@ class ObjectModel:
     info: ObjectInfo | None
     # World yaw of the object frame at the category's presentation pose, rad.
     presentation_yaw: float
-
-
-def cache_dir() -> Path:
-    root = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
-    return Path(root) / "dualarm"
-
-
-def save_npz_atomically(path: Path, **arrays: np.ndarray) -> None:
-    """np.savez_compressed to `path` through a temporary file: a concurrent reader sees the whole file or none."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    partial = path.with_suffix(f".{os.getpid()}.tmp.npz")
-    np.savez_compressed(partial, **arrays)
-    os.replace(partial, path)
 
 
 def load_info(path: Path) -> ObjectInfo:

@@ -218,16 +218,16 @@ def robot_spheres(plant: MultibodyPlant, scene_graph, kinematics: BatchedKinemat
     return SphereModel(np.array(bodies), np.vstack(centres), np.concatenate(radii), np.array(groups), geometries)
 
 
-def centauro_kinematics(plant: MultibodyPlant, scene_graph, plant_context):
-    """Batched kinematics of both arms (j_arm1_*, j_arm2_*) with the hands, and their sphere model.
+def centauro_kinematics(plant: MultibodyPlant, scene_graph, plant_context, arm_joints: list[str], hands: dict):
+    """Batched kinematics of both arms with the hands, and their sphere model.
+
+    Args:
+        arm_joints: the 14 arm joint names, left arm (arm1_*) then right (arm2_*).
+        hands: {"left": model instance, "right": model instance} of the hands.
 
     Groups: 0 pelvis/torso/head, 1 left arm + left hand, 2 right arm + right hand.
     """
-    from diagrams.centauro_description import joint_names
-    from diagrams.station import HAND_INSTANCES
-
-    joints = [plant.GetJointByName(name) for name in joint_names(1) + joint_names(2)]
-    hands = {side: plant.GetModelInstanceByName(name) for side, name in HAND_INSTANCES.items()}
+    joints = [plant.GetJointByName(name) for name in arm_joints]
     bodies = [joint.child_body() for joint in joints]
     for hand in hands.values():
         bodies += [plant.get_body(b) for b in plant.GetBodyIndices(hand)]

@@ -1,29 +1,25 @@
-"""Dual-arm inverse kinematics for the hands' grasp frames (Drake InverseKinematics).
+"""Dual-arm inverse kinematics for the hands' grasp frames (Drake InverseKinematics), and the
+robot scene that planning works in.
 
-The IK model is the robot, its hands and the table, and optionally the object welded
-where it stands: a MultibodyPlant built from the same files as the station.
+The scene (RobotScene) is a built Diagram holding a MultibodyPlant of the robot, its hands and
+the table, and optionally an object welded where it stands; diagrams/planning_scene.py builds it
+from the same files as the station.
 """
 
 import functools
-import hashlib
 import itertools
 from dataclasses import dataclass
 
 import numpy as np
-import trimesh
-from pydrake.geometry import Box
+from pydrake.geometry import Box, SceneGraph
 from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.multibody.inverse_kinematics import InverseKinematics
-from pydrake.multibody.plant import AddMultibodyPlantSceneGraph
-from pydrake.multibody.tree import BodyIndex
+from pydrake.multibody.plant import MultibodyPlant
+from pydrake.multibody.tree import BodyIndex, ModelInstanceIndex
 from pydrake.solvers import Solve
-from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.framework import Diagram
 
-from diagrams.centauro_description import joint_names
-from diagrams.objects.library import ObjectModel, cache_dir, save_npz_atomically
-from diagrams.paths import SDF_DIR
-from diagrams.scenario import Scenario
-from diagrams.station import HAND_INSTANCES, AddCentauro, AddTable, make_parser
+from systems.paths import cache_dir, save_npz_atomically
 from systems.planning.kinematics import EndEffectors, centauro_kinematics
 from systems.planning.stomp import Obstacles, Stomp
 
@@ -33,9 +29,27 @@ SEED_SAMPLES = 3000
 # are 2.8-4.1 mm off (Chamfer, single views); 1.5 cm around the accurate drills left STOMP's reach without a
 # path to the pre-grasp in its 2 s (unseen drills 17/24 picks; 1 cm: see the README's evaluation).
 PERCEIVED_SHAPE_MARGIN = 0.01
-OBJECT_SURFACE_POINTS = 6000
 # A hand is symmetric under a half turn about its approach axis z_G.
 HALF_TURN = RigidTransform(RotationMatrix.MakeZRotation(np.pi))
+
+
+@dataclass
+class RobotScene:
+    """The model planning works in (built by diagrams/planning_scene.py)."""
+
+    diagram: Diagram  # holds `plant` and `scene_graph`; the hands' fingers at their planning opening
+    plant: MultibodyPlant
+    scene_graph: SceneGraph
+    robot: ModelInstanceIndex
+    hands: dict[str, ModelInstanceIndex]  # "left", "right"
+    arm_joints: list[str]  # the 14 arm joints, left arm then right
+    # Identifies the model files, placements and seed: the IK seed table is cached under it.
+    cache_key: str
+    seed: int = 0
+    # A welded object's surface points in W (N x 3) and their spacing (m), or None: also an obstacle
+    # for the sphere model, since the plant's exact geometry only serves Drake's queries.
+    object_surface_W: np.ndarray | None = None
+    object_surface_spacing: float = 0.0
 
 
 @dataclass
@@ -48,43 +62,20 @@ class IkResult:
 class DualArmIk:
     """Solves for the 14 arm joints that put both grasp frames at given world poses."""
 
-    def __init__(
-        self,
-        scenario: Scenario,
-        open_width: float = 0.1,
-        obstacle: ObjectModel | None = None,
-        X_WO: RigidTransform | None = None,
-        obstacle_points_W: np.ndarray | None = None,
-    ):
+    def __init__(self, scene: RobotScene, obstacle_points_W: np.ndarray | None = None):
         """Args:
-        scenario: robot and table placement.
-        open_width: hand opening (m) of the collision model.
-        obstacle, X_WO: the object, welded at X_WO in the world, as one more obstacle.
-        obstacle_points_W: or the object as seen (e.g. a reconstructed cloud, N x 3): checked with the
+        scene: the robot, table (and welded object) to plan in.
+        obstacle_points_W: the object as seen (e.g. a reconstructed cloud, N x 3): checked with the
             sphere model (collision checks and STOMP), since Drake's model has no geometry for it.
         """
+        self.scene = scene
         self.obstacle_points_W = obstacle_points_W
-        builder = DiagramBuilder()
-        self.plant, self.scene_graph = AddMultibodyPlantSceneGraph(builder, time_step=0.0)
-        robot, hands = AddCentauro(self.plant, self.scene_graph, scenario)
-        AddTable(self.plant, scenario)
-        self.obstacle, self.X_WO = obstacle, X_WO
-        if obstacle is not None:
-            (instance,) = make_parser(self.plant).AddModels(file_name=str(obstacle.model_file))
-            body = self.plant.get_body(self.plant.GetBodyIndices(instance)[0])
-            self.plant.WeldFrames(self.plant.world_frame(), body.body_frame(), X_WO)
-        self.plant.Finalize()
-        for hand in hands.values():
-            for name in ("finger_1_joint", "finger_2_joint"):
-                self.plant.GetJointByName(name, hand).set_default_translation(open_width / 2)
-        self.diagram = builder.Build()
-        # Created after the fingers' defaults: everything built from this context (the STOMP sphere
-        # model included) sees the hands as open as Drake's collision checks do.
+        self.plant, self.scene_graph, self.diagram = scene.plant, scene.scene_graph, scene.diagram
         self.context = self.diagram.CreateDefaultContext()
         self.plant_context = self.plant.GetMyMutableContextFromRoot(self.context)
         self.q_default = self.plant.GetPositions(self.plant_context)
-        self.grasp_frames = {side: self.plant.GetFrameByName("grasp_frame", hands[side]) for side in SIDES}
-        joints = [self.plant.GetJointByName(n, robot) for n in joint_names(1) + joint_names(2)]
+        self.grasp_frames = {side: self.plant.GetFrameByName("grasp_frame", scene.hands[side]) for side in SIDES}
+        joints = [self.plant.GetJointByName(n, scene.robot) for n in scene.arm_joints]
         self.arm_indices = np.array([j.position_start() for j in joints])
         self.lower = np.array([j.position_lower_limits()[0] for j in joints])
         self.upper = np.array([j.position_upper_limits()[0] for j in joints])
@@ -92,18 +83,17 @@ class DualArmIk:
         actuators = [self.plant.get_joint_actuator(i) for i in self.plant.GetJointActuatorIndices()]
         effort = {actuator.joint().index(): actuator.effort_limit() for actuator in actuators}
         self.effort_limits = np.array([effort[j.index()] for j in joints])
-        self._load_or_build_seed_table(scenario, open_width)
+        self._load_or_build_seed_table()
 
-    def _load_or_build_seed_table(self, scenario: Scenario, open_width: float):
-        """The seed table from the cache when this robot, table, object and seed were seen before."""
-        key = _seed_table_key(scenario, open_width, self.obstacle, self.X_WO, SEED_SAMPLES)
-        path = cache_dir() / "ik_seeds" / f"{key}.npz"
+    def _load_or_build_seed_table(self):
+        """The seed table from the cache when this scene (robot, table, object, seed) was seen before."""
+        path = cache_dir() / "ik_seeds" / f"{self.scene.cache_key}_{SEED_SAMPLES}.npz"
         if path.is_file():
             with np.load(path) as data:
                 self._seed_q = data["q"]
                 self._seed_poses = {side: data[side] for side in SIDES}
             return
-        self._build_seed_table(scenario.random_seed, SEED_SAMPLES)
+        self._build_seed_table(self.scene.seed, SEED_SAMPLES)
         save_npz_atomically(path, q=self._seed_q, **self._seed_poses)
 
     def _build_seed_table(self, seed: int, samples: int = SEED_SAMPLES):
@@ -166,7 +156,9 @@ class DualArmIk:
     @functools.cached_property
     def stomp(self) -> Stomp:
         """A STOMP planner over this model's robot (sphere model) and its limits."""
-        kinematics, spheres = centauro_kinematics(self.plant, self.scene_graph, self.plant_context)
+        kinematics, spheres = centauro_kinematics(
+            self.plant, self.scene_graph, self.plant_context, self.scene.arm_joints, self.scene.hands
+        )
         end_effectors = EndEffectors(kinematics, [self.grasp_frames[side] for side in SIDES])
         inspector = self.scene_graph.model_inspector()
         return Stomp(
@@ -181,11 +173,11 @@ class DualArmIk:
         )
 
     @functools.cached_property
-    def planning_obstacles(self) -> Obstacles:
-        """The scene for STOMP: every box of the table and floor, and the object's surface points."""
+    def table_obstacles(self) -> Obstacles:
+        """The fixed scene for STOMP: every box that is not the robot's (table, floor)."""
         obstacles = Obstacles()
         inspector = self.scene_graph.model_inspector()
-        robot = {self.plant.GetModelInstanceByName(n) for n in ("centauro", *HAND_INSTANCES.values())}
+        robot = {self.scene.robot, *self.scene.hands.values()}
         for index in range(self.plant.num_bodies()):
             body = self.plant.get_body(BodyIndex(index))
             if body.model_instance() in robot:
@@ -196,15 +188,19 @@ class DualArmIk:
                 if isinstance(shape, Box):
                     X_WG = (X_WB @ inspector.GetPoseInFrame(geometry)).GetAsMatrix4()
                     obstacles.add_box(X_WG, [shape.width(), shape.depth(), shape.height()])
+        return obstacles
+
+    @functools.cached_property
+    def planning_obstacles(self) -> Obstacles:
+        """The scene for STOMP: the table's boxes, and the object's points (as seen, or a welded object's surface)."""
+        obstacles = Obstacles()
+        obstacles.boxes = list(self.table_obstacles.boxes)
         if self.obstacle_points_W is not None:
             # A perceived shape is off by up to a centimetre or two where the camera did not see it.
             obstacles.add_points(self.obstacle_points_W, inflation=PERCEIVED_SHAPE_MARGIN)
-        if self.obstacle is not None:
-            mesh = trimesh.load(self.obstacle.model_file.parent / "visual.obj", force="mesh")
-            points, _ = trimesh.sample.sample_surface_even(mesh, OBJECT_SURFACE_POINTS, seed=0)
+        if self.scene.object_surface_W is not None:
             # Between surface samples the nearest sample is up to about half their spacing too far.
-            spacing = np.sqrt(mesh.area / len(points))
-            obstacles.add_points(self.X_WO.multiply(points.T).T, inflation=0.5 * spacing)
+            obstacles.add_points(self.scene.object_surface_W, inflation=0.5 * self.scene.object_surface_spacing)
         return obstacles
 
     def segment_is_free(self, q_from: np.ndarray, q_to: np.ndarray, max_step: float = 0.02) -> bool:
@@ -279,6 +275,44 @@ class DualArmIk:
                 return result
         return IkResult(False, q_guess, "each hand reaches its target, but not without a collision")
 
+    def solve_held(
+        self,
+        X_WG_left: RigidTransform,
+        X_E1E2: RigidTransform,
+        q_guesses: list[np.ndarray],
+        position_tolerance: float,
+        angle_tolerance: float,
+        closure_tolerances: tuple[float, float] = (0.0005, 0.005),
+    ) -> IkResult:
+        """Both arms holding one object: the left grasp frame at X_WG_left (within the tolerances, m and
+        rad) and the right one at X_E1E2 from it (within closure_tolerances, m and rad), nearest to the
+        first guess; each guess is tried in turn."""
+        left, right = self.grasp_frames["left"], self.grasp_frames["right"]
+        for start in q_guesses:
+            ik = InverseKinematics(self.plant, self.plant_context, with_joint_limits=True)
+            q, prog = ik.q(), ik.prog()
+            tol = np.full(3, position_tolerance)
+            p = X_WG_left.translation()
+            ik.AddPositionConstraint(left, [0, 0, 0], self.plant.world_frame(), p - tol, p + tol)
+            ik.AddOrientationConstraint(
+                left, RotationMatrix(), self.plant.world_frame(), X_WG_left.rotation(), angle_tolerance
+            )
+            closure = np.full(3, closure_tolerances[0])
+            p_E1E2 = X_E1E2.translation()
+            ik.AddPositionConstraint(right, [0, 0, 0], left, p_E1E2 - closure, p_E1E2 + closure)
+            ik.AddOrientationConstraint(right, RotationMatrix(), left, X_E1E2.rotation(), closure_tolerances[1])
+            fixed_q = self.full_positions(start)
+            fixed = np.setdiff1d(np.arange(self.plant.num_positions()), self.arm_indices)
+            prog.AddBoundingBoxConstraint(fixed_q[fixed], fixed_q[fixed], q[fixed])
+            prog.AddQuadraticErrorCost(np.eye(len(self.arm_indices)), q_guesses[0], q[self.arm_indices])
+            prog.SetInitialGuess(q, fixed_q)
+            result = Solve(prog)
+            if result.is_success():
+                return IkResult(True, result.GetSolution(q)[self.arm_indices], "solved")
+        return IkResult(
+            False, q_guesses[0], f"both hands cannot hold the object there ({result.get_solution_result()})"
+        )
+
     def _solve_once(self, targets, start, q_nominal, position_tolerance, angle_tolerance, min_distance) -> IkResult:
         """One SNOPT solve; the joints of an arm without a target stay at `start`."""
         ik = InverseKinematics(self.plant, self.plant_context, with_joint_limits=True)
@@ -306,19 +340,3 @@ class DualArmIk:
         result = Solve(prog)
         q_arms = result.GetSolution(q)[self.arm_indices]
         return IkResult(result.is_success(), q_arms, str(result.get_solution_result()))
-
-
-def _seed_table_key(scenario, open_width, obstacle, X_WO, samples) -> str:
-    """A hash of everything the seed table depends on: the model files, placements, object and seed."""
-    digest = hashlib.sha256()
-    for path in ("centauro/centauro.sdf", "centauro/hand.sdf", "scene/table.sdf", "scene/floor.sdf"):
-        digest.update((SDF_DIR / path).read_bytes())
-    digest.update(
-        repr((scenario.pelvis_height, list(scenario.table_xyz), open_width, scenario.random_seed, samples)).encode()
-    )
-    if obstacle is not None:
-        for piece in sorted(obstacle.model_file.parent.glob("*")):
-            if piece.suffix in (".sdf", ".obj", ".urdf"):
-                digest.update(piece.read_bytes())
-        digest.update(np.round(X_WO.GetAsMatrix4(), 9).tobytes())
-    return digest.hexdigest()[:24]

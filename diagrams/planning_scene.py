@@ -1,0 +1,110 @@
+"""Builds the scene that planning works in: the robot, its hands and the table (optionally an object
+welded where it stands), from the same files and placements as the station."""
+
+import hashlib
+
+import numpy as np
+import trimesh
+from pydrake.math import RigidTransform
+from pydrake.multibody.plant import AddMultibodyPlantSceneGraph
+from pydrake.systems.framework import DiagramBuilder
+
+from diagrams.centauro_description import joint_names
+from diagrams.objects.library import ObjectModel, resolve_object
+from diagrams.paths import SDF_DIR
+from diagrams.scenario import Scenario
+from diagrams.station import AddCentauro, AddTable, make_parser, object_pose_on_table
+from systems.planning.ik import SIDES, DualArmIk, RobotScene
+from systems.planning.pick_motions import OPEN_WIDTH, PickMotions
+
+OBJECT_SURFACE_POINTS = 6000
+
+
+def MakeRobotScene(
+    scenario: Scenario,
+    open_width: float = OPEN_WIDTH,
+    obstacle: ObjectModel | None = None,
+    X_WO: RigidTransform | None = None,
+) -> RobotScene:
+    """The planning model of the scenario's robot and table.
+
+    Args:
+        open_width: hand opening (m) of the collision model.
+        obstacle, X_WO: an object welded at X_WO in the world, as one more obstacle.
+    """
+    builder = DiagramBuilder()
+    plant, scene_graph = AddMultibodyPlantSceneGraph(builder, time_step=0.0)
+    robot, hands = AddCentauro(plant, scene_graph, scenario)
+    AddTable(plant, scenario)
+    surface, spacing = None, 0.0
+    if obstacle is not None:
+        (instance,) = make_parser(plant).AddModels(file_name=str(obstacle.model_file))
+        body = plant.get_body(plant.GetBodyIndices(instance)[0])
+        plant.WeldFrames(plant.world_frame(), body.body_frame(), X_WO)
+        mesh = trimesh.load(obstacle.model_file.parent / "visual.obj", force="mesh")
+        points, _ = trimesh.sample.sample_surface_even(mesh, OBJECT_SURFACE_POINTS, seed=0)
+        surface, spacing = X_WO.multiply(points.T).T, float(np.sqrt(mesh.area / len(points)))
+    plant.Finalize()
+    for hand in hands.values():
+        for name in ("finger_1_joint", "finger_2_joint"):
+            plant.GetJointByName(name, hand).set_default_translation(open_width / 2)
+    diagram = builder.Build()
+    return RobotScene(
+        diagram,
+        plant,
+        scene_graph,
+        robot,
+        hands,
+        joint_names(1) + joint_names(2),
+        _cache_key(scenario, open_width, obstacle, X_WO),
+        0,  # the IK seed table is a property of the model, not of a run: one seed for all
+        surface,
+        spacing,
+    )
+
+
+def make_dual_arm_ik(scenario: Scenario, **scene_options) -> DualArmIk:
+    """DualArmIk in MakeRobotScene(scenario, **scene_options)."""
+    return DualArmIk(MakeRobotScene(scenario, **scene_options))
+
+
+def _cache_key(scenario, open_width, obstacle, X_WO) -> str:
+    """A hash of everything the IK seed table depends on: the model files, placements and object."""
+    digest = hashlib.sha256()
+    for path in ("centauro/centauro.sdf", "centauro/hand.sdf", "scene/table.sdf", "scene/floor.sdf"):
+        digest.update((SDF_DIR / path).read_bytes())
+    digest.update(repr((scenario.pelvis_height, list(scenario.table_xyz), open_width)).encode())
+    if obstacle is not None:
+        for piece in sorted(obstacle.model_file.parent.glob("*")):
+            if piece.suffix in (".sdf", ".obj", ".urdf"):
+                digest.update(piece.read_bytes())
+        digest.update(np.round(X_WO.GetAsMatrix4(), 9).tobytes())
+    return digest.hexdigest()[:24]
+
+
+def true_grasp_poses(scenario: Scenario) -> dict[str, RigidTransform]:
+    """Ground truth: X_WG of each control pose (left/right pregrasp/grasp) of the scenario's object where
+    the station places it. For the ground-truth pick, tests and benchmarks only.
+
+    Raises:
+        ValueError: the object's model has no grasp frames.
+    """
+    model = resolve_object(scenario.object)
+    if model.info is None:
+        raise ValueError(f"{model.model_file} has no grasp frames (info.yaml beside it): ground truth needs them")
+    X_WO = object_pose_on_table(scenario, model)
+    return {name: X_WO @ X_OG for name, X_OG in model.info.control_poses().items()}
+
+
+def grasp_configuration(scenario: Scenario, ik: DualArmIk) -> np.ndarray:
+    """Ground truth: the 14 arm joints holding the scenario's object at its true grasps, reached as the
+    pick reaches them (pre-grasp, then straight in). For tests and benchmarks.
+
+    Raises:
+        PlanningError: no such configuration.
+    """
+    poses = true_grasp_poses(scenario)
+    motions = PickMotions(ik)
+    q = np.array(scenario.initial_arm_positions)
+    pregrasp = motions.reach(q, {side: poses[f"{side}_pregrasp"] for side in SIDES})[-1]
+    return motions.straight(pregrasp, {side: poses[f"{side}_grasp"] for side in SIDES})[-1]

@@ -1,0 +1,60 @@
+"""The camera latch: holds one RGB-D frame, taken when asked, so that perception sees it alone.
+
+The segmenter, pose estimator and registrar compute from their inputs only (not from time), so
+downstream of the latch a frame is perceived once, however often its results are read.
+"""
+
+from pydrake.common.value import AbstractValue
+from pydrake.math import RigidTransform
+from pydrake.systems.framework import EventStatus, LeafSystem
+from pydrake.systems.sensors import ImageDepth32F, ImageRgba8U
+
+
+class CameraLatch(LeafSystem):
+    """Latches the camera's images and pose when ``trigger`` rises above the latched frame's id.
+
+    .. pydrake_system::
+
+        name: CameraLatch
+        input_ports:
+        - color_image
+        - depth_image
+        - camera_pose
+        - trigger
+        output_ports:
+        - color_image
+        - depth_image
+        - camera_pose
+        - frame_id
+
+    ``trigger`` (1): the id of the frame wanted (a counter). ``frame_id`` (1): the id of the frame held
+    (0 before the first). The image and pose outputs hold that frame (empty images before the first).
+    """
+
+    def __init__(self, period_s: float = 0.01):
+        super().__init__()
+        self.DeclareAbstractInputPort("color_image", AbstractValue.Make(ImageRgba8U()))
+        self.DeclareAbstractInputPort("depth_image", AbstractValue.Make(ImageDepth32F()))
+        self.DeclareAbstractInputPort("camera_pose", AbstractValue.Make(RigidTransform()))
+        self.DeclareVectorInputPort("trigger", 1)
+        # (Separate states: Drake copies its own image and pose types natively.)
+        self._frame_id = self.DeclareDiscreteState(1)
+        self._held = {}
+        for name, model in (
+            ("color_image", ImageRgba8U()),
+            ("depth_image", ImageDepth32F()),
+            ("camera_pose", RigidTransform()),
+        ):
+            self._held[name] = self.DeclareAbstractState(AbstractValue.Make(model))
+            self.DeclareStateOutputPort(name, self._held[name])
+        self.DeclareStateOutputPort("frame_id", self._frame_id)
+        self.DeclarePeriodicUnrestrictedUpdateEvent(period_s, 0.0, self._update)
+
+    def _update(self, context, state) -> EventStatus:
+        wanted = self.GetInputPort("trigger").Eval(context)[0]
+        if wanted <= context.get_discrete_state(self._frame_id).get_value()[0]:
+            return EventStatus.DidNothing()
+        for name, index in self._held.items():
+            state.get_mutable_abstract_state(index).SetFrom(AbstractValue.Make(self.GetInputPort(name).Eval(context)))
+        state.get_mutable_discrete_state(self._frame_id).set_value([wanted])
+        return EventStatus.Succeeded()

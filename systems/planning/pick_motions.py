@@ -1,0 +1,211 @@
+"""The motions of a pick, planned from Cartesian goals of both hands' grasp frames G.
+
+  reach:     to given hand poses (the pre-grasps), around the obstacles: IK, then the straight
+             joint-space move if it is free, else STOMP (shortened to few keyframes).
+  straight:  each hand along a straight line to its goal, keeping its orientation (approach, retreat).
+  held move: both hands hold one object and move it by a rigid motion in W (lift, carry, place):
+             IK of the moved hands, projected onto the closure manifold, then STOMP with the
+             kinematic-chain closure term q_cc (paper eq. 2-4) and the hands' world orientation
+             constraint from the start. Only the table is an obstacle: the object moves with the hands.
+
+Each returns joint-space keyframes (K x 14, the start first); time parameterisation and the dense
+check of the played trajectory are time_parameterise() and closure_deviations() below.
+"""
+
+import itertools
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+from pydrake.math import RigidTransform
+from pydrake.trajectories import PiecewisePolynomial
+
+from systems.joint_plan import move_duration
+from systems.planning.closure import ClosureConstraint, OrientationConstraint, deviations, orientation_deviations
+from systems.planning.ik import SIDES, DualArmIk
+
+OPEN_WIDTH = 0.1  # m: the hands' opening while reaching
+CLOSED_WIDTH = 0.0  # m: the fingers stop on the handle; the joint effort limit sets the squeeze
+APPROACH_STEPS = 3
+MAX_STRAIGHT_STEP = 0.6  # rad: the most a joint may turn between two keyframes of a straight motion
+# Shortest duration of one move between sparse (IK) keyframes, and between STOMP's dense ones, s.
+SPARSE_SEGMENT_S = 0.8
+STOMP_SEGMENT_S = 0.1
+HELD_SEGMENT_S = 0.25  # s: a held object is moved gently (the grip is friction only)
+# The held move's goal: each hand within this of the moved pose (m, rad), before the projection onto the
+# closure manifold (which then holds the hands' relative pose to about 1e-6).
+HELD_GOAL_POSITION_TOLERANCE = 0.001
+HELD_GOAL_ANGLE_TOLERANCES = (0.01, 0.04, 0.15)
+HELD_FRACTION_STEP = 0.1
+PROJECTION_STEPS = 15
+# The played trajectory's closure is checked at this period, s.
+DENSE_CHECK_S = 0.01
+
+
+class PlanningError(RuntimeError):
+    """No motion: names the phase that failed and why."""
+
+
+@dataclass
+class HeldMove:
+    """A held move's keyframes and what the constraints are measured against."""
+
+    keyframes: np.ndarray  # K x 14
+    X_E1E2: np.ndarray  # 4 x 4: the right grasp frame in the left one's, as at the start
+    R_WE: list[np.ndarray]  # both hands' world orientations at the start (3 x 3 each)
+    stomp_iterations: int = 0
+
+
+class PickMotions:
+    """Plans the motions of a pick in `ik`'s scene (robot and table; the object as points when given)."""
+
+    def __init__(self, ik: DualArmIk):
+        self.ik = ik
+        self.closure = ClosureConstraint()
+        self.orientation = OrientationConstraint()
+
+    def reach(self, q_start: np.ndarray, targets_W: dict[str, RigidTransform]) -> np.ndarray:
+        """Keyframes from q_start to both hands at targets_W, collision-free (Drake's geometry and the
+        sphere model against the obstacle points).
+
+        Raises:
+            PlanningError: no collision-free IK solution, or no collision-free path to it.
+        """
+        ik = self.ik
+        goal = ik.solve(targets_W, q_start, restarts=12)
+        if not goal.success:
+            raise PlanningError(f"no collision-free IK solution at the goal ({goal.message})")
+        if ik.segment_is_free(q_start, goal.q):
+            return np.stack([q_start, goal.q])
+        result = ik.stomp.plan(q_start, goal.q, ik.planning_obstacles)
+        if not result.success:
+            raise PlanningError(result.message)
+        logging.info("reach: STOMP, %d iterations, %.2f s", result.iterations, result.seconds)
+        keyframes = shortcut(ik, list(result.trajectory))
+        if keyframes is None:
+            raise PlanningError("the STOMP trajectory collides under Drake's exact check")
+        return np.stack(keyframes)
+
+    def straight(self, q_start: np.ndarray, targets_W: dict[str, RigidTransform], steps: int = APPROACH_STEPS):
+        """Keyframes moving each hand's origin along a straight line to its target, its orientation kept as
+        at q_start (the IK branch kept: no half turns, no restarts).
+
+        Raises:
+            PlanningError: naming the step whose IK failed.
+        """
+        ik = self.ik
+        start_poses = ik.grasp_frame_poses(q_start)
+        keyframes, q = [np.asarray(q_start, float)], q_start
+        for step in range(1, steps + 1):
+            s = step / steps
+            targets = {
+                side: RigidTransform(
+                    start_poses[side].rotation(),
+                    (1 - s) * start_poses[side].translation() + s * targets_W[side].translation(),
+                )
+                for side in SIDES
+            }
+            # From q first; SNOPT can stall there near a joint limit, then from the nearest seeds, as long as
+            # the arms stay on their branch (a jump would leave the line between keyframes).
+            result = ik.solve(targets, q, min_distance=None, allow_half_turn=False, restarts=4)
+            if not result.success:
+                raise PlanningError(f"step {step} of {steps}: IK failed ({result.message})")
+            if np.abs(result.q - q).max() > MAX_STRAIGHT_STEP:
+                raise PlanningError(f"step {step} of {steps}: the arms would change their IK branch")
+            keyframes.append(result.q)
+            q = result.q
+        return np.stack(keyframes)
+
+    def held_move(self, q_start: np.ndarray, X_motion_W: RigidTransform, min_fraction: float = 1.0) -> HeldMove:
+        """Keyframes moving both hands (and the object they hold) by X_motion_W (X_WG -> X_motion_W X_WG),
+        keeping the hands' relative pose (closure constraint) and, where the goal allows it, their world
+        orientations (orientation constraint: the object does not tilt).
+
+        Where the arms cannot reach the whole motion's translation, shorter ones down to min_fraction of it
+        are tried (a lift near the edge of the arms' reach); where they cannot reach it with the hands'
+        orientation kept, the hands may tilt together (the closure still holds) up to the largest
+        HELD_GOAL_ANGLE_TOLERANCES.
+
+        Raises:
+            PlanningError: the moved hands are out of reach, or STOMP found no constrained path.
+        """
+        ik, stomp = self.ik, self.ik.stomp
+        q_start = np.asarray(q_start, float)
+        goal, start_poses = None, ik.grasp_frame_poses(q_start)
+        X_E1E2_start = start_poses["left"].InvertAndCompose(start_poses["right"])
+        for fraction in np.arange(1.0, min_fraction - 1e-9, -HELD_FRACTION_STEP):
+            X = RigidTransform(X_motion_W.rotation(), fraction * X_motion_W.translation())
+            targets = {side: X @ X_WG for side, X_WG in start_poses.items()}
+            # Guesses: the start, and each arm solved alone for its moved pose (when it can be).
+            guesses = [q_start]
+            alone = ik.solve(targets, q_start, HELD_GOAL_POSITION_TOLERANCE, HELD_GOAL_ANGLE_TOLERANCES[-1], None,
+                             allow_half_turn=False, restarts=4)  # fmt: skip
+            if alone.success:
+                guesses.append(alone.q)
+            for tolerance in HELD_GOAL_ANGLE_TOLERANCES:
+                goal = ik.solve_held(targets["left"], X_E1E2_start, guesses, HELD_GOAL_POSITION_TOLERANCE, tolerance)
+                if goal.success:
+                    break
+            if goal.success:
+                break
+        if not goal.success:
+            raise PlanningError(f"the moved hands are out of reach ({goal.message})")
+        X_E1E2 = stomp.end_effectors.relative(q_start[None])[0]
+        R_WE = [X[0, :3, :3] for X in stomp.end_effectors.poses(q_start[None])]
+        # Project onto the closure manifold alone: the goal keeps its own orientation (a carry may turn the
+        # object; a lift at the edge of reach may tilt it).
+        q_goal = stomp.project(goal.q, X_E1E2, None, steps=PROJECTION_STEPS)[0]
+        R_motion = X_motion_W.rotation().matrix()
+        tilt = max(orientation_deviations(stomp.end_effectors, q_goal[None], [R_motion @ R for R in R_WE]))
+        keep_orientation = np.allclose(R_motion, np.eye(3)) and tilt < 0.5 * self.orientation.o_max
+        result = stomp.plan(
+            q_start,
+            q_goal,
+            ik.table_obstacles,
+            self.closure,
+            self.orientation if keep_orientation else None,
+        )
+        if not result.success:
+            raise PlanningError(f"STOMP: {result.message}")
+        logging.info(
+            "held move: %.0f %% of the motion, hands within %.2f rad (orientation constraint %s); STOMP %d iterations, "
+            "%.2f s", 100 * fraction, tolerance, "on" if keep_orientation else "off", result.iterations, result.seconds
+        )  # fmt: skip
+        return HeldMove(result.trajectory, X_E1E2, R_WE, result.iterations)
+
+    def closure_deviations(self, trajectory: PiecewisePolynomial, held: HeldMove) -> tuple[float, float]:
+        """Largest (translation m, orientation rad) deviation of the hands' relative pose from the held
+        one along the played trajectory, checked every DENSE_CHECK_S."""
+        times = np.arange(trajectory.start_time(), trajectory.end_time() + 1e-9, DENSE_CHECK_S)
+        q = np.array([trajectory.value(t).ravel() for t in times])
+        t_dev, o_dev = deviations(self.ik.stomp.end_effectors, q, held.X_E1E2)
+        return float(t_dev.max()), float(o_dev.max())
+
+    def orientation_deviation(self, trajectory: PiecewisePolynomial, held: HeldMove) -> float:
+        """Largest deviation (rad) of either hand's world orientation from the start, every DENSE_CHECK_S."""
+        times = np.arange(trajectory.start_time(), trajectory.end_time() + 1e-9, DENSE_CHECK_S)
+        q = np.array([trajectory.value(t).ravel() for t in times])
+        return float(orientation_deviations(self.ik.stomp.end_effectors, q, held.R_WE).max())
+
+
+def time_parameterise(
+    keyframes: np.ndarray, velocity_limits: np.ndarray, start_time: float, min_segment_s: float
+) -> PiecewisePolynomial:
+    """A shape-preserving cubic through the keyframes (no overshoot: it stays within their range),
+    each segment long enough to move at SPEED_FRACTION of the velocity limits (at least min_segment_s),
+    at rest at both ends."""
+    durations = [move_duration(a, b, velocity_limits, min_segment_s) for a, b in itertools.pairwise(keyframes)]
+    times = start_time + np.concatenate([[0.0], np.cumsum(durations)])
+    return PiecewisePolynomial.CubicShapePreserving(times, np.asarray(keyframes).T, zero_end_point_derivatives=True)
+
+
+def shortcut(ik: DualArmIk, keyframes: list[np.ndarray]) -> list[np.ndarray] | None:
+    """Greedily drops keyframes while each remaining segment is collision-free (None if some segment is not)."""
+    kept, i = [keyframes[0]], 0
+    while i < len(keyframes) - 1:
+        j = next((j for j in range(len(keyframes) - 1, i, -1) if ik.segment_is_free(keyframes[i], keyframes[j])), None)
+        if j is None:
+            return None
+        kept.append(keyframes[j])
+        i = j
+    return kept
