@@ -2,11 +2,10 @@
 
 import numpy as np
 import pytest
-from pydrake.math import RollPitchYaw, RotationMatrix
+from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 
-from diagrams.hand_ik import DualArmIk
 from diagrams.objects.library import resolve_object
-from diagrams.oracle_pick import plan_oracle_pick
+from diagrams.planning_scene import grasp_configuration, make_dual_arm_ik
 from diagrams.scenario import replace_object
 from diagrams.station import object_pose_on_table
 from systems.planning.closure import (
@@ -16,6 +15,7 @@ from systems.planning.closure import (
     threshold_cost,
     transition_costs,
 )
+from systems.planning.pick_motions import PickMotions, time_parameterise
 from systems.planning.stomp import Obstacles
 
 
@@ -44,9 +44,14 @@ def lift_problem(scenario):
     scenario = replace_object(scenario, category="watering_can", instance="test_0", yaw=0.0)  # a fixed problem
     model = resolve_object(scenario.object)
     X_WO = object_pose_on_table(scenario, model)
-    ik = DualArmIk(scenario, obstacle=model, X_WO=X_WO)
-    plan = plan_oracle_pick(ik, np.array(scenario.initial_arm_positions), X_WO, model.info)
-    return ik, plan.configuration_at("close"), plan.configuration_at("lift"), scenario
+    ik = make_dual_arm_ik(scenario, obstacle=model, X_WO=X_WO)
+    q_grasp = grasp_configuration(scenario, ik)
+    # The lift's goal: both hands 0.12 m higher, holding the object as they do at q_grasp.
+    X = ik.grasp_frame_poses(q_grasp)
+    up = RigidTransform([0.0, 0.0, 0.12])
+    lifted = ik.solve_held(up @ X["left"], X["left"].InvertAndCompose(X["right"]), [q_grasp], 0.002, 0.03)
+    assert lifted.success, lifted.message
+    return ik, q_grasp, lifted.q, scenario
 
 
 def test_end_effector_relative_pose_matches_drake(lift_problem):
@@ -70,7 +75,7 @@ def test_stomp_lifts_with_the_closure_kept_densely(lift_problem):
     within, t_dev, o_dev = stomp.closure_within_limits(result.trajectory, (constraint, X_desired), steps=20)
     assert within and t_dev < constraint.t_max and o_dev < constraint.o_max
     # Drake's exact check against robot and table (the object moves with the hands, so it is left out).
-    without_object = DualArmIk(scenario)
+    without_object = make_dual_arm_ik(scenario)
     for q_from, q_to in zip(result.trajectory[:-1], result.trajectory[1:], strict=True):
         assert without_object.segment_is_free(q_from, q_to, max_step=0.01)
 
@@ -92,3 +97,19 @@ def test_stomp_bar_lift_keeps_closure_and_both_hand_orientations(lift_problem):
     # The hands really rise (the orientation is kept along a real motion).
     lift = stomp.end_effectors.poses(result.trajectory[[0, -1]])[0][:, 2, 3]
     assert lift[1] - lift[0] > 0.1
+
+
+def test_held_move_is_played_within_the_closure_constraint_densely(lift_problem, scenario):
+    """The pick's lift as the planner stage plans it: STOMP with q_cc, time-parameterised, checked every 10 ms."""
+    _, q_grasp, _, _ = lift_problem
+    motions = PickMotions(make_dual_arm_ik(scenario))  # the held object moves with the hands: no object here
+    held = motions.held_move(q_grasp, RigidTransform([0.0, 0.0, 0.15]), min_fraction=0.8)
+    trajectory = time_parameterise(held.keyframes, motions.ik.velocity_limits, 2.0, 0.25)
+    t_dev, o_dev = motions.closure_deviations(trajectory, held)
+    assert t_dev < motions.closure.t_max and o_dev < motions.closure.o_max
+    start, end = (motions.ik.grasp_frame_poses(trajectory.value(t).ravel()) for t in (2.0, trajectory.end_time()))
+    for side in ("left", "right"):
+        assert end[side].translation()[2] - start[side].translation()[2] > 0.11  # at least 0.8 of 0.15 m, about
+    times = np.arange(trajectory.start_time(), trajectory.end_time(), 0.01)
+    q = np.array([trajectory.value(t).ravel() for t in times])
+    assert np.all(q >= motions.ik.lower - 1e-9) and np.all(q <= motions.ik.upper + 1e-9)

@@ -1,74 +1,177 @@
-"""The planner and trajectory source systems: event-driven planning, playback, failures held, never executed."""
+"""The planner, trajectory source, hand command and camera latch stages, each alone."""
 
 import numpy as np
 import pytest
 from pydrake.common.value import AbstractValue
+from pydrake.math import RigidTransform
 from pydrake.systems.analysis import Simulator
-from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.sensors import ImageRgba8U
+from pydrake.trajectories import PiecewisePolynomial
 
-from diagrams.hand_ik import DualArmIk
-from diagrams.objects.library import resolve_object
-from diagrams.oracle_pick import world_grasps
-from diagrams.station import object_pose_on_table
+from diagrams.planning_scene import make_dual_arm_ik, true_grasp_poses
+from systems.camera_latch import CameraLatch
+from systems.hand_command import HandCommand, HandCommandSource
 from systems.joint_plan import SPEED_FRACTION
-from systems.planner import JointTrajectorySource, PlanRequest, StompPlanner
+from systems.planner import PlanRequest, PlanResult, StompPlanner
+from systems.planning.pick_motions import PickMotions
+from systems.shape_registrar import GraspPoses
+from systems.trajectory_source import JointTrajectorySource
+
+LATENCY_S = 0.3
 
 
 @pytest.fixture(scope="module")
-def setup(scenario):
-    model = resolve_object(scenario.object)
-    X_WO = object_pose_on_table(scenario, model)
-    ik = DualArmIk(scenario, obstacle=model, X_WO=X_WO)
+def planner(scenario):
+    return StompPlanner(PickMotions(make_dual_arm_ik(scenario)), LATENCY_S, grasp_depth_margin=0.01)
+
+
+def _planner_context(planner, request, grasps):
+    context = planner.CreateDefaultContext()
+    planner.GetInputPort("request").FixValue(context, AbstractValue.Make(request))
+    planner.GetInputPort("grasp_poses").FixValue(context, AbstractValue.Make(grasps))
+    planner.GetInputPort("obstacle_cloud_W").FixValue(context, AbstractValue.Make(np.zeros((0, 3))))
+    return context
+
+
+def test_planner_plans_a_request_once_and_releases_it_after_its_latency(planner, scenario):
     q_start = np.array(scenario.initial_arm_positions)
-    goal = ik.solve(world_grasps(X_WO, model.info, "pregrasp"), q_start)
-    assert goal.success
-    return ik, q_start, goal.q
-
-
-def build(ik, hold):
-    builder = DiagramBuilder()
-    planner = builder.AddNamedSystem("planner", StompPlanner(ik.stomp, ik.planning_obstacles, ik.velocity_limits))
-    source = builder.AddNamedSystem("source", JointTrajectorySource(hold))
-    builder.Connect(planner.GetOutputPort("plan"), source.GetInputPort("plan"))
-    builder.ExportInput(planner.GetInputPort("request"), "request")
-    builder.ExportOutput(source.GetOutputPort("position"), "position")
-    builder.ExportOutput(planner.GetOutputPort("plan"), "plan")
-    return builder.Build()
-
-
-def test_planner_plans_once_and_the_source_plays_it_within_limits(setup):
-    ik, q_start, q_goal = setup
-    diagram = build(ik, hold=q_start)
-    simulator = Simulator(diagram)
-    context = simulator.get_mutable_context()
-    request = PlanRequest(id=1, q_start=q_start, q_goal=q_goal, start_time=0.05)
-    diagram.GetInputPort("request").FixValue(context, AbstractValue.Make(request))
-    simulator.AdvanceTo(0.03)
-    plan = diagram.GetOutputPort("plan").Eval(context)
-    assert plan.success and plan.id == 1, plan.message
+    poses = true_grasp_poses(scenario)
+    request = PlanRequest(id=1, phase="reach", q_start=q_start, path="free", targets="pregrasp")
+    context = _planner_context(planner, request, GraspPoses(True, poses))
+    simulator = Simulator(planner, context)
+    simulator.AdvanceTo(LATENCY_S - 0.05)
+    assert planner.GetOutputPort("plan").Eval(context).id == -1  # planned, but its latency has not passed
+    simulator.AdvanceTo(LATENCY_S + 0.02)
+    plan = planner.GetOutputPort("plan").Eval(context)
+    assert plan.id == 1 and plan.success, plan.message
     trajectory = plan.trajectory
+    assert trajectory.start_time() == pytest.approx(LATENCY_S)  # requested at t = 0
     np.testing.assert_allclose(trajectory.value(trajectory.start_time()).ravel(), q_start, atol=1e-9)
-    np.testing.assert_allclose(trajectory.value(trajectory.end_time()).ravel(), q_goal, atol=1e-9)
+    reached = planner.motions.ik.grasp_frame_poses(trajectory.value(trajectory.end_time()).ravel())
+    for side in ("left", "right"):
+        assert np.linalg.norm(reached[side].translation() - poses[f"{side}_pregrasp"].translation()) < 0.004
     times = np.linspace(trajectory.start_time(), trajectory.end_time(), 300)
     q = np.array([trajectory.value(t).ravel() for t in times])
     v = np.array([trajectory.EvalDerivative(t).ravel() for t in times])
+    ik = planner.motions.ik
     assert np.all(q >= ik.lower - 1e-9) and np.all(q <= ik.upper + 1e-9)
     assert np.all(np.abs(v) <= SPEED_FRACTION * ik.velocity_limits * 1.01)
-    simulator.AdvanceTo(trajectory.end_time() + 0.1)
-    np.testing.assert_allclose(diagram.GetOutputPort("position").Eval(context), q_goal, atol=1e-9)
+
+    # The straight approach goes grasp_depth_margin deeper along z_G than the grasp it was given.
+    approach = PlanRequest(id=2, phase="approach", q_start=trajectory.value(trajectory.end_time()).ravel(),
+                           path="straight", targets="grasp")  # fmt: skip
+    planner.GetInputPort("request").FixValue(context, AbstractValue.Make(approach))
+    simulator.AdvanceTo(context.get_time() + LATENCY_S + 0.02)
+    plan = planner.GetOutputPort("plan").Eval(context)
+    assert plan.id == 2 and plan.success, plan.message
+    reached = ik.grasp_frame_poses(plan.trajectory.value(plan.trajectory.end_time()).ravel())
+    for side in ("left", "right"):
+        X_GR = poses[f"{side}_grasp"].InvertAndCompose(reached[side])
+        assert np.linalg.norm(X_GR.translation() - [0, 0, 0.01]) < 0.002 * np.sqrt(3) + 1e-4
 
 
-def test_a_failed_plan_is_reported_and_the_source_holds(setup):
-    ik, q_start, _ = setup
-    rng = np.random.default_rng(1)
-    colliding = next(q for q in rng.uniform(ik.lower, ik.upper, size=(2000, 14)) if ik.in_collision(q))
-    diagram = build(ik, hold=q_start)
-    simulator = Simulator(diagram)
-    context = simulator.get_mutable_context()
-    diagram.GetInputPort("request").FixValue(
-        context, AbstractValue.Make(PlanRequest(id=7, q_start=q_start, q_goal=colliding))
-    )
+@pytest.mark.parametrize(
+    ("request_", "grasps", "reason"),
+    [
+        (PlanRequest(id=3, phase="reach", targets="pregrasp"), GraspPoses(False, message="diverged"), "no grasp poses"),
+        (PlanRequest(id=4, phase="reach", path="fly"), GraspPoses(False), "unknown path"),
+    ],
+)
+def test_planner_names_what_it_could_not_plan(planner, scenario, request_, grasps, reason):
+    request_.q_start = np.array(scenario.initial_arm_positions)
+    context = _planner_context(planner, request_, grasps)
+    Simulator(planner, context).AdvanceTo(LATENCY_S + 0.02)
+    plan = planner.GetOutputPort("plan").Eval(context)
+    assert plan.id == request_.id and not plan.success and plan.trajectory is None
+    assert plan.message.startswith("reach: ") and reason in plan.message
+
+
+def test_planner_reports_an_unreachable_goal(planner, scenario):
+    far = {name: RigidTransform([2.0, 0.0, 1.0]) @ X for name, X in true_grasp_poses(scenario).items()}
+    request = PlanRequest(id=5, phase="reach", q_start=np.array(scenario.initial_arm_positions))
+    context = _planner_context(planner, request, GraspPoses(True, far))
+    Simulator(planner, context).AdvanceTo(LATENCY_S + 0.02)
+    plan = planner.GetOutputPort("plan").Eval(context)
+    assert not plan.success and "no collision-free IK solution" in plan.message
+
+
+def _line(q0, q1, t0, t1):
+    return PiecewisePolynomial.FirstOrderHold([t0, t1], np.column_stack([q0, q1]))
+
+
+def test_trajectory_source_holds_plays_and_ignores_failed_plans():
+    dut = JointTrajectorySource()
+    context = dut.CreateDefaultContext()
+    measured = np.linspace(-0.5, 0.5, 14)
+    dut.GetInputPort("position_measured").FixValue(context, measured)
+    dut.GetInputPort("plan").FixValue(context, AbstractValue.Make(PlanResult()))
+    simulator = Simulator(dut, context)
     simulator.AdvanceTo(0.5)
-    plan = diagram.GetOutputPort("plan").Eval(context)
-    assert plan.id == 7 and not plan.success and "collides" in plan.message
-    np.testing.assert_allclose(diagram.GetOutputPort("position").Eval(context), q_start)
+    np.testing.assert_array_equal(dut.GetOutputPort("position").Eval(context), measured)  # held before any plan
+
+    goal = measured + 0.2
+    plan = PlanResult(id=1, success=True, trajectory=_line(measured, goal, 1.0, 2.0))
+    dut.GetInputPort("plan").FixValue(context, AbstractValue.Make(plan))
+    dut.GetInputPort("position_measured").FixValue(context, measured + 5)  # the latched hold stays
+    simulator.AdvanceTo(0.8)
+    np.testing.assert_allclose(dut.GetOutputPort("position").Eval(context), measured)  # before its start: its start
+    simulator.AdvanceTo(1.5)
+    np.testing.assert_allclose(dut.GetOutputPort("position").Eval(context), measured + 0.1)  # at context time
+    simulator.AdvanceTo(3.0)
+    np.testing.assert_allclose(dut.GetOutputPort("position").Eval(context), goal)  # held at its end
+
+    failed = PlanResult(id=2, success=False, message="no path")
+    dut.GetInputPort("plan").FixValue(context, AbstractValue.Make(failed))
+    simulator.AdvanceTo(3.5)
+    np.testing.assert_allclose(dut.GetOutputPort("position").Eval(context), goal)  # never executed
+
+
+def test_trajectory_source_waits_for_a_finite_measurement():
+    dut = JointTrajectorySource()
+    context = dut.CreateDefaultContext()
+    dut.GetInputPort("plan").FixValue(context, AbstractValue.Make(PlanResult()))
+    dut.GetInputPort("position_measured").FixValue(context, np.full(14, np.nan))
+    simulator = Simulator(dut, context)
+    simulator.AdvanceTo(0.2)
+    assert np.all(np.isnan(dut.GetOutputPort("position").Eval(context)))  # (the guard sends nothing then)
+    dut.GetInputPort("position_measured").FixValue(context, np.ones(14))
+    simulator.AdvanceTo(0.3)
+    np.testing.assert_array_equal(dut.GetOutputPort("position").Eval(context), np.ones(14))
+
+
+def test_hand_command_ramps_the_opening():
+    dut = HandCommandSource()
+    context = dut.CreateDefaultContext()
+    dut.GetInputPort("command").FixValue(context, AbstractValue.Make(HandCommand(0.0, 0.1, 1.0, 1.0)))
+    for t, width in ((0.5, 0.1), (1.5, 0.05), (2.5, 0.0)):
+        context.SetTime(t)
+        assert dut.GetOutputPort("width").Eval(context)[0] == pytest.approx(width)
+
+
+def test_camera_latch_holds_one_frame_until_asked_again():
+    dut = CameraLatch()
+    context = dut.CreateDefaultContext()
+
+    def show(value):
+        image = ImageRgba8U(4, 3)
+        np.asarray(image.mutable_data)[:] = value
+        dut.GetInputPort("color_image").FixValue(context, AbstractValue.Make(image))
+
+    show(10)
+    dut.GetInputPort("depth_image").FixValue(context, dut.GetInputPort("depth_image").Allocate())
+    dut.GetInputPort("camera_pose").FixValue(context, AbstractValue.Make(RigidTransform([1.0, 2.0, 3.0])))
+    dut.GetInputPort("trigger").FixValue(context, [0.0])
+    simulator = Simulator(dut, context)
+    simulator.AdvanceTo(0.1)
+    assert dut.GetOutputPort("frame_id").Eval(context)[0] == 0
+    assert dut.GetOutputPort("color_image").Eval(context).size() == 0  # nothing latched yet
+    dut.GetInputPort("trigger").FixValue(context, [1.0])
+    simulator.AdvanceTo(0.2)
+    assert dut.GetOutputPort("frame_id").Eval(context)[0] == 1
+    show(20)  # the camera moves on; the latch does not
+    simulator.AdvanceTo(0.3)
+    assert np.all(np.asarray(dut.GetOutputPort("color_image").Eval(context).data) == 10)
+    np.testing.assert_allclose(dut.GetOutputPort("camera_pose").Eval(context).translation(), [1, 2, 3])
+    dut.GetInputPort("trigger").FixValue(context, [2.0])
+    simulator.AdvanceTo(0.4)
+    assert np.all(np.asarray(dut.GetOutputPort("color_image").Eval(context).data) == 20)

@@ -5,9 +5,8 @@ import dataclasses
 import numpy as np
 import pytest
 
-from diagrams.hand_ik import DualArmIk
 from diagrams.objects.library import resolve_object
-from diagrams.oracle_pick import world_grasps
+from diagrams.planning_scene import make_dual_arm_ik, true_grasp_poses
 from diagrams.station import object_pose_on_table
 from systems.planning.kinematics import gravity_torques
 from systems.planning.stomp import Obstacles
@@ -20,8 +19,11 @@ BELOW_TABLE = np.array([0, 0.15, 0, -0.1, 0, 0, 0, 0, -0.15, 0, -0.1, 0, 0, 0.0]
 def planning(scenario):
     model = resolve_object(scenario.object)
     X_WO = object_pose_on_table(scenario, model)
-    ik = DualArmIk(scenario, obstacle=model, X_WO=X_WO)
-    pregrasp = ik.solve(world_grasps(X_WO, model.info, "pregrasp"), np.array(scenario.initial_arm_positions))
+    ik = make_dual_arm_ik(scenario, obstacle=model, X_WO=X_WO)
+    poses = true_grasp_poses(scenario)
+    pregrasp = ik.solve(
+        {s: poses[f"{s}_pregrasp"] for s in ("left", "right")}, np.array(scenario.initial_arm_positions)
+    )
     assert pregrasp.success
     return ik, pregrasp.q
 
@@ -104,7 +106,7 @@ def test_point_set_distance_field_matches_exact_distances():
 
 def test_planning_model_places_every_body_where_drakes_collision_model_does(scenario):
     # A fresh model whose seed table comes from the cache: no collision query has touched its context.
-    ik = DualArmIk(scenario)
+    ik = make_dual_arm_ik(scenario)
     stomp = ik.stomp
     q = np.random.default_rng(4).uniform(ik.lower, ik.upper)
     poses = stomp.kinematics.body_poses(q)[0]
