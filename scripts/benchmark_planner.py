@@ -21,17 +21,18 @@ from pathlib import Path
 
 import numpy as np
 from json_report import write_json
+from pydrake.math import RigidTransform
 from pydrake.multibody.inverse_kinematics import MinimumDistanceLowerBoundConstraint
 from pydrake.planning import KinematicTrajectoryOptimization
 from pydrake.solvers import Solve
 from pydrake.trajectories import BsplineTrajectory
 
-from diagrams.hand_ik import DualArmIk
 from diagrams.objects.library import resolve_object
-from diagrams.oracle_pick import plan_oracle_pick, world_grasps
+from diagrams.planning_scene import grasp_configuration, make_dual_arm_ik, true_grasp_poses
 from diagrams.scenario import load_scenario, replace_object
 from diagrams.station import object_pose_on_table
 from systems.planning.closure import ClosureConstraint, OrientationConstraint, deviations, orientation_deviations
+from systems.planning.ik import DualArmIk
 from systems.planning.stomp import interpolate_segments
 
 BELOW_TABLE = np.array([0, 0.15, 0, -0.1, 0, 0, 0, 0, -0.15, 0, -0.1, 0, 0, 0.0])
@@ -61,10 +62,12 @@ def closure_experiment(runs: int, closure: bool, fixed_orientation: bool = False
     scenario = load_scenario()
     model = resolve_object(scenario.object)
     X_WO = object_pose_on_table(scenario, model)
-    with_object = DualArmIk(scenario, obstacle=model, X_WO=X_WO)
-    plan = plan_oracle_pick(with_object, np.array(scenario.initial_arm_positions), X_WO, model.info)
-    q_grasp, q_lift = plan.configuration_at("close"), plan.configuration_at("lift")
-    ik = DualArmIk(scenario)  # the held object moves with the hands: robot and table only
+    q_grasp = grasp_configuration(scenario, make_dual_arm_ik(scenario, obstacle=model, X_WO=X_WO))
+    ik = make_dual_arm_ik(scenario)  # the held object moves with the hands: robot and table only
+    X = ik.grasp_frame_poses(q_grasp)  # the lift's goal: both hands 0.15 m up, holding the object as at q_grasp
+    lift = ik.solve_held(RigidTransform([0, 0, 0.15]) @ X["left"], X["left"].InvertAndCompose(X["right"]), [q_grasp],
+                         0.001, 0.15)  # fmt: skip
+    q_lift = lift.q
     stomp = ik.stomp
     stomp.config.time_limit_s = TIME_LIMIT_S
     constraint = ClosureConstraint()
@@ -106,8 +109,10 @@ def reach_problems(runs: int, seed: int):
         )
         model = resolve_object(scenario.object)
         X_WO = object_pose_on_table(scenario, model)
-        ik = DualArmIk(scenario, obstacle=model, X_WO=X_WO)
-        goal = ik.solve(world_grasps(X_WO, model.info, "pregrasp"), np.array(scenario.initial_arm_positions))
+        ik = make_dual_arm_ik(scenario, obstacle=model, X_WO=X_WO)
+        poses = true_grasp_poses(scenario)
+        pregrasps = {side: poses[f"{side}_pregrasp"] for side in ("left", "right")}
+        goal = ik.solve(pregrasps, np.array(scenario.initial_arm_positions))
         if goal.success:
             problems.append((ik, BELOW_TABLE, goal.q))
     return problems
