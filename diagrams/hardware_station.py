@@ -4,7 +4,9 @@ MakeHardwareStation(scenario) has exactly the ports of diagrams/station.py's Mak
 (a test asserts it). Channels, periods and safety limits are scenario.hardware fields; the
 bus is scenario.lcm.
 
-  centauro.position      -> CommandGuard -> IiwaCommandSender -> arm_command_channel (lcmt_iiwa_command)
+  centauro.position      -> CommandGuard -> CommandStreamSender ~> a streamer process -> arm_command_channel
+                            (lcmt_iiwa_command every control period, whatever this process is doing; on an
+                            in-process memq:// bus, IiwaCommandSender -> LcmPublisherSystem)
   arm_status_channel     -> MessageMonitor -> centauro.position_measured, ... (lcmt_iiwa_status)
   <side>_hand.position   -> CommandGuard -> SchunkWsgCommandSender -> <side>_hand_command_channel
   <side>_hand_status_channel -> MessageMonitor -> <side>_hand.state_measured (width m, rate m/s)
@@ -35,6 +37,7 @@ from pydrake.systems.primitives import ConstantValueSource, Demultiplexer, Multi
 from diagrams.centauro_description import joint_names
 from diagrams.scenario import Scenario
 from diagrams.station import HAND_INSTANCES, AddCentauro
+from systems.command_stream import CommandStream, CommandStreamSender
 from systems.lcm_messages import MalformedMessage, RawMessage, decode_arm_status, decode_hand_status, decode_images
 from systems.lcm_safety import CommandGuard, ImageMonitor, MessageMonitor
 
@@ -98,9 +101,17 @@ def MakeHardwareStation(scenario: Scenario, lcm: DrakeLcmInterface | None = None
     builder.Connect(fields.get_output_port(1), guard.GetInputPort("measured"))
     builder.Connect(status.GetOutputPort("health"), guard.GetInputPort("status_health"))
     builder.ExportInput(guard.GetInputPort("desired"), "centauro.position")
-    sender = builder.AddNamedSystem("centauro.command_sender", IiwaCommandSender(14, IiwaControlMode.kPositionOnly))
-    builder.Connect(guard.GetOutputPort("command"), sender.GetInputPort("position"))
-    _AddPublisher(builder, lcm, sender, config.arm_command_channel, lcmt_iiwa_command, period)
+    if lcm.get_lcm_url().startswith("memq://"):
+        # In-process bus: the robot driver steps in lockstep with this diagram, so nothing can stall it.
+        sender = builder.AddNamedSystem("centauro.command_sender", IiwaCommandSender(14, IiwaControlMode.kPositionOnly))
+        builder.Connect(guard.GetOutputPort("command"), sender.GetInputPort("position"))
+        _AddPublisher(builder, lcm, sender, config.arm_command_channel, lcmt_iiwa_command, period)
+    else:  # a real bus: the commands leave from a process of their own, never stalled by perceiving or planning
+        stream = CommandStream(lcm.get_lcm_url(), config.arm_command_channel, 14, period)
+        streamer = builder.AddNamedSystem(
+            "centauro.command_stream", CommandStreamSender(stream, period, COMMAND_OFFSET_PERIODS * period)
+        )
+        builder.Connect(guard.GetOutputPort("command"), streamer.get_input_port())
 
     # Hands.
     for side, name in HAND_INSTANCES.items():
@@ -139,6 +150,13 @@ def MakeHardwareStation(scenario: Scenario, lcm: DrakeLcmInterface | None = None
     diagram = builder.Build()
     diagram.set_name("hardware_station")
     return diagram
+
+
+def command_stream(station: Diagram) -> CommandStream | None:
+    """The hardware station's arm command stream (None on an in-process memq:// bus)."""
+    if not station.HasSubsystemNamed("centauro.command_stream"):
+        return None
+    return station.GetSubsystemByName("centauro.command_stream").stream
 
 
 def _AddMonitor(builder, lcm, name, channel, decode, size, config) -> MessageMonitor:

@@ -27,7 +27,7 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Diagram
 
 from diagrams.autonomous_pick import PERCEIVE_AT_S, MakePickDiagram, PickWatcher
-from diagrams.hardware_station import wait_for_robot
+from diagrams.hardware_station import command_stream, wait_for_robot
 from diagrams.paths import REPO_ROOT
 from diagrams.pick_simulation import SAMPLE_S, PickOutcome
 from diagrams.scenario import Scenario
@@ -49,11 +49,13 @@ DRIVER_START_TIMEOUT_S = 60.0
 
 def run_pick_on_robot(
     scenario: Scenario, lcm: DrakeLcmInterface | None = None, meshcat: Meshcat | None = None
-) -> tuple[PickStatus, list[str]]:
+) -> tuple[PickStatus, list[str], dict]:
     """Runs the pick diagram in real time against a robot (or scripts/robot_driver.py) over LCM.
 
-    Nothing is judged here (no ground truth): returns the sequencer's final status and the
-    safety problems seen (tripped watchdogs, rejected messages and commands).
+    Nothing is judged here (no ground truth): returns the sequencer's final status, the safety
+    problems seen (tripped watchdogs, rejected messages and commands), and on a real bus the arm
+    commands' figures ({"sent": n, "max_gap_s": s, "late": sends more than two periods after the one
+    before}; {} on memq://).
 
     Raises:
         RobotNotResponding: no status or images within scenario.hardware.status_timeout_s.
@@ -68,20 +70,29 @@ def run_pick_on_robot(
     context = simulator.get_mutable_context()
     watch = PickWatcher(diagram, meshcat)
     simulator.Initialize()
-    tripped, problems = False, []
-    while context.get_time() + SAMPLE_S <= watch.end_time(context) + 1e-9:
-        started = time.monotonic()
-        simulator.AdvanceTo(context.get_time() + SAMPLE_S)
-        if time.monotonic() - started > 2 * SAMPLE_S:
-            # The robot held while we perceived or planned; do not replay the lost wall time faster than real time.
-            simulator.ResetStatistics()
-        tripped, problems = safety_problems(station, context)
-        if tripped:
-            logging.error("stopping: %s", "; ".join(problems))
-            break
-    if not tripped:
-        _hold_while_the_robot_catches_up(simulator, station)
-    return watch.status(context), problems
+    tripped, problems, commands = False, [], {}
+    stream = command_stream(station)
+    try:
+        while context.get_time() + SAMPLE_S <= watch.end_time(context) + 1e-9:
+            started = time.monotonic()
+            simulator.AdvanceTo(context.get_time() + SAMPLE_S)
+            if time.monotonic() - started > 2 * SAMPLE_S:
+                # The robot held while we perceived or planned: do not replay the lost wall time faster than
+                # real time.
+                simulator.ResetStatistics()
+            tripped, problems = safety_problems(station, context)
+            if tripped:
+                logging.error("stopping: %s", "; ".join(problems))
+                break
+        if not tripped:
+            _hold_while_the_robot_catches_up(simulator, station)
+    finally:
+        if stream is not None:
+            stream.stop()
+            commands = {"sent": stream.sends, "max_gap_s": stream.max_gap_s, "late": stream.late_sends}
+            logging.info("arm commands: %d sent, %d more than two periods after the one before, largest gap %.1f ms",
+                         stream.sends, stream.late_sends, 1000 * stream.max_gap_s)  # fmt: skip
+    return watch.status(context), problems, commands
 
 
 def _hold_while_the_robot_catches_up(simulator: Simulator, station: Diagram, timeout_s: float = 60.0):
@@ -123,11 +134,10 @@ def safety_problems(station: Diagram, context) -> tuple[bool, list[str]]:
 def run_on_robot(scenario: Scenario, lcm_url: str | None = None, meshcat: Meshcat | None = None) -> PickOutcome:
     """The pick against a robot on the bus; success means the plan was played out with no safety problem."""
     lcm = DrakeLcm(lcm_url) if lcm_url else DrakeLcm(scenario.lcm)
-    status, problems = run_pick_on_robot(scenario, lcm, meshcat)
-    return _outcome(status, problems)
+    return _outcome(*run_pick_on_robot(scenario, lcm, meshcat))
 
 
-def _outcome(status: PickStatus, problems: list[str]) -> PickOutcome:
+def _outcome(status: PickStatus, problems: list[str], commands: dict) -> PickOutcome:
     played = status.mode == "done"
     message = (
         status.message if status.mode == "failed" else ("plan played out" if played else f"stopped in {status.mode}")
@@ -137,6 +147,11 @@ def _outcome(status: PickStatus, problems: list[str]) -> PickOutcome:
     outcome = PickOutcome(played and not problems, math.nan, math.nan, message=message)
     outcome.stages, outcome.failed_stage = status.stage_seconds, status.failed_stage
     outcome.planning_s = status.stage_seconds.get("image_to_trajectory", 0.0)
+    outcome.closure = {
+        "max_translation_dev_m": status.closure_translation_dev_m,
+        "max_orientation_dev_rad": status.closure_orientation_dev_rad,
+    }
+    outcome.commands = commands
     return outcome
 
 
@@ -172,14 +187,14 @@ def run_with_spawned_driver(scenario: Scenario, driver_arguments: list[str]) -> 
         command += ["--lcm-url", NAMESPACE_LCM_URL, "--result", str(result)]
         driver = subprocess.Popen(command)
         try:
-            status, problems = run_pick_on_robot(scenario, DrakeLcm(NAMESPACE_LCM_URL))
+            status, problems, commands = run_pick_on_robot(scenario, DrakeLcm(NAMESPACE_LCM_URL))
         finally:
             driver.send_signal(signal.SIGTERM)
             try:
                 driver.wait(timeout=60)
             except subprocess.TimeoutExpired:
                 driver.kill()
-        outcome = _outcome(status, problems)
+        outcome = _outcome(status, problems, commands)
         if not result.is_file():
             outcome.success, outcome.message = False, f"{outcome.message}; the driver wrote no result"
             return outcome

@@ -46,6 +46,9 @@ class PickOutcome:
     # The largest deviations of the hands' relative pose along the played held moves (lift, carry, ...):
     # {"max_translation_dev_m": m, "max_orientation_dev_rad": rad}, NaN without a held move.
     closure: dict[str, float] = field(default_factory=dict)
+    # On a real LCM bus: the arm commands sent ("sent"), the largest wall-time gap between two ("max_gap_s"),
+    # and how many came more than two control periods after the one before ("late").
+    commands: dict = field(default_factory=dict)
     # The simulator's final context (for further inspection).
     context: object = None
 

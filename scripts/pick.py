@@ -102,6 +102,7 @@ def main(argv=None) -> int:
             "planning_s": outcome.planning_s,
             "stages": outcome.stages,
             "closure": outcome.closure,
+            "commands": outcome.commands,
             "failed_stage": outcome.failed_stage,
             "sim_wall_s": outcome.wall_time_s,
             "message": outcome.message,

@@ -1,0 +1,55 @@
+"""The arm command stream: a process of its own that keeps sending while this one is busy (an LCM log file
+stands for the bus: no network)."""
+
+import time
+
+import lcm
+import numpy as np
+from drake import lcmt_iiwa_command
+
+from systems.command_stream import CommandStream, CommandStreamSender
+
+PERIOD_S = 0.005
+
+
+def _sent(log_path):
+    events = list(lcm.EventLog(str(log_path), "r")) if log_path.is_file() else []
+    return [(event.timestamp / 1e6, lcmt_iiwa_command.decode(event.data)) for event in events]
+
+
+def test_stream_sends_nothing_before_a_command_then_every_period_while_this_process_is_busy(tmp_path):
+    log_path = tmp_path / "commands.lcmlog"
+    stream = CommandStream(f"file://{log_path}?mode=w", "CENTAURO_COMMAND", 14, PERIOD_S)
+    stream.start()
+    time.sleep(2.0)  # the streamer is up (it imports pydrake first), but there is nothing to send yet
+    assert stream.running and stream.sends == 0
+    stream.set(1_000_000, np.arange(14.0))
+    end = time.monotonic() + 1.0
+    while time.monotonic() < end:  # this process holds its interpreter, as a long planning call does
+        pass
+    stream.set(2_000_000, np.ones(14))
+    time.sleep(0.05)
+    stream.stop()
+    assert not stream.running
+    sent = _sent(log_path)
+    times = np.array([t for t, _ in sent])
+    assert len(sent) == stream.sends and 190 <= len(sent) <= 215  # 1.05 s at 200 Hz
+    assert np.diff(times).max() <= 2 * PERIOD_S and stream.max_gap_s <= 2 * PERIOD_S
+    first, last = sent[0][1], sent[-1][1]
+    assert first.utime == 1_000_000 and first.num_joints == 14 and list(first.joint_position) == list(range(14))
+    assert last.utime == 2_000_000 and list(last.joint_position) == [1.0] * 14
+
+
+def test_sender_system_hands_the_guards_command_to_the_stream(tmp_path):
+    stream = CommandStream(f"file://{tmp_path / 'c.lcmlog'}?mode=w", "CMD", 14, PERIOD_S)
+    dut = CommandStreamSender(stream, PERIOD_S, 0.0)
+    context = dut.CreateDefaultContext()
+    dut.get_input_port().FixValue(context, np.full(14, 0.5))
+    context.SetTime(0.25)
+    dut.ForcedPublish(context)
+    deadline = time.monotonic() + 30  # (the streamer imports pydrake first)
+    while stream.sends < 3 and time.monotonic() < deadline:
+        time.sleep(0.05)
+    stream.stop()
+    sent = _sent(tmp_path / "c.lcmlog")
+    assert sent and sent[-1][1].utime == 250_000 and list(sent[-1][1].joint_position) == [0.5] * 14
