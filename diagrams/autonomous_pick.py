@@ -25,14 +25,14 @@ from pydrake.systems.primitives import ConstantValueSource
 from diagrams.hardware_station import MakeHardwareStation
 from diagrams.objects.library import resolve_object
 from diagrams.perception import AddPerception
-from diagrams.pick_simulation import PickOutcome, simulate_pick, station_plant
+from diagrams.pick_simulation import PickOutcome, PlaceJudge, simulate_pick, station_plant
 from diagrams.planning_scene import make_dual_arm_ik, true_grasp_poses
 from diagrams.robot_driver import MakeRobotDriver
 from diagrams.scenario import Scenario
-from diagrams.station import HAND_INSTANCES, MakeStation, object_pose_on_table
+from diagrams.station import HAND_INSTANCES, MakeStation, object_pose_on_table, place_target
 from systems.camera_latch import CameraLatch
 from systems.hand_command import HandCommandSource
-from systems.pick_sequencer import PickSequencer, PickStatus, lift_task
+from systems.pick_sequencer import PickSequencer, PickStatus, lift_task, place_task
 from systems.planner import StompPlanner
 from systems.planning.pick_motions import PickMotions, PlanningError
 from systems.pose_estimator import to_point_cloud
@@ -93,13 +93,18 @@ def MakePickDiagram(
     planner = builder.AddNamedSystem("stomp_planner", StompPlanner(motions, latency_s, margin))
     source = builder.AddNamedSystem("trajectory_source", JointTrajectorySource())
     hands = builder.AddNamedSystem("hand_command", HandCommandSource())
-    sequencer = builder.AddNamedSystem("pick_sequencer", PickSequencer(lift_task(), PERCEIVE_AT_S))
+    if scenario.task == "place":
+        sequencer = PickSequencer(place_task(), PERCEIVE_AT_S, place_target(scenario))
+    else:
+        sequencer = PickSequencer(lift_task(), PERCEIVE_AT_S)
+    builder.AddNamedSystem("pick_sequencer", sequencer)
 
     measured = station.GetOutputPort("centauro.position_measured")
     if perception == "camera":
-        grasps, cloud = _AddCameraPerception(builder, station, sequencer, scenario)
+        grasps, cloud, X_WO = _AddCameraPerception(builder, station, sequencer, scenario)
     else:
-        grasps, cloud = _AddGroundTruth(builder, scenario)
+        grasps, cloud, X_WO = _AddGroundTruth(builder, scenario)
+    builder.Connect(X_WO, sequencer.GetInputPort("X_WO"))
     builder.Connect(grasps, planner.GetInputPort("grasp_poses"))
     builder.Connect(cloud, planner.GetInputPort("obstacle_cloud_W"))
     builder.Connect(grasps, sequencer.GetInputPort("grasp_poses"))
@@ -143,7 +148,7 @@ def _AddCameraPerception(builder, station, sequencer, scenario):
     builder.Connect(pose_estimator.GetOutputPort("estimate"), sequencer.GetInputPort("estimate"))
     cloud = registrar.GetOutputPort("reconstructed_cloud_W")
     builder.Connect(cloud, sequencer.GetInputPort("reconstructed_cloud_W"))
-    return registrar.GetOutputPort("grasp_poses"), cloud
+    return registrar.GetOutputPort("grasp_poses"), cloud, registrar.GetOutputPort("X_WO")
 
 
 def _AddGroundTruth(builder, scenario):
@@ -160,7 +165,8 @@ def _AddGroundTruth(builder, scenario):
         "ground_truth.grasp_poses", ConstantValueSource(AbstractValue.Make(GraspPoses(True, poses, "ground truth")))
     )
     cloud = builder.AddNamedSystem("ground_truth.object_cloud_W", ConstantValueSource(AbstractValue.Make(surface)))
-    return grasps.get_output_port(), cloud.get_output_port()
+    pose = builder.AddNamedSystem("ground_truth.X_WO", ConstantValueSource(AbstractValue.Make(X_WO)))
+    return grasps.get_output_port(), cloud.get_output_port(), pose.get_output_port()
 
 
 def pick_status(diagram: Diagram, context) -> PickStatus:
@@ -220,7 +226,13 @@ def run_pick(
     else:
         raise ValueError(f"unknown backend {backend!r}: sim or lcm-memq")
     watch = PickWatcher(pick, meshcat)
-    outcome = simulate_pick(diagram, scenario, watch.end_time, meshcat, record, plant=plant)
+    make_judge = None
+    if scenario.task == "place":
+
+        def make_judge(plant, context):
+            return PlaceJudge(plant, context, place_target(scenario), lambda c: watch.status(c).mode)
+
+    outcome = simulate_pick(diagram, scenario, watch.end_time, meshcat, record, plant=plant, make_judge=make_judge)
     return watch.finish(outcome)
 
 

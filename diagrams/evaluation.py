@@ -114,6 +114,7 @@ def run_trial(trial: Trial) -> dict:
         "message": outcome.message,
         "stages": outcome.stages,
         "closure": outcome.closure,
+        "place": outcome.place,
         "sim_wall_s": outcome.wall_time_s,
     }
 
@@ -154,8 +155,15 @@ def summarize(records: list[dict]) -> dict:
         seconds = np.array([r["stages"][stage] for r in records if stage in r["stages"]])
         for statistic, value in (("mean", np.mean), ("std", np.std), ("median", np.median)):
             stages[f"{stage}_s_{statistic}"] = float(value(seconds)) if len(seconds) else float("nan")
+    closure = [r["closure"] for r in records if r.get("closure") and np.isfinite(r["closure"]["max_translation_dev_m"])]
+    placed = [r["place"]["error_m"] for r in records if r.get("place")]
     return {
         "success_rate": _rate(sum(r["success"] for r in records), len(records)),
+        # Over the picks that lifted (a held move was played), m and rad.
+        "closure_translation_dev_m_max": max((c["max_translation_dev_m"] for c in closure), default=float("nan")),
+        "closure_orientation_dev_rad_max": max((c["max_orientation_dev_rad"] for c in closure), default=float("nan")),
+        # The place task: the object's distance from the target at the end, over the picks that got that far.
+        "place_error_m_median": float(np.median(placed)) if placed else float("nan"),
         "trials": len(records),
         "per_instance": per_instance,
         "components": components,

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 from pydrake.geometry import Meshcat
+from pydrake.math import RollPitchYaw
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 from pydrake.systems.framework import Context, Diagram
@@ -21,6 +22,11 @@ from diagrams.scenario import Scenario
 from diagrams.station import HAND_INSTANCES, OBJECT_INSTANCE
 
 LIFT_SUCCESS_M = 0.10
+# The place task: the object rests within these of the target (m; rad for its yaw and its tilt), and never
+# moved more than DROP_SLIP_M in the hands while they held it.
+PLACE_TOLERANCE_M = 0.02
+PLACE_TOLERANCE_RAD = np.radians(5.0)
+DROP_SLIP_M = 0.03
 HOLD_CHECK_S = 2.0
 SAMPLE_S = 0.05
 
@@ -49,6 +55,9 @@ class PickOutcome:
     # On a real LCM bus: the arm commands sent ("sent"), the largest wall-time gap between two ("max_gap_s"),
     # and how many came more than two control periods after the one before ("late").
     commands: dict = field(default_factory=dict)
+    # The place task's judgement: {"error_m": xy distance to the target, "yaw_error_rad", "tilt_rad": of the
+    # object's z axis from vertical, "max_slip_m": how far it moved in the hands while held, "dropped"}.
+    place: dict = field(default_factory=dict)
     # The simulator's final context (for further inspection).
     context: object = None
 
@@ -113,6 +122,56 @@ class LiftJudge:
         return PickOutcome(success, float(lift[-1]), min_hold, touching, duration, 0.0, message)
 
 
+class PlaceJudge(LiftJudge):
+    """Judges the place task on ground truth: the object ends resting upright within PLACE_TOLERANCE_M and
+    PLACE_TOLERANCE_RAD of the target, let go by both hands, and never slipped more than DROP_SLIP_M in the
+    hands while they held it (the modes `held_modes`, told by mode_of(context))."""
+
+    def __init__(self, plant, context, X_W_target, mode_of: Callable, held_modes=("lift", "carry", "set_down")):
+        super().__init__(plant, context)
+        self.context, self.X_W_target, self.mode_of, self.held_modes = context, X_W_target, mode_of, held_modes
+        self.frames = [
+            plant.GetFrameByName("grasp_frame", plant.GetModelInstanceByName(n)) for n in HAND_INSTANCES.values()
+        ]
+        self.held_offset, self.max_slip = None, 0.0
+
+    def sample(self, t: float) -> float:
+        z = super().sample(t)
+        if self.body is not None and self.mode_of(self.context) in self.held_modes:
+            between = np.mean([f.CalcPoseInWorld(self.plant_context).translation() for f in self.frames], axis=0)
+            offset = self.body.EvalPoseInWorld(self.plant_context).translation() - between
+            if self.held_offset is None:
+                self.held_offset = offset
+            self.max_slip = max(self.max_slip, float(np.linalg.norm(offset - self.held_offset)))
+        return z
+
+    def outcome(self) -> PickOutcome:
+        outcome = super().outcome()
+        if self.body is None:
+            return outcome
+        X_WO = self.body.EvalPoseInWorld(self.plant_context)
+        error = float(np.linalg.norm(X_WO.translation()[:2] - self.X_W_target.translation()[:2]))
+        R = self.X_W_target.rotation().inverse() @ X_WO.rotation()
+        tilt = float(np.arccos(np.clip(X_WO.rotation().matrix()[2, 2], -1.0, 1.0)))
+        yaw_error = abs(float(RollPitchYaw(R).yaw_angle()))
+        resting = abs(X_WO.translation()[2] - self.X_W_target.translation()[2]) < 0.01
+        dropped = self.max_slip > DROP_SLIP_M
+        outcome.place = {"error_m": error, "yaw_error_rad": yaw_error, "tilt_rad": tilt,
+                         "max_slip_m": self.max_slip, "dropped": dropped}  # fmt: skip
+        checks = {
+            f"{error * 100:.1f} cm from the target": error <= PLACE_TOLERANCE_M,
+            f"turned {np.degrees(yaw_error):.1f} deg from it": yaw_error <= PLACE_TOLERANCE_RAD,
+            f"tilted {np.degrees(tilt):.1f} deg": tilt <= PLACE_TOLERANCE_RAD,
+            "not resting on the table": resting,
+            f"slipped {self.max_slip * 100:.1f} cm in the hands (dropped)": not dropped,
+            f"still touched by {outcome.hands_in_contact}": not outcome.hands_in_contact,
+        }
+        failed = [what for what, ok in checks.items() if not ok]
+        outcome.success = not failed
+        outcome.message = "placed upright on the target" if not failed else "not placed: " + "; ".join(failed)
+        return outcome
+
+
 def simulate_pick(
     diagram: Diagram,
     scenario: Scenario,
@@ -120,14 +179,16 @@ def simulate_pick(
     meshcat: Meshcat | None = None,
     record: Path | None = None,
     plant: MultibodyPlant | None = None,
+    make_judge: Callable | None = None,
 ) -> PickOutcome:
     """Simulates until `duration` (s, or a function of the context giving the end time) and judges
-    the lift on ground truth: `plant`'s (default: the plant of the diagram's "station")."""
+    the pick on ground truth: `plant`'s (default: the plant of the diagram's "station"), with
+    make_judge(plant, context) (default: a LiftJudge)."""
     end_time = duration if callable(duration) else (lambda context: duration)
     simulator = Simulator(diagram)
     ApplySimulatorConfig(scenario.simulator_config, simulator)
     context = simulator.get_mutable_context()
-    judge = LiftJudge(plant or station_plant(diagram), context)
+    judge = (make_judge or LiftJudge)(plant or station_plant(diagram), context)
     if meshcat is not None and record is not None:
         meshcat.StartRecording(set_visualizations_while_recording=False)
     start = time.perf_counter()

@@ -13,7 +13,7 @@ from diagrams.centauro_description import joint_names
 from diagrams.objects.library import ObjectModel, resolve_object
 from diagrams.paths import SDF_DIR
 from diagrams.scenario import Scenario
-from diagrams.station import AddCentauro, AddTable, make_parser, object_pose_on_table
+from diagrams.station import AddBoxObstacle, AddCentauro, AddTable, make_parser, object_pose_on_table
 from systems.planning.ik import SIDES, DualArmIk, RobotScene
 from systems.planning.pick_motions import OPEN_WIDTH, PickMotions
 
@@ -36,6 +36,7 @@ def MakeRobotScene(
     plant, scene_graph = AddMultibodyPlantSceneGraph(builder, time_step=0.0)
     robot, hands = AddCentauro(plant, scene_graph, scenario)
     AddTable(plant, scenario)
+    AddBoxObstacle(plant, scenario)
     surface, spacing = None, 0.0
     if obstacle is not None:
         (instance,) = make_parser(plant).AddModels(file_name=str(obstacle.model_file))
@@ -73,7 +74,9 @@ def _cache_key(scenario, open_width, obstacle, X_WO) -> str:
     digest = hashlib.sha256()
     for path in ("centauro/centauro.sdf", "centauro/hand.sdf", "scene/table.sdf", "scene/floor.sdf"):
         digest.update((SDF_DIR / path).read_bytes())
-    digest.update(repr((scenario.pelvis_height, list(scenario.table_xyz), open_width)).encode())
+    box = scenario.obstacle
+    placement = (scenario.pelvis_height, list(scenario.table_xyz), open_width)
+    digest.update(repr(placement + ((list(box.xy), list(box.size)) if box.present else ())).encode())
     if obstacle is not None:
         for piece in sorted(obstacle.model_file.parent.glob("*")):
             if piece.suffix in (".sdf", ".obj", ".urdf"):

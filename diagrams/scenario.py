@@ -91,6 +91,28 @@ class HardwareConfig:
 
 
 @dataclass
+class PlaceConfig:
+    """Where the place task (task: place) sets the object down, upright."""
+
+    # The object frame's target origin in the table_top frame, like object.xy, m.
+    xy: list[float] = field(default_factory=lambda: [-0.12, -0.15])
+    # Target rotation about the world z axis relative to the category's presentation pose, like object.yaw, rad.
+    yaw: float = 0.0
+
+
+@dataclass
+class BoxObstacleConfig:
+    """A box fixed on the table (e.g. between the object and the place target), known to the planner as the
+    table is."""
+
+    present: bool = False
+    # Centre of its base in the table_top frame, m.
+    xy: list[float] = field(default_factory=lambda: [-0.12, -0.075])
+    # Size along x, y, z, m.
+    size: list[float] = field(default_factory=lambda: [0.16, 0.03, 0.08])
+
+
+@dataclass
 class PlanningConfig:
     """How the pick's planner stage runs."""
 
@@ -110,6 +132,12 @@ class Scenario:
     random_seed: int = 0
     # The object on the table.
     object: ObjectConfig = field(default_factory=ObjectConfig)
+    # What the pick does once both hands hold the object: "lift" (lift and hold it, the paper's task) or
+    # "place" (lift, carry it to `place`, set it down upright, open the hands, retreat).
+    task: str = "lift"
+    place: PlaceConfig = field(default_factory=PlaceConfig)
+    # A box on the table, known to the planner.
+    obstacle: BoxObstacleConfig = field(default_factory=BoxObstacleConfig)
     # Misalignment experiment (paper §V-B, which used 0.2): the yaw of the estimated pose handed to
     # the shape registration is turned by an offset uniform in +-this, drawn from random_seed, rad.
     registration_yaw_noise: float = 0.0
@@ -206,6 +234,15 @@ def validate(scenario: Scenario) -> None:
         raise ValueError(f"object.xy must lie within {MAX_TABLE_OFFSET_M} m of the table's centre, got {obj.xy}")
     if not 0 < obj.mass <= MAX_OBJECT_MASS_KG:
         raise ValueError(f"object.mass must lie in (0, {MAX_OBJECT_MASS_KG}] kg, got {obj.mass}")
+    if scenario.task not in TASKS:
+        raise ValueError(f"task must be one of {TASKS}, got {scenario.task!r}")
+    if len(scenario.place.xy) != 2 or not all(abs(v) <= MAX_TABLE_OFFSET_M for v in scenario.place.xy):
+        raise ValueError(f"place.xy must be 2 entries within {MAX_TABLE_OFFSET_M} m of the table's centre")
+    if not abs(scenario.place.yaw) <= 2 * math.pi:
+        raise ValueError(f"place.yaw must lie in [-2 pi, 2 pi] rad, got {scenario.place.yaw}")
+    box = scenario.obstacle
+    if len(box.xy) != 2 or len(box.size) != 3 or not all(0 < v <= 1.0 for v in box.size):
+        raise ValueError(f"obstacle: xy must have 2 entries and size 3 in (0, 1] m, got {box.xy}, {box.size}")
     if obj.scale <= 0:
         raise ValueError(f"object.scale must be positive, got {obj.scale}")
     if not 0 <= scenario.planning.latency_s <= 10:
@@ -216,6 +253,7 @@ def validate(scenario: Scenario) -> None:
         )
 
 
+TASKS = ("lift", "place")
 # Bounds of the scenario's physical fields.
 MAX_TABLE_OFFSET_M = 1.0
 MAX_OBJECT_MASS_KG = 20.0

@@ -18,6 +18,7 @@ through an exported port.
 
 import numpy as np
 from pydrake.geometry import (
+    Box,
     CollisionFilterDeclaration,
     MakeRenderEngineVtk,
     Meshcat,
@@ -29,13 +30,14 @@ from pydrake.geometry import (
 )
 from pydrake.math import RigidTransform, RollPitchYaw
 from pydrake.multibody.parsing import Parser
-from pydrake.multibody.plant import AddMultibodyPlant, MultibodyPlant
+from pydrake.multibody.plant import AddMultibodyPlant, CoulombFriction, MultibodyPlant
 from pydrake.multibody.tree import PdControllerGains
 from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.systems.primitives import Demultiplexer, MatrixGain, PassThrough, StateInterpolatorWithDiscreteDerivative
 from pydrake.systems.sensors import RgbdSensor
 
 from diagrams.centauro_description import joint_names
+from diagrams.objects import catalog
 from diagrams.objects.library import ObjectModel, resolve_object
 from diagrams.paths import PACKAGE_XML
 from diagrams.scenario import Scenario
@@ -44,6 +46,7 @@ from systems.gravity_compensation import GravityCompensation
 ARM_INSTANCE = "centauro"
 HAND_INSTANCES = {"left": "left_hand", "right": "right_hand"}
 OBJECT_INSTANCE = "object"
+TABLE_HEIGHT = 0.76  # m: the table_top frame above the table's base (sdf/scene/table.sdf)
 # Lift the object this far above the table at t = 0 so that it settles without penetration.
 OBJECT_DROP_HEIGHT = 0.002
 
@@ -99,9 +102,32 @@ def AddTable(plant: MultibodyPlant, scenario: Scenario):
 def object_pose_on_table(scenario: Scenario, model: ObjectModel) -> RigidTransform:
     """X_WO of the object resting on the table at the scenario's xy and yaw."""
     x, y = scenario.object.xy
-    top = np.array(scenario.table_xyz) + [x, y, 0.76 + OBJECT_DROP_HEIGHT]
+    top = np.array(scenario.table_xyz) + [x, y, TABLE_HEIGHT + OBJECT_DROP_HEIGHT]
     yaw = model.presentation_yaw + scenario.object.yaw
     return RigidTransform(RollPitchYaw(0.0, 0.0, yaw), top)
+
+
+def place_target(scenario: Scenario) -> RigidTransform:
+    """X_WO where the place task should leave the object: on the table at place.xy, turned by place.yaw from
+    the category's presentation pose."""
+    x, y = scenario.place.xy
+    top = np.array(scenario.table_xyz) + [x, y, TABLE_HEIGHT]
+    yaw = catalog.presentation_yaw(scenario.object.category) + scenario.place.yaw
+    return RigidTransform(RollPitchYaw(0.0, 0.0, yaw), top)
+
+
+def AddBoxObstacle(plant: MultibodyPlant, scenario: Scenario):
+    """The scenario's box on the table (welded to the world), if it has one."""
+    box = scenario.obstacle
+    if not box.present:
+        return
+    x, y = box.xy
+    X_WB = RigidTransform(np.array(scenario.table_xyz) + [x, y, TABLE_HEIGHT + box.size[2] / 2])
+    shape = Box(*box.size)
+    body = plant.world_body()
+    plant.RegisterVisualGeometry(body, X_WB, shape, "obstacle_visual", np.array([0.55, 0.35, 0.2, 1.0]))
+    friction = CoulombFriction(0.6, 0.5)
+    plant.RegisterCollisionGeometry(body, X_WB, shape, "obstacle_collision", friction)
 
 
 def AddObject(plant: MultibodyPlant, scenario: Scenario):
@@ -136,6 +162,7 @@ def MakeStation(scenario: Scenario, meshcat: Meshcat | None = None) -> Diagram:
     plant, scene_graph = AddMultibodyPlant(scenario.plant_config, builder)
     robot, hands = AddCentauro(plant, scene_graph, scenario)
     AddTable(plant, scenario)
+    AddBoxObstacle(plant, scenario)
     if scenario.object.present:
         AddObject(plant, scenario)
     plant.Finalize()

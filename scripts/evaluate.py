@@ -14,6 +14,7 @@ python scripts/evaluate.py --trials 3 --jobs 2                 # two picks at a 
 import argparse
 import dataclasses
 import logging
+import math
 import os
 import platform
 import sys
@@ -66,6 +67,12 @@ def parse_args(argv=None):
     parser.add_argument(
         "--yaw-noise", dest="yaw_noise", type=float, default=PAPER_YAW_NOISE, help="registration yaw noise, +-rad"
     )
+    parser.add_argument(
+        "--task", choices=("lift", "place"), default="lift", help="lift and hold (the paper), or carry and place"
+    )
+    parser.add_argument(
+        "--obstacle", action="store_true", help="with --task place: a box on the table between object and target"
+    )
     parser.add_argument("--jobs", type=int, default=1, help="picks run at a time (separate processes)")
     parser.add_argument("--seed", type=int, help="seed of the first trial (trial n gets seed + n)")
     parser.add_argument("--scenario", type=Path, default=DEFAULT_SCENARIO, help="scenario YAML file")
@@ -105,6 +112,10 @@ class ProgressBar:
 def describe(record: dict) -> str:
     offset = record["registration_yaw_offset_rad"]
     head = f"{record['name']} yaw {record['yaw']:+.2f} #{record['trial']} (offset {offset:+.3f})"
+    if record["success"] and record.get("place"):
+        place = record["place"]
+        off = f"{100 * place['error_m']:.1f} cm and {math.degrees(place['yaw_error_rad']):.1f} deg"
+        return f"{head}: SUCCESS, placed {off} off"
     if record["success"]:
         return f"{head}: SUCCESS, lift {record['lift_height_m']:.3f} m, image to trajectory " + (
             f"{record['stages']['image_to_trajectory']:.2f} s"
@@ -223,6 +234,9 @@ def main(argv=None) -> int:
     args = parse_args(argv)
     try:
         base = load_scenario(args.scenario, args.scenario_text)
+        base = dataclasses.replace(base, task=args.task)
+        if args.obstacle:
+            base = dataclasses.replace(base, obstacle=dataclasses.replace(base.obstacle, present=True))
         if args.seed is not None:
             base = dataclasses.replace(base, random_seed=args.seed)
         if args.object_files:
@@ -235,15 +249,23 @@ def main(argv=None) -> int:
     except (ValueError, FileNotFoundError) as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
+    what = args.task + (", a box in the way" if args.obstacle else "")
     print(
-        f"{len(trials)} autonomous picks: {len(objects)} {args.category} object(s) x {len(args.yaws)} yaw(s) x "
-        f"{args.trials} trial(s), registration yaw noise +-{args.yaw_noise:.2f} rad, {args.jobs} at a time"
+        f"{len(trials)} autonomous picks ({what}): {len(objects)} {args.category} object(s) x {len(args.yaws)} "
+        f"yaw(s) x {args.trials} trial(s), registration yaw noise +-{args.yaw_noise:.2f} rad, {args.jobs} at a time"
     )
     records = run_all(trials, args.jobs)
     summary = summarize(records)
     print_tables(summary, args.category, args.trials, args.yaw_noise)
+    t_dev, o_dev = summary["closure_translation_dev_m_max"], summary["closure_orientation_dev_rad_max"]
+    print(f"\nclosure along the played held moves (picks that lifted): largest {1000 * t_dev:.1f} mm, {o_dev:.4f} rad")
+    if args.task == "place":
+        error = summary["place_error_m_median"]
+        print(f"place error, median over the picks that set the object down: {100 * error:.1f} cm")
     report = {
         "category": args.category,
+        "task": args.task,
+        "obstacle": args.obstacle,
         "trials_per_yaw": args.trials,
         "yaws": args.yaws,
         "yaw_noise_rad": args.yaw_noise,

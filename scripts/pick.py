@@ -83,7 +83,12 @@ def main(argv=None) -> int:
         if outcome.stages:
             print("stage wall times: " + ", ".join(f"{name} {s:.3f} s" for name, s in outcome.stages.items()))
         summary = f"{'SUCCESS' if outcome.success else 'FAILURE'}: {outcome.message}"
-        if math.isfinite(outcome.lift_height_m):  # unknown against a real robot
+        if outcome.place:
+            place = outcome.place
+            summary += (
+                f"; {100 * place['error_m']:.1f} cm, {math.degrees(place['yaw_error_rad']):.1f} deg from the target"
+            )
+        elif math.isfinite(outcome.lift_height_m):  # unknown against a real robot
             summary += f"; lift {outcome.lift_height_m:.3f} m"
         if outcome.sim_time_s > 0:
             summary += f", simulated {outcome.sim_time_s:.1f} s in {outcome.wall_time_s:.1f} s"
@@ -103,6 +108,8 @@ def main(argv=None) -> int:
             "stages": outcome.stages,
             "closure": outcome.closure,
             "commands": outcome.commands,
+            "task": scenario.task,
+            "place": outcome.place,
             "failed_stage": outcome.failed_stage,
             "sim_wall_s": outcome.wall_time_s,
             "message": outcome.message,

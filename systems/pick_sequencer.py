@@ -37,6 +37,9 @@ MIN_GRASPED_WIDTH = 0.004
 LIFT_HEIGHT = 0.15  # m: aimed for
 MIN_LIFT_FRACTION = 0.8  # of it: near the edge of the arms' reach a lower lift will do (0.12 m)
 HOLD_S = 2.5  # s
+# The place task sets the object down this far above the table (the estimated object frame can be a few
+# millimetres low in the hands; the rest is a short drop, not a push into the table), m.
+PLACE_CLEARANCE = 0.008
 
 
 @dataclass(frozen=True)
@@ -48,6 +51,9 @@ class Phase:
     targets: str = ""  # "free"/"straight": the grasp poses named so
     X_motion_W: RigidTransform | None = None  # "held": the object's motion in W
     min_fraction: float = 1.0  # "held": the shortest share of the motion's translation that will do
+    # "held" moves to the place target (the sequencer's place_target_W): "carry" (over it, turned to its yaw, at
+    # the object's height, the object kept clear of the scene) or "set_down" (straight down onto it).
+    goal: str = ""
     hand_width: float | None = None  # m
     wait_s: float = 0.0
 
@@ -60,6 +66,16 @@ def lift_task(lift_height: float = LIFT_HEIGHT) -> tuple[Phase, ...]:
         Phase("close", hand_width=CLOSED_WIDTH, wait_s=SETTLE_S),
         Phase("lift", path="held", X_motion_W=RigidTransform([0.0, 0.0, lift_height]), min_fraction=MIN_LIFT_FRACTION),
         Phase("hold", wait_s=HOLD_S),
+    )
+
+
+def place_task(lift_height: float = LIFT_HEIGHT) -> tuple[Phase, ...]:
+    """Beyond the paper: lift the object, carry it to the place target, set it down upright, let go, back off."""
+    return lift_task(lift_height)[:-1] + (
+        Phase("carry", path="held", goal="carry"),
+        Phase("set_down", path="held", goal="set_down"),
+        Phase("release", hand_width=OPEN_WIDTH, wait_s=SETTLE_S),
+        Phase("retreat", path="straight", targets="retreat"),
     )
 
 
@@ -81,6 +97,9 @@ class PickStatus:
     hand: HandCommand = field(default_factory=lambda: HandCommand(OPEN_WIDTH, OPEN_WIDTH))
     hold_q: np.ndarray | None = None  # 14 arm joints where the robot was first measured, rad
     plan_end_q: np.ndarray | None = None  # where the last played trajectory ends, rad
+    # The object's pose as perceived (X_WO input), and where the held moves planned so far take it.
+    object_seen_W: RigidTransform | None = None
+    object_pose_W: RigidTransform | None = None
     # Largest closure deviations over the held moves' played trajectories, m and rad (NaN: none yet).
     closure_translation_dev_m: float = math.nan
     closure_orientation_dev_rad: float = math.nan
@@ -124,9 +143,17 @@ class PickSequencer(LeafSystem):
         perceive_at_s: when to take the camera frame (the object has settled), s.
     """
 
-    def __init__(self, phases: tuple[Phase, ...], perceive_at_s: float = 0.5, period_s: float = 0.01):
+    def __init__(
+        self,
+        phases: tuple[Phase, ...],
+        perceive_at_s: float = 0.5,
+        place_target_W: RigidTransform | None = None,
+        period_s: float = 0.01,
+    ):
         super().__init__()
-        self.phases, self.perceive_at_s = phases, perceive_at_s
+        self.phases, self.perceive_at_s, self.place_target_W = phases, perceive_at_s, place_target_W
+        if any(phase.goal for phase in phases) and place_target_W is None:
+            raise ValueError("a task with carry or set_down phases needs place_target_W")
         self.DeclareVectorInputPort("position_measured", 14)
         for side in ("left", "right"):
             self.DeclareVectorInputPort(f"{side}_hand_state", 2)
@@ -137,6 +164,7 @@ class PickSequencer(LeafSystem):
             ("estimate", ObjectEstimate(False)),
             ("grasp_poses", GraspPoses(False)),
             ("reconstructed_cloud_W", np.zeros((0, 3))),
+            ("X_WO", RigidTransform()),
         ):
             self.DeclareAbstractInputPort(name, AbstractValue.Make(model))
         self._state = self.DeclareAbstractState(AbstractValue.Make(PickStatus()))
@@ -209,6 +237,10 @@ class PickSequencer(LeafSystem):
         status.reconstruction_W = self.GetInputPort("reconstructed_cloud_W").Eval(context)
         self._start_phase(context, status, 0, t)
 
+    def _object_seen(self, context, status: PickStatus):
+        if status.object_seen_W is None and self.GetInputPort("X_WO").HasValue(context):
+            status.object_seen_W = status.object_pose_W = self.GetInputPort("X_WO").Eval(context)
+
     def _start_phase(self, context, status: PickStatus, index: int, t: float):
         status.phase_index, status.phase_start_s = index, t
         if index >= len(self.phases):
@@ -217,17 +249,33 @@ class PickSequencer(LeafSystem):
         phase = self.phases[index]
         status.mode = phase.name
         if phase.path:
+            self._object_seen(context, status)
+            X_motion_W, carried = phase.X_motion_W or RigidTransform(), None
+            if phase.goal:
+                X_motion_W, carried = self._motion_to_place(phase.goal, status)
             status.request = PlanRequest(
                 status.request.id + 1 if status.request.id >= 0 else 1,
                 phase.name,
                 status.plan_end_q,
                 phase.path,
                 phase.targets,
-                phase.X_motion_W if phase.X_motion_W is not None else RigidTransform(),
+                X_motion_W,
                 phase.min_fraction,
+                carried,
             )
         elif phase.hand_width is not None:
             status.hand = HandCommand(phase.hand_width, status.hand.at(t), t, CLOSE_S)
+
+    def _motion_to_place(self, goal: str, status: PickStatus) -> tuple[RigidTransform, RigidTransform | None]:
+        """The held move of a "carry" or "set_down" phase from where the object is planned to be, and the
+        object's motion since it was seen (the carry keeps it clear of the scene)."""
+        now, target = status.object_pose_W, self.place_target_W
+        if goal == "carry":  # over the target, turned like it, at the height it is carried at
+            over = RigidTransform(target.rotation(), [*target.translation()[:2], now.translation()[2]])
+            return over @ now.inverse(), now @ status.object_seen_W.inverse()
+        # set_down: straight down, to PLACE_CLEARANCE above the table
+        drop = target.translation()[2] + PLACE_CLEARANCE - now.translation()[2]
+        return RigidTransform([0.0, 0.0, drop]), None
 
     def _follow_phase(self, context, status: PickStatus, t: float):
         phase = self.phases[status.phase_index]
@@ -262,6 +310,8 @@ class PickSequencer(LeafSystem):
             seconds["image_to_trajectory"] = sum(perception) + plan.planning_s
             logging.info("planning: %s (%.3f s)", plan.message, plan.planning_s)
         seconds["planning_total"] = seconds.get("planning_total", 0.0) + plan.planning_s
+        if plan.achieved_motion_W is not None and status.object_pose_W is not None:
+            status.object_pose_W = plan.achieved_motion_W @ status.object_pose_W
         status.grasp_paths_W = [*status.grasp_paths_W, plan.grasp_paths_W]
         if math.isfinite(plan.closure_translation_dev_m):
             status.closure_translation_dev_m = np.nanmax(

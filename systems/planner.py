@@ -32,6 +32,7 @@ from systems.shape_registrar import GraspPoses
 # The reconstruction, thinned to about this many points, is the reach's obstacle: the margin about it
 # (ik.PERCEIVED_SHAPE_MARGIN) was set for a cloud this dense, and planning cost grows with it.
 OBSTACLE_POINTS = 2000
+RETREAT_M = 0.1  # m: how far the hands back off an object they let go of
 # Motions the planner knows.
 PATHS = ("free", "straight", "held")
 
@@ -47,10 +48,15 @@ class PlanRequest:
     # "straight": each hand on a line to its `targets` pose; "held": both hands hold the object and move it
     # by `X_motion_W` under the closure and orientation constraints.
     path: str = "free"
-    targets: str = "pregrasp"  # "pregrasp" or "grasp": the grasp_poses input's <side>_<targets> poses
+    # "pregrasp" or "grasp": the grasp_poses input's <side>_<targets> poses; "retreat": each hand RETREAT_M back
+    # along its approach axis from where it is at q_start.
+    targets: str = "pregrasp"
     X_motion_W: RigidTransform = field(default_factory=RigidTransform)  # held moves: X_WG -> X_motion_W X_WG
     # Held moves: where the whole translation is out of reach, shorter ones down to this fraction will do.
     min_fraction: float = 1.0
+    # Held moves: keep the held object (the obstacle_cloud_W input moved by this, its motion since it was seen)
+    # clear of the scene; None: the robot only.
+    carried_motion_W: RigidTransform | None = None
 
 
 @dataclass
@@ -67,6 +73,8 @@ class PlanResult:
     # (every 10 ms), m and rad; NaN for other motions.
     closure_translation_dev_m: float = math.nan
     closure_orientation_dev_rad: float = math.nan
+    # Held moves: the motion the hands (and the object) made, X_WG(end) X_WG(start)^-1 of the left hand.
+    achieved_motion_W: RigidTransform | None = None
     # Each hand's grasp frame origin along the trajectory, samples x 3 in W (for the viewer).
     grasp_paths_W: dict[str, np.ndarray] = field(default_factory=dict)
 
@@ -148,8 +156,14 @@ class StompPlanner(LeafSystem):
                 raise PlanningError(f"unknown path {request.path!r} (one of {PATHS})")
             held = None
             if request.path == "held":
-                held = motions.held_move(request.q_start, request.X_motion_W, request.min_fraction)
+                carried = None
+                if request.carried_motion_W is not None:
+                    cloud = self.GetInputPort("obstacle_cloud_W").Eval(context)
+                    carried = request.carried_motion_W.multiply(cloud.T).T if len(cloud) else None
+                held = motions.held_move(request.q_start, request.X_motion_W, request.min_fraction, carried)
                 keyframes, min_segment = held.keyframes, HELD_SEGMENT_S
+                start, end = (motions.ik.grasp_frame_poses(q)["left"] for q in (keyframes[0], keyframes[-1]))
+                result.achieved_motion_W = end @ start.inverse()
             else:
                 targets = self._targets(request, context)
                 if request.path == "free":
@@ -178,11 +192,14 @@ class StompPlanner(LeafSystem):
         return result
 
     def _targets(self, request: PlanRequest, context) -> dict[str, RigidTransform]:
+        if request.targets == "retreat":
+            back = RigidTransform([0.0, 0.0, -RETREAT_M])
+            return {side: X @ back for side, X in self.motions.ik.grasp_frame_poses(request.q_start).items()}
         grasps = self.GetInputPort("grasp_poses").Eval(context)
         if not grasps.found:
             raise PlanningError(f"no grasp poses ({grasps.message})")
         if request.targets not in ("pregrasp", "grasp"):
-            raise PlanningError(f"unknown targets {request.targets!r} (pregrasp or grasp)")
+            raise PlanningError(f"unknown targets {request.targets!r} (pregrasp, grasp or retreat)")
         deeper = self.deeper if request.targets == "grasp" else RigidTransform()
         return {side: grasps.poses_W[f"{side}_{request.targets}"] @ deeper for side in SIDES}
 

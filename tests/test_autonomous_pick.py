@@ -199,7 +199,7 @@ def test_ground_truth_pick_is_the_same_diagram_with_a_ground_truth_source(scenar
     oracle = MakePickDiagram(scenario, perception="ground_truth")
     names = {s.get_name() for s in oracle.GetSystems()}
     perception = {"camera_latch", "segmenter", "pose_estimator", "shape_registrar"}
-    assert names - autonomous == {"ground_truth.grasp_poses", "ground_truth.object_cloud_W"}
+    assert names - autonomous == {"ground_truth.grasp_poses", "ground_truth.object_cloud_W", "ground_truth.X_WO"}
     assert autonomous - names == perception
     for source, output, sink, input_ in CHAIN[6:]:
         assert _connected(oracle, source, output, sink, input_)

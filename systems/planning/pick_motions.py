@@ -23,6 +23,7 @@ from pydrake.trajectories import PiecewisePolynomial
 from systems.joint_plan import move_duration
 from systems.planning.closure import ClosureConstraint, OrientationConstraint, deviations, orientation_deviations
 from systems.planning.ik import SIDES, DualArmIk
+from systems.planning.stomp import CarriedPoints
 
 OPEN_WIDTH = 0.1  # m: the hands' opening while reaching
 CLOSED_WIDTH = 0.0  # m: the fingers stop on the handle; the joint effort limit sets the squeeze
@@ -38,6 +39,9 @@ HELD_GOAL_POSITION_TOLERANCE = 0.001
 HELD_GOAL_ANGLE_TOLERANCES = (0.01, 0.04, 0.15)
 HELD_FRACTION_STEP = 0.1
 PROJECTION_STEPS = 15
+# A carried object as spheres for the collision cost: about this many, of this radius (m; they overlap).
+CARRIED_POINTS = 150
+CARRIED_RADIUS = 0.015
 # The played trajectory's closure is checked at this period, s.
 DENSE_CHECK_S = 0.01
 
@@ -116,7 +120,13 @@ class PickMotions:
             q = result.q
         return np.stack(keyframes)
 
-    def held_move(self, q_start: np.ndarray, X_motion_W: RigidTransform, min_fraction: float = 1.0) -> HeldMove:
+    def held_move(
+        self,
+        q_start: np.ndarray,
+        X_motion_W: RigidTransform,
+        min_fraction: float = 1.0,
+        carried_points_W: np.ndarray | None = None,
+    ) -> HeldMove:
         """Keyframes moving both hands (and the object they hold) by X_motion_W (X_WG -> X_motion_W X_WG),
         keeping the hands' relative pose (closure constraint) and, where the goal allows it, their world
         orientations (orientation constraint: the object does not tilt).
@@ -124,7 +134,8 @@ class PickMotions:
         Where the arms cannot reach the whole motion's translation, shorter ones down to min_fraction of it
         are tried (a lift near the edge of the arms' reach); where they cannot reach it with the hands'
         orientation kept, the hands may tilt together (the closure still holds) up to the largest
-        HELD_GOAL_ANGLE_TOLERANCES.
+        HELD_GOAL_ANGLE_TOLERANCES. With carried_points_W (the held object's points in W at q_start), the
+        object is kept clear of the scene too (a carry over a box); without, only the robot is.
 
         Raises:
             PlanningError: the moved hands are out of reach, or STOMP found no constrained path.
@@ -158,13 +169,10 @@ class PickMotions:
         R_motion = X_motion_W.rotation().matrix()
         tilt = max(orientation_deviations(stomp.end_effectors, q_goal[None], [R_motion @ R for R in R_WE]))
         keep_orientation = np.allclose(R_motion, np.eye(3)) and tilt < 0.5 * self.orientation.o_max
-        result = stomp.plan(
-            q_start,
-            q_goal,
-            ik.table_obstacles,
-            self.closure,
-            self.orientation if keep_orientation else None,
-        )
+        scene = ik.table_obstacles
+        if carried_points_W is not None and len(carried_points_W):
+            scene = scene.carrying(self._carried(q_start, carried_points_W))
+        result = stomp.plan(q_start, q_goal, scene, self.closure, self.orientation if keep_orientation else None)
         if not result.success:
             raise PlanningError(f"STOMP: {result.message}")
         logging.info(
@@ -172,6 +180,15 @@ class PickMotions:
             "%.2f s", 100 * fraction, tolerance, "on" if keep_orientation else "off", result.iterations, result.seconds
         )  # fmt: skip
         return HeldMove(result.trajectory, X_E1E2, R_WE, result.iterations)
+
+    def _carried(self, q: np.ndarray, points_W: np.ndarray) -> CarriedPoints:
+        """The held object's points fixed to the left hand's body (as at q), thinned to CARRIED_POINTS spheres."""
+        stomp = self.ik.stomp
+        slot = stomp.end_effectors.positions[0]
+        X_WB = stomp.kinematics.body_poses(np.asarray(q)[None])[0, slot]
+        points = points_W[:: max(1, len(points_W) // CARRIED_POINTS)]
+        points_B = (points - X_WB[:3, 3]) @ X_WB[:3, :3]
+        return CarriedPoints(slot, points_B, CARRIED_RADIUS)
 
     def closure_deviations(self, trajectory: PiecewisePolynomial, held: HeldMove) -> tuple[float, float]:
         """Largest (translation m, orientation rad) deviation of the hands' relative pose from the held

@@ -88,12 +88,29 @@ class DistanceField:
         return np.minimum(distance - self.inflation, cap)
 
 
+@dataclass
+class CarriedPoints:
+    """An object the hands carry, as spheres fixed to one of the robot's bodies: kept clear of the scene."""
+
+    slot: int  # the body's index in the batched kinematics' poses
+    points_B: np.ndarray  # M x 3 sphere centres in that body's frame, m
+    radius: float  # m
+
+
 class Obstacles:
-    """The scene for the sphere model: oriented boxes and point sets (e.g. an object's surface)."""
+    """The scene for the sphere model: oriented boxes and point sets (e.g. an object's surface), and what
+    the robot carries through it (`carried`, optional)."""
 
     def __init__(self):
         self.boxes: list[tuple[np.ndarray, np.ndarray]] = []  # (X_BW 4x4, half sizes)
         self.fields: list[DistanceField] = []
+        self.carried: CarriedPoints | None = None
+
+    def carrying(self, carried: CarriedPoints) -> "Obstacles":
+        """The same scene with the robot carrying `carried`."""
+        scene = Obstacles()
+        scene.boxes, scene.fields, scene.carried = self.boxes, self.fields, carried
+        return scene
 
     def add_box(self, X_WB: np.ndarray, size) -> "Obstacles":
         self.boxes.append((np.linalg.inv(X_WB), 0.5 * np.asarray(size, float)))
@@ -212,6 +229,11 @@ class Stomp:
         centres = self.spheres.centres_W(poses)
         radius = self.spheres.radius
         gaps = [obstacles.distance(centres) - radius]
+        if obstacles.carried is not None:
+            carried = obstacles.carried
+            X = poses[:, carried.slot]
+            points = np.einsum("bij,mj->bmi", X[:, :3, :3], carried.points_B) + X[:, None, :3, 3]
+            gaps.append(obstacles.distance(points) - carried.radius)
         near = self._near_sphere_pairs(poses)
         if len(near):
             a, b = self.pair_a[near], self.pair_b[near]
