@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+from pydrake.common.eigen_geometry import AngleAxis
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 
 from diagrams.objects.library import resolve_object
@@ -11,6 +12,7 @@ from diagrams.station import object_pose_on_table
 from systems.planning.closure import (
     ClosureConstraint,
     OrientationConstraint,
+    rotation_angle,
     rpy_of,
     threshold_cost,
     transition_costs,
@@ -37,6 +39,15 @@ def test_rpy_matches_drake():
     for rpy in rng.uniform([-3, -1.5, -3], [3, 1.5, 3], size=(20, 3)):
         R = RotationMatrix(RollPitchYaw(rpy)).matrix()
         np.testing.assert_allclose(rpy_of(R[None])[0], RollPitchYaw(RotationMatrix(R)).vector(), atol=1e-9)
+
+
+def test_orientation_deviation_is_the_rotation_angle_even_near_pitch_90_degrees():
+    R_desired = RotationMatrix(RollPitchYaw(0.3, 1.55, -0.2))  # near the roll/yaw singularity
+    tilt = RotationMatrix(AngleAxis(0.01, [1.0, 0.0, 0.0]))  # about the world x axis
+    angle = rotation_angle((tilt @ R_desired).matrix()[None], R_desired.matrix())[0]
+    assert angle == pytest.approx(0.01, abs=1e-9)
+    rpy = np.abs(rpy_of((tilt @ R_desired).matrix()[None])[0] - rpy_of(R_desired.matrix()[None])[0])
+    assert rpy.max() > 0.1  # what roll/pitch/yaw differences would have said
 
 
 @pytest.fixture(scope="module")

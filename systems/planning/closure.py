@@ -3,8 +3,13 @@
 When both hands hold an object, the pose of one end-effector relative to the other
 must stay as it was at the first configuration theta_0. Per configuration, t_dev is
 the largest component of |t_desired - t_j| (translation between the end-effectors,
-here expressed in the left one's frame) and o_dev the largest of |o_desired - o_j|
-(relative orientation as roll, pitch, yaw). Each is scored as
+here expressed in the left one's frame) and o_dev the deviation of the relative
+orientation. The paper takes the largest of |o_desired - o_j| over roll, pitch and yaw;
+here o_dev is the angle of the rotation between o_desired and o_j, which bounds the same
+thing (each roll/pitch/yaw difference of a small rotation is at most its angle, away from
+the singularity) but stays meaningful near pitch = +-90 degrees, where roll and yaw
+differences blow up for tiny rotations (grasp frames there made a 0.01 rad tilt read as
+0.15 rad). Each is scored as
 
     q(dev) = dev / max                 if dev <  max    (in [0, 1))
              C + C * dev               if dev >= max    (C >> 1)
@@ -36,17 +41,18 @@ def rpy_of(R: np.ndarray) -> np.ndarray:
     return np.column_stack([roll, pitch, yaw])
 
 
-def rpy_deviation(R: np.ndarray, R_desired: np.ndarray) -> np.ndarray:
-    """Largest |roll|, |pitch| or |yaw| difference (rad, wrapped) of rotations R (B x 3 x 3) from R_desired."""
-    difference = rpy_of(R) - rpy_of(R_desired[None])
-    return np.abs((difference + np.pi) % (2 * np.pi) - np.pi).max(axis=1)
+def rotation_angle(R: np.ndarray, R_desired: np.ndarray) -> np.ndarray:
+    """The angle (rad) of the rotation between each of R (B x 3 x 3) and R_desired."""
+    trace = np.einsum("ij,bij->b", R_desired, R)  # trace(R_desired^T R)
+    return np.arccos(np.clip(0.5 * (trace - 1.0), -1.0, 1.0))
 
 
 def deviations(end_effectors: EndEffectors, q: np.ndarray, X_E1E2_desired: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(t_dev, o_dev) of each configuration (B x 14): the largest component deviations, m and rad."""
+    """(t_dev, o_dev) of each configuration (B x 14): the largest translation component deviation (m) and
+    the relative orientation's deviation angle (rad)."""
     X = end_effectors.relative(q)
     t_dev = np.abs(X[:, :3, 3] - X_E1E2_desired[:3, 3]).max(axis=1)
-    return t_dev, rpy_deviation(X[:, :3, :3], X_E1E2_desired[:3, :3])
+    return t_dev, rotation_angle(X[:, :3, :3], X_E1E2_desired[:3, :3])
 
 
 def threshold_cost(deviation: np.ndarray, maximum: float, C: float) -> np.ndarray:
@@ -72,4 +78,4 @@ class OrientationConstraint:
 def orientation_deviations(end_effectors: EndEffectors, q: np.ndarray, R_desired) -> np.ndarray:
     """Largest roll/pitch/yaw deviation (rad) of either hand from its desired world orientation, per configuration."""
     poses = end_effectors.poses(q)
-    return np.max([rpy_deviation(X[:, :3, :3], R) for X, R in zip(poses, R_desired, strict=True)], axis=0)
+    return np.max([rotation_angle(X[:, :3, :3], R) for X, R in zip(poses, R_desired, strict=True)], axis=0)

@@ -17,7 +17,8 @@ import logging
 from dataclasses import dataclass
 
 import numpy as np
-from pydrake.math import RigidTransform
+from pydrake.common.eigen_geometry import AngleAxis
+from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.trajectories import PiecewisePolynomial
 
 from systems.joint_plan import move_duration
@@ -37,7 +38,7 @@ HELD_SEGMENT_S = 0.25  # s: a held object is moved gently (the grip is friction 
 # closure manifold (which then holds the hands' relative pose to about 1e-6).
 HELD_GOAL_POSITION_TOLERANCE = 0.001
 HELD_GOAL_ANGLE_TOLERANCES = (0.01, 0.04, 0.15)
-HELD_FRACTION_STEP = 0.1
+HELD_PATH_STEPS = 10  # configurations solved along a held move's motion
 PROJECTION_STEPS = 15
 # A carried object as spheres for the collision cost: about this many, of this radius (m; they overlap).
 CARRIED_POINTS = 150
@@ -142,37 +143,22 @@ class PickMotions:
         """
         ik, stomp = self.ik, self.ik.stomp
         q_start = np.asarray(q_start, float)
-        goal, start_poses = None, ik.grasp_frame_poses(q_start)
-        X_E1E2_start = start_poses["left"].InvertAndCompose(start_poses["right"])
-        for fraction in np.arange(1.0, min_fraction - 1e-9, -HELD_FRACTION_STEP):
-            X = RigidTransform(X_motion_W.rotation(), fraction * X_motion_W.translation())
-            targets = {side: X @ X_WG for side, X_WG in start_poses.items()}
-            # Guesses: the start, and each arm solved alone for its moved pose (when it can be).
-            guesses = [q_start]
-            alone = ik.solve(targets, q_start, HELD_GOAL_POSITION_TOLERANCE, HELD_GOAL_ANGLE_TOLERANCES[-1], None,
-                             allow_half_turn=False, restarts=4)  # fmt: skip
-            if alone.success:
-                guesses.append(alone.q)
-            for tolerance in HELD_GOAL_ANGLE_TOLERANCES:
-                goal = ik.solve_held(targets["left"], X_E1E2_start, guesses, HELD_GOAL_POSITION_TOLERANCE, tolerance)
-                if goal.success:
-                    break
-            if goal.success:
-                break
-        if not goal.success:
-            raise PlanningError(f"the moved hands are out of reach ({goal.message})")
+        path, fraction, tolerance = self._held_path(q_start, X_motion_W, min_fraction)
         X_E1E2 = stomp.end_effectors.relative(q_start[None])[0]
         R_WE = [X[0, :3, :3] for X in stomp.end_effectors.poses(q_start[None])]
         # Project onto the closure manifold alone: the goal keeps its own orientation (a carry may turn the
         # object; a lift at the edge of reach may tilt it).
-        q_goal = stomp.project(goal.q, X_E1E2, None, steps=PROJECTION_STEPS)[0]
+        q_goal = stomp.project(path[-1], X_E1E2, None, steps=PROJECTION_STEPS)[0]
         R_motion = X_motion_W.rotation().matrix()
         tilt = max(orientation_deviations(stomp.end_effectors, q_goal[None], [R_motion @ R for R in R_WE]))
         keep_orientation = np.allclose(R_motion, np.eye(3)) and tilt < 0.5 * self.orientation.o_max
         scene = ik.table_obstacles
         if carried_points_W is not None and len(carried_points_W):
             scene = scene.carrying(self._carried(q_start, carried_points_W))
-        result = stomp.plan(q_start, q_goal, scene, self.closure, self.orientation if keep_orientation else None)
+        path[-1] = q_goal
+        result = stomp.plan(
+            q_start, q_goal, scene, self.closure, self.orientation if keep_orientation else None, initial_path=path
+        )
         if not result.success:
             raise PlanningError(f"STOMP: {result.message}")
         logging.info(
@@ -180,6 +166,38 @@ class PickMotions:
             "%.2f s", 100 * fraction, tolerance, "on" if keep_orientation else "off", result.iterations, result.seconds
         )  # fmt: skip
         return HeldMove(result.trajectory, X_E1E2, R_WE, result.iterations)
+
+    def _held_path(self, q_start: np.ndarray, X_motion_W: RigidTransform, min_fraction: float):
+        """Configurations holding the object along the motion (HELD_PATH_STEPS of it, each solved from the one
+        before, so the arms stay on their branch), the share of the motion reached and the hands' angle
+        tolerance used: STOMP's first trajectory and its goal.
+
+        Raises:
+            PlanningError: not even min_fraction of the motion is reachable.
+        """
+        ik = self.ik
+        start_poses = ik.grasp_frame_poses(q_start)
+        X_E1E2 = start_poses["left"].InvertAndCompose(start_poses["right"])
+        p_motion, R_motion = X_motion_W.translation(), X_motion_W.rotation()
+        for tolerance in HELD_GOAL_ANGLE_TOLERANCES:
+            path, q = [np.asarray(q_start, float)], q_start
+            for step in range(1, HELD_PATH_STEPS + 1):
+                s = step / HELD_PATH_STEPS
+                # The object's motion so far: the share s of the translation and of the rotation (about the same axis).
+                angle_axis = R_motion.ToAngleAxis()
+                partial = RigidTransform(
+                    RotationMatrix(AngleAxis(s * angle_axis.angle(), angle_axis.axis())), s * p_motion
+                )
+                result = ik.solve_held(partial @ start_poses["left"], X_E1E2, [q], HELD_GOAL_POSITION_TOLERANCE,
+                                       tolerance)  # fmt: skip
+                if not result.success:
+                    break
+                path.append(result.q)
+                q = result.q
+            reached = (len(path) - 1) / HELD_PATH_STEPS
+            if reached >= min_fraction - 1e-9 and len(path) > 1:
+                return np.stack(path), reached, tolerance
+        raise PlanningError(f"the moved hands are out of reach ({reached:.0%} of the motion at most)")
 
     def _carried(self, q: np.ndarray, points_W: np.ndarray) -> CarriedPoints:
         """The held object's points fixed to the left hand's body (as at q), thinned to CARRIED_POINTS spheres."""

@@ -152,6 +152,15 @@ def _rotation_error(R_desired: np.ndarray, R: np.ndarray) -> np.ndarray:
     )
 
 
+def _resample(path: np.ndarray, n: int) -> np.ndarray:
+    """n configurations evenly spaced by joint-space length along the piecewise-linear `path` (K x 14)."""
+    length = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(path, axis=0), axis=1))])
+    if length[-1] <= 0:
+        return np.repeat(path[:1], n, axis=0)
+    targets = np.linspace(0.0, length[-1], n)
+    return np.column_stack([np.interp(targets, length, path[:, j]) for j in range(path.shape[1])])
+
+
 def _smoothing_matrices(free: int) -> tuple[np.ndarray, np.ndarray]:
     """R^-1 (noise covariance) and M (update smoothing) for `free` interior keyframes."""
     A = np.zeros((free + 2, free))
@@ -353,10 +362,13 @@ class Stomp:
         obstacles: Obstacles,
         closure_constraint: ClosureConstraint | None = None,
         orientation_constraint: OrientationConstraint | None = None,
+        initial_path: np.ndarray | None = None,
     ) -> StompResult:
         """Plans from q_start to q_goal (both fixed).
 
         Args:
+            initial_path: configurations (K x 14, from q_start to q_goal) the first trajectory follows,
+                resampled to the keyframes by path length; default the straight joint-space line.
             closure_constraint: keep the hands' relative pose as at q_start (both hands hold an object).
             orientation_constraint: keep both hands' world orientations as at q_start.
         """
@@ -366,6 +378,8 @@ class Stomp:
         n, free = config.keyframes, config.keyframes - 2
         s = np.linspace(0.0, 1.0, n)[:, None]
         theta = (1 - s) * q_start + s * q_goal  # N x 14
+        if initial_path is not None:
+            theta = _resample(np.asarray(initial_path, float), n)
         for q, name in ((q_start, "start"), (q_goal, "goal")):
             if np.any(q < self.lower - 1e-9) or np.any(q > self.upper + 1e-9):
                 return StompResult(
