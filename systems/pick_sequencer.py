@@ -37,9 +37,12 @@ MIN_GRASPED_WIDTH = 0.004
 LIFT_HEIGHT = 0.15  # m: aimed for
 MIN_LIFT_FRACTION = 0.8  # of it: near the edge of the arms' reach a lower lift will do (0.12 m)
 HOLD_S = 2.5  # s
+# The place task carries the object this high (its bottom clears an 8 cm box with room to spare); higher, the
+# arms are near the edge of their reach and cannot move it sideways, m.
+PLACE_LIFT_HEIGHT = 0.10
 # The place task sets the object down this far above the table (the estimated object frame can be a few
 # millimetres low in the hands; the rest is a short drop, not a push into the table), m.
-PLACE_CLEARANCE = 0.008
+PLACE_CLEARANCE = 0.002
 
 
 @dataclass(frozen=True)
@@ -69,7 +72,7 @@ def lift_task(lift_height: float = LIFT_HEIGHT) -> tuple[Phase, ...]:
     )
 
 
-def place_task(lift_height: float = LIFT_HEIGHT) -> tuple[Phase, ...]:
+def place_task(lift_height: float = PLACE_LIFT_HEIGHT) -> tuple[Phase, ...]:
     """Beyond the paper: lift the object, carry it to the place target, set it down upright, let go, back off."""
     return lift_task(lift_height)[:-1] + (
         Phase("carry", path="held", goal="carry"),

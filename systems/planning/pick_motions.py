@@ -37,7 +37,8 @@ HELD_SEGMENT_S = 0.25  # s: a held object is moved gently (the grip is friction 
 # The held move's goal: each hand within this of the moved pose (m, rad), before the projection onto the
 # closure manifold (which then holds the hands' relative pose to about 1e-6).
 HELD_GOAL_POSITION_TOLERANCE = 0.001
-HELD_GOAL_ANGLE_TOLERANCES = (0.01, 0.04, 0.15)
+# (At most 0.04 rad: a set-down object must stand within 5 degrees of upright.)
+HELD_GOAL_ANGLE_TOLERANCES = (0.01, 0.04)
 HELD_PATH_STEPS = 10  # configurations solved along a held move's motion
 PROJECTION_STEPS = 15
 # A carried object as spheres for the collision cost: about this many, of this radius (m; they overlap).
@@ -132,11 +133,11 @@ class PickMotions:
         keeping the hands' relative pose (closure constraint) and, where the goal allows it, their world
         orientations (orientation constraint: the object does not tilt).
 
-        Where the arms cannot reach the whole motion's translation, shorter ones down to min_fraction of it
-        are tried (a lift near the edge of the arms' reach); where they cannot reach it with the hands'
-        orientation kept, the hands may tilt together (the closure still holds) up to the largest
-        HELD_GOAL_ANGLE_TOLERANCES. With carried_points_W (the held object's points in W at q_start), the
-        object is kept clear of the scene too (a carry over a box); without, only the robot is.
+        Where the arms cannot reach the whole motion, a share of it down to min_fraction will do (a lift near
+        the edge of the arms' reach); where they cannot reach it with the hands' orientation kept within
+        0.01 rad, the hands may tilt together (the closure still holds) by up to 0.04 rad. With
+        carried_points_W (the held object's points in W at q_start), the object is kept clear of the scene
+        too (a carry over a box); without, only the robot is.
 
         Raises:
             PlanningError: the moved hands are out of reach, or STOMP found no constrained path.
@@ -178,26 +179,40 @@ class PickMotions:
         ik = self.ik
         start_poses = ik.grasp_frame_poses(q_start)
         X_E1E2 = start_poses["left"].InvertAndCompose(start_poses["right"])
-        p_motion, R_motion = X_motion_W.translation(), X_motion_W.rotation()
+        angle_axis = X_motion_W.rotation().ToAngleAxis()
+        path, q, worst = [np.asarray(q_start, float)], q_start, 0.0
+        for step in range(1, HELD_PATH_STEPS + 1):
+            s = step / HELD_PATH_STEPS
+            # The object's motion so far: the share s of the translation and of the rotation (about the same axis).
+            partial = RigidTransform(
+                RotationMatrix(AngleAxis(s * angle_axis.angle(), angle_axis.axis())), s * X_motion_W.translation()
+            )
+            targets = {side: partial @ X for side, X in start_poses.items()}
+            result, tolerance = self._held_configuration(targets, X_E1E2, q)
+            if not result.success:
+                break
+            path.append(result.q)
+            q, worst = result.q, max(worst, tolerance)
+        reached = (len(path) - 1) / HELD_PATH_STEPS
+        if reached < min_fraction - 1e-9 or len(path) == 1:
+            raise PlanningError(f"the moved hands are out of reach ({reached:.0%} of the motion at most)")
+        return np.stack(path), reached, worst
+
+    def _held_configuration(self, targets, X_E1E2, q_near):
+        """Both hands at `targets` (the right one exactly at X_E1E2 from the left), nearest to q_near: with the
+        smallest of HELD_GOAL_ANGLE_TOLERANCES that works, from q_near or else from each arm solved alone."""
+        ik = self.ik
         for tolerance in HELD_GOAL_ANGLE_TOLERANCES:
-            path, q = [np.asarray(q_start, float)], q_start
-            for step in range(1, HELD_PATH_STEPS + 1):
-                s = step / HELD_PATH_STEPS
-                # The object's motion so far: the share s of the translation and of the rotation (about the same axis).
-                angle_axis = R_motion.ToAngleAxis()
-                partial = RigidTransform(
-                    RotationMatrix(AngleAxis(s * angle_axis.angle(), angle_axis.axis())), s * p_motion
-                )
-                result = ik.solve_held(partial @ start_poses["left"], X_E1E2, [q], HELD_GOAL_POSITION_TOLERANCE,
-                                       tolerance)  # fmt: skip
-                if not result.success:
-                    break
-                path.append(result.q)
-                q = result.q
-            reached = (len(path) - 1) / HELD_PATH_STEPS
-            if reached >= min_fraction - 1e-9 and len(path) > 1:
-                return np.stack(path), reached, tolerance
-        raise PlanningError(f"the moved hands are out of reach ({reached:.0%} of the motion at most)")
+            result = ik.solve_held(targets["left"], X_E1E2, [q_near], HELD_GOAL_POSITION_TOLERANCE, tolerance)
+            if result.success:
+                return result, tolerance
+            alone = ik.solve(targets, q_near, HELD_GOAL_POSITION_TOLERANCE, tolerance, None,
+                             allow_half_turn=False, restarts=4)  # fmt: skip
+            if alone.success:
+                result = ik.solve_held(targets["left"], X_E1E2, [alone.q], HELD_GOAL_POSITION_TOLERANCE, tolerance)
+                if result.success:
+                    return result, tolerance
+        return result, tolerance
 
     def _carried(self, q: np.ndarray, points_W: np.ndarray) -> CarriedPoints:
         """The held object's points fixed to the left hand's body (as at q), thinned to CARRIED_POINTS spheres."""

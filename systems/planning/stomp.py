@@ -401,6 +401,10 @@ class Stomp:
         constrained = closure is not None or orientation is not None
         if constrained:
             theta = self._project(theta, X_desired, R_desired)
+        feasible, clearance = self._feasible(theta, obstacles, closure, orientation)
+        if feasible:  # the first trajectory is already a solution: nothing to optimise (0 iterations)
+            elapsed = time.perf_counter() - start
+            return StompResult(True, theta, 0, elapsed, float(clearance.min()), "collision-free as first drawn")
         std = config.noise_std
         kept = np.empty((0, n, 14))
         kept_costs = np.empty((0, n))
@@ -426,13 +430,10 @@ class Stomp:
                 theta = self._project(theta, X_desired, R_desired)
             best = np.argsort(all_costs.sum(axis=1))[: config.reused_rollouts]
             kept, kept_costs = all_rollouts[best], all_costs[best]
-            clearance = self.clearance(theta, obstacles)
             std *= config.noise_decay
             elapsed = time.perf_counter() - start
-            closure_ok = closure is None or self.closure_within_limits(theta, closure)[0]
-            if orientation is not None:
-                closure_ok = closure_ok and self.orientation_within_limits(theta, orientation)[0]
-            if clearance.min() > config.required_clearance and closure_ok and self._segments_clear(theta, obstacles):
+            feasible, clearance = self._feasible(theta, obstacles, closure, orientation)
+            if feasible:
                 return StompResult(True, theta, iteration, elapsed, float(clearance.min()), "collision-free")
             if iteration >= config.max_iterations or elapsed > config.time_limit_s:
                 return StompResult(
@@ -443,6 +444,15 @@ class Stomp:
                     float(clearance.min()),
                     f"no collision-free trajectory after {iteration} iterations ({elapsed:.2f} s)",
                 )
+
+    def _feasible(self, theta, obstacles, closure, orientation) -> tuple[bool, np.ndarray]:
+        """Whether the trajectory is a solution (clear of collision at and between its keyframes, within the
+        hand constraints densely), and its keyframes' clearances."""
+        clearance = self.clearance(theta, obstacles)
+        ok = clearance.min() > self.config.required_clearance
+        ok = ok and (closure is None or self.closure_within_limits(theta, closure)[0])
+        ok = ok and (orientation is None or self.orientation_within_limits(theta, orientation)[0])
+        return bool(ok and self._segments_clear(theta, obstacles)), clearance
 
     def _segments_clear(self, theta: np.ndarray, obstacles: Obstacles, steps: int = 4) -> bool:
         """The sphere model stays clear between keyframes too (checked `steps` times per segment)."""
