@@ -230,6 +230,7 @@ class DualArmIk:
         min_distance: float | None = 0.005,
         allow_half_turn: bool = True,
         restarts: int = 4,
+        limit_margin: float = 0.0,
     ) -> IkResult:
         """Arm joints putting each side's grasp frame at X_WG[side], nearest to q_guess.
 
@@ -241,6 +242,8 @@ class DualArmIk:
             allow_half_turn: also try each target turned by pi about z_G (the hands are symmetric).
             restarts: extra initial guesses from the seed table. With min_distance, all of them are
                 solved (the collision stage needs alternatives); without, only when q_guess fails.
+            limit_margin: keep every joint this far inside its limits (rad), e.g. to leave room for a
+                motion that follows.
         """
         q_guess = np.asarray(q_guess, dtype=float)
         flips = (False, True) if allow_half_turn else (False,)
@@ -254,7 +257,9 @@ class DualArmIk:
                 if min_distance is None and per_arm[side] and start is not q_guess:
                     break  # solved from q_guess: the seeds would only add answers farther from it
                 target = {side: X_WG[side] @ HALF_TURN if flip else X_WG[side]}
-                result = self._solve_once(target, start, q_guess, position_tolerance, angle_tolerance, None)
+                result = self._solve_once(
+                    target, start, q_guess, position_tolerance, angle_tolerance, None, limit_margin
+                )
                 if result.success:
                     per_arm[side].append((flip, result.q))
             if not per_arm[side]:
@@ -270,7 +275,9 @@ class DualArmIk:
             }
             if min_distance is None:
                 return IkResult(True, start, "solved per arm")
-            result = self._solve_once(targets, start, start, position_tolerance, angle_tolerance, min_distance)
+            result = self._solve_once(
+                targets, start, start, position_tolerance, angle_tolerance, min_distance, limit_margin
+            )
             if result.success:
                 return result
         return IkResult(False, q_guess, "each hand reaches its target, but not without a collision")
@@ -313,7 +320,9 @@ class DualArmIk:
             False, q_guesses[0], f"both hands cannot hold the object there ({result.get_solution_result()})"
         )
 
-    def _solve_once(self, targets, start, q_nominal, position_tolerance, angle_tolerance, min_distance) -> IkResult:
+    def _solve_once(
+        self, targets, start, q_nominal, position_tolerance, angle_tolerance, min_distance, limit_margin=0.0
+    ) -> IkResult:
         """One SNOPT solve; the joints of an arm without a target stay at `start`."""
         ik = InverseKinematics(self.plant, self.plant_context, with_joint_limits=True)
         q = ik.q()
@@ -335,6 +344,8 @@ class DualArmIk:
         )
         fixed = np.setdiff1d(np.arange(self.plant.num_positions()), free.astype(int))
         prog.AddBoundingBoxConstraint(fixed_q[fixed], fixed_q[fixed], q[fixed])
+        if limit_margin > 0:
+            prog.AddBoundingBoxConstraint(self.lower + limit_margin, self.upper - limit_margin, q[self.arm_indices])
         prog.AddQuadraticErrorCost(np.eye(len(self.arm_indices)), q_nominal, q[self.arm_indices])
         prog.SetInitialGuess(q, self.full_positions(start))
         result = Solve(prog)

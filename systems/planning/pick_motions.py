@@ -29,6 +29,7 @@ from systems.planning.stomp import CarriedPoints
 OPEN_WIDTH = 0.1  # m: the hands' opening while reaching
 CLOSED_WIDTH = 0.0  # m: the fingers stop on the handle; the joint effort limit sets the squeeze
 APPROACH_STEPS = 3
+REACH_LIMIT_MARGIN = 0.15  # rad: a reach's goal keeps its joints this far inside their limits where it can
 MAX_STRAIGHT_STEP = 0.6  # rad: the most a joint may turn between two keyframes of a straight motion
 # Shortest duration of one move between sparse (IK) keyframes, and between STOMP's dense ones, s.
 SPARSE_SEGMENT_S = 0.8
@@ -78,7 +79,10 @@ class PickMotions:
             PlanningError: no collision-free IK solution, or no collision-free path to it.
         """
         ik = self.ik
-        goal = ik.solve(targets_W, q_start, restarts=12)
+        # Joints well inside their limits first: a pre-grasp at a limit leaves no room for the approach.
+        goal = ik.solve(targets_W, q_start, restarts=12, limit_margin=REACH_LIMIT_MARGIN)
+        if not goal.success:
+            goal = ik.solve(targets_W, q_start, restarts=12)
         if not goal.success:
             raise PlanningError(f"no collision-free IK solution at the goal ({goal.message})")
         if ik.segment_is_free(q_start, goal.q):
