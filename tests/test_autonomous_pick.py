@@ -1,6 +1,7 @@
 """The pick sequencer and the shape registrar alone, and the pick diagram end to end (no ground truth
 until judging; the ground-truth pick is the same diagram), including its failure paths."""
 
+import dataclasses
 import json
 import subprocess
 import sys
@@ -15,7 +16,7 @@ from pydrake.trajectories import PiecewisePolynomial
 
 from diagrams.autonomous_pick import PERCEIVE_AT_S, MakePickDiagram, draw_perception, run_pick
 from diagrams.paths import REPO_ROOT
-from diagrams.scenario import replace_object
+from diagrams.scenario import PlaceConfig, replace_object
 from systems.pick_sequencer import PickSequencer, PickStatus, lift_task
 from systems.planner import PlanResult
 from systems.planning.pick_motions import CLOSED_WIDTH
@@ -219,6 +220,26 @@ def test_ground_truth_pick_lifts_a_can(scenario):
     outcome = run_pick(replace_object(scenario, instance="test_2", yaw=0.25), perception="ground_truth")
     assert outcome.success, outcome.message
     assert outcome.hands_in_contact == ["left", "right"]
+
+
+def test_ground_truth_place_sets_the_object_down_upright_on_the_target(scenario):
+    """Beyond the paper: lift, carry (a held move that turns nothing here), set down, let go, back off."""
+    place = dataclasses.replace(scenario, task="place")
+    outcome = run_pick(place, perception="ground_truth")
+    assert outcome.success, outcome.message
+    assert outcome.place["error_m"] <= 0.02 and outcome.place["tilt_rad"] <= np.radians(5)
+    assert not outcome.place["dropped"] and outcome.hands_in_contact == []
+    assert (
+        0 <= outcome.closure["max_translation_dev_m"] < 0.01 and 0 <= outcome.closure["max_orientation_dev_rad"] < 0.05
+    )
+
+
+def test_unreachable_carry_ends_named_with_the_object_still_held(scenario):
+    far = dataclasses.replace(scenario, task="place", place=PlaceConfig(xy=[-0.12, -0.6]))
+    outcome = run_pick(far, perception="ground_truth")
+    assert not outcome.success and outcome.failed_stage == "planning" and "carry" in outcome.message
+    assert outcome.lift_height_m > 0.05 and outcome.hands_in_contact == ["left", "right"]  # held, not dropped
+    assert not outcome.place["dropped"]
 
 
 def test_empty_table_stops_at_segmentation(scenario):

@@ -79,15 +79,26 @@ class PickMotions:
             PlanningError: no collision-free IK solution, or no collision-free path to it.
         """
         ik = self.ik
-        # Joints well inside their limits first: a pre-grasp at a limit leaves no room for the approach.
-        goal = ik.solve(targets_W, q_start, restarts=12, limit_margin=REACH_LIMIT_MARGIN)
-        if not goal.success:
-            goal = ik.solve(targets_W, q_start, restarts=12)
-        if not goal.success:
-            raise PlanningError(f"no collision-free IK solution at the goal ({goal.message})")
-        if ik.segment_is_free(q_start, goal.q):
-            return np.stack([q_start, goal.q])
-        result = ik.stomp.plan(q_start, goal.q, ik.planning_obstacles)
+        # Joints well inside their limits first: a pre-grasp at a limit leaves no room for the approach. Where
+        # that goal cannot be had, or reached, the goal without the margin.
+        failure = None
+        for margin in (REACH_LIMIT_MARGIN, 0.0):
+            goal = ik.solve(targets_W, q_start, restarts=12, limit_margin=margin)
+            if not goal.success:
+                failure = failure or PlanningError(f"no collision-free IK solution at the goal ({goal.message})")
+                continue
+            try:
+                return self._reach_path(q_start, goal.q)
+            except PlanningError as error:
+                failure = error
+        raise failure
+
+    def _reach_path(self, q_start: np.ndarray, q_goal: np.ndarray) -> np.ndarray:
+        """Keyframes from q_start to q_goal: the straight move if it is free, else STOMP's, shortened."""
+        ik = self.ik
+        if ik.segment_is_free(q_start, q_goal):
+            return np.stack([q_start, q_goal])
+        result = ik.stomp.plan(q_start, q_goal, ik.planning_obstacles)
         if not result.success:
             raise PlanningError(result.message)
         logging.info("reach: STOMP, %d iterations, %.2f s", result.iterations, result.seconds)
