@@ -7,8 +7,8 @@ played; a hand phase sends a HandCommand and, after closing, checks the measured
 A failure at any point leaves the arms holding where they are (the trajectory source holds the
 last played trajectory's end) and names the stage.
 
-Modes: waiting -> perceiving -> (the task's phases, e.g. reach, approach, close, lift, hold) -> done,
-or failed.
+Modes: waiting -> perceiving -> (the task's phases: reach, approach, close, lift, then hold, or carry,
+set_down, release, retreat) -> done, or failed.
 """
 
 import dataclasses
@@ -132,6 +132,7 @@ class PickSequencer(LeafSystem):
         - estimate (optional)
         - grasp_poses
         - reconstructed_cloud_W (optional)
+        - X_WO (optional)
         output_ports:
         - trigger
         - plan_request
@@ -140,13 +141,15 @@ class PickSequencer(LeafSystem):
 
     ``position_measured`` (14, rad); ``<side>_hand_state`` (2: opening m, rate m/s); ``plan`` (PlanResult);
     ``frame_id`` (1) from the camera latch; the perception stages' results (Segmentation, ObjectEstimate,
-    GraspPoses, N x 3 cloud). Without ``frame_id`` (a ground-truth source in place of perception) the
+    GraspPoses, N x 3 cloud); ``X_WO`` (RigidTransform: the object's estimated pose, which a place task's
+    carry starts from). Without ``frame_id`` (a ground-truth source in place of perception) the
     sequencer starts planning at once. ``trigger`` (1): the camera frame wanted; ``plan_request``
     (PlanRequest); ``hand_command`` (HandCommand); ``status`` (PickStatus).
 
     Args:
-        phases: the task (e.g. lift_task()).
+        phases: the task (lift_task() or place_task()).
         perceive_at_s: when to take the camera frame (the object has settled), s.
+        place_target_W: where a place task leaves the object (X_WO on the table).
     """
 
     def __init__(
