@@ -23,7 +23,7 @@ from pydrake.trajectories import PiecewisePolynomial
 
 from systems.joint_plan import move_duration
 from systems.planning.closure import ClosureConstraint, OrientationConstraint, deviations, orientation_deviations
-from systems.planning.ik import SIDES, DualArmIk
+from systems.planning.ik import SIDES, DualArmIk, IkResult
 from systems.planning.stomp import CarriedPoints
 
 OPEN_WIDTH = 0.1  # m: the hands' opening while reaching
@@ -214,20 +214,21 @@ class PickMotions:
         return np.stack(path), reached, worst
 
     def _held_configuration(self, targets, X_E1E2, q_near):
-        """Both hands at `targets` (the right one exactly at X_E1E2 from the left), nearest to q_near: with the
+        """Both hands at `targets` (the right one exactly at X_E1E2 from the left), near q_near (no joint more
+        than MAX_STRAIGHT_STEP away: a jump, e.g. a wrist turned over, breaks the path between the two), with the
         smallest of HELD_GOAL_ANGLE_TOLERANCES that works, from q_near or else from each arm solved alone."""
         ik = self.ik
         for tolerance in HELD_GOAL_ANGLE_TOLERANCES:
             result = ik.solve_held(targets["left"], X_E1E2, [q_near], HELD_GOAL_POSITION_TOLERANCE, tolerance)
-            if result.success:
+            if result.success and np.abs(result.q - q_near).max() <= MAX_STRAIGHT_STEP:
                 return result, tolerance
             alone = ik.solve(targets, q_near, HELD_GOAL_POSITION_TOLERANCE, tolerance, None,
                              allow_half_turn=False, restarts=4)  # fmt: skip
             if alone.success:
                 result = ik.solve_held(targets["left"], X_E1E2, [alone.q], HELD_GOAL_POSITION_TOLERANCE, tolerance)
-                if result.success:
+                if result.success and np.abs(result.q - q_near).max() <= MAX_STRAIGHT_STEP:
                     return result, tolerance
-        return result, tolerance
+        return IkResult(False, q_near, "no configuration near the last one holds the object there"), tolerance
 
     def _carried(self, q: np.ndarray, points_W: np.ndarray) -> CarriedPoints:
         """The held object's points fixed to the left hand's body (as at q), thinned to CARRIED_POINTS spheres."""
