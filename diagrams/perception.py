@@ -1,19 +1,36 @@
 """Wires the perception stages to a camera: colour image -> Segmenter -> PoseEstimator <- depth, pose."""
 
+import functools
 from pathlib import Path
 
 from pydrake.systems.framework import DiagramBuilder, OutputPort
 
+from diagrams.objects import catalog
 from diagrams.scenario import Scenario
-from systems.pose_estimator import PoseEstimator
+from systems.pose_estimator import CategoryPrior, PoseEstimator
 from systems.segmenter import DEFAULT_WEIGHTS, Segmenter
+
+# The training instance whose shape is each category's pose template.
+TEMPLATE_INSTANCE = "train_0"
+
+
+@functools.cache
+def category_priors() -> dict[str, CategoryPrior]:
+    """The pose estimator's prior of every catalog category: a template mesh and where O sits in the extent."""
+    return {
+        category: CategoryPrior(
+            catalog.instance_directory(category, TEMPLATE_INSTANCE) / "visual.obj",
+            tuple(float(v) for v in catalog.mean_box_centre(category)),
+        )
+        for category in catalog.CATEGORIES
+    }
 
 
 def MakePoseEstimator(scenario: Scenario) -> PoseEstimator:
-    """A PoseEstimator with the intrinsics and mounting of the scenario's depth camera."""
+    """A PoseEstimator with the intrinsics and mounting of the scenario's depth camera and the catalog's priors."""
     _, depth_camera = scenario.camera.MakeCameras()
     core = depth_camera.core()
-    return PoseEstimator(core.intrinsics(), core.sensor_pose_in_camera_body())
+    return PoseEstimator(core.intrinsics(), category_priors(), core.sensor_pose_in_camera_body())
 
 
 def AddPerception(

@@ -20,6 +20,7 @@ spout / chuck; see diagrams/objects/).
 import functools
 import hashlib
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -31,7 +32,6 @@ from pydrake.systems.framework import LeafSystem
 from pydrake.systems.sensors import CameraInfo, ImageDepth32F
 from scipy.spatial import cKDTree
 
-from diagrams.objects import catalog
 from systems.paths import cache_dir, save_npz_atomically
 from systems.segmenter import Segmentation
 
@@ -40,7 +40,6 @@ MAX_OBJECT_RADIUS = 0.35  # m from the points' median: farther points are strays
 VOXEL = 0.006  # m: the points are thinned to one per voxel before fitting
 GRID_CELL = 0.004  # m: resolution of the template's nearest-point field
 MAX_FIT_POINTS = 400
-TEMPLATE_INSTANCE = "train_0"  # the category prior's shape
 COARSE_ITERATIONS = 4
 COARSE_POINTS = 120
 YAW_CANDIDATES = 12
@@ -48,6 +47,16 @@ FINE_CANDIDATES = 3
 FINE_ITERATIONS = 12
 FREE_SPACE_WEIGHT = 0.03  # m of point distance per unit fraction of the template the camera sees through
 FREE_SPACE_MARGIN = 0.02  # m
+
+
+@dataclass(frozen=True)
+class CategoryPrior:
+    """What the pose estimator knows of a category (diagrams/perception.py makes it from the catalog)."""
+
+    template_mesh: Path  # the visual mesh of one training instance, in its object frame O
+    # Where the object frame's origin sits relative to the object's extent: the mean centre (x, y) of the
+    # training instances' bounding boxes in O, m.
+    box_centre: tuple[float, float]
 
 
 @dataclass
@@ -110,16 +119,15 @@ class NearestPointField:
 
 
 @functools.cache
-def category_template(category: str, count: int = 3000) -> tuple[np.ndarray, NearestPointField]:
-    """Surface points (in O) of the category's template instance, and their nearest-point field.
+def category_template(mesh_file: Path, count: int = 3000) -> tuple[np.ndarray, NearestPointField]:
+    """Surface points (in O) of a category's template mesh, and their nearest-point field.
 
     The field takes seconds to compute; it is kept in the user's cache, keyed by the mesh and the grid.
     """
-    mesh_file = catalog.instance_directory(category, TEMPLATE_INSTANCE) / "visual.obj"
     mesh = trimesh.load(mesh_file, force="mesh")
     points, _ = trimesh.sample.sample_surface_even(mesh, count, seed=0)
     key = hashlib.sha256(mesh_file.read_bytes() + f"{count} {GRID_CELL}".encode()).hexdigest()[:16]
-    path = cache_dir() / "pose_templates" / f"{category}_{key}.npz"
+    path = cache_dir() / "pose_templates" / f"{key}.npz"
     if path.is_file():
         with np.load(path) as data:
             return points, NearestPointField(points, index=data["index"])
@@ -158,9 +166,9 @@ def _fit_yaw_translation(points_W, yaw, xy, z, field: NearestPointField, iterati
 
 
 def estimate_pose(
-    points_W: np.ndarray, category: str, support_height: float | None = None, see_through=None
+    points_W: np.ndarray, prior: CategoryPrior, support_height: float | None = None, see_through=None
 ) -> RigidTransform:
-    """Upright X_WO of a `category` object from its observed surface points (N x 3 in W).
+    """Upright X_WO of an object of the category `prior` describes, from its observed surface points (N x 3 in W).
 
     Args:
         support_height: the table's height under the object (m); None takes the lowest points'.
@@ -171,7 +179,7 @@ def estimate_pose(
     if len(thinned) > MAX_FIT_POINTS:
         thinned = thinned[np.linspace(0, len(thinned) - 1, MAX_FIT_POINTS).astype(int)]
     z = np.percentile(thinned[:, 2], 1.0) if support_height is None else support_height
-    template, field = category_template(category)
+    template, field = category_template(prior.template_mesh)
     # Principal horizontal axis and the centre of the extent along it and across it.
     centred = thinned[:, :2] - thinned[:, :2].mean(axis=0)
     _, vectors = np.linalg.eigh(centred.T @ centred)
@@ -179,7 +187,7 @@ def estimate_pose(
     R_axes = _rotation_2d(axis_yaw)
     in_axes = thinned[:, :2] @ R_axes
     extent_centre = R_axes @ (0.5 * (np.percentile(in_axes, 0.5, axis=0) + np.percentile(in_axes, 99.5, axis=0)))
-    box_centre = catalog.mean_box_centre(category)
+    box_centre = np.asarray(prior.box_centre)
     coarse = thinned[np.linspace(0, len(thinned) - 1, min(len(thinned), COARSE_POINTS)).astype(int)]
 
     def fit(points, yaw, xy, iterations):
@@ -217,14 +225,23 @@ class PoseEstimator(LeafSystem):
         point_cloud: the object's points in W as a drake PointCloud (empty when not found).
     """
 
-    def __init__(self, intrinsics: CameraInfo, X_BC: RigidTransform | None = None, erode_pixels: int = 2):
+    def __init__(
+        self,
+        intrinsics: CameraInfo,
+        priors: dict[str, CategoryPrior],
+        X_BC: RigidTransform | None = None,
+        erode_pixels: int = 2,
+    ):
+        """Args:
+        intrinsics: the depth camera's. priors: per category name. X_BC: the depth sensor in the camera body.
+        erode_pixels: the pose fit takes the mask shrunk by this much.
+        """
         super().__init__()
-        self.intrinsics = intrinsics
+        self.intrinsics, self.priors = intrinsics, priors
         self.X_BC = X_BC or RigidTransform()
         self.erode_pixels = erode_pixels
-        for category in catalog.CATEGORIES:  # loaded now, not on the first image
-            category_template(category)
-            catalog.mean_box_centre(category)
+        for prior in priors.values():  # loaded now, not on the first image
+            category_template(prior.template_mesh)
         self.DeclareAbstractInputPort("segmentation", AbstractValue.Make(Segmentation(False)))
         self.DeclareAbstractInputPort("depth_image", AbstractValue.Make(ImageDepth32F()))
         self.DeclareAbstractInputPort("camera_pose", AbstractValue.Make(RigidTransform()))
@@ -240,6 +257,9 @@ class PoseEstimator(LeafSystem):
     def estimate(self, segmentation: Segmentation, depth: np.ndarray, X_WB: RigidTransform) -> ObjectEstimate:
         if not segmentation.found:
             return ObjectEstimate(False, message=f"no object to localise ({segmentation.message})")
+        prior = self.priors.get(segmentation.category)
+        if prior is None:
+            return ObjectEstimate(False, segmentation.category, message=f"no pose prior for {segmentation.category!r}")
         X_WC = X_WB @ self.X_BC
         points_W = self._object_points_W(segmentation.mask, depth, X_WC)
         if len(points_W) < MIN_POINTS:
@@ -259,9 +279,7 @@ class PoseEstimator(LeafSystem):
             if len(interior_W) >= MIN_POINTS:
                 fit_points_W = interior_W
         support = self.support_height(segmentation.mask, depth, X_WC, fit_points_W)
-        X_WO = estimate_pose(
-            fit_points_W, segmentation.category, support, self._free_space_test(segmentation.mask, depth, X_WC)
-        )
+        X_WO = estimate_pose(fit_points_W, prior, support, self._free_space_test(segmentation.mask, depth, X_WC))
         return ObjectEstimate(
             True, segmentation.category, X_WO, points_W, f"{len(points_W)} points", X_WC.translation()
         )

@@ -124,6 +124,9 @@ def test_pose_estimator_survives_depth_holes_and_reports_no_depth(station_frame)
     assert not no_depth.found and "valid depth" in no_depth.message
     nothing = estimator.estimate(Segmentation(False, message="empty"), depth, station_frame["X_WB"])
     assert not nothing.found and "no object" in nothing.message
+    unknown = Segmentation(True, "teapot", segmentation.mask, segmentation.pixel_count)
+    teapot = estimator.estimate(unknown, depth, station_frame["X_WB"])
+    assert not teapot.found and "no pose prior for 'teapot'" in teapot.message
 
 
 def test_perception_wired_to_station_localises_the_object():
