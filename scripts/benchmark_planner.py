@@ -65,7 +65,7 @@ def closure_experiment(runs: int, closure: bool, fixed_orientation: bool = False
     q_grasp = grasp_configuration(scenario, make_dual_arm_ik(scenario, obstacle=model, X_WO=X_WO))
     ik = make_dual_arm_ik(scenario)  # the held object moves with the hands: robot and table only
     X = ik.grasp_frame_poses(q_grasp)  # the lift's goal: both hands 0.15 m up, holding the object as at q_grasp
-    lift = ik.solve_held(RigidTransform([0, 0, 0.15]) @ X["left"], X["left"].InvertAndCompose(X["right"]), [q_grasp],
+    lift = ik.solve_held(RigidTransform([0, 0, 0.15]) @ X["left"], X["left"].InvertAndCompose(X["right"]), q_grasp,
                          0.001, 0.15)  # fmt: skip
     q_lift = lift.q
     stomp = ik.stomp

@@ -101,8 +101,8 @@ class PickStatus:
     request: PlanRequest = field(default_factory=PlanRequest)
     accounted_plan_id: int = -1  # the last plan whose times and deviations are recorded here
     hand: HandCommand = field(default_factory=lambda: HandCommand(OPEN_WIDTH, OPEN_WIDTH))
-    hold_q: np.ndarray | None = None  # 14 arm joints where the robot was first measured, rad
-    plan_end_q: np.ndarray | None = None  # where the last played trajectory ends, rad
+    # Where the robot stands still: first measured, then where each played trajectory ends (14 joints, rad).
+    plan_end_q: np.ndarray | None = None
     # The object's pose as perceived (X_WO input), and where the held moves planned so far take it.
     object_seen_W: RigidTransform | None = None
     object_pose_W: RigidTransform | None = None
@@ -207,27 +207,33 @@ class PickSequencer(LeafSystem):
         status = dataclasses.replace(before, stage_seconds=dict(before.stage_seconds))
         t = context.get_time()
         if before.mode == "waiting":
-            self._wait(context, status, t)
+            changed = self._wait(context, status, t)
         elif before.mode == "perceiving":
-            if self.GetInputPort("frame_id").Eval(context)[0] >= status.perceive_id:
+            changed = self.GetInputPort("frame_id").Eval(context)[0] >= status.perceive_id
+            if changed:
                 self._perceive(context, status, t)
         else:
-            self._follow_phase(context, status, t)
+            changed = self._follow_phase(context, status, t)
+        if not changed:  # (most updates: nothing to copy into the state)
+            return EventStatus.DidNothing()
         state.get_mutable_abstract_state(self._state).set_value(status)
         return EventStatus.Succeeded()
 
-    def _wait(self, context, status: PickStatus, t: float):
-        if status.hold_q is None:
+    def _wait(self, context, status: PickStatus, t: float) -> bool:
+        """Latches where the robot stands, then at perceive_at_s asks for a frame; whether it changed anything."""
+        changed = False
+        if status.plan_end_q is None:
             measured = self.GetInputPort("position_measured").Eval(context)
             if not np.all(np.isfinite(measured)):  # (the hardware station's NaN before the robot's status)
-                return
-            status.hold_q = status.plan_end_q = measured.copy()
+                return False
+            status.plan_end_q, changed = measured.copy(), True
         if t < self.perceive_at_s:
-            return
+            return changed
         if self.GetInputPort("frame_id").HasValue(context):
             status.mode, status.perceive_id = "perceiving", status.perceive_id + 1
         else:  # a ground-truth source in place of perception
             self._start_phase(context, status, 0, t)
+        return True
 
     def _perceive(self, context, status: PickStatus, t: float):
         """Reads each perception stage's result once, in order, timing it; the first that found nothing
@@ -286,28 +292,31 @@ class PickSequencer(LeafSystem):
         drop = target.translation()[2] + PLACE_CLEARANCE - now.translation()[2]
         return RigidTransform([0.0, 0.0, drop]), None
 
-    def _follow_phase(self, context, status: PickStatus, t: float):
+    def _follow_phase(self, context, status: PickStatus, t: float) -> bool:
+        """Moves on when the phase is over (or fails it). Returns whether it changed anything."""
         phase = self.phases[status.phase_index]
         if phase.path:
             plan = self.GetInputPort("plan").Eval(context)
             if plan.id != status.request.id:
-                return  # not planned yet
+                return False  # not planned yet
             if not plan.success:
                 self._fail(status, "planning", plan.message)
-                return
-            if status.accounted_plan_id != plan.id:
+                return True
+            accounted = status.accounted_plan_id != plan.id
+            if accounted:
                 self._account(status, plan)
             if t + 1e-9 < plan.end_s:
-                return
+                return accounted
             status.plan_end_q = plan.trajectory.value(plan.end_s).ravel()
         elif phase.hand_width is not None:
             if t + 1e-9 < status.hand.end_s + phase.wait_s:
-                return
+                return False
             if phase.hand_width == CLOSED_WIDTH and not self._holding(context, status):
-                return
+                return True
         elif t + 1e-9 < status.phase_start_s + phase.wait_s:
-            return
+            return False
         self._start_phase(context, status, status.phase_index + 1, t)
+        return True
 
     def _account(self, status: PickStatus, plan: PlanResult):
         """Records a plan's wall time and, for a held move, its closure deviations."""

@@ -60,7 +60,7 @@ def lift_problem(scenario):
     # The lift's goal: both hands 0.12 m higher, holding the object as they do at q_grasp.
     X = ik.grasp_frame_poses(q_grasp)
     up = RigidTransform([0.0, 0.0, 0.12])
-    lifted = ik.solve_held(up @ X["left"], X["left"].InvertAndCompose(X["right"]), [q_grasp], 0.002, 0.03)
+    lifted = ik.solve_held(up @ X["left"], X["left"].InvertAndCompose(X["right"]), q_grasp, 0.002, 0.03)
     assert lifted.success, lifted.message
     return ik, q_grasp, lifted.q, scenario
 

@@ -286,39 +286,37 @@ class DualArmIk:
         self,
         X_WG_left: RigidTransform,
         X_E1E2: RigidTransform,
-        q_guesses: list[np.ndarray],
+        q_near: np.ndarray,
         position_tolerance: float,
         angle_tolerance: float,
+        start: np.ndarray | None = None,
         closure_tolerances: tuple[float, float] = (0.0005, 0.005),
     ) -> IkResult:
         """Both arms holding one object: the left grasp frame at X_WG_left (within the tolerances, m and
-        rad) and the right one at X_E1E2 from it (within closure_tolerances, m and rad), nearest to the
-        first guess; each guess is tried in turn."""
+        rad) and the right one at X_E1E2 from it (within closure_tolerances, m and rad), nearest to q_near,
+        solved from `start` (default q_near)."""
         left, right = self.grasp_frames["left"], self.grasp_frames["right"]
-        for start in q_guesses:
-            ik = InverseKinematics(self.plant, self.plant_context, with_joint_limits=True)
-            q, prog = ik.q(), ik.prog()
-            tol = np.full(3, position_tolerance)
-            p = X_WG_left.translation()
-            ik.AddPositionConstraint(left, [0, 0, 0], self.plant.world_frame(), p - tol, p + tol)
-            ik.AddOrientationConstraint(
-                left, RotationMatrix(), self.plant.world_frame(), X_WG_left.rotation(), angle_tolerance
-            )
-            closure = np.full(3, closure_tolerances[0])
-            p_E1E2 = X_E1E2.translation()
-            ik.AddPositionConstraint(right, [0, 0, 0], left, p_E1E2 - closure, p_E1E2 + closure)
-            ik.AddOrientationConstraint(right, RotationMatrix(), left, X_E1E2.rotation(), closure_tolerances[1])
-            fixed_q = self.full_positions(start)
-            fixed = np.setdiff1d(np.arange(self.plant.num_positions()), self.arm_indices)
-            prog.AddBoundingBoxConstraint(fixed_q[fixed], fixed_q[fixed], q[fixed])
-            prog.AddQuadraticErrorCost(np.eye(len(self.arm_indices)), q_guesses[0], q[self.arm_indices])
-            prog.SetInitialGuess(q, fixed_q)
-            result = Solve(prog)
-            if result.is_success():
-                return IkResult(True, result.GetSolution(q)[self.arm_indices], "solved")
-        return IkResult(
-            False, q_guesses[0], f"both hands cannot hold the object there ({result.get_solution_result()})"
+        ik = InverseKinematics(self.plant, self.plant_context, with_joint_limits=True)
+        q, prog = ik.q(), ik.prog()
+        tol = np.full(3, position_tolerance)
+        p = X_WG_left.translation()
+        ik.AddPositionConstraint(left, [0, 0, 0], self.plant.world_frame(), p - tol, p + tol)
+        ik.AddOrientationConstraint(
+            left, RotationMatrix(), self.plant.world_frame(), X_WG_left.rotation(), angle_tolerance
         )
+        closure = np.full(3, closure_tolerances[0])
+        p_E1E2 = X_E1E2.translation()
+        ik.AddPositionConstraint(right, [0, 0, 0], left, p_E1E2 - closure, p_E1E2 + closure)
+        ik.AddOrientationConstraint(right, RotationMatrix(), left, X_E1E2.rotation(), closure_tolerances[1])
+        initial = self.full_positions(q_near if start is None else start)
+        fixed = np.setdiff1d(np.arange(self.plant.num_positions()), self.arm_indices)
+        prog.AddBoundingBoxConstraint(initial[fixed], initial[fixed], q[fixed])
+        prog.AddQuadraticErrorCost(np.eye(len(self.arm_indices)), q_near, q[self.arm_indices])
+        prog.SetInitialGuess(q, initial)
+        result = Solve(prog)
+        if result.is_success():
+            return IkResult(True, result.GetSolution(q)[self.arm_indices], "solved")
+        return IkResult(False, q_near, f"both hands cannot hold the object there ({result.get_solution_result()})")
 
     def _solve_once(
         self, targets, start, q_nominal, position_tolerance, angle_tolerance, min_distance, limit_margin=0.0

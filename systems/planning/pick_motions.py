@@ -3,10 +3,12 @@
   reach:     to given hand poses (the pre-grasps), around the obstacles: IK, then the straight
              joint-space move if it is free, else STOMP (shortened to few keyframes).
   straight:  each hand along a straight line to its goal, keeping its orientation (approach, retreat).
-  held move: both hands hold one object and move it by a rigid motion in W (lift, carry, place):
-             IK of the moved hands, projected onto the closure manifold, then STOMP with the
-             kinematic-chain closure term q_cc (paper eq. 2-4) and the hands' world orientation
-             constraint from the start. Only the table is an obstacle: the object moves with the hands.
+  held move: both hands hold one object and move it by a rigid motion in W (lift, carry, set down):
+             configurations holding it solved along the motion (each near the one before), the last
+             projected onto the closure manifold, then STOMP from that path with the kinematic-chain
+             closure term q_cc (paper eq. 2-4) and, unless the motion turns the object, the hands' world
+             orientation constraint. The table (and a box on it) are the obstacles, and the object itself
+             when its points are given (a carry).
 
 Each returns joint-space keyframes (K x 14, the start first); time parameterisation and the dense
 check of the played trajectory are time_parameterise() and closure_deviations() below.
@@ -35,8 +37,8 @@ MAX_STRAIGHT_STEP = 0.6  # rad: the most a joint may turn between two keyframes 
 SPARSE_SEGMENT_S = 0.8
 STOMP_SEGMENT_S = 0.1
 HELD_SEGMENT_S = 0.25  # s: a held object is moved gently (the grip is friction only)
-# The held move's goal: each hand within this of the moved pose (m, rad), before the projection onto the
-# closure manifold (which then holds the hands' relative pose to about 1e-6).
+# The held move's configurations: the left hand within this of its moved pose (m; rad below), the right one
+# held at its start pose relative to the left by solve_held's closure tolerances.
 HELD_GOAL_POSITION_TOLERANCE = 0.001
 # (At most 0.04 rad: a set-down object must stand within 5 degrees of upright.)
 HELD_GOAL_ANGLE_TOLERANCES = (0.01, 0.04)
@@ -59,8 +61,6 @@ class HeldMove:
 
     keyframes: np.ndarray  # K x 14
     X_E1E2: np.ndarray  # 4 x 4: the right grasp frame in the left one's, as at the start
-    R_WE: list[np.ndarray]  # both hands' world orientations at the start (3 x 3 each)
-    stomp_iterations: int = 0
 
 
 class PickMotions:
@@ -181,7 +181,7 @@ class PickMotions:
             "held move: %.0f %% of the motion, hands within %.2f rad (orientation constraint %s); STOMP %d iterations, "
             "%.2f s", 100 * fraction, tolerance, "on" if keep_orientation else "off", result.iterations, result.seconds
         )  # fmt: skip
-        return HeldMove(result.trajectory, X_E1E2, R_WE, result.iterations)
+        return HeldMove(result.trajectory, X_E1E2)
 
     def _held_path(self, q_start: np.ndarray, X_motion_W: RigidTransform, min_fraction: float):
         """Configurations holding the object along the motion (HELD_PATH_STEPS of it, each solved from the one
@@ -219,13 +219,15 @@ class PickMotions:
         smallest of HELD_GOAL_ANGLE_TOLERANCES that works, from q_near or else from each arm solved alone."""
         ik = self.ik
         for tolerance in HELD_GOAL_ANGLE_TOLERANCES:
-            result = ik.solve_held(targets["left"], X_E1E2, [q_near], HELD_GOAL_POSITION_TOLERANCE, tolerance)
+            result = ik.solve_held(targets["left"], X_E1E2, q_near, HELD_GOAL_POSITION_TOLERANCE, tolerance)
             if result.success and np.abs(result.q - q_near).max() <= MAX_STRAIGHT_STEP:
                 return result, tolerance
             alone = ik.solve(targets, q_near, HELD_GOAL_POSITION_TOLERANCE, tolerance, None,
                              allow_half_turn=False, restarts=4)  # fmt: skip
             if alone.success:
-                result = ik.solve_held(targets["left"], X_E1E2, [alone.q], HELD_GOAL_POSITION_TOLERANCE, tolerance)
+                result = ik.solve_held(
+                    targets["left"], X_E1E2, q_near, HELD_GOAL_POSITION_TOLERANCE, tolerance, start=alone.q
+                )
                 if result.success and np.abs(result.q - q_near).max() <= MAX_STRAIGHT_STEP:
                     return result, tolerance
         return IkResult(False, q_near, "no configuration near the last one holds the object there"), tolerance
@@ -246,12 +248,6 @@ class PickMotions:
         q = np.array([trajectory.value(t).ravel() for t in times])
         t_dev, o_dev = deviations(self.ik.stomp.end_effectors, q, held.X_E1E2)
         return float(t_dev.max()), float(o_dev.max())
-
-    def orientation_deviation(self, trajectory: PiecewisePolynomial, held: HeldMove) -> float:
-        """Largest deviation (rad) of either hand's world orientation from the start, every DENSE_CHECK_S."""
-        times = np.arange(trajectory.start_time(), trajectory.end_time() + 1e-9, DENSE_CHECK_S)
-        q = np.array([trajectory.value(t).ravel() for t in times])
-        return float(orientation_deviations(self.ik.stomp.end_effectors, q, held.R_WE).max())
 
 
 def time_parameterise(
