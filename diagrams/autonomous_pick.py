@@ -15,7 +15,6 @@ import logging
 from pathlib import Path
 
 import numpy as np
-import trimesh
 from pydrake.common.value import AbstractValue
 from pydrake.geometry import Meshcat, Rgba
 from pydrake.lcm import DrakeLcm, DrakeLcmInterface
@@ -26,7 +25,7 @@ from diagrams.hardware_station import MakeHardwareStation
 from diagrams.objects.library import resolve_object
 from diagrams.perception import AddPerception
 from diagrams.pick_simulation import PickOutcome, PlaceJudge, simulate_pick, station_plant
-from diagrams.planning_scene import make_dual_arm_ik, true_grasp_poses
+from diagrams.planning_scene import make_dual_arm_ik, object_surface_W, true_grasp_poses
 from diagrams.robot_driver import MakeRobotDriver
 from diagrams.scenario import Scenario
 from diagrams.station import HAND_INSTANCES, MakeStation, object_pose_on_table, place_target
@@ -158,9 +157,8 @@ def _AddGroundTruth(builder, scenario):
     except ValueError as error:
         raise PlanningError(str(error)) from error
     model = resolve_object(scenario.object)
-    mesh = trimesh.load(model.model_file.parent / "visual.obj", force="mesh")
     X_WO = object_pose_on_table(scenario, model)
-    surface = X_WO.multiply(trimesh.sample.sample_surface_even(mesh, TRUE_SURFACE_POINTS, seed=0)[0].T).T
+    surface, _ = object_surface_W(model, X_WO, TRUE_SURFACE_POINTS)
     grasps = builder.AddNamedSystem(
         "ground_truth.grasp_poses", ConstantValueSource(AbstractValue.Make(GraspPoses(True, poses, "ground truth")))
     )
@@ -264,10 +262,7 @@ class PickWatcher:
         status = self.status(outcome.context)
         outcome.stages = status.stage_seconds
         outcome.planning_s = status.stage_seconds.get("image_to_trajectory", 0.0)
-        outcome.closure = {
-            "max_translation_dev_m": status.closure_translation_dev_m,
-            "max_orientation_dev_rad": status.closure_orientation_dev_rad,
-        }
+        outcome.closure = status.closure
         if status.mode == "failed":
             outcome.success = False
             outcome.failed_stage, outcome.message = status.failed_stage, status.message

@@ -147,10 +147,7 @@ def _outcome(status: PickStatus, problems: list[str], commands: dict) -> PickOut
     outcome = PickOutcome(played and not problems, math.nan, math.nan, message=message)
     outcome.stages, outcome.failed_stage = status.stage_seconds, status.failed_stage
     outcome.planning_s = status.stage_seconds.get("image_to_trajectory", 0.0)
-    outcome.closure = {
-        "max_translation_dev_m": status.closure_translation_dev_m,
-        "max_orientation_dev_rad": status.closure_orientation_dev_rad,
-    }
+    outcome.closure = status.closure
     outcome.commands = commands
     return outcome
 

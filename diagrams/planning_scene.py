@@ -42,9 +42,7 @@ def MakeRobotScene(
         (instance,) = make_parser(plant).AddModels(file_name=str(obstacle.model_file))
         body = plant.get_body(plant.GetBodyIndices(instance)[0])
         plant.WeldFrames(plant.world_frame(), body.body_frame(), X_WO)
-        mesh = trimesh.load(obstacle.model_file.parent / "visual.obj", force="mesh")
-        points, _ = trimesh.sample.sample_surface_even(mesh, OBJECT_SURFACE_POINTS, seed=0)
-        surface, spacing = X_WO.multiply(points.T).T, float(np.sqrt(mesh.area / len(points)))
+        surface, spacing = object_surface_W(obstacle, X_WO, OBJECT_SURFACE_POINTS)
     plant.Finalize()
     for hand in hands.values():
         for name in ("finger_1_joint", "finger_2_joint"):
@@ -62,6 +60,14 @@ def MakeRobotScene(
         surface,
         spacing,
     )
+
+
+def object_surface_W(model: ObjectModel, X_WO: RigidTransform, count: int) -> tuple[np.ndarray, float]:
+    """Ground truth: an even sample of about `count` points of the object's surface where it stands at X_WO
+    (N x 3 in W), and their spacing (m)."""
+    mesh = trimesh.load(model.model_file.parent / "visual.obj", force="mesh")
+    points, _ = trimesh.sample.sample_surface_even(mesh, count, seed=0)
+    return X_WO.multiply(points.T).T, float(np.sqrt(mesh.area / len(points)))
 
 
 def make_dual_arm_ik(scenario: Scenario, **scene_options) -> DualArmIk:

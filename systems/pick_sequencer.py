@@ -115,6 +115,14 @@ class PickStatus:
     reconstruction_W: np.ndarray | None = None
     grasp_paths_W: list[dict[str, np.ndarray]] = field(default_factory=list)
 
+    @property
+    def closure(self) -> dict[str, float]:
+        """The closure deviations for a report: {"max_translation_dev_m", "max_orientation_dev_rad"}."""
+        return {
+            "max_translation_dev_m": float(self.closure_translation_dev_m),
+            "max_orientation_dev_rad": float(self.closure_orientation_dev_rad),
+        }
+
 
 class PickSequencer(LeafSystem):
     """Sequences a pick: camera frame, perception results, plan requests, hand commands.
