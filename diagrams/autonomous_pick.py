@@ -23,8 +23,8 @@ from pydrake.systems.primitives import ConstantValueSource
 
 from diagrams.hardware_station import MakeHardwareStation
 from diagrams.objects.library import resolve_object
-from diagrams.perception import AddPerception
-from diagrams.pick_simulation import PickOutcome, PlaceJudge, simulate_pick, station_plant
+from diagrams.perception import AddPerception, MakeObjectTracker
+from diagrams.pick_simulation import PickOutcome, PlaceJudge, pose_error, simulate_pick, station_plant
 from diagrams.planning_scene import make_dual_arm_ik, object_surface_W, true_grasp_poses
 from diagrams.robot_driver import MakeRobotDriver
 from diagrams.scenario import Scenario
@@ -36,6 +36,7 @@ from systems.planner import StompPlanner
 from systems.planning.pick_motions import PickMotions, PlanningError
 from systems.pose_estimator import to_point_cloud
 from systems.pose_noise import PoseYawOffset, draw_yaw_offset
+from systems.robot_spheres import RobotSpheres
 from systems.shape_registrar import GraspPoses, ShapeRegistrar
 from systems.trajectory_source import JointTrajectorySource
 
@@ -100,7 +101,7 @@ def MakePickDiagram(
 
     measured = station.GetOutputPort("centauro.position_measured")
     if perception == "camera":
-        grasps, cloud, X_WO = _AddCameraPerception(builder, station, sequencer, scenario)
+        grasps, cloud, X_WO = _AddCameraPerception(builder, station, sequencer, scenario, motions.ik.stomp)
     else:
         grasps, cloud, X_WO = _AddGroundTruth(builder, scenario)
     builder.Connect(X_WO, sequencer.GetInputPort("X_WO"))
@@ -122,10 +123,11 @@ def MakePickDiagram(
     return diagram
 
 
-def _AddCameraPerception(builder, station, sequencer, scenario):
+def _AddCameraPerception(builder, station, sequencer, scenario, stomp):
     """camera -> camera_latch -> segmenter -> pose_estimator -> [yaw noise] -> shape_registrar; the
-    sequencer triggers the latch and reads each stage's result. Returns the registrar's grasp poses and
-    reconstructed cloud ports."""
+    sequencer triggers the latch and reads each stage's result. A second latch serves the sequencer's
+    looks at the held object: look_latch -> object_tracker (with robot_spheres, the arms where they stood
+    for that frame). Returns the registrar's grasp poses, reconstructed cloud and X_WO ports."""
     camera = scenario.camera.name
     latch = builder.AddNamedSystem("camera_latch", CameraLatch())
     for port, source in (("color_image", "rgb_image"), ("depth_image", "depth_image"), ("camera_pose", "pose")):
@@ -147,7 +149,28 @@ def _AddCameraPerception(builder, station, sequencer, scenario):
     builder.Connect(pose_estimator.GetOutputPort("estimate"), sequencer.GetInputPort("estimate"))
     cloud = registrar.GetOutputPort("reconstructed_cloud_W")
     builder.Connect(cloud, sequencer.GetInputPort("reconstructed_cloud_W"))
-    return registrar.GetOutputPort("grasp_poses"), cloud, registrar.GetOutputPort("X_WO")
+    X_WO = registrar.GetOutputPort("X_WO")
+
+    look = builder.AddNamedSystem("look_latch", CameraLatch())
+    for port, source in (("color_image", "rgb_image"), ("depth_image", "depth_image"), ("camera_pose", "pose")):
+        builder.Connect(station.GetOutputPort(f"{camera}.{source}"), look.GetInputPort(port))
+    builder.Connect(station.GetOutputPort("centauro.position_measured"), look.GetInputPort("robot_position"))
+    builder.Connect(sequencer.GetOutputPort("look_trigger"), look.GetInputPort("trigger"))
+    builder.Connect(look.GetOutputPort("frame_id"), sequencer.GetInputPort("look_frame_id"))
+    robot = builder.AddNamedSystem("robot_spheres", RobotSpheres(stomp))
+    builder.Connect(look.GetOutputPort("robot_position"), robot.GetInputPort("position"))
+    tracker = builder.AddNamedSystem("object_tracker", MakeObjectTracker(scenario))
+    for port, source in (
+        ("depth_image", look.GetOutputPort("depth_image")),
+        ("camera_pose", look.GetOutputPort("camera_pose")),
+        ("robot_spheres_W", robot.GetOutputPort("spheres_W")),
+        ("expected_X_WO", sequencer.GetOutputPort("expected_X_WO")),
+        ("model_cloud_W", cloud),
+        ("model_X_WO", X_WO),
+    ):
+        builder.Connect(source, tracker.GetInputPort(port))
+    builder.Connect(tracker.GetOutputPort("estimate"), sequencer.GetInputPort("look"))
+    return registrar.GetOutputPort("grasp_poses"), cloud, X_WO
 
 
 def _AddGroundTruth(builder, scenario):
@@ -263,6 +286,8 @@ class PickWatcher:
         outcome.stages = status.stage_seconds
         outcome.planning_s = status.stage_seconds.get("image_to_trajectory", 0.0)
         outcome.closure = status.closure
+        if status.object_seen_W is not None and outcome.object_rest_W is not None:
+            outcome.perception = pose_error(status.object_seen_W, outcome.object_rest_W)
         if status.mode == "failed":
             outcome.success = False
             outcome.failed_stage, outcome.message = status.failed_stage, status.message

@@ -115,6 +115,7 @@ def run_trial(trial: Trial) -> dict:
         "stages": outcome.stages,
         "closure": outcome.closure,
         "place": outcome.place,
+        "perception": outcome.perception,
         "sim_wall_s": outcome.wall_time_s,
     }
 

@@ -7,6 +7,7 @@ from pydrake.systems.framework import DiagramBuilder, OutputPort
 
 from diagrams.objects import catalog
 from diagrams.scenario import Scenario
+from systems.object_tracker import ObjectTracker
 from systems.pose_estimator import CategoryPrior, PoseEstimator
 from systems.segmenter import DEFAULT_WEIGHTS, Segmenter
 
@@ -31,6 +32,13 @@ def MakePoseEstimator(scenario: Scenario) -> PoseEstimator:
     _, depth_camera = scenario.camera.MakeCameras()
     core = depth_camera.core()
     return PoseEstimator(core.intrinsics(), category_priors(), core.sensor_pose_in_camera_body())
+
+
+def MakeObjectTracker(scenario: Scenario) -> ObjectTracker:
+    """An ObjectTracker with the intrinsics and mounting of the scenario's depth camera."""
+    _, depth_camera = scenario.camera.MakeCameras()
+    core = depth_camera.core()
+    return ObjectTracker(core.intrinsics(), core.sensor_pose_in_camera_body())
 
 
 def AddPerception(

@@ -58,8 +58,22 @@ class PickOutcome:
     # The place task's judgement: {"error_m": xy distance to the target, "yaw_error_rad", "tilt_rad": of the
     # object's z axis from vertical, "max_slip_m": how far it moved in the hands while held, "dropped"}.
     place: dict = field(default_factory=dict)
+    # How far the perceived object pose was from the true one when the camera saw it: {"position_error_m": xy
+    # distance, "yaw_error_rad"} (empty when the pick did not perceive).
+    perception: dict = field(default_factory=dict)
+    # The object's true pose once it had settled (t >= 0.4 s), for the above (None without an object).
+    object_rest_W: object = None
     # The simulator's final context (for further inspection).
     context: object = None
+
+
+def pose_error(X_estimate, X_true) -> dict[str, float]:
+    """{"position_error_m": xy distance, "yaw_error_rad": |yaw| of the rotation between them} of two poses in W."""
+    R = X_true.rotation().inverse() @ X_estimate.rotation()
+    return {
+        "position_error_m": float(np.linalg.norm(X_estimate.translation()[:2] - X_true.translation()[:2])),
+        "yaw_error_rad": abs(float(RollPitchYaw(R).yaw_angle())),
+    }
 
 
 def station_plant(diagram: Diagram) -> MultibodyPlant:
@@ -94,7 +108,7 @@ class LiftJudge:
     def __init__(self, plant: MultibodyPlant, context):
         self.plant, self.plant_context = plant, plant.GetMyContextFromRoot(context)
         self.body = object_body(plant) if plant.HasModelInstanceNamed(OBJECT_INSTANCE) else None
-        self.z_rest = None
+        self.z_rest, self.X_rest = None, None
         self.heights = []
 
     def sample(self, t: float) -> float:
@@ -102,6 +116,7 @@ class LiftJudge:
         z = self.body.EvalPoseInWorld(self.plant_context).translation()[2] if self.body is not None else np.nan
         if self.z_rest is None and t >= 0.4:
             self.z_rest = z  # resting height, once the object has settled
+            self.X_rest = self.body.EvalPoseInWorld(self.plant_context) if self.body is not None else None
         self.heights.append((t, z))
         return z
 
@@ -119,7 +134,9 @@ class LiftJudge:
             message = f"not lifted: lowest height over the last {HOLD_CHECK_S} s was {min_hold:.3f} m"
         else:
             message = f"lifted but touched only by {touching or 'no hand'}"
-        return PickOutcome(success, float(lift[-1]), min_hold, touching, duration, 0.0, message)
+        outcome = PickOutcome(success, float(lift[-1]), min_hold, touching, duration, 0.0, message)
+        outcome.object_rest_W = self.X_rest
+        return outcome
 
 
 class PlaceJudge(LiftJudge):

@@ -110,6 +110,7 @@ def main(argv=None) -> int:
             "commands": outcome.commands,
             "task": scenario.task,
             "place": outcome.place,
+            "perception": outcome.perception,
             "failed_stage": outcome.failed_stage,
             "sim_wall_s": outcome.wall_time_s,
             "message": outcome.message,

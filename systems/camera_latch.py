@@ -21,22 +21,27 @@ class CameraLatch(LeafSystem):
         - depth_image
         - camera_pose
         - trigger
+        - robot_position (optional)
         output_ports:
         - color_image
         - depth_image
         - camera_pose
         - frame_id
+        - robot_position
 
     ``trigger`` (1): the id of the frame wanted (a counter). ``frame_id`` (1): the id of the frame held
     (0 before the first). The image and pose outputs hold that frame (empty images before the first).
+    ``robot_position`` (14, rad): the arms' measured joint positions when the frame was taken (the robot
+    in view of the camera; zeros before the first, or where the input is not connected).
     """
 
-    def __init__(self, period_s: float = 0.01):
+    def __init__(self, period_s: float = 0.01, robot_positions: int = 14):
         super().__init__()
         self.DeclareAbstractInputPort("color_image", AbstractValue.Make(ImageRgba8U()))
         self.DeclareAbstractInputPort("depth_image", AbstractValue.Make(ImageDepth32F()))
         self.DeclareAbstractInputPort("camera_pose", AbstractValue.Make(RigidTransform()))
         self.DeclareVectorInputPort("trigger", 1)
+        self.DeclareVectorInputPort("robot_position", robot_positions)
         # (Separate states: Drake copies its own image and pose types natively.)
         self._frame_id = self.DeclareDiscreteState(1)
         self._held = {}
@@ -48,6 +53,8 @@ class CameraLatch(LeafSystem):
             self._held[name] = self.DeclareAbstractState(AbstractValue.Make(model))
             self.DeclareStateOutputPort(name, self._held[name])
         self.DeclareStateOutputPort("frame_id", self._frame_id)
+        self._robot_position = self.DeclareDiscreteState(robot_positions)
+        self.DeclareStateOutputPort("robot_position", self._robot_position)
         self.DeclarePeriodicUnrestrictedUpdateEvent(period_s, 0.0, self._update)
 
     def _update(self, context, state) -> EventStatus:
@@ -57,4 +64,7 @@ class CameraLatch(LeafSystem):
         for name, index in self._held.items():
             state.get_mutable_abstract_state(index).SetFrom(AbstractValue.Make(self.GetInputPort(name).Eval(context)))
         state.get_mutable_discrete_state(self._frame_id).set_value([wanted])
+        if self.GetInputPort("robot_position").HasValue(context):
+            robot = self.GetInputPort("robot_position").Eval(context)
+            state.get_mutable_discrete_state(self._robot_position).set_value(robot)
         return EventStatus.Succeeded()

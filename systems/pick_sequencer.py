@@ -7,8 +7,10 @@ played; a hand phase sends a HandCommand and, after closing, checks the measured
 A failure at any point leaves the arms holding where they are (the trajectory source holds the
 last played trajectory's end) and names the stage.
 
-Modes: waiting -> perceiving -> (the task's phases: reach, approach, close, lift, then hold, or carry,
-set_down, release, retreat) -> done, or failed.
+Modes: waiting -> perceiving -> (the task's phases: reach, approach, close, lift, then hold; or close,
+look, lift, carry, set_down, release, retreat) -> done, or failed. "look" perceives the object again once
+the hands hold it: a place starts from where the object is in the hands, not from where it was seen
+before the hands touched it.
 """
 
 import dataclasses
@@ -31,6 +33,7 @@ from systems.shape_registrar import GraspPoses
 
 STAGES = ("camera", "segmentation", "pose", "registration", "planning")
 CLOSE_S = 1.0  # s: the hands close over this long
+RELEASE = -1.0  # a Phase.hand_width: open to let go (see RELEASE_MARGIN)
 SETTLE_S = 0.5  # s: then the grip settles before it is checked
 # A hand whose measured opening is below this after closing holds nothing, m.
 MIN_GRASPED_WIDTH = 0.004
@@ -40,12 +43,14 @@ HOLD_S = 2.5  # s
 # The place task carries the object this high (its bottom clears an 8 cm box with room to spare); higher, the
 # arms are near the edge of their reach and cannot move it sideways, m.
 PLACE_LIFT_HEIGHT = 0.10
-# Opening that lets go of a set-down handle, m: wide enough to back off it, no wider (fingers opening all the
-# way turned the object by 4-11 degrees on the table; to 5 cm, 1-3 degrees in two ground-truth picks).
-RELEASE_WIDTH = 0.05
-# The place task sets the object down this far above the table (the estimated object frame can be a few
-# millimetres low in the hands; the rest is a short drop, not a push into the table), m.
-PLACE_CLEARANCE = 0.002
+# Letting go of a set-down object, the hands open this much wider than the widest handle they closed on, m:
+# enough to back off it, no wider (fingers opening all the way turned the object by 4-11 degrees on the
+# table). A fixed 5 cm opening left a hand that had closed on a 48 mm handle dragging the can away.
+RELEASE_MARGIN = 0.025
+# The place task sets the object down to this height above the table: a little into it, so that the object
+# rests on the table before the hands open (held 2 mm above it, the object dropped and turned by 2-4 degrees
+# when let go, and a hand still on its handle then dragged it; three drill picks), m.
+PLACE_CLEARANCE = -0.003
 
 
 @dataclass(frozen=True)
@@ -60,8 +65,9 @@ class Phase:
     # "held" moves to the place target (the sequencer's place_target_W): "carry" (over it, turned to its yaw, at
     # the object's height, the object kept clear of the scene) or "set_down" (straight down onto it).
     goal: str = ""
-    hand_width: float | None = None  # m
+    hand_width: float | None = None  # m; RELEASE: the widest grasp + RELEASE_MARGIN
     wait_s: float = 0.0
+    perceive: bool = False  # find the held object again (the object tracker; skipped with ground truth)
 
 
 def lift_task(lift_height: float = LIFT_HEIGHT) -> tuple[Phase, ...]:
@@ -77,10 +83,11 @@ def lift_task(lift_height: float = LIFT_HEIGHT) -> tuple[Phase, ...]:
 
 def place_task(lift_height: float = PLACE_LIFT_HEIGHT) -> tuple[Phase, ...]:
     """Beyond the paper: lift the object, carry it to the place target, set it down upright, let go, back off."""
-    return lift_task(lift_height)[:-1] + (
+    reach, approach, close, lift = lift_task(lift_height)[:4]
+    return (reach, approach, close, Phase("look", perceive=True), lift) + (
         Phase("carry", path="held", goal="carry"),
         Phase("set_down", path="held", goal="set_down"),
-        Phase("release", hand_width=RELEASE_WIDTH, wait_s=SETTLE_S),
+        Phase("release", hand_width=RELEASE, wait_s=SETTLE_S),
         Phase("retreat", path="straight", targets="retreat"),
     )
 
@@ -101,11 +108,15 @@ class PickStatus:
     request: PlanRequest = field(default_factory=PlanRequest)
     accounted_plan_id: int = -1  # the last plan whose times and deviations are recorded here
     hand: HandCommand = field(default_factory=lambda: HandCommand(OPEN_WIDTH, OPEN_WIDTH))
+    grasp_widths: tuple[float, ...] = ()  # each hand's measured opening once closed, m
     # Where the robot stands still: first measured, then where each played trajectory ends (14 joints, rad).
     plan_end_q: np.ndarray | None = None
-    # The object's pose as perceived (X_WO input), and where the held moves planned so far take it.
+    # The object's pose as perceived (X_WO input), and where the held moves planned so far (and a look) put it.
     object_seen_W: RigidTransform | None = None
     object_pose_W: RigidTransform | None = None
+    # A look at the object in the hands: the frame asked for, and where the object was believed to be then.
+    look_id: int = 0
+    look_from_W: RigidTransform = field(default_factory=RigidTransform)
     # Largest closure deviations over the held moves' played trajectories, m and rad (NaN: none yet).
     closure_translation_dev_m: float = math.nan
     closure_orientation_dev_rad: float = math.nan
@@ -141,10 +152,14 @@ class PickSequencer(LeafSystem):
         - grasp_poses
         - reconstructed_cloud_W (optional)
         - X_WO (optional)
+        - look_frame_id (optional)
+        - look (optional)
         output_ports:
         - trigger
         - plan_request
         - hand_command
+        - look_trigger
+        - expected_X_WO
         - status
 
     ``position_measured`` (14, rad); ``<side>_hand_state`` (2: opening m, rate m/s); ``plan`` (PlanResult);
@@ -152,7 +167,10 @@ class PickSequencer(LeafSystem):
     GraspPoses, N x 3 cloud); ``X_WO`` (RigidTransform: the object's estimated pose, which a place task's
     carry starts from). Without ``frame_id`` (a ground-truth source in place of perception) the
     sequencer starts planning at once. ``trigger`` (1): the camera frame wanted; ``plan_request``
-    (PlanRequest); ``hand_command`` (HandCommand); ``status`` (PickStatus).
+    (PlanRequest); ``hand_command`` (HandCommand); ``status`` (PickStatus). A "look" phase asks for a
+    second frame (``look_trigger`` (1), answered by ``look_frame_id`` (1)) and reads ``look`` (ObjectEstimate:
+    the object tracker's, told where to look by ``expected_X_WO`` (RigidTransform)); without them it is
+    skipped.
 
     Args:
         phases: the task (lift_task() or place_task()).
@@ -182,14 +200,20 @@ class PickSequencer(LeafSystem):
             ("grasp_poses", GraspPoses(False)),
             ("reconstructed_cloud_W", np.zeros((0, 3))),
             ("X_WO", RigidTransform()),
+            ("look", ObjectEstimate(False)),
         ):
             self.DeclareAbstractInputPort(name, AbstractValue.Make(model))
+        self.DeclareVectorInputPort("look_frame_id", 1)
         self._state = self.DeclareAbstractState(AbstractValue.Make(PickStatus()))
         status = {self.abstract_state_ticket(self._state)}
         self.DeclareVectorOutputPort("trigger", BasicVector(1), self._calc_trigger, status)
+        self.DeclareVectorOutputPort(
+            "look_trigger", BasicVector(1), lambda c, o: o.SetFromVector([self._status(c).look_id]), status
+        )
         for name, model, attribute in (
             ("plan_request", PlanRequest(), "request"),
             ("hand_command", HandCommand(), "hand"),
+            ("expected_X_WO", RigidTransform(), "look_from_W"),
         ):
             self.DeclareAbstractOutputPort(
                 name,
@@ -260,7 +284,27 @@ class PickSequencer(LeafSystem):
         status.reconstruction_W = self.GetInputPort("reconstructed_cloud_W").Eval(context)
         self._start_phase(context, status, 0, t)
 
+    def _look(self, context, status: PickStatus) -> bool:
+        """The "look" phase: once the asked-for frame is latched, reads where the tracker found the object in
+        the hands; the held moves start from there. If it did not, the pick goes on from where the object was
+        believed to be. Whether the look is over."""
+        if self.GetInputPort("look_frame_id").Eval(context)[0] < status.look_id:
+            return False
+        started = time.perf_counter()
+        look = self.GetInputPort("look").Eval(context)
+        status.stage_seconds["look"] = time.perf_counter() - started
+        logging.info("look: %s (%.3f s)", look.message, status.stage_seconds["look"])
+        if look.found:
+            status.object_pose_W = look.X_WO
+        else:
+            logging.warning("look: %s; going on from where the object was believed to be", look.message)
+        return True
+
+    def _can_look(self, context, status: PickStatus) -> bool:
+        return self.GetInputPort("look_frame_id").HasValue(context) and status.object_pose_W is not None
+
     def _object_seen(self, context, status: PickStatus):
+        """A ground-truth source is never perceived: its X_WO is read when the first motion is planned."""
         if status.object_seen_W is None and self.GetInputPort("X_WO").HasValue(context):
             status.object_seen_W = status.object_pose_W = self.GetInputPort("X_WO").Eval(context)
 
@@ -287,7 +331,12 @@ class PickSequencer(LeafSystem):
                 carried,
             )
         elif phase.hand_width is not None:
-            status.hand = HandCommand(phase.hand_width, status.hand.at(t), t, CLOSE_S)
+            width = phase.hand_width
+            if width == RELEASE:
+                width = min(OPEN_WIDTH, max(status.grasp_widths, default=OPEN_WIDTH) + RELEASE_MARGIN)
+            status.hand = HandCommand(width, status.hand.at(t), t, CLOSE_S)
+        elif phase.perceive and self._can_look(context, status):
+            status.look_id, status.look_from_W = status.look_id + 1, status.object_pose_W
 
     def _motion_to_place(self, goal: str, status: PickStatus) -> tuple[RigidTransform, RigidTransform | None]:
         """The held move of a "carry" or "set_down" phase from where the object is planned to be, and the
@@ -321,6 +370,9 @@ class PickSequencer(LeafSystem):
                 return False
             if phase.hand_width == CLOSED_WIDTH and not self._holding(context, status):
                 return True
+        elif phase.perceive and self._can_look(context, status):
+            if not self._look(context, status):
+                return False
         elif t + 1e-9 < status.phase_start_s + phase.wait_s:
             return False
         self._start_phase(context, status, status.phase_index + 1, t)
@@ -348,8 +400,9 @@ class PickSequencer(LeafSystem):
             )
 
     def _holding(self, context, status: PickStatus) -> bool:
-        for side in ("left", "right"):
-            width = self.GetInputPort(f"{side}_hand_state").Eval(context)[0]
+        status.grasp_widths = tuple(self.GetInputPort(f"{s}_hand_state").Eval(context)[0] for s in ("left", "right"))
+        for side, width in zip(("left", "right"), status.grasp_widths, strict=True):
+            logging.info("%s hand closed to %.1f mm", side, width * 1000)
             if width < MIN_GRASPED_WIDTH:
                 self._fail(status, "grasp", f"the {side} hand closed on nothing (opening {width * 1000:.1f} mm)")
                 return False
