@@ -8,9 +8,9 @@ A failure at any point leaves the arms holding where they are (the trajectory so
 last played trajectory's end) and names the stage.
 
 Modes: waiting -> perceiving -> (the task's phases: reach, approach, close, lift, then hold; or close,
-look, lift, carry, set_down, release, retreat) -> done, or failed. "look" perceives the object again once
-the hands hold it: a place starts from where the object is in the hands, not from where it was seen
-before the hands touched it.
+look, lift, carry, look_again, set_down, release, retreat) -> done, or failed. A look finds the held
+object again (the object tracker): a place moves the object from where it is in the hands, not from where
+it was seen before the hands touched it (closing turned cans by up to 21 degrees, the lift a few more).
 """
 
 import dataclasses
@@ -44,9 +44,10 @@ HOLD_S = 2.5  # s
 # arms are near the edge of their reach and cannot move it sideways, m.
 PLACE_LIFT_HEIGHT = 0.10
 # Letting go of a set-down object, the hands open this much wider than the widest handle they closed on, m:
-# enough to back off it, no wider (fingers opening all the way turned the object by 4-11 degrees on the
-# table). A fixed 5 cm opening left a hand that had closed on a 48 mm handle dragging the can away.
-RELEASE_MARGIN = 0.025
+# enough to back off it, no wider. In one can pick, set down within 1.1 deg: + 10 cm (fully open), the
+# fingers turned it by 7.9 deg; + 2.5 cm, hand and retreat by 4.2 deg; + 1.2 cm, by 1.2 deg. (A fixed 5 cm
+# opening left a hand that had closed on a 48 mm handle dragging the can away.)
+RELEASE_MARGIN = 0.012
 # The place task sets the object down to this height above the table: a little into it, so that the object
 # rests on the table before the hands open (held 2 mm above it, the object dropped and turned by 2-4 degrees
 # when let go, and a hand still on its handle then dragged it; three drill picks), m.
@@ -86,6 +87,7 @@ def place_task(lift_height: float = PLACE_LIFT_HEIGHT) -> tuple[Phase, ...]:
     reach, approach, close, lift = lift_task(lift_height)[:4]
     return (reach, approach, close, Phase("look", perceive=True), lift) + (
         Phase("carry", path="held", goal="carry"),
+        Phase("look_again", perceive=True),  # the object turns a few degrees in the hands as they move it
         Phase("set_down", path="held", goal="set_down"),
         Phase("release", hand_width=RELEASE, wait_s=SETTLE_S),
         Phase("retreat", path="straight", targets="retreat"),
@@ -345,9 +347,9 @@ class PickSequencer(LeafSystem):
         if goal == "carry":  # over the target, turned like it, at the height it is carried at
             over = RigidTransform(target.rotation(), [*target.translation()[:2], now.translation()[2]])
             return over @ now.inverse(), now @ status.object_seen_W.inverse()
-        # set_down: straight down, to PLACE_CLEARANCE above the table
-        drop = target.translation()[2] + PLACE_CLEARANCE - now.translation()[2]
-        return RigidTransform([0.0, 0.0, drop]), None
+        # set_down: onto the target, PLACE_CLEARANCE above the table (down, and what a look found still to turn)
+        down = RigidTransform(target.rotation(), target.translation() + [0.0, 0.0, PLACE_CLEARANCE])
+        return down @ now.inverse(), None
 
     def _follow_phase(self, context, status: PickStatus, t: float) -> bool:
         """Moves on when the phase is over (or fails it). Returns whether it changed anything."""
