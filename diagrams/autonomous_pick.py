@@ -101,7 +101,8 @@ def MakePickDiagram(
 
     measured = station.GetOutputPort("centauro.position_measured")
     if perception == "camera":
-        grasps, cloud, X_WO = _AddCameraPerception(builder, station, sequencer, scenario, motions.ik.stomp)
+        grasps, cloud, X_WO = _AddCameraPerception(builder, station, sequencer, scenario)
+        _AddLooks(builder, station, sequencer, scenario, motions.ik.stomp, cloud, X_WO)
     else:
         grasps, cloud, X_WO = _AddGroundTruth(builder, scenario)
     builder.Connect(X_WO, sequencer.GetInputPort("X_WO"))
@@ -123,17 +124,23 @@ def MakePickDiagram(
     return diagram
 
 
-def _AddCameraPerception(builder, station, sequencer, scenario, stomp):
-    """camera -> camera_latch -> segmenter -> pose_estimator -> [yaw noise] -> shape_registrar; the
-    sequencer triggers the latch and reads each stage's result. A second latch serves the sequencer's
-    looks at the held object: look_latch -> object_tracker (with robot_spheres, the arms where they stood
-    for that frame). Returns the registrar's grasp poses, reconstructed cloud and X_WO ports."""
+def _AddCameraLatch(builder, name: str, station, scenario, trigger, frame_id):
+    """A CameraLatch on the scenario's camera, taking a frame when `trigger` asks and telling `frame_id`."""
     camera = scenario.camera.name
-    latch = builder.AddNamedSystem("camera_latch", CameraLatch())
+    latch = builder.AddNamedSystem(name, CameraLatch())
     for port, source in (("color_image", "rgb_image"), ("depth_image", "depth_image"), ("camera_pose", "pose")):
         builder.Connect(station.GetOutputPort(f"{camera}.{source}"), latch.GetInputPort(port))
-    builder.Connect(sequencer.GetOutputPort("trigger"), latch.GetInputPort("trigger"))
-    builder.Connect(latch.GetOutputPort("frame_id"), sequencer.GetInputPort("frame_id"))
+    builder.Connect(trigger, latch.GetInputPort("trigger"))
+    builder.Connect(latch.GetOutputPort("frame_id"), frame_id)
+    return latch
+
+
+def _AddCameraPerception(builder, station, sequencer, scenario):
+    """camera -> camera_latch -> segmenter -> pose_estimator -> [yaw noise] -> shape_registrar; the
+    sequencer triggers the latch and reads each stage's result. Returns the registrar's grasp poses,
+    reconstructed cloud and X_WO ports."""
+    trigger, frame_id = sequencer.GetOutputPort("trigger"), sequencer.GetInputPort("frame_id")
+    latch = _AddCameraLatch(builder, "camera_latch", station, scenario, trigger, frame_id)
     segmenter, pose_estimator = AddPerception(
         builder, *(latch.GetOutputPort(p) for p in ("color_image", "depth_image", "camera_pose")), scenario
     )
@@ -149,14 +156,16 @@ def _AddCameraPerception(builder, station, sequencer, scenario, stomp):
     builder.Connect(pose_estimator.GetOutputPort("estimate"), sequencer.GetInputPort("estimate"))
     cloud = registrar.GetOutputPort("reconstructed_cloud_W")
     builder.Connect(cloud, sequencer.GetInputPort("reconstructed_cloud_W"))
-    X_WO = registrar.GetOutputPort("X_WO")
+    return registrar.GetOutputPort("grasp_poses"), cloud, registrar.GetOutputPort("X_WO")
 
-    look = builder.AddNamedSystem("look_latch", CameraLatch())
-    for port, source in (("color_image", "rgb_image"), ("depth_image", "depth_image"), ("camera_pose", "pose")):
-        builder.Connect(station.GetOutputPort(f"{camera}.{source}"), look.GetInputPort(port))
+
+def _AddLooks(builder, station, sequencer, scenario, stomp, model_cloud_W, model_X_WO):
+    """The sequencer's looks at the held object: look_latch (the frame and the arms' joints then) ->
+    robot_spheres -> object_tracker, which fits the first look's reconstruction (model_cloud_W, seen at
+    model_X_WO) near the sequencer's expected_X_WO."""
+    trigger, frame_id = sequencer.GetOutputPort("look_trigger"), sequencer.GetInputPort("look_frame_id")
+    look = _AddCameraLatch(builder, "look_latch", station, scenario, trigger, frame_id)
     builder.Connect(station.GetOutputPort("centauro.position_measured"), look.GetInputPort("robot_position"))
-    builder.Connect(sequencer.GetOutputPort("look_trigger"), look.GetInputPort("trigger"))
-    builder.Connect(look.GetOutputPort("frame_id"), sequencer.GetInputPort("look_frame_id"))
     robot = builder.AddNamedSystem("robot_spheres", RobotSpheres(stomp))
     builder.Connect(look.GetOutputPort("robot_position"), robot.GetInputPort("position"))
     tracker = builder.AddNamedSystem("object_tracker", MakeObjectTracker(scenario))
@@ -165,12 +174,11 @@ def _AddCameraPerception(builder, station, sequencer, scenario, stomp):
         ("camera_pose", look.GetOutputPort("camera_pose")),
         ("robot_spheres_W", robot.GetOutputPort("spheres_W")),
         ("expected_X_WO", sequencer.GetOutputPort("expected_X_WO")),
-        ("model_cloud_W", cloud),
-        ("model_X_WO", X_WO),
+        ("model_cloud_W", model_cloud_W),
+        ("model_X_WO", model_X_WO),
     ):
         builder.Connect(source, tracker.GetInputPort(port))
     builder.Connect(tracker.GetOutputPort("estimate"), sequencer.GetInputPort("look"))
-    return registrar.GetOutputPort("grasp_poses"), cloud, X_WO
 
 
 def _AddGroundTruth(builder, scenario):

@@ -108,21 +108,20 @@ class LiftJudge:
     def __init__(self, plant: MultibodyPlant, context):
         self.plant, self.plant_context = plant, plant.GetMyContextFromRoot(context)
         self.body = object_body(plant) if plant.HasModelInstanceNamed(OBJECT_INSTANCE) else None
-        self.z_rest, self.X_rest = None, None
+        self.X_rest = None  # the object's pose once it has settled
         self.heights = []
 
     def sample(self, t: float) -> float:
         """Records and returns the object origin's height at context time t (NaN without an object), m."""
         z = self.body.EvalPoseInWorld(self.plant_context).translation()[2] if self.body is not None else np.nan
-        if self.z_rest is None and t >= 0.4:
-            self.z_rest = z  # resting height, once the object has settled
-            self.X_rest = self.body.EvalPoseInWorld(self.plant_context) if self.body is not None else None
+        if self.X_rest is None and self.body is not None and t >= 0.4:
+            self.X_rest = self.body.EvalPoseInWorld(self.plant_context)
         self.heights.append((t, z))
         return z
 
     def outcome(self) -> PickOutcome:
         times, z = np.array(self.heights).T if self.heights else (np.zeros(1), np.full(1, np.nan))
-        lift = np.nan_to_num(z - (self.z_rest if self.z_rest is not None else z[0]))
+        lift = np.nan_to_num(z - (self.X_rest.translation()[2] if self.X_rest is not None else z[0]))
         duration = float(times[-1])
         final_window = times >= duration - HOLD_CHECK_S
         touching = hands_touching_object(self.plant, self.plant_context) if self.body is not None else []
@@ -144,7 +143,14 @@ class PlaceJudge(LiftJudge):
     PLACE_TOLERANCE_RAD of the target, let go by both hands, and never slipped more than DROP_SLIP_M in the
     hands while they held it (the modes `held_modes`, told by mode_of(context))."""
 
-    def __init__(self, plant, context, X_W_target, mode_of: Callable, held_modes=("lift", "carry", "set_down")):
+    def __init__(
+        self,
+        plant,
+        context,
+        X_W_target,
+        mode_of: Callable,
+        held_modes=("look", "lift", "carry", "look_again", "set_down"),
+    ):
         super().__init__(plant, context)
         self.context, self.X_W_target, self.mode_of, self.held_modes = context, X_W_target, mode_of, held_modes
         self.frames = [
@@ -167,10 +173,9 @@ class PlaceJudge(LiftJudge):
         if self.body is None:
             return outcome
         X_WO = self.body.EvalPoseInWorld(self.plant_context)
-        error = float(np.linalg.norm(X_WO.translation()[:2] - self.X_W_target.translation()[:2]))
-        R = self.X_W_target.rotation().inverse() @ X_WO.rotation()
+        off = pose_error(X_WO, self.X_W_target)
+        error, yaw_error = off["position_error_m"], off["yaw_error_rad"]
         tilt = float(np.arccos(np.clip(X_WO.rotation().matrix()[2, 2], -1.0, 1.0)))
-        yaw_error = abs(float(RollPitchYaw(R).yaw_angle()))
         resting = abs(X_WO.translation()[2] - self.X_W_target.translation()[2]) < 0.01
         dropped = self.max_slip > DROP_SLIP_M
         outcome.place = {"error_m": error, "yaw_error_rad": yaw_error, "tilt_rad": tilt,

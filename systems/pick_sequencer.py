@@ -33,7 +33,6 @@ from systems.shape_registrar import GraspPoses
 
 STAGES = ("camera", "segmentation", "pose", "registration", "planning")
 CLOSE_S = 1.0  # s: the hands close over this long
-RELEASE = -1.0  # a Phase.hand_width: open to let go (see RELEASE_MARGIN)
 SETTLE_S = 0.5  # s: then the grip settles before it is checked
 # A hand whose measured opening is below this after closing holds nothing, m.
 MIN_GRASPED_WIDTH = 0.004
@@ -66,7 +65,8 @@ class Phase:
     # "held" moves to the place target (the sequencer's place_target_W): "carry" (over it, turned to its yaw, at
     # the object's height, the object kept clear of the scene) or "set_down" (straight down onto it).
     goal: str = ""
-    hand_width: float | None = None  # m; RELEASE: the widest grasp + RELEASE_MARGIN
+    hand_width: float | None = None  # m
+    beyond_grasp: bool = False  # hand_width is an opening beyond the widest measured grasp (letting go)
     wait_s: float = 0.0
     perceive: bool = False  # find the held object again (the object tracker; skipped with ground truth)
 
@@ -89,7 +89,7 @@ def place_task(lift_height: float = PLACE_LIFT_HEIGHT) -> tuple[Phase, ...]:
         Phase("carry", path="held", goal="carry"),
         Phase("look_again", perceive=True),  # the object turns a few degrees in the hands as they move it
         Phase("set_down", path="held", goal="set_down"),
-        Phase("release", hand_width=RELEASE, wait_s=SETTLE_S),
+        Phase("release", hand_width=RELEASE_MARGIN, beyond_grasp=True, wait_s=SETTLE_S),
         Phase("retreat", path="straight", targets="retreat"),
     )
 
@@ -333,10 +333,8 @@ class PickSequencer(LeafSystem):
                 carried,
             )
         elif phase.hand_width is not None:
-            width = phase.hand_width
-            if width == RELEASE:
-                width = min(OPEN_WIDTH, max(status.grasp_widths, default=OPEN_WIDTH) + RELEASE_MARGIN)
-            status.hand = HandCommand(width, status.hand.at(t), t, CLOSE_S)
+            width = phase.hand_width + (max(status.grasp_widths, default=OPEN_WIDTH) if phase.beyond_grasp else 0.0)
+            status.hand = HandCommand(min(width, OPEN_WIDTH), status.hand.at(t), t, CLOSE_S)
         elif phase.perceive and self._can_look(context, status):
             status.look_id, status.look_from_W = status.look_id + 1, status.object_pose_W
 

@@ -141,12 +141,14 @@ def _rotation_2d(angle: float) -> np.ndarray:
     return np.array([[c, -s], [s, c]])
 
 
-def _fit_yaw_translation(points_W, yaw, xy, z, field: NearestPointField, iterations):
-    """Planar ICP (yaw about z, translation in x-y) of the observed points onto the template.
+def fit_yaw_translation(points_W, yaw, xy, z, field: NearestPointField, iterations, inlier_m: float = np.inf):
+    """Planar ICP (yaw about z, translation in x-y; the origin at height z) of the observed points onto the
+    template (`field`: its .points in O and .query(points in O) -> (distance, index)).
 
-    Every observed point counts: the spout and handles are few points, but they fix the yaw.
+    Every observed point within inlier_m of the template counts (by default all: the spout and handles are few
+    points, but they fix the yaw; the object tracker leaves out the fingers and strays around a held object).
 
-    Returns (yaw, xy, mean distance in metres).
+    Returns (yaw, xy, mean distance of all the points in metres).
     """
 
     def nearest(yaw, xy):
@@ -154,9 +156,12 @@ def _fit_yaw_translation(points_W, yaw, xy, z, field: NearestPointField, iterati
         return field.query(in_O)
 
     for _ in range(iterations):
-        _, index = nearest(yaw, xy)
+        distance, index = nearest(yaw, xy)
+        used = distance < inlier_m
+        if not used.any():
+            break
         # Best rotation + translation taking the matched template points (in O) to the observations (in W).
-        a, b = field.points[index, :2], points_W[:, :2]
+        a, b = field.points[index[used], :2], points_W[used, :2]
         a_mean, b_mean = a.mean(axis=0), b.mean(axis=0)
         H = (a - a_mean).T @ (b - b_mean)
         yaw = np.arctan2(H[0, 1] - H[1, 0], H[0, 0] + H[1, 1])
@@ -191,7 +196,7 @@ def estimate_pose(
     coarse = thinned[np.linspace(0, len(thinned) - 1, min(len(thinned), COARSE_POINTS)).astype(int)]
 
     def fit(points, yaw, xy, iterations):
-        yaw, xy, error = _fit_yaw_translation(points, yaw, xy, z, field, iterations)
+        yaw, xy, error = fit_yaw_translation(points, yaw, xy, z, field, iterations)
         if see_through is not None:
             X_WO = RigidTransform(RotationMatrix.MakeZRotation(yaw), [xy[0], xy[1], z])
             error += FREE_SPACE_WEIGHT * see_through(X_WO.multiply(template[::4].T).T)

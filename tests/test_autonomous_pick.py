@@ -189,10 +189,13 @@ def _connected(diagram, source, output, sink, input_):
     return diagram.connection_map().get((by_name[sink], in_.get_index())) == (by_name[source], out.get_index())
 
 
-def test_pick_diagram_is_the_cards_chain_of_stages(scenario):
-    diagram = MakePickDiagram(scenario)
-    for source, output, sink, input_ in CHAIN:
+def _assert_wired(diagram, connections):
+    for source, output, sink, input_ in connections:
         assert _connected(diagram, source, output, sink, input_), f"{source}.{output} -> {sink}.{input_}"
+
+
+def test_pick_diagram_is_the_cards_chain_of_stages(scenario):
+    _assert_wired(MakePickDiagram(scenario), CHAIN)
 
 
 def test_ground_truth_pick_is_the_same_diagram_with_a_ground_truth_source(scenario):
@@ -203,8 +206,7 @@ def test_ground_truth_pick_is_the_same_diagram_with_a_ground_truth_source(scenar
     perception |= {"look_latch", "robot_spheres", "object_tracker"}  # the place task's looks at the held object
     assert names - autonomous == {"ground_truth.grasp_poses", "ground_truth.object_cloud_W", "ground_truth.X_WO"}
     assert autonomous - names == perception
-    for source, output, sink, input_ in CHAIN[6:]:
-        assert _connected(oracle, source, output, sink, input_)
+    _assert_wired(oracle, CHAIN[6:])
     assert _connected(oracle, "ground_truth.grasp_poses", "y0", "stomp_planner", "grasp_poses")
 
 
@@ -311,9 +313,7 @@ LOOK = (
 
 
 def test_the_looks_at_the_held_object_have_their_own_latch_and_tracker(scenario):
-    diagram = MakePickDiagram(scenario)
-    for source, output, sink, input_ in LOOK:
-        assert _connected(diagram, source, output, sink, input_), f"{source}.{output} -> {sink}.{input_}"
+    _assert_wired(MakePickDiagram(scenario), LOOK)
 
 
 def test_robot_spheres_cover_the_arms_where_they_stand(scenario):

@@ -161,6 +161,7 @@ def test_camera_latch_holds_one_frame_until_asked_again():
     dut.GetInputPort("depth_image").FixValue(context, dut.GetInputPort("depth_image").Allocate())
     dut.GetInputPort("camera_pose").FixValue(context, AbstractValue.Make(RigidTransform([1.0, 2.0, 3.0])))
     dut.GetInputPort("trigger").FixValue(context, [0.0])
+    dut.GetInputPort("robot_position").FixValue(context, np.full(14, 0.5))
     simulator = Simulator(dut, context)
     simulator.AdvanceTo(0.1)
     assert dut.GetOutputPort("frame_id").Eval(context)[0] == 0
@@ -168,9 +169,11 @@ def test_camera_latch_holds_one_frame_until_asked_again():
     dut.GetInputPort("trigger").FixValue(context, [1.0])
     simulator.AdvanceTo(0.2)
     assert dut.GetOutputPort("frame_id").Eval(context)[0] == 1
-    show(20)  # the camera moves on; the latch does not
+    show(20)  # the camera and the robot move on; the latch does not
+    dut.GetInputPort("robot_position").FixValue(context, np.full(14, 0.7))
     simulator.AdvanceTo(0.3)
     assert np.all(np.asarray(dut.GetOutputPort("color_image").Eval(context).data) == 10)
+    np.testing.assert_array_equal(dut.GetOutputPort("robot_position").Eval(context), np.full(14, 0.5))
     np.testing.assert_allclose(dut.GetOutputPort("camera_pose").Eval(context).translation(), [1, 2, 3])
     dut.GetInputPort("trigger").FixValue(context, [2.0])
     simulator.AdvanceTo(0.4)
