@@ -8,9 +8,9 @@ the pose it was at), where it is believed to be now, and where the robot's own b
   * points: every depth pixel, back-projected to W, inside the reconstruction's box at the expected
     pose (grown by CROP_MARGIN) and above the table (SUPPORT_CLEARANCE over the expected origin), less
     the robot's body (its sphere model where the arms stood when the frame was taken, SELF_MARGIN wider).
-  * pose: the pose estimator's planar ICP (yaw about z, x-y; upright, at the expected height) of those
-    points onto the reconstruction, from the expected pose, over the points within INLIER_M of it
-    (fingers and stray pixels the spheres missed are not the object).
+  * pose: the pose estimator's planar ICP (yaw about z, x-y; at the expected height) of those points
+    onto the reconstruction, from the expected pose, over the points within INLIER_M of it (fingers and
+    stray pixels the spheres missed are not the object); the expected tilt is kept.
   * refused (found False, the reason said) when fewer than MIN_POINTS points remain, the fit is poorer
     than MAX_FIT_ERROR_M, or it moves the object more than MAX_CORRECTION_M / MAX_CORRECTION_RAD: a
     look that disagrees that much is not trusted over the first one.
@@ -60,15 +60,17 @@ class _ModelField:
 
 def track(points_W: np.ndarray, model_O: np.ndarray, X_WO_expected: RigidTransform) -> ObjectEstimate:
     """Planar ICP of observed points (N x 3 in W, already cropped) onto the model (M x 3 in O) from the
-    expected pose (upright, at its height); the refined X_WO, or why not."""
+    expected pose; the refined X_WO (turned about z and moved in x-y from the expected one), or why not."""
     if len(points_W) < MIN_POINTS:
         return ObjectEstimate(False, message=f"only {len(points_W)} points where the object was expected")
     points_W = voxel_thin(points_W)
     field = _ModelField(model_O)
     p = X_WO_expected.translation()
-    yaw = RollPitchYaw(X_WO_expected.rotation()).yaw_angle()
-    yaw, xy, _ = fit_yaw_translation(points_W, yaw, p[:2], p[2], field, ITERATIONS, INLIER_M)
-    X = RigidTransform(RotationMatrix.MakeZRotation(yaw), [*xy, p[2]])
+    expected_yaw = RollPitchYaw(X_WO_expected.rotation()).yaw_angle()
+    yaw, xy, _ = fit_yaw_translation(points_W, expected_yaw, p[:2], p[2], field, ITERATIONS, INLIER_M)
+    # The fit turns the expected pose about W's z (its tilt in the hands, which one view cannot tell, is kept).
+    turn = RotationMatrix.MakeZRotation(yaw - expected_yaw)
+    X = RigidTransform(turn @ X_WO_expected.rotation(), [*xy, p[2]])
     distance, _ = field.query(X.inverse().multiply(points_W.T).T)
     inlier = distance < INLIER_M
     if np.count_nonzero(inlier) < MIN_POINTS:

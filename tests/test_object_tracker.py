@@ -63,3 +63,19 @@ def test_points_on_the_robots_spheres_are_left_out():
     spheres = np.array([[0.0, 0.0, 0.0, 0.045]])  # radius 4.5 cm, +1 cm margin reaches the second point
     np.testing.assert_array_equal(off_the_robot(points, spheres), points[2:])
     np.testing.assert_array_equal(off_the_robot(points, np.zeros((0, 4))), points)
+
+
+def test_the_tilt_the_object_was_expected_at_is_kept(scene):
+    """One view from above cannot tell a few degrees of tilt in the hands: the look turns and moves the expected
+    pose about and along the table, and keeps its tilt (which a set-down then undoes)."""
+    _, model_O, _ = scene
+    X_expected = RigidTransform(RollPitchYaw(0.03, -0.04, 0.3), [0.7, 0.0, 0.86])
+    X_true = RigidTransform(RotationMatrix.MakeZRotation(np.radians(6.0))) @ X_expected
+    X_true.set_translation(X_expected.translation() + [0.01, -0.01, 0.0])
+    found = track(X_true.multiply(model_O.T).T, model_O, X_expected)
+    assert found.found, found.message
+    tilt = RollPitchYaw(found.X_WO.rotation()).vector()[:2]
+    np.testing.assert_allclose(tilt, RollPitchYaw(X_expected.rotation()).vector()[:2], atol=1e-9)
+    error = found.X_WO.inverse() @ X_true
+    assert np.linalg.norm(error.translation()[:2]) < 0.005  # (the fit itself is upright: 3.9 mm at 2.9 deg)
+    assert abs(RollPitchYaw(error.rotation()).yaw_angle()) < np.radians(1.0)
