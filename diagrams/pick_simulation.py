@@ -56,7 +56,8 @@ class PickOutcome:
     # and how many came more than two control periods after the one before ("late").
     commands: dict = field(default_factory=dict)
     # The place task's judgement: {"error_m": xy distance to the target, "yaw_error_rad", "tilt_rad": of the
-    # object's z axis from vertical, "max_slip_m": how far it moved in the hands while held, "dropped"}.
+    # object's z axis from vertical, "max_slip_m": how far it moved in the hands while held, "dropped", and
+    # "set_down_error_m", "set_down_yaw_error_rad": the same when the hands began to let go}.
     place: dict = field(default_factory=dict)
     # How far the perceived object pose was from the true one when the camera saw it: {"position_error_m": xy
     # distance, "yaw_error_rad"} (empty when the pick did not perceive).
@@ -157,10 +158,14 @@ class PlaceJudge(LiftJudge):
             plant.GetFrameByName("grasp_frame", plant.GetModelInstanceByName(n)) for n in HAND_INSTANCES.values()
         ]
         self.held_offset, self.max_slip = None, 0.0
+        self.X_set_down = None  # the object's pose when the hands began to let go
 
     def sample(self, t: float) -> float:
         z = super().sample(t)
-        if self.body is not None and self.mode_of(self.context) in self.held_modes:
+        mode = self.mode_of(self.context)
+        if self.body is not None and mode == "release" and self.X_set_down is None:
+            self.X_set_down = self.body.EvalPoseInWorld(self.plant_context)
+        if self.body is not None and mode in self.held_modes:
             between = np.mean([f.CalcPoseInWorld(self.plant_context).translation() for f in self.frames], axis=0)
             offset = self.body.EvalPoseInWorld(self.plant_context).translation() - between
             if self.held_offset is None:
@@ -180,6 +185,10 @@ class PlaceJudge(LiftJudge):
         dropped = self.max_slip > DROP_SLIP_M
         outcome.place = {"error_m": error, "yaw_error_rad": yaw_error, "tilt_rad": tilt,
                          "max_slip_m": self.max_slip, "dropped": dropped}  # fmt: skip
+        if self.X_set_down is not None:  # where the set-down left it, before letting go and backing off
+            set_down = pose_error(self.X_set_down, self.X_W_target)
+            outcome.place["set_down_error_m"] = set_down["position_error_m"]
+            outcome.place["set_down_yaw_error_rad"] = set_down["yaw_error_rad"]
         checks = {
             f"{error * 100:.1f} cm from the target": error <= PLACE_TOLERANCE_M,
             f"turned {np.degrees(yaw_error):.1f} deg from it": yaw_error <= PLACE_TOLERANCE_RAD,
