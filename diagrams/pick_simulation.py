@@ -142,7 +142,8 @@ class LiftJudge:
 class PlaceJudge(LiftJudge):
     """Judges the place task on ground truth: the object ends resting upright within PLACE_TOLERANCE_M and
     PLACE_TOLERANCE_RAD of the target, let go by both hands, and never slipped more than DROP_SLIP_M in the
-    hands while they held it (the modes `held_modes`, told by mode_of(context))."""
+    hands (its origin against the grasp frames' midpoint, in the left grasp frame) while they held it (the
+    modes `held_modes`, told by mode_of(context))."""
 
     def __init__(
         self,
@@ -166,8 +167,12 @@ class PlaceJudge(LiftJudge):
         if self.body is not None and mode == "release" and self.X_set_down is None:
             self.X_set_down = self.body.EvalPoseInWorld(self.plant_context)
         if self.body is not None and mode in self.held_modes:
-            between = np.mean([f.CalcPoseInWorld(self.plant_context).translation() for f in self.frames], axis=0)
-            offset = self.body.EvalPoseInWorld(self.plant_context).translation() - between
+            X_WG = [f.CalcPoseInWorld(self.plant_context) for f in self.frames]
+            between = np.mean([X.translation() for X in X_WG], axis=0)
+            # In the left grasp frame's axes: the hands tilting or turning with the object is not a slip.
+            offset = X_WG[0].rotation().inverse() @ (
+                self.body.EvalPoseInWorld(self.plant_context).translation() - between
+            )
             if self.held_offset is None:
                 self.held_offset = offset
             self.max_slip = max(self.max_slip, float(np.linalg.norm(offset - self.held_offset)))

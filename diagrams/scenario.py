@@ -103,7 +103,8 @@ class PlaceConfig:
 @dataclass
 class BoxObstacleConfig:
     """A box fixed on the table (e.g. between the object and the place target), known to the planner as the
-    table is."""
+    table is. It must not touch the object where it rests or where it is placed: see the layouts
+    place_over_box_<category>.yaml."""
 
     present: bool = False
     # Centre of its base in the table_top frame, m.
@@ -197,16 +198,29 @@ def load_scenario(filename: str | Path | None = None, scenario_text: str = "") -
     path = Path(filename) if filename else DEFAULT_SCENARIO
     if not path.is_file():
         raise FileNotFoundError(f"scenario file not found: {path}")
-    scenario = Scenario()
-    for source, text in ((str(path), path.read_text()), ("--scenario_text", scenario_text)):
-        if not text.strip():
-            continue
+    scenario = overlay_scenario(Scenario(), path.read_text(), str(path))
+    return overlay_scenario(scenario, scenario_text, "--scenario_text")
+
+
+def overlay_scenario(scenario: Scenario, text: str, source: str) -> Scenario:
+    """`scenario` with the fields the YAML `text` names replaced, validated.
+
+    Raises:
+        ValueError: the YAML does not match the Scenario schema or a field is out of range, naming `source`.
+    """
+    if text.strip():
         try:
             scenario = yaml_load_typed(data=text, defaults=scenario)
         except Exception as error:  # Drake raises RuntimeError; yaml raises its own.
             raise ValueError(f"invalid scenario in {source}: {error}") from error
     validate(scenario)
     return scenario
+
+
+def place_over_box_scenario(category: str) -> Path:
+    """The place-with-a-box layout of a category: object, target and a box between them on the table (the
+    carry goes over it), chosen where both arms reach every test instance at every evaluated yaw."""
+    return SCENARIO_DIR / f"place_over_box_{category}.yaml"
 
 
 def validate(scenario: Scenario) -> None:

@@ -36,7 +36,7 @@ from diagrams.evaluation import (
     run_trial,
     summarize,
 )
-from diagrams.scenario import DEFAULT_SCENARIO, load_scenario
+from diagrams.scenario import DEFAULT_SCENARIO, load_scenario, overlay_scenario, place_over_box_scenario
 
 # The paper's figures (Table II: the three test cans; Table III: the real robot's pipeline, s).
 PAPER_CAN_SUCCESS = {"test_0": 0.75, "test_1": 1.00, "test_2": 0.60}
@@ -71,7 +71,10 @@ def parse_args(argv=None):
         "--task", choices=("lift", "place"), default="lift", help="lift and hold (the paper), or carry and place"
     )
     parser.add_argument(
-        "--obstacle", action="store_true", help="with --task place: a box on the table between object and target"
+        "--obstacle",
+        action="store_true",
+        help="with --task place: the category's place_over_box layout (diagrams/place_over_box_<category>.yaml): "
+        "object, target and a box on the table between them",
     )
     parser.add_argument("--jobs", type=int, default=1, help="picks run at a time (separate processes)")
     parser.add_argument("--seed", type=int, help="seed of the first trial (trial n gets seed + n)")
@@ -233,10 +236,16 @@ def main(argv=None) -> int:
     logging.basicConfig(level=logging.WARNING, format="%(message)s")
     args = parse_args(argv)
     try:
-        base = load_scenario(args.scenario, args.scenario_text)
+        base = load_scenario(args.scenario)
+        if args.obstacle and args.task != "place":
+            raise ValueError("--obstacle needs --task place (the box lies between the object and the place target)")
+        if args.obstacle:  # the category's layout: where the object rests, the target and the box between
+            layout = place_over_box_scenario(args.category)
+            if not layout.is_file():
+                raise FileNotFoundError(f"--obstacle: no place-over-a-box layout for {args.category} ({layout})")
+            base = overlay_scenario(base, layout.read_text(), str(layout))
+        base = overlay_scenario(base, args.scenario_text, "--scenario_text")
         base = dataclasses.replace(base, task=args.task)
-        if args.obstacle:
-            base = dataclasses.replace(base, obstacle=dataclasses.replace(base.obstacle, present=True))
         if args.seed is not None:
             base = dataclasses.replace(base, random_seed=args.seed)
         if args.object_files:

@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from pydrake.common.value import AbstractValue
-from pydrake.math import RigidTransform
+from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 from pydrake.systems.framework import BasicVector, EventStatus, LeafSystem
 
 from systems.hand_command import HandCommand
@@ -39,8 +39,9 @@ MIN_GRASPED_WIDTH = 0.004
 LIFT_HEIGHT = 0.15  # m: aimed for
 MIN_LIFT_FRACTION = 0.8  # of it: near the edge of the arms' reach a lower lift will do (0.12 m)
 HOLD_S = 2.5  # s
-# The place task carries the object this high (its bottom clears an 8 cm box with room to spare); higher, the
-# arms are near the edge of their reach and cannot move it sideways, m.
+# The place task carries the object this high (its bottom clears the 6 cm boxes of the place_over_box layouts;
+# over an 8 cm box STOMP found no upright carry for a can); higher, the arms are near the edge of their reach
+# and cannot move it sideways, m.
 PLACE_LIFT_HEIGHT = 0.10
 # Letting go of a set-down object, the hands open this much wider than the widest handle they closed on, m:
 # enough to back off it, no wider. In one can pick, set down within 1.1 deg: + 10 cm (fully open), the
@@ -342,8 +343,11 @@ class PickSequencer(LeafSystem):
         """The held move of a "carry" or "set_down" phase from where the object is planned to be, and the
         object's motion since it was seen (the carry keeps it clear of the scene)."""
         now, target = status.object_pose_W, self.place_target_W
-        if goal == "carry":  # over the target, turned like it, at the height it is carried at
-            over = RigidTransform(target.rotation(), [*target.translation()[:2], now.translation()[2]])
+        if goal == "carry":  # over the target, turned about the vertical to its yaw, at the height it is carried at
+            turn = RollPitchYaw(target.rotation()).yaw_angle() - RollPitchYaw(now.rotation()).yaw_angle()
+            over = RigidTransform(
+                RotationMatrix.MakeZRotation(turn) @ now.rotation(), [*target.translation()[:2], now.translation()[2]]
+            )
             return over @ now.inverse(), now @ status.object_seen_W.inverse()
         # set_down: onto the target, PLACE_CLEARANCE above the table (down, and what a look found still to turn)
         down = RigidTransform(target.rotation(), target.translation() + [0.0, 0.0, PLACE_CLEARANCE])

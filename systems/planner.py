@@ -20,7 +20,6 @@ from pydrake.trajectories import PiecewisePolynomial
 
 from systems.planning.ik import SIDES
 from systems.planning.pick_motions import (
-    HELD_SEGMENT_S,
     SPARSE_SEGMENT_S,
     STOMP_SEGMENT_S,
     PickMotions,
@@ -161,7 +160,8 @@ class StompPlanner(LeafSystem):
                     cloud = self.GetInputPort("obstacle_cloud_W").Eval(context)
                     carried = request.carried_motion_W.multiply(cloud.T).T if len(cloud) else None
                 held = motions.held_move(request.q_start, request.X_motion_W, request.min_fraction, carried)
-                keyframes, min_segment = held.keyframes, HELD_SEGMENT_S
+                keyframes = held.keyframes
+                min_segment = motions.held_segment_durations(keyframes)
                 start, end = (motions.ik.grasp_frame_poses(q)["left"] for q in (keyframes[0], keyframes[-1]))
                 result.achieved_motion_W = end @ start.inverse()
             else:

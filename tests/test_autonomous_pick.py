@@ -16,7 +16,7 @@ from pydrake.trajectories import PiecewisePolynomial
 
 from diagrams.autonomous_pick import PERCEIVE_AT_S, MakePickDiagram, draw_perception, run_pick
 from diagrams.paths import REPO_ROOT
-from diagrams.scenario import PlaceConfig, replace_object
+from diagrams.scenario import PlaceConfig, load_scenario, place_over_box_scenario, replace_object
 from systems.pick_sequencer import PickSequencer, PickStatus, lift_task
 from systems.planner import PlanResult
 from systems.planning.pick_motions import CLOSED_WIDTH
@@ -235,6 +235,16 @@ def test_ground_truth_place_sets_the_object_down_upright_on_the_target(scenario)
     assert (
         0 <= outcome.closure["max_translation_dev_m"] < 0.01 and 0 <= outcome.closure["max_orientation_dev_rad"] < 0.05
     )
+
+
+def test_ground_truth_place_carries_a_drill_over_the_box_between(scenario):
+    """The drill's place-over-a-box layout: carried 17.5 cm over a 6 cm board that lies between where it rests
+    and the target (touching neither); set down upright within the tolerance, never dropped."""
+    layout = load_scenario(place_over_box_scenario("drill"))
+    outcome = run_pick(replace_object(layout, instance="test_2", yaw=-0.25), perception="ground_truth")
+    assert outcome.success, outcome.message
+    assert not outcome.place["dropped"] and outcome.place["max_slip_m"] < 0.02
+    assert outcome.closure["max_translation_dev_m"] < 0.01 and outcome.closure["max_orientation_dev_rad"] < 0.05
 
 
 def test_autonomous_place_corrects_what_the_hands_turned_the_can_by(scenario):

@@ -12,12 +12,14 @@ from diagrams.station import object_pose_on_table
 from systems.planning.closure import (
     ClosureConstraint,
     OrientationConstraint,
+    orientation_deviations,
     rotation_angle,
     rpy_of,
     threshold_cost,
+    tilt_angle,
     transition_costs,
 )
-from systems.planning.pick_motions import PickMotions, time_parameterise
+from systems.planning.pick_motions import HELD_SPEED_M_S, HELD_TURN_SPEED_RAD_S, PickMotions, time_parameterise
 from systems.planning.stomp import Obstacles
 
 
@@ -124,3 +126,38 @@ def test_held_move_is_played_within_the_closure_constraint_densely(lift_problem,
     times = np.arange(trajectory.start_time(), trajectory.end_time(), 0.01)
     q = np.array([trajectory.value(t).ravel() for t in times])
     assert np.all(q >= motions.ik.lower - 1e-9) and np.all(q <= motions.ik.upper + 1e-9)
+
+
+def test_tilt_angle_ignores_turns_about_the_vertical_only():
+    R0 = RollPitchYaw(0.3, -0.2, 0.5).ToRotationMatrix()
+    turned = RotationMatrix.MakeZRotation(0.7) @ R0
+    tipped = RotationMatrix.MakeXRotation(0.1) @ R0
+    angles = tilt_angle(np.stack([turned.matrix(), tipped.matrix()]), R0.matrix())
+    np.testing.assert_allclose(angles, [0.0, 0.1], atol=1e-9)
+    assert rotation_angle(turned.matrix()[None], R0.matrix())[0] == pytest.approx(0.7)
+
+
+def test_carry_that_turns_the_object_keeps_the_hands_upright_and_slow(lift_problem, scenario):
+    """A held move 15 cm sideways, turning the object 0.3 rad about the vertical: the hands turn with it but do
+    not tip (the upright-only orientation constraint), and the played trajectory moves them no faster than
+    the held-object speeds."""
+    ik, _, q_lift, _ = lift_problem
+    motions = PickMotions(make_dual_arm_ik(scenario))
+    X_WG = ik.grasp_frame_poses(q_lift)["left"]
+    turn = RotationMatrix.MakeZRotation(0.3)
+    about_hand = RigidTransform(X_WG.translation()) @ RigidTransform(turn) @ RigidTransform(-X_WG.translation())
+    held = motions.held_move(q_lift, RigidTransform([0.0, -0.15, 0.0]) @ about_hand)
+    durations = motions.held_segment_durations(held.keyframes)
+    trajectory = time_parameterise(held.keyframes, motions.ik.velocity_limits, 0.0, durations)
+    q = np.array([trajectory.value(t).ravel() for t in np.arange(0.0, trajectory.end_time(), 0.01)])
+    end_effectors = motions.ik.stomp.end_effectors
+    R_start = [X[0, :3, :3] for X in end_effectors.poses(q[:1])]
+    assert orientation_deviations(end_effectors, q, R_start, upright_only=True).max() < motions.orientation.o_max
+    turned = rotation_angle(end_effectors.poses(q[-1:])[0][:, :3, :3], R_start[0])[0]
+    assert turned == pytest.approx(0.3, abs=0.05)
+    t_dev, o_dev = motions.closure_deviations(trajectory, held)
+    assert t_dev < motions.closure.t_max and o_dev < motions.closure.o_max
+    for X in end_effectors.poses(held.keyframes):
+        moved = np.linalg.norm(np.diff(X[:, :3, 3], axis=0), axis=1)
+        assert np.all(durations >= moved / HELD_SPEED_M_S - 1e-9)
+    assert durations.sum() >= 0.15 / HELD_SPEED_M_S and 0.3 / HELD_TURN_SPEED_RAD_S <= durations.sum()

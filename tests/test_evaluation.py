@@ -123,3 +123,8 @@ def test_evaluate_script_end_to_end(tmp_path, capsys):
     assert "Table II form" in printed and "complete pipeline" in printed
     png = report.with_suffix(".png").read_bytes()
     assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 10_000
+
+
+def test_evaluate_refuses_a_box_without_the_place_task(capsys):
+    assert evaluate.main(["--obstacle", "--trials", "1"]) == 2
+    assert "--obstacle needs --task place" in capsys.readouterr().err

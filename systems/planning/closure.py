@@ -69,13 +69,28 @@ def transition_costs(t_dev: np.ndarray, o_dev: np.ndarray, constraint: ClosureCo
 
 @dataclass
 class OrientationConstraint:
-    """STOMP-New's end-effector orientation constraint: both hands keep their world orientation from theta_0."""
+    """STOMP-New's end-effector orientation constraint: both hands keep their world orientation from theta_0.
+    With upright_only, only their tilt is kept (the world's vertical as seen from each hand): the hands, and
+    the object they hold, may turn about the vertical but do not tip (a carry that turns the object)."""
 
     o_max: float = 0.05  # rad
     C: float = 1000.0
+    upright_only: bool = False
 
 
-def orientation_deviations(end_effectors: EndEffectors, q: np.ndarray, R_desired) -> np.ndarray:
-    """Largest roll/pitch/yaw deviation (rad) of either hand from its desired world orientation, per configuration."""
+def orientation_deviations(
+    end_effectors: EndEffectors, q: np.ndarray, R_desired, upright_only: bool = False
+) -> np.ndarray:
+    """Largest deviation (rad) of either hand from its desired world orientation (the rotation's angle), or with
+    upright_only the angle between the vertical seen from the hand and from R_desired, per configuration."""
     poses = end_effectors.poses(q)
+    if upright_only:
+        return np.max([tilt_angle(X[:, :3, :3], R) for X, R in zip(poses, R_desired, strict=True)], axis=0)
     return np.max([rotation_angle(X[:, :3, :3], R) for X, R in zip(poses, R_desired, strict=True)], axis=0)
+
+
+def tilt_angle(R: np.ndarray, R_desired: np.ndarray) -> np.ndarray:
+    """The angle (rad) between the world z axis seen in each of R (B x 3 x 3) and in R_desired: R's tilt away
+    from R_desired, whatever it turned about the vertical."""
+    cosine = R[:, 2, :] @ R_desired[2, :]  # (R^T e_z) . (R_desired^T e_z)
+    return np.arccos(np.clip(cosine, -1.0, 1.0))

@@ -37,6 +37,11 @@ MAX_STRAIGHT_STEP = 0.6  # rad: the most a joint may turn between two keyframes 
 SPARSE_SEGMENT_S = 0.8
 STOMP_SEGMENT_S = 0.1
 HELD_SEGMENT_S = 0.25  # s: a held object is moved gently (the grip is friction only)
+# A held object's grasp frames move at most this fast (m/s) and turn at most this fast (rad/s) between keyframes.
+# Faster, the grip (friction only) lets it swing: carried 30 cm sideways in 1.2 s (up to 0.4 m/s), a can swung
+# 18 deg about its handle grasp.
+HELD_SPEED_M_S = 0.1
+HELD_TURN_SPEED_RAD_S = 0.3
 # The held move's configurations: the left hand within this of its moved pose (m; rad below), the right one
 # held at its start pose relative to the left by solve_held's closure tolerances.
 HELD_GOAL_POSITION_TOLERANCE = 0.001
@@ -165,21 +170,30 @@ class PickMotions:
         # Project onto the closure manifold alone: the goal keeps its own orientation (a carry may turn the
         # object; a lift at the edge of reach may tilt it).
         q_goal = stomp.project(path[-1], X_E1E2, None, steps=PROJECTION_STEPS)[0]
+        # The hands keep their world orientation along a translation, and their tilt along a motion that turns
+        # the object about the vertical (a carry, a set-down that corrects its yaw): it does not tip on the way.
         R_motion = X_motion_W.rotation().matrix()
-        tilt = max(orientation_deviations(stomp.end_effectors, q_goal[None], [R_motion @ R for R in R_WE]))
-        keep_orientation = np.allclose(R_motion, np.eye(3)) and tilt < 0.5 * self.orientation.o_max
+        orientation = None
+        if np.allclose(R_motion, np.eye(3)):
+            orientation = self.orientation
+        elif R_motion[2, 2] > 1.0 - 1e-9:
+            orientation = OrientationConstraint(self.orientation.o_max, self.orientation.C, upright_only=True)
+        if orientation is not None:
+            R_goal = [R_motion @ R for R in R_WE]
+            tilt = orientation_deviations(stomp.end_effectors, q_goal[None], R_goal, orientation.upright_only)
+            if tilt.max() >= 0.5 * orientation.o_max:  # the goal itself tilts (the edge of reach): no constraint
+                orientation = None
         scene = ik.table_obstacles
         if carried_points_W is not None and len(carried_points_W):
             scene = scene.carrying(self._carried(q_start, carried_points_W))
         path[-1] = q_goal
-        result = stomp.plan(
-            q_start, q_goal, scene, self.closure, self.orientation if keep_orientation else None, initial_path=path
-        )
+        result = stomp.plan(q_start, q_goal, scene, self.closure, orientation, initial_path=path)
         if not result.success:
             raise PlanningError(f"STOMP: {result.message}")
+        kept = "off" if orientation is None else "upright" if orientation.upright_only else "on"
         logging.info(
             "held move: %.0f %% of the motion, hands within %.2f rad (orientation constraint %s); STOMP %d iterations, "
-            "%.2f s", 100 * fraction, tolerance, "on" if keep_orientation else "off", result.iterations, result.seconds
+            "%.2f s", 100 * fraction, tolerance, kept, result.iterations, result.seconds
         )  # fmt: skip
         return HeldMove(result.trajectory, X_E1E2)
 
@@ -241,6 +255,17 @@ class PickMotions:
         points_B = (points - X_WB[:3, 3]) @ X_WB[:3, :3]
         return CarriedPoints(slot, points_B, CARRIED_RADIUS)
 
+    def held_segment_durations(self, keyframes: np.ndarray) -> np.ndarray:
+        """Shortest duration of each segment of a held move (K - 1 values, s): HELD_SEGMENT_S, or longer where
+        a grasp frame moves more than HELD_SPEED_M_S or turns more than HELD_TURN_SPEED_RAD_S would allow."""
+        durations = np.full(len(keyframes) - 1, HELD_SEGMENT_S)
+        for X in self.ik.stomp.end_effectors.poses(np.asarray(keyframes)):
+            moved = np.linalg.norm(np.diff(X[:, :3, 3], axis=0), axis=1)
+            R_step = np.einsum("kji,kjl->kil", X[:-1, :3, :3], X[1:, :3, :3])  # R_k^T R_k+1
+            turned = np.arccos(np.clip((np.trace(R_step, axis1=1, axis2=2) - 1.0) / 2.0, -1.0, 1.0))
+            durations = np.maximum(durations, np.maximum(moved / HELD_SPEED_M_S, turned / HELD_TURN_SPEED_RAD_S))
+        return durations
+
     def closure_deviations(self, trajectory: PiecewisePolynomial, held: HeldMove) -> tuple[float, float]:
         """Largest (translation m, orientation rad) deviation of the hands' relative pose from the held
         one along the played trajectory, checked every DENSE_CHECK_S."""
@@ -251,12 +276,16 @@ class PickMotions:
 
 
 def time_parameterise(
-    keyframes: np.ndarray, velocity_limits: np.ndarray, start_time: float, min_segment_s: float
+    keyframes: np.ndarray, velocity_limits: np.ndarray, start_time: float, min_segment_s: float | np.ndarray
 ) -> PiecewisePolynomial:
     """A shape-preserving cubic through the keyframes (no overshoot: it stays within their range),
-    each segment long enough to move at SPEED_FRACTION of the velocity limits (at least min_segment_s),
-    at rest at both ends."""
-    durations = [move_duration(a, b, velocity_limits, min_segment_s) for a, b in itertools.pairwise(keyframes)]
+    each segment long enough to move at SPEED_FRACTION of the velocity limits (at least min_segment_s: one
+    value, or one per segment), at rest at both ends."""
+    shortest = np.broadcast_to(np.asarray(min_segment_s, float), (len(keyframes) - 1,))
+    durations = [
+        move_duration(a, b, velocity_limits, m)
+        for (a, b), m in zip(itertools.pairwise(keyframes), shortest, strict=True)
+    ]
     times = start_time + np.concatenate([[0.0], np.cumsum(durations)])
     return PiecewisePolynomial.CubicShapePreserving(times, np.asarray(keyframes).T, zero_end_point_derivatives=True)
 

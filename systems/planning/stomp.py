@@ -284,7 +284,9 @@ class Stomp:
         if orientation is not None:
             constraint, R_desired = orientation
             states = self._transition_states(trajectories)
-            o_dev = orientation_deviations(self.end_effectors, states.reshape(-1, 14), R_desired)
+            o_dev = orientation_deviations(
+                self.end_effectors, states.reshape(-1, 14), R_desired, constraint.upright_only
+            )
             q_o = threshold_cost(o_dev.reshape(states.shape[:-1]), constraint.o_max, constraint.C)
             costs[:, 1:] += q_o.max(axis=-1)
         return costs
@@ -300,18 +302,24 @@ class Stomp:
         t_dev, o_dev = deviations(self.end_effectors, states.reshape(-1, 14), X_desired)
         return t_dev.reshape(states.shape[:-1]), o_dev.reshape(states.shape[:-1])
 
-    def _project(self, theta: np.ndarray, X_desired: np.ndarray | None, R_desired=None) -> np.ndarray:
+    def _project(self, theta: np.ndarray, X_desired: np.ndarray | None, R_desired=None, upright_only=False):
         """`theta` with its interior keyframes projected (start and goal stay fixed)."""
         theta = theta.copy()
-        theta[1:-1] = self.project(theta[1:-1], X_desired, R_desired)
+        theta[1:-1] = self.project(theta[1:-1], X_desired, R_desired, upright_only=upright_only)
         return theta
 
     def project(
-        self, q: np.ndarray, X_desired: np.ndarray | None, R_desired=None, steps: int | None = None
+        self,
+        q: np.ndarray,
+        X_desired: np.ndarray | None,
+        R_desired=None,
+        steps: int | None = None,
+        upright_only: bool = False,
     ) -> np.ndarray:
         """Configurations (B x 14) moved back towards the desired relative hand pose X_E1E2 (X_desired)
-        and/or the hands' desired world orientations (R_desired): the smallest joint change, `steps`
-        (default config.projection_steps) damped Gauss-Newton steps with a finite-difference Jacobian."""
+        and/or the hands' desired world orientations (R_desired; with upright_only their tilt only): the smallest
+        joint change, `steps` (default config.projection_steps) damped Gauss-Newton steps with a
+        finite-difference Jacobian."""
 
         def error_of(q):
             parts = []
@@ -319,7 +327,8 @@ class Stomp:
                 parts.append(self._closure_error(q, X_desired))
             if R_desired is not None:
                 for X, R in zip(self.end_effectors.poses(q), R_desired, strict=True):
-                    parts.append(_rotation_error(R, X[:, :3, :3]))
+                    # The vertical seen from the hand, against the desired one; or the whole rotation.
+                    parts.append(X[:, 2, :3] - R[2] if upright_only else _rotation_error(R, X[:, :3, :3]))
             return np.concatenate(parts, axis=1)
 
         q = np.atleast_2d(q).copy()
@@ -345,7 +354,7 @@ class Stomp:
         """Whether both hands stay within o_max of their desired orientations densely; also the largest deviation."""
         constraint, R_desired = orientation
         states = interpolate_segments(theta, steps)
-        worst = float(orientation_deviations(self.end_effectors, states, R_desired).max())
+        worst = float(orientation_deviations(self.end_effectors, states, R_desired, constraint.upright_only).max())
         return worst < constraint.o_max, worst
 
     def closure_within_limits(self, theta: np.ndarray, closure, steps: int = 10) -> tuple[bool, float, float]:
@@ -370,7 +379,8 @@ class Stomp:
             initial_path: configurations (K x 14, from q_start to q_goal) the first trajectory follows,
                 resampled to the keyframes by path length; default the straight joint-space line.
             closure_constraint: keep the hands' relative pose as at q_start (both hands hold an object).
-            orientation_constraint: keep both hands' world orientations as at q_start.
+            orientation_constraint: keep both hands' world orientations (or with upright_only their tilt) as at
+                q_start.
         """
         config = self.config
         rng = np.random.default_rng(config.seed)
@@ -398,9 +408,10 @@ class Stomp:
             orientation = (orientation_constraint, [X[0, :3, :3] for X in self.end_effectors.poses(q_start[None])])
         X_desired = closure[1] if closure else None
         R_desired = orientation[1] if orientation else None
+        upright_only = orientation_constraint is not None and orientation_constraint.upright_only
         constrained = closure is not None or orientation is not None
         if constrained:
-            theta = self._project(theta, X_desired, R_desired)
+            theta = self._project(theta, X_desired, R_desired, upright_only)
         feasible, clearance = self._feasible(theta, obstacles, closure, orientation)
         if feasible:  # the first trajectory is already a solution: nothing to optimise (0 iterations)
             elapsed = time.perf_counter() - start
@@ -427,7 +438,7 @@ class Stomp:
             theta[1:-1] += self.smoothing @ delta
             np.clip(theta, self.lower, self.upper, out=theta)
             if constrained:
-                theta = self._project(theta, X_desired, R_desired)
+                theta = self._project(theta, X_desired, R_desired, upright_only)
             best = np.argsort(all_costs.sum(axis=1))[: config.reused_rollouts]
             kept, kept_costs = all_rollouts[best], all_costs[best]
             std *= config.noise_decay
