@@ -50,12 +50,16 @@ def _prepare_real_time():
         logging.info("the command stream runs at normal priority")
 
 
-def _read(shared: np.ndarray) -> np.ndarray:
-    while True:
+def _read(shared: np.ndarray, previous: np.ndarray | None, attempts: int = 3) -> np.ndarray | None:
+    """A consistent copy of the shared command, or `previous` when the writer is in the middle of writing.
+    Never waits for the writer: it runs at normal priority and may be preempted mid-write for tens of
+    milliseconds, and a real-time reader spinning on it would stop the stream that long."""
+    for _ in range(attempts):
         version = shared[_VERSION]
         values = shared.copy()
         if version % 2 == 0 and shared[_VERSION] == version:
             return values
+    return previous
 
 
 def stream(lcm_url: str, channel: str, joints: int, period_s: float, memory_name: str, parent: int):
@@ -72,7 +76,7 @@ def stream(lcm_url: str, channel: str, joints: int, period_s: float, memory_name
     lcm = DrakeLcm(lcm_url)
     message = lcmt_iiwa_command()
     message.num_joints, message.num_torques, message.joint_torque = joints, 0, []
-    deadline, last_send = time.monotonic(), None
+    deadline, last_send, values = time.monotonic(), None, None
     while shared[_STOP] == 0 and os.getppid() == parent:
         deadline += period_s
         delay = deadline - time.monotonic()
@@ -80,8 +84,8 @@ def stream(lcm_url: str, channel: str, joints: int, period_s: float, memory_name
             time.sleep(delay)
         else:  # late (the machine is loaded): send now and keep the period from here
             deadline = time.monotonic()
-        values = _read(shared)
-        if values[_VERSION] == 0:
+        values = _read(shared, values)
+        if values is None or values[_VERSION] == 0:
             continue  # no command yet: the guard has had no status from the robot
         message.utime = int(values[_UTIME])
         message.joint_position = list(values[_Q : _Q + joints])

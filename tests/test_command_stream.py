@@ -68,3 +68,17 @@ def test_stream_benchmark_reports_idle_and_loaded_runs(tmp_path):
     assert [run["busy_processes"] for run in runs] == [0, 1]
     for run in runs:  # the streamer needs about 0.5 s to start; then it sends every 5 ms
         assert 100 < run["sent"] <= 1.5 / PERIOD_S + 1 and run["max_gap_s"] >= PERIOD_S * 0.9
+
+
+def test_the_streamer_never_waits_for_a_writer_caught_mid_write():
+    """A writer preempted between its two version increments (odd version) must not hold the real-time reader:
+    it sends the last consistent command again."""
+    from systems.command_stream import _Q, _VERSION, _read
+
+    shared = np.zeros(_Q + 14)
+    shared[_VERSION], shared[_Q:] = 2.0, 1.0
+    first = _read(shared, None)
+    np.testing.assert_array_equal(first[_Q:], np.ones(14))
+    shared[_VERSION], shared[_Q:] = 3.0, 7.0  # mid-write
+    np.testing.assert_array_equal(_read(shared, first)[_Q:], np.ones(14))
+    assert _read(shared, None) is None  # nothing consistent yet: nothing to send

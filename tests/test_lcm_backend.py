@@ -274,10 +274,10 @@ def test_pick_with_a_spawned_driver_lifts_the_object(tmp_path):
     assert done.returncode == 0 and result["success"], done.stdout[-3000:] + done.stderr[-3000:]
     assert result["lift_height_m"] >= 0.10 and result["backend"] == "lcm"
     # The arm commands never stalled while the pick perceived and planned (0.3-3 s of compute; a 2.41 s gap
-    # before the stream): nearly every send came within two control periods of the one before. The rare
-    # exception on this 2-core VM is a late wake-up of the streamer (up to 105 ms seen in four picks),
-    # so the test allows a few, and no gap as long as the watchdog period, let alone a perceiving or planning
-    # time.
-    commands, hardware = result["commands"], load_scenario().hardware
-    assert commands["sent"] > 1000 and commands["late"] <= 0.005 * commands["sent"]
-    assert commands["max_gap_s"] < hardware.watchdog_s
+    # before the stream, then up to 105 ms while the real-time streamer waited for a preempted writer): every
+    # send within two control periods of the one before in 13 of 14 picks on this 2-core VM, the other one
+    # send 10.6 ms after the last (the VM alone wakes a lone real-time loop up to 27 ms late under load:
+    # scripts/benchmark_command_stream.py). So: at most two late sends, none later than four periods.
+    commands, period = result["commands"], load_scenario().hardware.control_period_s
+    assert commands["sent"] > 1000 and commands["late"] <= 2
+    assert commands["max_gap_s"] <= 4 * period
