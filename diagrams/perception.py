@@ -27,18 +27,22 @@ def category_priors() -> dict[str, CategoryPrior]:
     }
 
 
-def MakePoseEstimator(scenario: Scenario) -> PoseEstimator:
-    """A PoseEstimator with the intrinsics and mounting of the scenario's depth camera and the catalog's priors."""
+def _depth_camera(scenario: Scenario):
+    """(intrinsics, X_BC: the depth sensor in the camera body) of the scenario's depth camera."""
     _, depth_camera = scenario.camera.MakeCameras()
     core = depth_camera.core()
-    return PoseEstimator(core.intrinsics(), category_priors(), core.sensor_pose_in_camera_body())
+    return core.intrinsics(), core.sensor_pose_in_camera_body()
+
+
+def MakePoseEstimator(scenario: Scenario) -> PoseEstimator:
+    """A PoseEstimator with the intrinsics and mounting of the scenario's depth camera and the catalog's priors."""
+    intrinsics, X_BC = _depth_camera(scenario)
+    return PoseEstimator(intrinsics, category_priors(), X_BC)
 
 
 def MakeObjectTracker(scenario: Scenario) -> ObjectTracker:
     """An ObjectTracker with the intrinsics and mounting of the scenario's depth camera."""
-    _, depth_camera = scenario.camera.MakeCameras()
-    core = depth_camera.core()
-    return ObjectTracker(core.intrinsics(), core.sensor_pose_in_camera_body())
+    return ObjectTracker(*_depth_camera(scenario))
 
 
 def AddPerception(

@@ -219,8 +219,15 @@ def overlay_scenario(scenario: Scenario, text: str, source: str) -> Scenario:
 
 def place_over_box_scenario(category: str) -> Path:
     """The place-with-a-box layout of a category: object, target and a box between them on the table (the
-    carry goes over it), chosen where both arms reach every test instance at every evaluated yaw."""
-    return SCENARIO_DIR / f"place_over_box_{category}.yaml"
+    carry goes over it), chosen where both arms reach every test instance at every evaluated yaw.
+
+    Raises:
+        FileNotFoundError: the category has no such layout.
+    """
+    path = SCENARIO_DIR / f"place_over_box_{category}.yaml"
+    if not path.is_file():
+        raise FileNotFoundError(f"no place-over-a-box layout for {category} ({path})")
+    return path
 
 
 def validate(scenario: Scenario) -> None:

@@ -4,8 +4,8 @@ The pick's arm commands go out from a process of their own (systems/command_stre
 priority where the OS allows, no garbage collector). Its largest gap between two sends during a pick
 is bounded below by how late the OS wakes such a process at all. This runs the same CommandStream on an
 in-memory LCM bus (memq://, no network), idle and then beside busy processes (one per core, each
-running Python and large numpy arrays: the load of a pick that perceives and plans), and reports the gaps and the CPU
-time the hypervisor took (steal, from /proc/stat, on a VM).
+running Python and large numpy arrays: the load of a pick that perceives and plans), and reports the
+gaps and the CPU time the hypervisor took (steal, from /proc/stat, on a VM).
 
 python scripts/benchmark_command_stream.py --seconds 60 --json stream.json
 """
@@ -47,10 +47,10 @@ def _spin(stop):
 def _steal_s() -> float:
     """CPU time the hypervisor took from this machine so far, s (0 where /proc/stat has no steal column)."""
     try:
-        fields = open("/proc/stat").readline().split()
-        return int(fields[8]) / os.sysconf("SC_CLK_TCK") if len(fields) > 8 else 0.0
+        fields = Path("/proc/stat").read_text().split("\n", 1)[0].split()
     except OSError:
         return 0.0
+    return int(fields[8]) / os.sysconf("SC_CLK_TCK") if len(fields) > 8 else 0.0
 
 
 def run(seconds: float, load: int) -> dict:
@@ -75,7 +75,6 @@ def run(seconds: float, load: int) -> dict:
         "seconds": seconds,
         "sent": stream.sends,
         "late": stream.late_sends,
-        "late_share": stream.late_sends / max(stream.sends, 1),
         "max_gap_s": stream.max_gap_s,
         "steal_s": _steal_s() - steal,
     }

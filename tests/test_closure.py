@@ -157,7 +157,6 @@ def test_carry_that_turns_the_object_keeps_the_hands_upright_and_slow(lift_probl
     assert turned == pytest.approx(0.3, abs=0.05)
     t_dev, o_dev = motions.closure_deviations(trajectory, held)
     assert t_dev < motions.closure.t_max and o_dev < motions.closure.o_max
-    for X in end_effectors.poses(held.keyframes):
-        moved = np.linalg.norm(np.diff(X[:, :3, 3], axis=0), axis=1)
-        assert np.all(durations >= moved / HELD_SPEED_M_S - 1e-9)
-    assert durations.sum() >= 0.15 / HELD_SPEED_M_S and 0.3 / HELD_TURN_SPEED_RAD_S <= durations.sum()
+    for X in end_effectors.poses(q):  # as played, every 10 ms (0.074 and 0.083 m/s at most when written)
+        assert np.linalg.norm(np.diff(X[:, :3, 3], axis=0), axis=1).max() / 0.01 <= HELD_SPEED_M_S
+    assert trajectory.end_time() >= max(0.15 / HELD_SPEED_M_S, 0.3 / HELD_TURN_SPEED_RAD_S)

@@ -83,10 +83,8 @@ def orientation_deviations(
 ) -> np.ndarray:
     """Largest deviation (rad) of either hand from its desired world orientation (the rotation's angle), or with
     upright_only the angle between the vertical seen from the hand and from R_desired, per configuration."""
-    poses = end_effectors.poses(q)
-    if upright_only:
-        return np.max([tilt_angle(X[:, :3, :3], R) for X, R in zip(poses, R_desired, strict=True)], axis=0)
-    return np.max([rotation_angle(X[:, :3, :3], R) for X, R in zip(poses, R_desired, strict=True)], axis=0)
+    angle = tilt_angle if upright_only else rotation_angle
+    return np.max([angle(X[:, :3, :3], R) for X, R in zip(end_effectors.poses(q), R_desired, strict=True)], axis=0)
 
 
 def tilt_angle(R: np.ndarray, R_desired: np.ndarray) -> np.ndarray:

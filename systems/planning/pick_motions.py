@@ -14,6 +14,7 @@ Each returns joint-space keyframes (K x 14, the start first); time parameterisat
 check of the played trajectory are time_parameterise() and closure_deviations() below.
 """
 
+import dataclasses
 import itertools
 import logging
 from dataclasses import dataclass
@@ -177,7 +178,7 @@ class PickMotions:
         if np.allclose(R_motion, np.eye(3)):
             orientation = self.orientation
         elif R_motion[2, 2] > 1.0 - 1e-9:
-            orientation = OrientationConstraint(self.orientation.o_max, self.orientation.C, upright_only=True)
+            orientation = dataclasses.replace(self.orientation, upright_only=True)
         if orientation is not None:
             R_goal = [R_motion @ R for R in R_WE]
             tilt = orientation_deviations(stomp.end_effectors, q_goal[None], R_goal, orientation.upright_only)
@@ -261,8 +262,8 @@ class PickMotions:
         durations = np.full(len(keyframes) - 1, HELD_SEGMENT_S)
         for X in self.ik.stomp.end_effectors.poses(np.asarray(keyframes)):
             moved = np.linalg.norm(np.diff(X[:, :3, 3], axis=0), axis=1)
-            R_step = np.einsum("kji,kjl->kil", X[:-1, :3, :3], X[1:, :3, :3])  # R_k^T R_k+1
-            turned = np.arccos(np.clip((np.trace(R_step, axis1=1, axis2=2) - 1.0) / 2.0, -1.0, 1.0))
+            trace = np.einsum("kij,kij->k", X[:-1, :3, :3], X[1:, :3, :3])  # trace(R_k^T R_k+1)
+            turned = np.arccos(np.clip(0.5 * (trace - 1.0), -1.0, 1.0))
             durations = np.maximum(durations, np.maximum(moved / HELD_SPEED_M_S, turned / HELD_TURN_SPEED_RAD_S))
         return durations
 
