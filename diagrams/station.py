@@ -18,14 +18,17 @@ through an exported port.
 
 import numpy as np
 from pydrake.geometry import (
+    AddRigidHydroelasticProperties,
     Box,
     CollisionFilterDeclaration,
     MakeRenderEngineVtk,
     Meshcat,
     MeshcatVisualizer,
     MeshcatVisualizerParams,
+    ProximityProperties,
     RenderEngineVtkParams,
     Role,
+    RoleAssign,
     SceneGraph,
 )
 from pydrake.math import RigidTransform, RollPitchYaw
@@ -130,8 +133,11 @@ def AddBoxObstacle(plant: MultibodyPlant, scenario: Scenario):
     plant.RegisterCollisionGeometry(body, X_WB, shape, "obstacle_collision", friction)
 
 
-def AddObject(plant: MultibodyPlant, scenario: Scenario):
+def AddObject(plant: MultibodyPlant, scene_graph: SceneGraph, scenario: Scenario):
     """Adds the scenario's object as a free body resting on the table.
+
+    Its collision pieces are made rigid hydroelastic (unless its model says otherwise), so that it stands
+    on the compliant table top over a patch (sdf/scene/table.sdf); the hands still touch it at points.
 
     Returns:
         (object model instance, its ObjectModel)
@@ -148,6 +154,12 @@ def AddObject(plant: MultibodyPlant, scenario: Scenario):
         raise ValueError(f"{model.model_file} has no links")
     body = plant.get_body(bodies[0])
     plant.SetDefaultFloatingBaseBodyPose(body, object_pose_on_table(scenario, model))
+    inspector = scene_graph.model_inspector()
+    for geometry in plant.GetCollisionGeometriesForBody(body):
+        properties = ProximityProperties(inspector.GetProximityProperties(geometry))
+        if not properties.HasGroup("hydroelastic"):
+            AddRigidHydroelasticProperties(properties)
+            scene_graph.AssignRole(plant.get_source_id(), geometry, properties, RoleAssign.kReplace)
     return instance, model
 
 
@@ -164,7 +176,7 @@ def MakeStation(scenario: Scenario, meshcat: Meshcat | None = None) -> Diagram:
     AddTable(plant, scenario)
     AddBoxObstacle(plant, scenario)
     if scenario.object.present:
-        AddObject(plant, scenario)
+        AddObject(plant, scene_graph, scenario)
     plant.Finalize()
 
     _set_pd_gains(plant, robot, scenario.arm_controller.kp * 2, scenario.arm_controller.kd * 2)
