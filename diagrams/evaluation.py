@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 from pydrake.common.yaml import yaml_dump_typed, yaml_load_typed
+from scipy.stats import binomtest
 
 from diagrams.objects import catalog
 from diagrams.scenario import Scenario, replace_object
@@ -86,6 +87,24 @@ def make_trials(
     return out
 
 
+def trial_key(trial: Trial) -> tuple:
+    """What names a trial in a campaign: (object, yaw, index, seed); its record's record_key is the same."""
+    return trial.name, trial.yaw, trial.index, trial.scenario.random_seed
+
+
+def record_key(record: dict) -> tuple:
+    return record["name"], record["yaw"], record["trial"], record["seed"]
+
+
+def run_trial_in_worker(trial: Trial) -> dict:
+    """run_trial in a worker process (a pool's or Ray's): one torch thread, warnings only."""
+    import torch
+
+    logging.basicConfig(level=logging.WARNING, format="%(message)s", force=True)
+    torch.set_num_threads(1)
+    return run_trial(trial)
+
+
 def run_trial(trial: Trial) -> dict:
     """Runs one autonomous pick in simulation; a JSON-ready record of what happened."""
     from diagrams.autonomous_pick import run_pick  # (heavy: torch, the shape spaces)
@@ -94,6 +113,8 @@ def run_trial(trial: Trial) -> dict:
 
     scenario = trial.scenario
     record = {
+        "category": scenario.object.category,
+        "task": scenario.task,
         "name": trial.name,
         "yaw": trial.yaw,
         "trial": trial.index,
@@ -118,6 +139,14 @@ def run_trial(trial: Trial) -> dict:
         "perception": outcome.perception,
         "sim_wall_s": outcome.wall_time_s,
     }
+
+
+def wilson_interval(successes: int, attempts: int) -> tuple[float, float]:
+    """The 95 % Wilson score interval of a success rate (NaN, NaN without attempts)."""
+    if attempts == 0:
+        return float("nan"), float("nan")
+    interval = binomtest(successes, attempts).proportion_ci(confidence_level=0.95, method="wilson")
+    return float(interval.low), float(interval.high)
 
 
 def _rate(successes: int, attempts: int) -> float:
@@ -158,8 +187,10 @@ def summarize(records: list[dict]) -> dict:
             stages[f"{stage}_s_{statistic}"] = float(value(seconds)) if len(seconds) else float("nan")
     closure = [r["closure"] for r in records if r.get("closure") and np.isfinite(r["closure"]["max_translation_dev_m"])]
     placed = [r["place"]["error_m"] for r in records if r.get("place")]
+    successes = sum(r["success"] for r in records)
     return {
-        "success_rate": _rate(sum(r["success"] for r in records), len(records)),
+        "success_rate": _rate(successes, len(records)),
+        "success_rate_ci95": wilson_interval(successes, len(records)),
         # Over the picks that lifted (a held move was played), m and rad.
         "closure_translation_dev_m_max": max((c["max_translation_dev_m"] for c in closure), default=float("nan")),
         "closure_orientation_dev_rad_max": max((c["max_orientation_dev_rad"] for c in closure), default=float("nan")),

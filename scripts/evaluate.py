@@ -9,20 +9,24 @@ python scripts/evaluate.py --trials 3                          # the 3 test cans
 python scripts/evaluate.py --trials 3 --category drill --json drills.json
 python scripts/evaluate.py --trials 2 --category watering_can --object-files my_cans/*.sdf
 python scripts/evaluate.py --trials 3 --jobs 2                 # two picks at a time (timings then share the CPU)
+python scripts/evaluate.py --trials 3 --ray --jobs 2           # as Ray tasks on a local Ray with 2 CPUs
+python scripts/evaluate.py --trials 20 --ray auto --json big.json   # on the Ray cluster this machine is part of
+python scripts/evaluate.py --trials 20 --ray auto --json big.json --resume  # go on where it was stopped
+python scripts/evaluate.py --summarize big.jsonl --json big.json   # tables and figure from a records file
+
+Every finished pick is appended to a JSON-lines records file (--records, by default --json's name with
+.jsonl) as soon as it ends, so a stopped campaign keeps what it finished and --resume runs only the rest.
 """
 
 import argparse
 import dataclasses
 import logging
 import math
-import os
 import platform
 import sys
-import time
-from concurrent.futures import ProcessPoolExecutor, as_completed
-from multiprocessing import get_context
 from pathlib import Path
 
+from campaign import read_records, run_campaign
 from json_report import write_json
 
 from diagrams.evaluation import (
@@ -33,7 +37,6 @@ from diagrams.evaluation import (
     file_objects,
     generated_objects,
     make_trials,
-    run_trial,
     summarize,
 )
 from diagrams.scenario import DEFAULT_SCENARIO, load_scenario, overlay_scenario, place_over_box_scenario
@@ -76,7 +79,20 @@ def parse_args(argv=None):
         help="with --task place: the category's place_over_box layout (diagrams/place_over_box_<category>.yaml): "
         "object, target and a box on the table between them",
     )
-    parser.add_argument("--jobs", type=int, default=1, help="picks run at a time (separate processes)")
+    parser.add_argument(
+        "--jobs", type=int, default=1, help="picks run at a time (separate processes; CPUs of a local Ray)"
+    )
+    parser.add_argument(
+        "--ray",
+        nargs="?",
+        const="",
+        metavar="ADDRESS",
+        help="run each pick as a Ray task: on the cluster at ADDRESS ('auto': the one this machine joined), "
+        "or without an address on a local Ray with --jobs CPUs (pip install -e '.[cluster]')",
+    )
+    parser.add_argument("--records", type=Path, help="JSON-lines file of every finished pick (default: --json, .jsonl)")
+    parser.add_argument("--resume", action="store_true", help="keep the picks already in --records, run the rest")
+    parser.add_argument("--summarize", type=Path, metavar="RECORDS", help="no picks: tables from a records file")
     parser.add_argument("--seed", type=int, help="seed of the first trial (trial n gets seed + n)")
     parser.add_argument("--scenario", type=Path, default=DEFAULT_SCENARIO, help="scenario YAML file")
     parser.add_argument("--scenario_text", default="", help="YAML overlaid on the scenario file")
@@ -85,31 +101,11 @@ def parse_args(argv=None):
     args = parser.parse_args(argv)
     if args.jobs < 1:
         parser.error("--jobs must be >= 1")
+    if args.records is None and args.json is not None:
+        args.records = args.json.with_suffix(".jsonl")
+    if args.resume and args.records is None:
+        parser.error("--resume needs --records or --json (the records file to go on from)")
     return args
-
-
-class ProgressBar:
-    """A one-line bar on a terminal (a line per step otherwise), with the estimated time left."""
-
-    def __init__(self, total: int, width: int = 30):
-        self.total, self.width, self.done, self.start = total, width, 0, time.perf_counter()
-        self.tty = sys.stderr.isatty()
-
-    def step(self, text: str):
-        self.done += 1
-        elapsed = time.perf_counter() - self.start
-        left = elapsed / self.done * (self.total - self.done)
-        filled = round(self.width * self.done / self.total)
-        bar = f"[{'#' * filled}{'.' * (self.width - filled)}] {self.done}/{self.total}  {left / 60:4.1f} min left"
-        if self.tty:
-            sys.stderr.write(f"\r\033[K{text}\n{bar}")
-        else:
-            sys.stderr.write(f"{bar}  {text}\n")
-        sys.stderr.flush()
-
-    def close(self):
-        if self.tty:
-            sys.stderr.write("\n")
 
 
 def describe(record: dict) -> str:
@@ -126,33 +122,6 @@ def describe(record: dict) -> str:
     return f"{head}: FAILED at {record['failed_stage']}: {record['message']}"
 
 
-def _quiet_worker():
-    logging.basicConfig(level=logging.WARNING, format="%(message)s", force=True)
-    import torch
-
-    torch.set_num_threads(1)
-
-
-def run_all(trials, jobs: int) -> list[dict]:
-    """Runs the trials (in order of the list in the result), `jobs` at a time, with a progress bar."""
-    bar = ProgressBar(len(trials))
-    records = [None] * len(trials)
-    if jobs == 1:
-        for n, trial in enumerate(trials):
-            records[n] = run_trial(trial)
-            bar.step(describe(records[n]))
-    else:
-        for variable in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-            os.environ.setdefault(variable, "1")  # one thread per worker: `jobs` picks share the cores
-        with ProcessPoolExecutor(jobs, mp_context=get_context("spawn"), initializer=_quiet_worker) as pool:
-            futures = {pool.submit(run_trial, trial): n for n, trial in enumerate(trials)}
-            for future in as_completed(futures):
-                records[futures[future]] = future.result()
-                bar.step(describe(records[futures[future]]))
-    bar.close()
-    return records
-
-
 def _rate_cell(rate: float, attempts: int) -> str:
     return f"{100 * rate:.0f} % ({attempts})"
 
@@ -166,7 +135,9 @@ def print_tables(summary: dict, category: str, trials: int, yaw_noise: float):
         cells = "".join(f"{100 * rate:>11.0f}%" for rate in row["per_yaw"].values())
         paper_cell = f"{100 * paper:>7.0f}%" if paper is not None else f"{'-':>8}"
         print(f"{name:<16}{_rate_cell(row['success_rate'], row['attempts']):>20}{cells}{paper_cell}")
-    print(f"{'all':<16}{_rate_cell(summary['success_rate'], summary['trials']):>20}")
+    low, high = summary["success_rate_ci95"]
+    print(f"{'all':<16}{_rate_cell(summary['success_rate'], summary['trials']):>20}   95 % Wilson interval "
+          f"{100 * low:.0f}-{100 * high:.0f} %")  # fmt: skip
 
     print("\nRuntime and success per component; paper Table III form (paper: real robot)")
     print(f"{'component':<46}{'runtime [s]':>18}{'median':>9}{'success':>10}{'paper [s]':>11}")
@@ -235,6 +206,8 @@ def draw_figure(path: Path, summary: dict, records: list[dict], category: str):
 def main(argv=None) -> int:
     logging.basicConfig(level=logging.WARNING, format="%(message)s")
     args = parse_args(argv)
+    if args.summarize:
+        return summarize_records(args)
     try:
         base = load_scenario(args.scenario)
         if args.obstacle and args.task != "place":
@@ -257,11 +230,37 @@ def main(argv=None) -> int:
         print(f"error: {error}", file=sys.stderr)
         return 2
     what = args.task + (", a box in the way" if args.obstacle else "")
+    where = f"{args.jobs} at a time"
+    if args.ray is not None:
+        where = f"as Ray tasks ({'at ' + args.ray if args.ray else f'a local Ray with {args.jobs} CPUs'})"
     print(
         f"{len(trials)} autonomous picks ({what}): {len(objects)} {args.category} object(s) x {len(args.yaws)} "
-        f"yaw(s) x {args.trials} trial(s), registration yaw noise +-{args.yaw_noise:.2f} rad, {args.jobs} at a time"
+        f"yaw(s) x {args.trials} trial(s), registration yaw noise +-{args.yaw_noise:.2f} rad, {where}"
     )
-    records = run_all(trials, args.jobs)
+    try:
+        records = run_campaign(trials, args.jobs, args.ray, args.records, args.resume, describe)
+    except (RuntimeError, FileExistsError, ValueError) as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
+    report(args, records, base.random_seed)
+    return 0
+
+
+def summarize_records(args) -> int:
+    """--summarize: the tables, JSON and figure of a records file (a finished or a stopped campaign)."""
+    records = read_records(args.summarize)
+    if not records:
+        print(f"error: no records in {args.summarize}", file=sys.stderr)
+        return 2
+    args.category, args.task = records[0].get("category", args.category), records[0].get("task", args.task)
+    args.trials = 1 + max(r["trial"] for r in records)
+    print(f"{len(records)} picks from {args.summarize}")
+    report(args, records, min(r["seed"] for r in records))
+    return 0
+
+
+def report(args, records: list[dict], first_seed: int):
+    """Prints the tables; writes the JSON (with every record) and the figure."""
     summary = summarize(records)
     print_tables(summary, args.category, args.trials, args.yaw_noise)
     t_dev, o_dev = summary["closure_translation_dev_m_max"], summary["closure_orientation_dev_rad_max"]
@@ -276,8 +275,9 @@ def main(argv=None) -> int:
         "trials_per_yaw": args.trials,
         "yaws": args.yaws,
         "yaw_noise_rad": args.yaw_noise,
-        "first_seed": base.random_seed,
+        "first_seed": first_seed,
         "jobs": args.jobs,
+        "ray": args.ray,
         "machine": f"{platform.processor() or platform.machine()}, {platform.system()}",
         **summary,
         "records": records,
@@ -286,7 +286,6 @@ def main(argv=None) -> int:
         write_json(args.json, report)
     figure = args.figure or (args.json.with_suffix(".png") if args.json else Path(f"evaluation_{args.category}.png"))
     draw_figure(figure, summary, records, args.category)
-    return 0
 
 
 if __name__ == "__main__":
