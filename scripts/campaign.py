@@ -1,4 +1,4 @@
-"""A campaign of seeded picks: run in this process, in a local process pool, or as Ray tasks.
+"""A campaign of seeded picks: run in local worker processes or as Ray tasks.
 
 Every finished pick's record is appended at once to a JSON-lines file (one record per line, flushed), so a
 campaign that is stopped keeps what it finished: `resume` skips the trials whose records are there (a last
@@ -62,8 +62,7 @@ def _append(path: Path, record: dict):
 
 
 def _in_pool(trials: list[Trial], jobs: int) -> Iterator[tuple[int, dict]]:
-    for variable, value in SINGLE_THREADED.items():
-        os.environ.setdefault(variable, value)
+    os.environ.update(SINGLE_THREADED)  # inherited by the spawned workers
     with ProcessPoolExecutor(jobs, mp_context=get_context("spawn")) as pool:
         futures = {pool.submit(run_trial_in_worker, trial): n for n, trial in enumerate(trials)}
         for future in as_completed(futures):
