@@ -115,6 +115,8 @@ def run_trial(trial: Trial) -> dict:
     record = {
         "category": scenario.object.category,
         "task": scenario.task,
+        "obstacle": scenario.obstacle.present,
+        "yaw_noise_rad": scenario.registration_yaw_noise,
         "name": trial.name,
         "yaw": trial.yaw,
         "trial": trial.index,

@@ -252,7 +252,10 @@ def summarize_records(args) -> int:
     if not records:
         print(f"error: no records in {args.summarize}", file=sys.stderr)
         return 2
-    args.category, args.task = records[0].get("category", args.category), records[0].get("task", args.task)
+    first = records[0]  # a campaign's records share these (older records may lack some: the flags stand)
+    args.category, args.task = first.get("category", args.category), first.get("task", args.task)
+    args.obstacle, args.yaw_noise = first.get("obstacle", args.obstacle), first.get("yaw_noise_rad", args.yaw_noise)
+    args.yaws = list(dict.fromkeys(r["yaw"] for r in records))
     args.trials = 1 + max(r["trial"] for r in records)
     print(f"{len(records)} picks from {args.summarize}")
     report(args, records, min(r["seed"] for r in records))

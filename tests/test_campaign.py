@@ -79,6 +79,7 @@ def test_a_stopped_campaign_resumes_without_redoing_finished_picks(scenario, tmp
     assert evaluate.main(["--summarize", str(records), "--json", str(report)]) == 0
     summary = json.loads(report.read_text())
     assert summary["trials"] == 2 and len(summary["success_rate_ci95"]) == 2
+    assert summary["yaws"] == [first.yaw, second.yaw] and summary["obstacle"] is False
 
 
 def test_ray_missing_is_said_with_how_to_get_it(scenario, monkeypatch):

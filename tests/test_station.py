@@ -95,7 +95,7 @@ def test_gravity_compensation_alone_cancels_gravity(station):
 
 def test_the_object_stands_on_a_patch_and_stops_turning(station, scenario):
     """The table top is compliant hydroelastic and the object rigid hydroelastic: the can stands on a contact
-    patch, not on one point. On one point, a can kicked into a wobbling spin here was still turning 0.2-1.1 s
+    patch, not on one point. On one point, a can kicked into a wobbling spin here was still turning 0.2-1.0 s
     after the kick (by 2.8 degrees; in a place, by 18 degrees after the hands had let go)."""
     simulator = Simulator(station)
     context = simulator.get_mutable_context()
