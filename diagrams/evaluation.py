@@ -13,7 +13,6 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from pydrake.common.yaml import yaml_dump_typed, yaml_load_typed
 from scipy.stats import binomtest
 
 from diagrams.objects import catalog
@@ -34,14 +33,7 @@ class Trial:
     name: str  # the object's name in the report: the generated instance, or the model file's stem
     yaw: float  # rad
     index: int  # 0..K-1 at this object and yaw
-    scenario: Scenario
-
-    def __reduce__(self):  # for worker processes: Drake's config structs do not pickle, their YAML does
-        return _trial_from_yaml, (self.name, self.yaw, self.index, yaml_dump_typed(self.scenario))
-
-
-def _trial_from_yaml(name: str, yaw: float, index: int, scenario_yaml: str) -> Trial:
-    return Trial(name, yaw, index, yaml_load_typed(schema=Scenario, data=scenario_yaml))
+    scenario: Scenario  # pickles (as its YAML) for worker processes and Ray
 
 
 def generated_objects(category: str, split: str = "test") -> dict[str, dict]:

@@ -9,7 +9,7 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from pydrake.common.yaml import yaml_load_typed
+from pydrake.common.yaml import yaml_dump_typed, yaml_load_typed
 from pydrake.lcm import DrakeLcmParams
 from pydrake.multibody.plant import MultibodyPlantConfig
 from pydrake.systems.analysis import SimulatorConfig
@@ -186,6 +186,13 @@ class Scenario:
     # LCM for the hardware backend; simulations never touch the network.
     lcm: DrakeLcmParams = field(default_factory=lambda: DrakeLcmParams(lcm_url="memq://null"))
     hardware: HardwareConfig = field(default_factory=HardwareConfig)
+
+    def __reduce__(self):  # for worker processes and Ray: Drake's config structs do not pickle, their YAML does
+        return _scenario_from_yaml, (yaml_dump_typed(self),)
+
+
+def _scenario_from_yaml(text: str) -> Scenario:
+    return yaml_load_typed(schema=Scenario, data=text)
 
 
 def load_scenario(filename: str | Path | None = None, scenario_text: str = "") -> Scenario:

@@ -4,12 +4,13 @@ A dataset file (.npz) holds `rgb` (N x H x W x 3 uint8), `labels` (N x H x W uin
 class ids, see synthetic_scenes.CLASSES) and `instances` (the objects in each frame).
 """
 
-import logging
-import time
+from collections.abc import Callable, Iterable, Iterator
+from dataclasses import dataclass
 from pathlib import Path
 
 import cv2
 import numpy as np
+from tqdm import tqdm
 
 from diagrams.paths import REPO_ROOT
 from diagrams.scenario import Scenario
@@ -26,24 +27,70 @@ def resize_frame(rgb: np.ndarray, labels: np.ndarray):
     return resize_to_input(rgb), cv2.resize(labels, INPUT_SIZE, interpolation=cv2.INTER_NEAREST)
 
 
-def generate(scenario: Scenario, frames: int, frames_per_scene: int, split: str, seed: int) -> dict[str, np.ndarray]:
-    """Renders `frames` frames from ceil(frames / frames_per_scene) random scenes of `split`'s instances."""
-    rng = np.random.default_rng(seed)
+@dataclass(frozen=True)
+class SceneJob:
+    """One random scene and the frames rendered from it: a unit of work for a worker process or a Ray task."""
+
+    scenario: Scenario
+    split: str
+    seed: int  # the dataset's seed
+    index: int  # the scene's place in the dataset; with `seed`, its random stream
+    frames: int
+
+
+def scene_jobs(scenario: Scenario, frames: int, frames_per_scene: int, split: str, seed: int) -> list[SceneJob]:
+    """`frames` frames as ceil(frames / frames_per_scene) scenes, each with a random stream of its own."""
+    starts = range(0, frames, frames_per_scene)
+    return [SceneJob(scenario, split, seed, k, min(frames_per_scene, frames - s)) for k, s in enumerate(starts)]
+
+
+def render_scene(job: SceneJob) -> dict[str, np.ndarray]:
+    """The job's frames, the same wherever they are rendered: every draw comes from the stream [seed, index]."""
+    rng = np.random.default_rng([job.seed, job.index])
+    scene = SyntheticScene(job.scenario, rng, split=job.split)
     width, height = INPUT_SIZE
-    rgb = np.empty((frames, height, width, 3), np.uint8)
-    labels = np.empty((frames, height, width), np.uint8)
+    rgb = np.empty((job.frames, height, width, 3), np.uint8)
+    labels = np.empty((job.frames, height, width), np.uint8)
     instances = []
-    start = time.perf_counter()
-    scene = None
-    for i in range(frames):
-        if i % frames_per_scene == 0:
-            scene = SyntheticScene(scenario, rng, split=split)
+    for i in range(job.frames):
         frame = scene.render()
         rgb[i], labels[i] = resize_frame(frame.rgb, frame.labels)
         instances.append(",".join(f"{category}/{name}" for category, name, _ in frame.objects))
-        if (i + 1) % 50 == 0 or i + 1 == frames:
-            logging.info("rendered %d/%d frames (%.0f s)", i + 1, frames, time.perf_counter() - start)
-    return {"rgb": rgb, "labels": labels, "instances": np.array(instances), "classes": np.array(CLASSES)}
+    return {"rgb": rgb, "labels": labels, "instances": np.array(instances)}
+
+
+def assemble(parts: list[dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
+    """The scenes' frames, in the jobs' order, as one dataset."""
+    dataset = {key: np.concatenate([part[key] for part in parts]) for key in ("rgb", "labels", "instances")}
+    return dataset | {"classes": np.array(CLASSES)}
+
+
+def render_here(jobs: list[SceneJob]) -> Iterator[tuple[int, dict[str, np.ndarray]]]:
+    """(job number, its frames), one job after another in this process."""
+    for n, job in enumerate(jobs):
+        yield n, render_scene(job)
+
+
+def generate(
+    scenario: Scenario,
+    frames: int,
+    frames_per_scene: int,
+    split: str,
+    seed: int,
+    run_jobs: Callable[[list[SceneJob]], Iterable[tuple[int, dict[str, np.ndarray]]]] = render_here,
+) -> dict[str, np.ndarray]:
+    """Renders `frames` frames from ceil(frames / frames_per_scene) random scenes of `split`'s instances.
+
+    run_jobs: renders the scene jobs, yielding (job number, frames) in any order (e.g. on worker processes or
+        Ray); the dataset is the same whichever renders it.
+    """
+    jobs = scene_jobs(scenario, frames, frames_per_scene, split, seed)
+    parts = [None] * len(jobs)
+    with tqdm(total=frames, unit="frame", desc=f"rendering {split} frames", dynamic_ncols=True) as bar:
+        for n, part in run_jobs(jobs):
+            parts[n] = part
+            bar.update(jobs[n].frames)
+    return assemble(parts)
 
 
 def save(path: Path, dataset: dict[str, np.ndarray]):

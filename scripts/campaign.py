@@ -61,16 +61,15 @@ def _append(path: Path, record: dict):
         os.fsync(file.fileno())
 
 
-def _in_pool(trials: list[Trial], jobs: int) -> Iterator[tuple[int, dict]]:
+def _in_pool(function, items: list, jobs: int) -> Iterator[tuple[int, object]]:
     os.environ.update(SINGLE_THREADED)  # inherited by the spawned workers
     with ProcessPoolExecutor(jobs, mp_context=get_context("spawn")) as pool:
-        futures = {pool.submit(run_trial_in_worker, trial): n for n, trial in enumerate(trials)}
+        futures = {pool.submit(function, item): n for n, item in enumerate(items)}
         for future in as_completed(futures):
             yield futures[future], future.result()
 
 
-def _on_ray(trials: list[Trial], address: str, jobs: int) -> Iterator[tuple[int, dict]]:
-    """Each trial a Ray task of one CPU. An empty address starts a local Ray with `jobs` CPUs."""
+def _on_ray(function, items: list, address: str, jobs: int) -> Iterator[tuple[int, object]]:
     import ray
 
     started_here = not ray.is_initialized()
@@ -78,14 +77,27 @@ def _on_ray(trials: list[Trial], address: str, jobs: int) -> Iterator[tuple[int,
         options = {"address": address} if address else {"num_cpus": jobs}
         ray.init(**options, include_dashboard=False, log_to_driver=False, runtime_env={"env_vars": SINGLE_THREADED})
     try:
-        task = ray.remote(num_cpus=1)(run_trial_in_worker)
-        pending = {task.remote(trial): n for n, trial in enumerate(trials)}
+        task = ray.remote(num_cpus=1)(function)
+        pending = {task.remote(item): n for n, item in enumerate(items)}
         while pending:
             (ready,), _ = ray.wait(list(pending), num_returns=1)
             yield pending.pop(ready), ray.get(ready)
     finally:
         if started_here:
             ray.shutdown()
+
+
+def fan_out(function, items: list, jobs: int = 1, ray_address: str | None = None) -> Iterator[tuple[int, object]]:
+    """(item number, function(item)) as each finishes, computed in `jobs` single-threaded worker processes, or as
+    Ray tasks of one CPU when ray_address is not None ("" starts a local Ray with `jobs` CPUs).
+
+    `function` must be importable by the workers (a module-level function of the installed packages).
+    """
+    if ray_address is not None and importlib.util.find_spec("ray") is None:
+        raise RuntimeError(RAY_MISSING)
+    if ray_address is not None:
+        return _on_ray(function, items, ray_address, jobs)
+    return _in_pool(function, items, jobs)
 
 
 def run_campaign(
@@ -114,12 +126,10 @@ def run_campaign(
             _cut_unfinished_line(records_path)
     elif records_path is not None and records_path.exists() and records_path.stat().st_size:
         raise FileExistsError(f"{records_path} holds records already: resume it (--resume) or name another file")
-    if ray_address is not None and importlib.util.find_spec("ray") is None:
-        raise RuntimeError(RAY_MISSING)
     todo = [trial for trial in trials if trial_key(trial) not in done]
     if done:
         print(f"resuming: {len(done)} of {len(trials)} picks already in {records_path}, {len(todo)} to run")
-    finished = _on_ray(todo, ray_address, jobs) if ray_address is not None else _in_pool(todo, jobs)
+    finished = fan_out(run_trial_in_worker, todo, jobs, ray_address)
     successes = sum(r["success"] for r in done.values())
     bar = tqdm(total=len(trials), initial=len(done), unit="pick", dynamic_ncols=True)
     start = time.perf_counter()

@@ -2,18 +2,23 @@
 
 python scripts/generate_segmentation_data.py                         # data/segmentation/train.npz, 800 frames
 python scripts/generate_segmentation_data.py --frames 400 --split test --out /tmp/test.npz
+python scripts/generate_segmentation_data.py --jobs 2                # scenes rendered in 2 worker processes
+python scripts/generate_segmentation_data.py --ray auto --frames 8000  # each scene a task on a Ray cluster
+
+Every scene draws from a random stream of its own ([seed, scene number]), so the frames are the same whether
+they are rendered here, in worker processes or on Ray.
 """
 
 import argparse
-import logging
 from pathlib import Path
+
+from campaign import fan_out
 
 from diagrams import segmentation_data
 from diagrams.scenario import load_scenario
 
 
 def main():
-    logging.basicConfig(level=logging.INFO, format="%(message)s")
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument(
         "--frames", type=int, default=segmentation_data.DEFAULT_FRAMES, help="number of frames (the paper used 400)"
@@ -24,10 +29,27 @@ def main():
     parser.add_argument("--split", choices=("train", "test"), default="train", help="which object instances")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--out", type=Path, default=segmentation_data.DEFAULT_DATASET)
+    parser.add_argument("--jobs", type=int, default=1, help="worker processes (or a local Ray's CPUs with --ray)")
+    parser.add_argument(
+        "--ray",
+        nargs="?",
+        const="",
+        default=None,
+        metavar="ADDRESS",
+        help="render each scene as a Ray task: on a local Ray without ADDRESS, or on the cluster at ADDRESS ('auto')",
+    )
     args = parser.parse_args()
-    if args.frames < 1 or args.frames_per_scene < 1:
-        parser.error("--frames and --frames-per-scene must be positive")
-    dataset = segmentation_data.generate(load_scenario(), args.frames, args.frames_per_scene, args.split, args.seed)
+    if args.frames < 1 or args.frames_per_scene < 1 or args.jobs < 1:
+        parser.error("--frames, --frames-per-scene and --jobs must be positive")
+    run_jobs = segmentation_data.render_here
+    if args.ray is not None or args.jobs > 1:
+
+        def run_jobs(jobs):
+            return fan_out(segmentation_data.render_scene, jobs, args.jobs, args.ray)
+
+    dataset = segmentation_data.generate(
+        load_scenario(), args.frames, args.frames_per_scene, args.split, args.seed, run_jobs
+    )
     segmentation_data.save(args.out, dataset)
     print(f"wrote {args.out}: {args.frames} frames of {args.split} instances")
 

@@ -1,11 +1,9 @@
 """Training and evaluation of the segmentation network on synthetic frames (CPU, seeded)."""
 
-import logging
-import time
-
 import numpy as np
 import torch
 from torch.nn import functional as F
+from tqdm import tqdm
 
 from systems.segmentation_network import RefineNetLite, to_input
 
@@ -46,8 +44,8 @@ def train(
     schedule = torch.optim.lr_scheduler.OneCycleLR(optimizer, learning_rate, total_steps=steps, pct_start=0.15)
     weights = torch.tensor(CLASS_WEIGHTS[:num_classes])
     history = []
-    start = time.perf_counter()
-    for epoch in range(epochs):
+    bar = tqdm(range(epochs), unit="epoch", desc="training the segmenter", dynamic_ncols=True)
+    for _ in bar:
         model.train()
         order = torch.randperm(len(rgb), generator=generator).numpy()
         losses = []
@@ -61,7 +59,7 @@ def train(
             schedule.step()
             losses.append(loss.item())
         history.append(float(np.mean(losses)))
-        logging.info("epoch %d/%d  loss %.4f  (%.0f s)", epoch + 1, epochs, history[-1], time.perf_counter() - start)
+        bar.set_postfix(loss=f"{history[-1]:.4f}")
     model.eval()
     return model, history
 

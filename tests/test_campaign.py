@@ -4,8 +4,10 @@ import json
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
+from diagrams import segmentation_data
 from diagrams.evaluation import make_trials, wilson_interval
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
@@ -92,3 +94,19 @@ def test_resume_needs_a_records_file(capsys):
     with pytest.raises(SystemExit):
         evaluate.parse_args(["--resume"])
     assert "--resume needs --records or --json" in capsys.readouterr().err
+
+
+def test_segmentation_frames_rendered_on_ray_are_the_frames_rendered_here(scenario):
+    """Two scenes of two frames each, as Ray tasks and in this process: the same dataset, pixel for pixel."""
+    here = segmentation_data.generate(scenario, frames=3, frames_per_scene=2, split="train", seed=7)
+
+    def on_ray(jobs):
+        return campaign.fan_out(segmentation_data.render_scene, jobs, jobs=2, ray_address="")
+
+    ray_frames = segmentation_data.generate(scenario, 3, 2, "train", 7, on_ray)
+    assert here["rgb"].shape[0] == 3 and set(here) == set(ray_frames)
+    for key in here:
+        np.testing.assert_array_equal(here[key], ray_frames[key])
+    assert here["labels"].any()  # objects were rendered, not only backgrounds
+    other_seed = segmentation_data.generate(scenario, 1, 1, "train", 8)
+    assert not np.array_equal(other_seed["rgb"][0], here["rgb"][0])

@@ -114,3 +114,15 @@ def test_planning_model_places_every_body_where_drakes_collision_model_does(scen
     for link, X in zip(stomp.kinematics.links, poses, strict=True):
         X_drake = ik.plant.EvalBodyPoseInWorld(ik.plant_context, ik.plant.get_body(link.body_index))
         np.testing.assert_allclose(X, X_drake.GetAsMatrix4(), atol=1e-9)
+
+
+def test_a_cold_cache_leaves_the_planner_as_a_warm_one(scenario, tmp_path, monkeypatch):
+    """Building the IK seed table (cold cache) and loading it (warm) leave the planner's context alike: a
+    pick's outcome cannot depend on whether the machine ran one before (left at the table's last sample, a
+    cold one lifted its can 1.3e-12 m lower and Ray's records differed from one process's)."""
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    cold = make_dual_arm_ik(scenario)
+    warm = make_dual_arm_ik(scenario)
+    assert list((tmp_path / "dualarm" / "ik_seeds").iterdir())  # the second one loaded what the first built
+    np.testing.assert_array_equal(cold.plant.GetPositions(cold.plant_context), warm.q_default)
+    np.testing.assert_array_equal(cold.q_default, warm.q_default)

@@ -11,7 +11,6 @@ instance's true frames, learnt beside its field, do not.
 """
 
 import functools
-import logging
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -19,6 +18,7 @@ import numpy as np
 from pydrake.math import RigidTransform, RotationMatrix
 from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
+from tqdm import tqdm
 
 from systems.shape_space.cpd import FieldInterpolator, deformable_cpd, rigid_cpd
 from systems.shape_space.pca_em import PcaModel, pca_em
@@ -236,7 +236,8 @@ def build_shape_space(
     canonical_grasps = control_poses[canonical]
     canonical_stars = np.vstack([grasp_landmarks(canonical_grasps[n], FRAME_PROBE) for n in GRASP_NAMES])
     samples = []
-    for name, cloud in clouds.items():
+    bar = tqdm(clouds.items(), total=len(clouds), unit="model", desc=f"{category}: CPD to each", dynamic_ncols=True)
+    for name, cloud in bar:
         if name == canonical:
             samples.append(np.zeros(source.size + canonical_stars.size))
             continue
@@ -263,8 +264,8 @@ def build_shape_space(
             landmarks=guide,
             initial_sigma2=initial_sigma**2,
         )
-        logging.info(
-            "%s: CPD %d iterations, Chamfer after %.4f m", name, result.iterations, chamfer(result.transformed, target)
+        bar.set_postfix_str(
+            f"{name}: {result.iterations} iterations, Chamfer {1000 * chamfer(result.transformed, target):.1f} mm"
         )
         if grasps is not None:
             stars = to_canonical(np.vstack([grasp_landmarks(grasps[n], FRAME_PROBE) for n in GRASP_NAMES]))
