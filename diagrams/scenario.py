@@ -16,6 +16,8 @@ from pydrake.systems.analysis import SimulatorConfig
 from pydrake.systems.sensors import CameraConfig
 from pydrake.visualization import VisualizationConfig
 
+from systems.rgbd_noise import noise_parameters
+
 SCENARIO_DIR = Path(__file__).resolve().parent
 DEFAULT_SCENARIO = SCENARIO_DIR / "default.yaml"
 
@@ -126,6 +128,16 @@ class PlanningConfig:
 
 
 @dataclass
+class CameraNoiseConfig:
+    """The RGB-D sensor model between the camera and everything that reads it (systems/rgbd_noise.py)."""
+
+    # "off" (the renderer's perfect images), "kinect_v2" or "realsense_d435".
+    preset: str = "off"
+    # The preset's parameters replaced, e.g. {dropout_share: 0.05, axial_sigma_per_m2: 0.002}.
+    overrides: dict[str, float] = field(default_factory=dict)
+
+
+@dataclass
 class Scenario:
     """A complete simulation scenario."""
 
@@ -181,6 +193,8 @@ class Scenario:
             depth=True,
         )
     )
+    # What a real sensor does to the camera's images (noise drawn from random_seed and the image's time).
+    camera_noise: CameraNoiseConfig = field(default_factory=CameraNoiseConfig)
     # Meshcat drawing options.
     visualization: VisualizationConfig = field(default_factory=VisualizationConfig)
     # LCM for the hardware backend; simulations never touch the network.
@@ -275,6 +289,10 @@ def validate(scenario: Scenario) -> None:
         raise ValueError(f"object.scale must be positive, got {obj.scale}")
     if not 0 <= scenario.planning.latency_s <= 10:
         raise ValueError(f"planning.latency_s must lie in [0, 10] s, got {scenario.planning.latency_s}")
+    try:
+        noise_parameters(scenario.camera_noise.preset, scenario.camera_noise.overrides)
+    except ValueError as error:
+        raise ValueError(f"camera_noise: {error}") from None
     if scenario.planning.hardware_time_limit_s <= 0:
         raise ValueError(
             f"planning.hardware_time_limit_s must be positive, got {scenario.planning.hardware_time_limit_s}"
@@ -297,6 +315,9 @@ def _check_finite(path: str, value) -> None:
     elif isinstance(value, list | tuple):
         for index, item in enumerate(value):
             _check_finite(f"{path}[{index}]", item)
+    elif isinstance(value, dict):
+        for key, item in value.items():
+            _check_finite(f"{path}.{key}", item)
     elif dataclasses.is_dataclass(value) and not isinstance(value, type):
         for item in dataclasses.fields(value):
             _check_finite(f"{path}.{item.name}" if path else item.name, getattr(value, item.name))

@@ -45,6 +45,7 @@ from diagrams.objects.library import ObjectModel, resolve_object
 from diagrams.paths import PACKAGE_XML
 from diagrams.scenario import Scenario
 from systems.gravity_compensation import GravityCompensation
+from systems.rgbd_noise import RgbdNoise, noise_parameters
 
 ARM_INSTANCE = "centauro"
 HAND_INSTANCES = {"left": "left_hand", "right": "right_hand"}
@@ -277,6 +278,15 @@ def _AddCamera(builder, plant, scene_graph, scenario):
     )
     sensor.set_name(f"{config.name}.sensor")
     builder.Connect(scene_graph.get_query_output_port(), sensor.query_object_input_port())
-    builder.ExportOutput(sensor.color_image_output_port(), f"{config.name}.rgb_image")
-    builder.ExportOutput(sensor.depth_image_32F_output_port(), f"{config.name}.depth_image")
+    color, depth = sensor.color_image_output_port(), sensor.depth_image_32F_output_port()
+    if scenario.camera_noise.preset != "off":  # a real sensor's images: everything downstream sees these
+        parameters = noise_parameters(scenario.camera_noise.preset, scenario.camera_noise.overrides)
+        noise = builder.AddNamedSystem(
+            f"{config.name}.noise", RgbdNoise(depth_camera.core().intrinsics(), parameters, scenario.random_seed)
+        )
+        builder.Connect(color, noise.GetInputPort("color_image"))
+        builder.Connect(depth, noise.GetInputPort("depth_image"))
+        color, depth = noise.GetOutputPort("color_image"), noise.GetOutputPort("depth_image")
+    builder.ExportOutput(color, f"{config.name}.rgb_image")
+    builder.ExportOutput(depth, f"{config.name}.depth_image")
     builder.ExportOutput(sensor.body_pose_in_world_output_port(), f"{config.name}.pose")

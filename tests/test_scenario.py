@@ -63,6 +63,9 @@ def test_wrong_length():
         ("{task: juggle}", "task must be one of"),
         ("{planning: {latency_s: -1}}", "planning.latency_s must lie in"),
         ("{initial_arm_positions: [.nan, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0]}", "initial_arm_positions"),
+        ("{camera_noise: {preset: kinect}}", "camera_noise: unknown rgbd noise preset 'kinect'"),
+        ("{camera_noise: {preset: kinect_v2, overrides: {dropout_share: .nan}}}", "dropout_share must be finite"),
+        ("{camera_noise: {preset: kinect_v2, overrides: {axial_sigma_m: 0.5}}}", "metres are expected"),
     ],
 )
 def test_bad_numbers_are_refused_before_anything_is_built(text, named):

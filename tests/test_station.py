@@ -1,12 +1,14 @@
 """The simulated station: ports by name, a short simulation, the camera sees the object."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 from pydrake.math import RollPitchYaw
 from pydrake.multibody.math import SpatialVelocity
 from pydrake.systems.analysis import Simulator
 
-from diagrams.scenario import load_scenario
+from diagrams.scenario import CameraNoiseConfig, load_scenario
 from diagrams.station import MakeStation, true_label_image
 from systems.gravity_compensation import GravityCompensation
 
@@ -69,6 +71,22 @@ def test_camera_sees_the_object(station):
     depth = np.asarray(station.GetOutputPort("camera0.depth_image").Eval(context).data)[:, :, 0]
     object_depth = depth[labels == int(object_body)]
     assert 0.4 < np.median(object_depth) < 1.2  # metres from the chest camera
+
+
+def test_a_noisy_sensor_sits_between_the_camera_and_its_ports(scenario):
+    """With camera_noise on, the exported depth is the sensor model's: noisy, with holes, on the same object;
+    off (the default), the renderer's own."""
+    noisy_scenario = dataclasses.replace(scenario, camera_noise=CameraNoiseConfig(preset="kinect_v2"))
+    station = MakeStation(noisy_scenario)
+    context = station.CreateDefaultContext()
+    exported = np.asarray(station.GetOutputPort("camera0.depth_image").Eval(context).data)[:, :, 0]
+    sensor = station.GetSubsystemByName("camera0.sensor")
+    perfect = np.asarray(sensor.depth_image_32F_output_port().Eval(sensor.GetMyContextFromRoot(context)).data)[..., 0]
+    seen = np.isfinite(perfect) & (exported > 0)
+    assert 0.01 < np.mean(exported[np.isfinite(perfect)] == 0) < 0.2  # holes, not a blank image
+    difference = np.abs(exported[seen] - perfect[seen])
+    assert 0.0003 < np.median(difference) < 0.003  # millimetres of noise at about a metre
+    assert station.HasSubsystemNamed("camera0.noise") and not MakeStation(scenario).HasSubsystemNamed("camera0.noise")
 
 
 def test_drill_station_builds():
