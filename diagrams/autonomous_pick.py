@@ -102,7 +102,8 @@ def MakePickDiagram(
     measured = station.GetOutputPort("centauro.position_measured")
     if perception == "camera":
         grasps, cloud, X_WO = _AddCameraPerception(builder, station, sequencer, scenario)
-        _AddLooks(builder, station, sequencer, scenario, motions.ik.stomp, cloud, X_WO)
+        if scenario.place.looks:
+            _AddLooks(builder, station, sequencer, scenario, motions.ik.stomp, cloud, X_WO)
     else:
         grasps, cloud, X_WO = _AddGroundTruth(builder, scenario)
     builder.Connect(X_WO, sequencer.GetInputPort("X_WO"))

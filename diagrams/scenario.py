@@ -100,6 +100,9 @@ class PlaceConfig:
     xy: list[float] = field(default_factory=lambda: [-0.12, -0.15])
     # Target rotation about the world z axis relative to the category's presentation pose, like object.yaw, rad.
     yaw: float = 0.0
+    # Look at the held object (the object tracker) before the carry and before the set-down; false: place from
+    # the first look alone, as if the object did not move in the hands.
+    looks: bool = True
 
 
 @dataclass

@@ -247,20 +247,22 @@ def test_ground_truth_place_carries_a_drill_over_the_box_between(scenario):
     assert outcome.closure["max_translation_dev_m"] < 0.01 and outcome.closure["max_orientation_dev_rad"] < 0.05
 
 
-def test_autonomous_place_corrects_what_the_hands_turned_the_can_by(scenario):
-    """Closing turned this can by 21 deg (then about 8 deg in the hands); placed from the first look it ended
-    13.6 deg off the target. The looks at the held object (object tracker) set it down within the tolerance
-    (letting go and backing off can still turn it: measured 0.9 and 6.8 deg at the end in two versions)."""
+def test_the_looks_correct_what_the_hands_moved_the_can_by(scenario):
+    """The hands move a can as they close and carry it. Placed from the first look alone, this one is set down
+    2.2 cm and 4.9 deg off and ends turned by 8.7 deg; the looks at the held object (object tracker) find
+    where it is in the hands, and it is set down within a few millimetres and degrees."""
     place = dataclasses.replace(
-        replace_object(scenario, category="watering_can", instance="test_2", yaw=0.0),
+        replace_object(scenario, category="watering_can", instance="test_0", yaw=0.0),
         task="place",
-        random_seed=7,
+        random_seed=1,
         registration_yaw_noise=0.2,
     )
+    without = run_pick(dataclasses.replace(place, place=dataclasses.replace(place.place, looks=False)))
+    assert "look" not in without.stages and not without.failed_stage, without.message
+    assert without.place["set_down_error_m"] > 0.015
     outcome = run_pick(place)
-    assert "look" in outcome.stages and not outcome.failed_stage, outcome.message
-    assert outcome.place["set_down_error_m"] <= 0.02 and outcome.place["set_down_yaw_error_rad"] <= np.radians(5)
-    assert outcome.place["tilt_rad"] <= np.radians(5) and not outcome.place["dropped"]
+    assert "look" in outcome.stages and outcome.success, outcome.message
+    assert outcome.place["set_down_error_m"] < 0.01 and outcome.place["set_down_yaw_error_rad"] < np.radians(2)
 
 
 def test_unreachable_carry_ends_named_with_the_object_still_held(scenario):
