@@ -39,7 +39,7 @@ objects: env
 
 # Renders the synthetic training frames (data/, not versioned) and retrains models/segmenter.pt (~15 min, 2 cores).
 segmenter: env
-	$(PY) scripts/generate_segmentation_data.py
+	$(PY) scripts/generate_segmentation_data.py --jobs 2
 	$(PY) scripts/train_segmenter.py
 
 benchmark-perception: env

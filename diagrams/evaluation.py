@@ -109,6 +109,7 @@ def run_trial(trial: Trial) -> dict:
         "task": scenario.task,
         "obstacle": scenario.obstacle.present,
         "yaw_noise_rad": scenario.registration_yaw_noise,
+        "sensor": scenario.camera_noise.preset,
         "name": trial.name,
         "yaw": trial.yaw,
         "trial": trial.index,

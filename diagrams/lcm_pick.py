@@ -35,7 +35,7 @@ from systems.lcm_safety import CommandGuard, MessageMonitor
 from systems.pick_sequencer import PickStatus
 
 # The bus inside the private namespace: loopback multicast, never routed (ttl=0).
-NAMESPACE_LCM_URL = "udpm://239.255.76.67:7667?ttl=0"
+NAMESPACE_LCM_URL = "udpm://239.255.76.67:7667?ttl=0&recv_buf_size=4194304"
 NAMESPACE_SETUP = (
     "ip link set lo up && ip link set lo multicast on && ip route add 224.0.0.0/4 dev lo"
     # Room for the camera's large messages (per namespace on recent kernels; best effort).

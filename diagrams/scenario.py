@@ -134,8 +134,8 @@ class PlanningConfig:
 class CameraNoiseConfig:
     """The RGB-D sensor model between the camera and everything that reads it (systems/rgbd_noise.py)."""
 
-    # "off" (the renderer's perfect images), "kinect_v2" or "realsense_d435".
-    preset: str = "off"
+    # "perfect" (the renderer's images as they are), "kinect_v2" or "realsense_d435".
+    preset: str = "perfect"
     # The preset's parameters replaced, e.g. {dropout_share: 0.05, axial_sigma_per_m2: 0.002}.
     overrides: dict[str, float] = field(default_factory=dict)
 

@@ -2,6 +2,8 @@
 
 A dataset file (.npz) holds `rgb` (N x H x W x 3 uint8), `labels` (N x H x W uint8
 class ids, see synthetic_scenes.CLASSES) and `instances` (the objects in each frame).
+The colour is what the scenario's RGB-D sensor model (camera_noise) reports: the network
+learns on the images the robot will see.
 """
 
 from collections.abc import Callable, Iterable, Iterator
@@ -15,6 +17,7 @@ from tqdm import tqdm
 from diagrams.paths import REPO_ROOT
 from diagrams.scenario import Scenario
 from diagrams.synthetic_scenes import CLASSES, SyntheticScene
+from systems.rgbd_noise import noise_parameters, noisy_color
 from systems.segmentation_network import INPUT_SIZE, resize_to_input
 
 DEFAULT_DATASET = REPO_ROOT / "data" / "segmentation" / "train.npz"
@@ -48,13 +51,18 @@ def render_scene(job: SceneJob) -> dict[str, np.ndarray]:
     """The job's frames, the same wherever they are rendered: every draw comes from the stream [seed, index]."""
     rng = np.random.default_rng([job.seed, job.index])
     scene = SyntheticScene(job.scenario, rng, split=job.split)
+    sensor = job.scenario.camera_noise
+    # The sensor's noise from a stream of its own: the scenes are those rendered without it.
+    parameters = None if sensor.preset == "perfect" else noise_parameters(sensor.preset, sensor.overrides)
+    noise = np.random.default_rng([job.seed, job.index, 1])
     width, height = INPUT_SIZE
     rgb = np.empty((job.frames, height, width, 3), np.uint8)
     labels = np.empty((job.frames, height, width), np.uint8)
     instances = []
     for i in range(job.frames):
         frame = scene.render()
-        rgb[i], labels[i] = resize_frame(frame.rgb, frame.labels)
+        colour = frame.rgb if parameters is None else noisy_color(frame.rgb, parameters, noise)
+        rgb[i], labels[i] = resize_frame(colour, frame.labels)
         instances.append(",".join(f"{category}/{name}" for category, name, _ in frame.objects))
     return {"rgb": rgb, "labels": labels, "instances": np.array(instances)}
 

@@ -279,7 +279,7 @@ def _AddCamera(builder, plant, scene_graph, scenario):
     sensor.set_name(f"{config.name}.sensor")
     builder.Connect(scene_graph.get_query_output_port(), sensor.query_object_input_port())
     color, depth = sensor.color_image_output_port(), sensor.depth_image_32F_output_port()
-    if scenario.camera_noise.preset != "off":  # a real sensor's images: everything downstream sees these
+    if scenario.camera_noise.preset != "perfect":  # a real sensor's images: everything downstream sees these
         parameters = noise_parameters(scenario.camera_noise.preset, scenario.camera_noise.overrides)
         noise = builder.AddNamedSystem(
             f"{config.name}.noise", RgbdNoise(depth_camera.core().intrinsics(), parameters, scenario.random_seed)

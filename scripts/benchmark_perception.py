@@ -1,13 +1,16 @@
 """Benchmarks segmentation and pose estimation on held-out scenes with the unseen test instances.
 
 Each scene is a new random background with one test can or drill at a random pose,
-seen from the chest camera's nominal pose (the whole object in view). The Segmenter
-and PoseEstimator systems run as they do in the pick diagram (FixValue / Eval).
+seen from the chest camera's nominal pose (the whole object in view), its colour and depth as the
+RGB-D sensor model reports them (--sensor, by default kinect_v2; --no-noise: the renderer's perfect
+images). The Segmenter and PoseEstimator systems run as they do in the pick diagram (FixValue / Eval).
 
 python scripts/benchmark_perception.py --scenes 60 --json perception.json
+python scripts/benchmark_perception.py --scenes 60 --no-noise
 """
 
 import argparse
+import dataclasses
 import logging
 import platform
 import time
@@ -19,10 +22,12 @@ import torch
 from json_report import write_json
 from pydrake.common.value import AbstractValue
 from pydrake.systems.sensors import ImageDepth32F, ImageRgba8U
+from scenario_options import add_sensor_option
 
 from diagrams.perception import MakePoseEstimator
 from diagrams.scenario import load_scenario
 from diagrams.synthetic_scenes import CLASSES, SyntheticScene
+from systems.rgbd_noise import noise_parameters, noisy_color, noisy_depth
 from systems.segmenter import DEFAULT_WEIGHTS, Segmenter
 from systems.segmenter_training import intersection_over_union
 
@@ -90,6 +95,7 @@ def main():
     parser.add_argument("--seed", type=int, default=2024, help="held-out scenes' seed (training used others)")
     parser.add_argument("--weights", type=Path, default=DEFAULT_WEIGHTS)
     parser.add_argument("--threads", type=int, default=2, help="torch CPU threads")
+    add_sensor_option(parser, default="kinect_v2")
     parser.add_argument("--json", type=Path, help="write the results here")
     parser.add_argument("--figure", type=Path, help="write a mosaic of the first 6 scenes here (.png)")
     args = parser.parse_args()
@@ -97,6 +103,8 @@ def main():
     scenario = load_scenario()
     rng = np.random.default_rng(args.seed)
 
+    sensor = None if args.sensor == "perfect" else noise_parameters(args.sensor)
+    intrinsics = scenario.camera.MakeCameras()[1].core().intrinsics()
     segmenter = Segmenter(args.weights)
     pose_estimator = MakePoseEstimator(scenario)
     predicted, predicted_dominant, truth, rows, tiles = [], [], [], [], []
@@ -104,6 +112,10 @@ def main():
         scene = SyntheticScene(scenario, rng, split="test", cameras=1, camera_jitter=False)
         frame = render_held_out_frame(scene)
         category, instance, X_WO_true = frame.objects[0]
+        if sensor is not None:  # (a stream of its own: the scenes are those of a run without it)
+            noise = np.random.default_rng([args.seed, i])
+            depth = noisy_depth(frame.depth, frame.rgb, intrinsics, sensor, noise)
+            frame = dataclasses.replace(frame, rgb=noisy_color(frame.rgb, sensor, noise), depth=depth)
 
         seg_context = segmenter.CreateDefaultContext()
         segmenter.GetInputPort("color_image").FixValue(seg_context, to_rgba_image(frame.rgb))
@@ -159,6 +171,7 @@ def main():
     results = {
         "scenes": args.scenes,
         "seed": args.seed,
+        "sensor": args.sensor,
         "iou": dict(zip(CLASSES, iou.tolist(), strict=True)),
         "iou_mean": float(np.nanmean(iou[1:])),  # network labels, over the object classes
         "iou_dominant": dict(zip(CLASSES, iou_dominant.tolist(), strict=True)),

@@ -2,13 +2,17 @@
 
 Each trial renders one test can or drill at the paper's experiment poses (yaw -0.25, 0
 or +0.25 about the presentation, plus uniform +-0.2 rad noise) on a random background,
-takes its depth points (true mask, Gaussian depth noise), starts from the PoseEstimator's
-initial pose and registers, knowing the camera's position. Errors are against the generator's
-ground truth: grasp frames (mean over the four control poses), and the symmetric Chamfer distance
-from the reconstruction to the true mesh (surface distances both ways).
+takes its depth points (true mask) as the RGB-D sensor model reports them (--sensor, by default
+kinect_v2: flying pixels, dropouts, axial noise; --no-noise: the renderer's depth with 2 mm Gaussian
+noise, as before the sensor model), starts from the PoseEstimator's initial pose and registers,
+knowing the camera's position. Errors are against the generator's ground truth: grasp frames (mean
+over the four control poses), the symmetric Chamfer distance from the reconstruction to the true
+mesh (surface distances both ways), and whether the object was registered end for end (its yaw over
+90 deg off). A poor fit (Registration.poor_fit: the pick would stop, named) is counted.
 
 python scripts/benchmark_registration.py --trials 30 --json registration.json
 python scripts/benchmark_registration.py --trials 48 --instances extra_101 extra_102 ... --cpd-sizes  # others
+python scripts/benchmark_registration.py --trials 30 --no-noise --cpd-sizes                          # perfect depth
 """
 
 import argparse
@@ -20,6 +24,7 @@ import numpy as np
 import pycpd
 import trimesh
 from json_report import write_json
+from scenario_options import add_sensor_option
 from scipy.spatial import cKDTree
 
 from diagrams.objects import catalog
@@ -27,6 +32,7 @@ from diagrams.objects.library import generated_instance_directory, load_info
 from diagrams.perception import MakePoseEstimator
 from diagrams.scenario import load_scenario
 from diagrams.synthetic_scenes import SyntheticScene
+from systems.rgbd_noise import RgbdNoiseParameters, noise_parameters, noisy_depth
 from systems.segmenter import Segmentation
 from systems.shape_registrar import shape_space_file
 from systems.shape_space.cpd import deformable_cpd
@@ -44,6 +50,7 @@ METRICS = (
     "chamfer_m",
     "registration_s",
 )
+COUNTS = ("flipped", "poor_fit")
 
 
 def true_grasps(category: str, instance: str):
@@ -70,8 +77,12 @@ def registration_trials(
     instances=TEST_INSTANCES,
     categories=tuple(catalog.CATEGORIES),
     space_dir: Path | None = None,
+    sensor: RgbdNoiseParameters | None = None,
 ):
+    """One row per trial. sensor: the RGB-D sensor model's parameters (None: 2 mm Gaussian depth noise). Its
+    noise comes from a stream of its own, [seed, trial]: the scenes and poses are those of a run without it."""
     scenario = load_scenario()
+    intrinsics = scenario.camera.MakeCameras()[1].core().intrinsics()
     rng = np.random.default_rng(seed)
     estimator = MakePoseEstimator(scenario)
     spaces = {c: space_dir / shape_space_file(c).name if space_dir else shape_space_file(c) for c in categories}
@@ -89,7 +100,10 @@ def registration_trials(
         frame = scene.render(placement=(category, instance, yaw, xy))
         X_WO_true = frame.objects[0][2]
         mask = frame.labels > 0
-        depth = frame.depth + rng.normal(0, DEPTH_NOISE, frame.depth.shape).astype(np.float32)
+        if sensor is None:
+            depth = frame.depth + rng.normal(0, DEPTH_NOISE, frame.depth.shape).astype(np.float32)
+        else:
+            depth = noisy_depth(frame.depth, frame.rgb, intrinsics, sensor, np.random.default_rng([seed, trial]))
         estimate = estimator.estimate(Segmentation(True, category, mask, int(mask.sum())), depth, frame.X_WC)
         start = time.perf_counter()
         result = registrars[category].register(estimate.points_W, estimate.X_WO, estimate.viewpoint_W)
@@ -115,10 +129,14 @@ def registration_trials(
             "grasp_angle_error_rad": float(np.mean([e[1] for e in errors.values()])),
             "grasp_frame_translation_error_m": float(np.mean([errors[n][0] for n in ("left_grasp", "right_grasp")])),
             "chamfer_m": chamfer_to_mesh(reconstructed_O, meshes[(category, instance)]),
+            "yaw_error_rad": pose_errors(result.X_WO, X_WO_true)[1],
+            "flipped": pose_errors(result.X_WO, X_WO_true)[1] > np.pi / 2,
+            "poor_fit": bool(result.poor_fit),
+            "inlier_share": result.inlier_share,
         }
         rows.append(row)
         logging.info(
-            "%2d %-12s %s  grasp %.1f mm %.1f deg  chamfer %.1f mm  %.2f s",
+            "%2d %-12s %s  grasp %.1f mm %.1f deg  chamfer %.1f mm  %.2f s%s",
             trial,
             category,
             instance,
@@ -126,6 +144,7 @@ def registration_trials(
             np.degrees(row["grasp_angle_error_rad"]),
             1000 * row["chamfer_m"],
             seconds,
+            ("  FLIPPED" if row["flipped"] else "") + ("  " + result.poor_fit if result.poor_fit else ""),
         )
     return rows
 
@@ -183,15 +202,19 @@ def main():
     )
     parser.add_argument("--cpd-sizes", type=int, nargs="*", default=[500, 1000, 2000])
     parser.add_argument("--space-dir", type=Path, help="read shape_space_<category>.npz from here (default: models/)")
+    add_sensor_option(parser, default="kinect_v2")
     parser.add_argument("--json", type=Path)
     args = parser.parse_args()
-    rows = registration_trials(args.trials, args.seed, args.instances, space_dir=args.space_dir)
+    sensor = None if args.sensor == "perfect" else noise_parameters(args.sensor)
+    rows = registration_trials(args.trials, args.seed, args.instances, space_dir=args.space_dir, sensor=sensor)
     cpd_rows = cpd_comparison(args.cpd_sizes)
-    results = {"trials": args.trials, "seed": args.seed, "instances": args.instances}
+    results = {"trials": args.trials, "seed": args.seed, "instances": args.instances, "sensor": args.sensor}
     for category in catalog.CATEGORIES:
         subset = [r for r in rows if r["category"] == category]
         for key in METRICS:
             results.setdefault(key + "_median", {})[category] = float(np.median([r[key] for r in subset]))
+        for key in COUNTS:
+            results.setdefault(key, {})[category] = int(sum(r[key] for r in subset))
     for key in METRICS:
         results[key + "_median"]["all"] = float(np.median([r[key] for r in rows]))
     by_size = {r["points"]: r for r in cpd_rows}
@@ -205,12 +228,16 @@ def main():
         ("grasp_translation_error_m", 1000, "mm", "<= 10 mm"),
         ("grasp_frame_translation_error_m", 1000, "mm", ""),
         ("grasp_angle_error_rad", 180 / np.pi, "deg", "<= 5 deg"),
-        ("chamfer_m", 1000, "mm", "<= 5 mm"),
+        ("chamfer_m", 1000, "mm", "<= 5 mm (<= 6 mm with the sensor)"),
         ("registration_s", 1, "s", "<= 0.5 s"),
     ):
         values = results[key + "_median"]
         label = f"{key} [{unit}]"
         print(f"{label:37s} {values['watering_can'] * scale:13.2f} {values['drill'] * scale:10.2f}  {target}")
+    for key, target in (("flipped", "0 (end for end)"), ("poor_fit", "(named failures)")):
+        values = results[key]
+        print(f"{key + ' [trials]':37s} {values['watering_can']:13d} {values['drill']:10d}  {target}")
+    print(f"(sensor: {args.sensor})")
     header = ("CPD points", "ours s", "pycpd s", "speedup", "ours err mm", "pycpd err mm")
     print("\n" + " ".join(f"{h:>12s}" for h in header))
     for r in cpd_rows:

@@ -28,6 +28,7 @@ from pathlib import Path
 
 from campaign import read_records, run_campaign
 from json_report import write_json
+from scenario_options import add_sensor_option, with_sensor
 
 from diagrams.evaluation import (
     COMPONENTS,
@@ -96,6 +97,7 @@ def parse_args(argv=None):
     parser.add_argument("--seed", type=int, help="seed of the first trial (trial n gets seed + n)")
     parser.add_argument("--scenario", type=Path, default=DEFAULT_SCENARIO, help="scenario YAML file")
     parser.add_argument("--scenario_text", default="", help="YAML overlaid on the scenario file")
+    add_sensor_option(parser)
     parser.add_argument("--json", type=Path, help="write the summary and every trial as JSON")
     parser.add_argument("--figure", type=Path, help="PNG figure (default: --json's name, .png)")
     args = parser.parse_args(argv)
@@ -216,7 +218,8 @@ def main(argv=None) -> int:
             layout = place_over_box_scenario(args.category)
             base = overlay_scenario(base, layout.read_text(), str(layout))
         base = overlay_scenario(base, args.scenario_text, "--scenario_text")
-        base = dataclasses.replace(base, task=args.task)
+        base = dataclasses.replace(with_sensor(base, args.sensor), task=args.task)
+        args.sensor = base.camera_noise.preset
         if args.seed is not None:
             base = dataclasses.replace(base, random_seed=args.seed)
         if args.object_files:
@@ -235,7 +238,8 @@ def main(argv=None) -> int:
         where = f"as Ray tasks ({'at ' + args.ray if args.ray else f'a local Ray with {args.jobs} CPUs'})"
     print(
         f"{len(trials)} autonomous picks ({what}): {len(objects)} {args.category} object(s) x {len(args.yaws)} "
-        f"yaw(s) x {args.trials} trial(s), registration yaw noise +-{args.yaw_noise:.2f} rad, {where}"
+        f"yaw(s) x {args.trials} trial(s), registration yaw noise +-{args.yaw_noise:.2f} rad, sensor {args.sensor}, "
+        f"{where}"
     )
     try:
         records = run_campaign(trials, args.jobs, args.ray, args.records, args.resume, describe)
@@ -255,6 +259,7 @@ def summarize_records(args) -> int:
     first = records[0]  # a campaign's records share these (older records may lack some: the flags stand)
     args.category, args.task = first.get("category", args.category), first.get("task", args.task)
     args.obstacle, args.yaw_noise = first.get("obstacle", args.obstacle), first.get("yaw_noise_rad", args.yaw_noise)
+    args.sensor = first.get("sensor", "perfect")  # (records from before the sensor model: the renderer's images)
     args.yaws = list(dict.fromkeys(r["yaw"] for r in records))
     args.trials = 1 + max(r["trial"] for r in records)
     print(f"{len(records)} picks from {args.summarize}")
@@ -278,6 +283,7 @@ def report(args, records: list[dict], first_seed: int):
         "trials_per_yaw": args.trials,
         "yaws": args.yaws,
         "yaw_noise_rad": args.yaw_noise,
+        "sensor": args.sensor,
         "first_seed": first_seed,
         "jobs": args.jobs,
         "ray": args.ray,

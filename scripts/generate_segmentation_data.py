@@ -4,6 +4,7 @@ python scripts/generate_segmentation_data.py                         # data/segm
 python scripts/generate_segmentation_data.py --frames 400 --split test --out /tmp/test.npz
 python scripts/generate_segmentation_data.py --jobs 2                # scenes rendered in 2 worker processes
 python scripts/generate_segmentation_data.py --ray auto --frames 8000  # each scene a task on a Ray cluster
+python scripts/generate_segmentation_data.py --no-noise              # the renderer's colour, no sensor model
 
 Every scene draws from a random stream of its own ([seed, scene number]), so the frames are the same whether
 they are rendered here, in worker processes or on Ray.
@@ -13,6 +14,7 @@ import argparse
 from pathlib import Path
 
 from campaign import fan_out
+from scenario_options import add_sensor_option, with_sensor
 
 from diagrams import segmentation_data
 from diagrams.scenario import load_scenario
@@ -38,6 +40,7 @@ def main():
         metavar="ADDRESS",
         help="render each scene as a Ray task: on a local Ray without ADDRESS, or on the cluster at ADDRESS ('auto')",
     )
+    add_sensor_option(parser)
     args = parser.parse_args()
     if args.frames < 1 or args.frames_per_scene < 1 or args.jobs < 1:
         parser.error("--frames, --frames-per-scene and --jobs must be positive")
@@ -48,7 +51,7 @@ def main():
             return fan_out(segmentation_data.render_scene, jobs, args.jobs, args.ray)
 
     dataset = segmentation_data.generate(
-        load_scenario(), args.frames, args.frames_per_scene, args.split, args.seed, run_jobs
+        with_sensor(load_scenario(), args.sensor), args.frames, args.frames_per_scene, args.split, args.seed, run_jobs
     )
     segmentation_data.save(args.out, dataset)
     print(f"wrote {args.out}: {args.frames} frames of {args.split} instances")

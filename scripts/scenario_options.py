@@ -5,6 +5,7 @@ import dataclasses
 from pathlib import Path
 
 from diagrams.scenario import DEFAULT_SCENARIO, Scenario, load_scenario, replace_object
+from systems.rgbd_noise import PRESETS
 
 
 def add_scenario_options(parser: argparse.ArgumentParser) -> None:
@@ -15,6 +16,33 @@ def add_scenario_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--object-file", dest="object_file", help="your own model: .sdf, .urdf, .obj/.ply/.stl")
     parser.add_argument("--yaw", type=float, help="object yaw relative to the category's presentation, rad")
     parser.add_argument("--seed", type=int, help="random seed of the run")
+    add_sensor_option(parser)
+
+
+def add_sensor_option(parser: argparse.ArgumentParser, default: str | None = None) -> None:
+    """--sensor PRESET (the RGB-D sensor model) and --no-noise (--sensor perfect)."""
+    presets = ", ".join(PRESETS)
+    fallback = default or "the scenario's camera_noise, kinect_v2"
+    parser.add_argument(
+        "--sensor",
+        choices=tuple(PRESETS),
+        default=default,
+        help=f"the RGB-D sensor model ({presets}; default: {fallback})",
+    )
+    parser.add_argument(
+        "--no-noise",
+        dest="sensor",
+        action="store_const",
+        const="perfect",
+        help="the renderer's perfect images (--sensor perfect)",
+    )
+
+
+def with_sensor(scenario: Scenario, sensor: str | None) -> Scenario:
+    """The scenario with its camera_noise preset replaced (None: as it is)."""
+    if sensor is None:
+        return scenario
+    return dataclasses.replace(scenario, camera_noise=dataclasses.replace(scenario.camera_noise, preset=sensor))
 
 
 def scenario_from_args(args: argparse.Namespace) -> Scenario:
@@ -24,13 +52,13 @@ def scenario_from_args(args: argparse.Namespace) -> Scenario:
     scenario = replace_object(scenario, **{k: v for k, v in changes.items() if v is not None})
     if args.seed is not None:
         scenario = dataclasses.replace(scenario, random_seed=args.seed)
-    return scenario
+    return with_sensor(scenario, args.sensor)
 
 
 def scenario_arguments(args: argparse.Namespace) -> list[str]:
     """These options as given, to start another script on the same scenario."""
     forwarded = ["--scenario", str(args.scenario), "--scenario_text", args.scenario_text]
-    for name in ("object", "instance", "object_file", "yaw", "seed"):
+    for name in ("object", "instance", "object_file", "yaw", "seed", "sensor"):
         value = getattr(args, name)
         if value is not None:
             forwarded += [f"--{name.replace('_', '-')}", str(value)]

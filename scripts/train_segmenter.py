@@ -11,6 +11,7 @@ import time
 from pathlib import Path
 
 import torch
+from scenario_options import add_sensor_option, with_sensor
 
 from diagrams import segmentation_data
 from diagrams.paths import MODELS_DIR
@@ -33,9 +34,10 @@ def main():
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--threads", type=int, default=2, help="torch CPU threads")
     parser.add_argument("--out", type=Path, default=MODELS_DIR / "segmenter.pt")
+    add_sensor_option(parser)
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
-    scenario = load_scenario()
+    scenario = with_sensor(load_scenario(), args.sensor)
     if not args.data.is_file():
         logging.info("%s missing: rendering %d training frames", args.data, args.frames)
         segmentation_data.save(
@@ -59,6 +61,7 @@ def main():
         "epochs": args.epochs,
         "seed": args.seed,
         "training_frames": len(data["rgb"]),
+        "sensor": scenario.camera_noise.preset,
         "training_s": round(train_s, 1),
         "final_loss": history[-1],
         "validation": {

@@ -5,9 +5,10 @@ robot while it learned, and with the hands around the object it takes a hand for
 known instead: the object's reconstructed shape (the shape registrar's cloud from the first look, and
 the pose it was at), where it is believed to be now, and where the robot's own body is.
 
-  * points: every depth pixel, back-projected to W, inside the reconstruction's box at the expected
-    pose (grown by CROP_MARGIN) and above the table (SUPPORT_CLEARANCE over the expected origin), less
-    the robot's body (its sphere model where the arms stood when the frame was taken, SELF_MARGIN wider).
+  * points: every depth pixel but flying ones (depth_cleaning), back-projected to W, inside the
+    reconstruction's box at the expected pose (grown by CROP_MARGIN) and above the table (SUPPORT_CLEARANCE
+    over the expected origin), less the robot's body (its sphere model where the arms stood when the frame
+    was taken, SELF_MARGIN wider).
   * pose: the pose estimator's planar ICP (yaw about z, x-y; at the expected height) of those points
     onto the reconstruction, from the expected pose, over the points within INLIER_M of it (fingers and
     stray pixels the spheres missed are not the object), at the expected tilt.
@@ -33,6 +34,7 @@ from pydrake.systems.framework import LeafSystem
 from pydrake.systems.sensors import CameraInfo, ImageDepth32F
 from scipy.spatial import cKDTree
 
+from systems.depth_cleaning import flying_pixels
 from systems.pose_estimator import ObjectEstimate, depth_to_points, fit_yaw_translation, voxel_thin
 
 CROP_MARGIN = 0.03  # m
@@ -238,7 +240,7 @@ class ObjectTracker(LeafSystem):
             return ObjectEstimate(False, message="no reconstructed shape to track")
         model_O = model_X_WO.inverse().multiply(np.asarray(model_cloud_W).T).T
         X_WC = X_WB @ self.X_BC
-        everything = np.ones(depth.shape, bool)
+        everything = ~flying_pixels(depth)
         points_W = X_WC.multiply(depth_to_points(depth, everything, self.intrinsics).T).T
         in_O = X_WO_expected.inverse().multiply(points_W.T).T
         lower, upper = model_O.min(axis=0) - CROP_MARGIN, model_O.max(axis=0) + CROP_MARGIN

@@ -4,7 +4,8 @@ Frames: C is the depth camera (x right, y down, z along the optical axis), W the
 world (z up), O the object (origin on its support surface, z up, x towards the
 spout / chuck; see diagrams/objects/).
 
-  * points: the mask's pixels with a valid depth (NaN, inf and 0 are holes), back-projected
+  * points: the mask's pixels with a valid depth (NaN, inf and 0 are holes) that are no flying pixels
+    (depth_cleaning: a real sensor's mixtures of two surfaces at depth edges), back-projected
     and moved to W. The pose fit below takes only the mask's interior (eroded by a few
     pixels: edges mix object and background).
   * z_O is the world's up axis (the category prior: objects stand upright), and the
@@ -32,6 +33,7 @@ from pydrake.systems.framework import LeafSystem
 from pydrake.systems.sensors import CameraInfo, ImageDepth32F
 from scipy.spatial import cKDTree
 
+from systems.depth_cleaning import flying_pixels
 from systems.paths import cache_dir, save_npz_atomically
 from systems.segmenter import Segmentation
 
@@ -266,6 +268,7 @@ class PoseEstimator(LeafSystem):
         if prior is None:
             return ObjectEstimate(False, segmentation.category, message=f"no pose prior for {segmentation.category!r}")
         X_WC = X_WB @ self.X_BC
+        depth = np.where(flying_pixels(depth), np.nan, depth)
         points_W = self._object_points_W(segmentation.mask, depth, X_WC)
         if len(points_W) < MIN_POINTS:
             return ObjectEstimate(

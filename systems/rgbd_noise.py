@@ -6,8 +6,9 @@ Depth (metres, 0 where the sensor returns nothing, as real drivers do):
   * flying pixels: at depth edges (a step over edge_jump_m to a 4-neighbour), flying_pixel_share of the
     pixels take a depth uniformly between the two surfaces (time-of-flight pixels that see both);
   * dropouts: depth missing where the surface is seen at a grazing angle (beyond grazing_angle_deg from
-    the ray), on dark surfaces (colour intensity below dark_intensity, dark_dropout_share of them), at
-    edge_dropout_share of the edge pixels (stereo occlusion shadows), and at random (dropout_share).
+    the ray; flying pixels aside), on dark surfaces (colour intensity below dark_intensity,
+    dark_dropout_share of them), at edge_dropout_share of the edge pixels (stereo occlusion shadows), and
+    at random (dropout_share).
 Colour: a per-channel exposure gain uniform in color_gain_range, then N(0, color_sigma) per pixel (0-1 scale).
 
 Presets and their sources (`PRESETS`; every parameter can be overridden):
@@ -65,7 +66,7 @@ class RgbdNoiseParameters:
 
 
 PRESETS = {
-    "off": RgbdNoiseParameters(),
+    "perfect": RgbdNoiseParameters(),  # the renderer's images as they are
     "kinect_v2": RgbdNoiseParameters(
         axial_sigma_m=0.0005,
         axial_sigma_per_m2=0.0015,
@@ -124,17 +125,18 @@ def grazing(depth: np.ndarray, intrinsics: CameraInfo, max_angle_deg: float) -> 
     its ray."""
     if max_angle_deg >= 90.0:
         return np.zeros(depth.shape, bool)
-    v, u = np.indices(depth.shape)
-    rays = np.stack(
-        [(u - intrinsics.center_x()) / intrinsics.focal_x(), (v - intrinsics.center_y()) / intrinsics.focal_y()],
-        axis=-1,
-    )
-    rays = np.concatenate([rays, np.ones(depth.shape + (1,))], axis=-1)
-    points = rays * depth[..., None]
-    normal = np.cross(np.gradient(points, axis=1), np.gradient(points, axis=0))
-    cosine = np.abs(np.sum(normal * rays, axis=-1)) / (
-        np.linalg.norm(normal, axis=-1) * np.linalg.norm(rays, axis=-1) + 1e-12
-    )
+    height, width = depth.shape
+    # The ray through each pixel, (x, y, 1), and the back-projected point z (x, y, 1), per coordinate (float32:
+    # a camera frame's worth at a time).
+    x = ((np.arange(width) - intrinsics.center_x()) / intrinsics.focal_x()).astype(np.float32)[None, :]
+    y = ((np.arange(height) - intrinsics.center_y()) / intrinsics.focal_y()).astype(np.float32)[:, None]
+    z = depth.astype(np.float32)
+    du = [np.gradient(c, axis=1) for c in (x * z, y * z, z)]
+    dv = [np.gradient(c, axis=0) for c in (x * z, y * z, z)]
+    normal = (du[1] * dv[2] - du[2] * dv[1], du[2] * dv[0] - du[0] * dv[2], du[0] * dv[1] - du[1] * dv[0])
+    along_ray = normal[0] * x + normal[1] * y + normal[2]
+    with np.errstate(invalid="ignore"):
+        cosine = np.abs(along_ray) / (np.sqrt(sum(n**2 for n in normal)) * np.sqrt(x**2 + y**2 + 1) + 1e-12)
     return cosine < np.cos(np.radians(max_angle_deg))
 
 
@@ -149,6 +151,9 @@ def noisy_depth(
         dv, du = rng.normal(0.0, p.lateral_sigma_px, size=(2, height, width))
         z = z[np.clip(np.rint(v + dv), 0, height - 1).astype(int), np.clip(np.rint(u + du), 0, width - 1).astype(int)]
     measured = z > 0
+    # A surface seen at a grazing angle returns too little light; a flying pixel is no surface, but a mixture of
+    # two (and a silhouette's rim, where flying pixels arise, is always seen at a grazing angle).
+    too_grazing = grazing(np.where(measured, z, np.nan), intrinsics, p.grazing_angle_deg)
     edge, other = depth_edges(np.where(measured, z, np.inf), p.edge_jump_m)
     edge &= measured
     flying = edge & (rng.random(z.shape) < p.flying_pixel_share) & np.isfinite(other)
@@ -156,7 +161,7 @@ def noisy_depth(
     z = np.where(flying, z + mix * (np.nan_to_num(other, posinf=0.0) - z), z)
     sigma = p.axial_sigma_m + p.axial_sigma_per_m2 * z**2
     z = z + rng.normal(0.0, 1.0, size=z.shape) * sigma
-    missing = ~measured | grazing(np.where(measured, z, np.nan), intrinsics, p.grazing_angle_deg)
+    missing = ~measured | (too_grazing & ~flying)
     missing |= edge & ~flying & (rng.random(z.shape) < p.edge_dropout_share)
     if p.dark_dropout_share > 0:
         dark = rgb[..., :3].mean(axis=-1) / 255.0 < p.dark_intensity

@@ -30,12 +30,21 @@ class GraspPoses:
 class ShapeRegistrar(LeafSystem):
     """Latent shape space registration of the estimated object (paper §IV-A).
 
-    Input ports:
-        estimate: ObjectEstimate from the PoseEstimator (its points_W, category and initial X_WO).
-    Output ports:
-        X_WO: the refined RigidTransform (the initial one if registration was impossible).
-        grasp_poses: GraspPoses, the canonical control poses warped to this instance, in W.
-        reconstructed_cloud_W: N x 3 numpy array, the whole inferred shape (also the unseen side).
+    .. pydrake_system::
+
+        name: ShapeRegistrar
+        input_ports:
+        - estimate
+        output_ports:
+        - X_WO
+        - grasp_poses
+        - reconstructed_cloud_W
+
+    ``estimate``: ObjectEstimate from the PoseEstimator (its points_W, category and initial X_WO).
+    ``X_WO``: the refined RigidTransform (the initial one if registration was impossible or poor).
+    ``grasp_poses``: GraspPoses, the canonical control poses warped to this instance, in W; not found, with
+    the reason, when there was nothing to register or the fit is poor (Registration.poor_fit).
+    ``reconstructed_cloud_W``: N x 3 numpy array, the whole inferred shape (also the unseen side), m.
     """
 
     def __init__(self, categories=("watering_can", "drill")):
@@ -67,7 +76,11 @@ class ShapeRegistrar(LeafSystem):
         except ValueError as error:
             cache.set_value(_Result(estimate.X_WO, None, str(error)))
             return
-        cache.set_value(_Result(registration.X_WO, registration, f"fit error {registration.fit_error_m:.4f} m"))
+        if registration.poor_fit:  # named, not passed on: a grasp 30 cm off is worse than no grasp
+            cache.set_value(_Result(estimate.X_WO, None, registration.poor_fit))
+            return
+        fit = f"fit error {registration.fit_error_m:.4f} m, {100 * registration.inlier_share:.0f}% of the points on it"
+        cache.set_value(_Result(registration.X_WO, registration, fit))
 
     def _result(self, context) -> "_Result":
         return self._registration.Eval(context)

@@ -43,6 +43,26 @@ def test_flying_pixels_lie_between_the_surfaces_only_at_depth_edges():
     assert np.mean(between[:, 319:321]) == pytest.approx(0.5, abs=0.05)
 
 
+def test_flying_pixels_survive_at_a_curved_silhouette_seen_at_a_grazing_angle():
+    """A ball 10 cm in radius, 1 m away, before a wall at 1.5 m: its rim is seen at a grazing angle (no return
+    there), but the pixels that see both the rim and the wall fly between them, as a time-of-flight sensor's do
+    (a grazing-angle test on the noisy depth took them all for steep surfaces and hid them)."""
+    v, u = np.indices((480, 640))
+    x = (u - INTRINSICS.center_x()) / INTRINSICS.focal_x()
+    y = (v - INTRINSICS.center_y()) / INTRINSICS.focal_y()
+    # The ray (x, y, 1) t meets the sphere |p - (0, 0, 1)| = 0.1 where t^2 (1 + r^2) - 2 t + 0.99 = 0.
+    r2 = x**2 + y**2
+    disc = 1.0 - 0.99 * (1.0 + r2)
+    ball = np.where(disc >= 0, (1.0 - np.sqrt(np.maximum(disc, 0))) / (1.0 + r2), np.inf)
+    depth = np.minimum(ball, 1.5).astype(np.float32)
+    p = RgbdNoiseParameters(flying_pixel_share=0.5, grazing_angle_deg=75.0)
+    noisy = noisy_depth(depth, BRIGHT, INTRINSICS, p, np.random.default_rng(5))
+    between = (noisy > 1.0) & (noisy < 1.45)
+    rim = np.isfinite(ball) & ~np.isfinite(np.pad(ball, 1, constant_values=np.inf)[2:, 1:-1] + ball)
+    assert np.count_nonzero(between) > 0.3 * np.count_nonzero(rim)
+    assert np.all(noisy[np.abs(ball - 0.9) < 0.005] > 0)  # the ball's front faces the camera
+
+
 def test_edge_dropouts_and_dark_surfaces():
     depth = flat(1.0)
     depth[:, 320:] = 1.5
@@ -113,5 +133,5 @@ def test_bad_parameters_are_named():
     with pytest.raises(ValueError, match="metres are expected"):
         noise_parameters("kinect_v2", {"axial_sigma_m": 0.5})  # 0.5 mm written as 0.5
     with pytest.raises(ValueError, match="finite"):
-        dataclasses.replace(PRESETS["off"], axial_sigma_per_m2=float("nan"))
+        dataclasses.replace(PRESETS["perfect"], axial_sigma_per_m2=float("nan"))
     assert noise_parameters("realsense_d435", {"dropout_share": 0.0}).dropout_share == 0.0

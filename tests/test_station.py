@@ -74,8 +74,8 @@ def test_camera_sees_the_object(station):
 
 
 def test_a_noisy_sensor_sits_between_the_camera_and_its_ports(scenario):
-    """With camera_noise on, the exported depth is the sensor model's: noisy, with holes, on the same object;
-    off (the default), the renderer's own."""
+    """With camera_noise on (the default scenario's kinect_v2), the exported depth is the sensor model's: noisy,
+    with holes, on the same object; with the preset "perfect", the renderer's own."""
     noisy_scenario = dataclasses.replace(scenario, camera_noise=CameraNoiseConfig(preset="kinect_v2"))
     station = MakeStation(noisy_scenario)
     context = station.CreateDefaultContext()
@@ -86,7 +86,9 @@ def test_a_noisy_sensor_sits_between_the_camera_and_its_ports(scenario):
     assert 0.01 < np.mean(exported[np.isfinite(perfect)] == 0) < 0.2  # holes, not a blank image
     difference = np.abs(exported[seen] - perfect[seen])
     assert 0.0003 < np.median(difference) < 0.003  # millimetres of noise at about a metre
-    assert station.HasSubsystemNamed("camera0.noise") and not MakeStation(scenario).HasSubsystemNamed("camera0.noise")
+    perfect_scenario = dataclasses.replace(scenario, camera_noise=CameraNoiseConfig(preset="perfect"))
+    assert station.HasSubsystemNamed("camera0.noise") and MakeStation(scenario).HasSubsystemNamed("camera0.noise")
+    assert not MakeStation(perfect_scenario).HasSubsystemNamed("camera0.noise")
 
 
 def test_drill_station_builds():
