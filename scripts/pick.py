@@ -104,6 +104,7 @@ def main(argv=None) -> int:
             "seed": scenario.random_seed,
             "mode": "oracle" if args.oracle else "autonomous",
             "backend": args.backend,
+            "sensor": scenario.camera_noise.preset,  # the simulated camera's (a real robot's camera is real)
             "planning_s": outcome.planning_s,
             "stages": outcome.stages,
             "closure": outcome.closure,

@@ -40,13 +40,13 @@ def test_stream_sends_nothing_before_a_command_then_every_period_while_this_proc
     sent = _sent(log_path)
     times = np.array([t for t, _ in sent])
     assert len(sent) == stream.sends and 190 <= len(sent) <= 215  # 1.05 s at 200 Hz
-    # Every send within two periods of the one before, but for at most two late wake-ups within four: this VM
-    # wakes a lone real-time loop late now and then (hypervisor steal; scripts/benchmark_command_stream.py
-    # measured 15 of 11886 sends late beside busy processes). A stream that waited for this busy process would
-    # show one gap of its whole second.
+    # No stall while this process is busy: a stream that waited for it would show one gap of its whole second.
+    # Per-send jitter is this VM's (it wakes a lone real-time loop late now and then, hypervisor steal:
+    # scripts/benchmark_command_stream.py measured 15 of 11886 sends late beside busy processes, up to 27 ms;
+    # here once 18 ms): at most two sends later than two periods, none later than ten.
     gaps = np.diff(times)
     assert np.count_nonzero(gaps > 2 * PERIOD_S) <= 2, gaps[gaps > 2 * PERIOD_S]
-    assert gaps.max() <= 4 * PERIOD_S and stream.max_gap_s <= 4 * PERIOD_S
+    assert gaps.max() <= 10 * PERIOD_S and stream.max_gap_s <= 10 * PERIOD_S
     first, last = sent[0][1], sent[-1][1]
     assert first.utime == 1_000_000 and first.num_joints == 14 and list(first.joint_position) == list(range(14))
     assert last.utime == 2_000_000 and list(last.joint_position) == [1.0] * 14
