@@ -17,7 +17,7 @@ from tqdm import tqdm
 from diagrams.paths import REPO_ROOT
 from diagrams.scenario import Scenario
 from diagrams.synthetic_scenes import CLASSES, SyntheticScene
-from systems.rgbd_noise import noise_parameters, noisy_color
+from systems.rgbd_noise import noisy_color, sensor_model
 from systems.segmentation_network import INPUT_SIZE, resize_to_input
 
 DEFAULT_DATASET = REPO_ROOT / "data" / "segmentation" / "train.npz"
@@ -53,7 +53,7 @@ def render_scene(job: SceneJob) -> dict[str, np.ndarray]:
     scene = SyntheticScene(job.scenario, rng, split=job.split)
     sensor = job.scenario.camera_noise
     # The sensor's noise from a stream of its own: the scenes are those rendered without it.
-    parameters = None if sensor.preset == "perfect" else noise_parameters(sensor.preset, sensor.overrides)
+    parameters = sensor_model(sensor.preset, sensor.overrides)
     noise = np.random.default_rng([job.seed, job.index, 1])
     width, height = INPUT_SIZE
     rgb = np.empty((job.frames, height, width, 3), np.uint8)

@@ -45,7 +45,7 @@ from diagrams.objects.library import ObjectModel, resolve_object
 from diagrams.paths import PACKAGE_XML
 from diagrams.scenario import Scenario
 from systems.gravity_compensation import GravityCompensation
-from systems.rgbd_noise import RgbdNoise, noise_parameters
+from systems.rgbd_noise import RgbdNoise, sensor_model
 
 ARM_INSTANCE = "centauro"
 HAND_INSTANCES = {"left": "left_hand", "right": "right_hand"}
@@ -279,8 +279,8 @@ def _AddCamera(builder, plant, scene_graph, scenario):
     sensor.set_name(f"{config.name}.sensor")
     builder.Connect(scene_graph.get_query_output_port(), sensor.query_object_input_port())
     color, depth = sensor.color_image_output_port(), sensor.depth_image_32F_output_port()
-    if scenario.camera_noise.preset != "perfect":  # a real sensor's images: everything downstream sees these
-        parameters = noise_parameters(scenario.camera_noise.preset, scenario.camera_noise.overrides)
+    parameters = sensor_model(scenario.camera_noise.preset, scenario.camera_noise.overrides)
+    if parameters is not None:  # a real sensor's images: everything downstream sees these
         noise = builder.AddNamedSystem(
             f"{config.name}.noise", RgbdNoise(depth_camera.core().intrinsics(), parameters, scenario.random_seed)
         )

@@ -27,7 +27,7 @@ from scenario_options import add_sensor_option
 from diagrams.perception import MakePoseEstimator
 from diagrams.scenario import load_scenario
 from diagrams.synthetic_scenes import CLASSES, SyntheticScene
-from systems.rgbd_noise import noise_parameters, noisy_color, noisy_depth
+from systems.rgbd_noise import noisy_color, noisy_depth, sensor_model
 from systems.segmenter import DEFAULT_WEIGHTS, Segmenter
 from systems.segmenter_training import intersection_over_union
 
@@ -103,7 +103,7 @@ def main():
     scenario = load_scenario()
     rng = np.random.default_rng(args.seed)
 
-    sensor = None if args.sensor == "perfect" else noise_parameters(args.sensor)
+    sensor = sensor_model(args.sensor)
     intrinsics = scenario.camera.MakeCameras()[1].core().intrinsics()
     segmenter = Segmenter(args.weights)
     pose_estimator = MakePoseEstimator(scenario)

@@ -7,7 +7,7 @@ kinect_v2: flying pixels, dropouts, axial noise; --no-noise: the renderer's dept
 noise, as before the sensor model), starts from the PoseEstimator's initial pose and registers,
 knowing the camera's position. Errors are against the generator's ground truth: grasp frames (mean
 over the four control poses), the symmetric Chamfer distance from the reconstruction to the true
-mesh (surface distances both ways), and whether the object was registered end for end (its yaw over
+mesh (surface distances both ways), and whether the object was registered end for end (its rotation over
 90 deg off). A poor fit (Registration.poor_fit: the pick would stop, named) is counted.
 
 python scripts/benchmark_registration.py --trials 30 --json registration.json
@@ -32,7 +32,7 @@ from diagrams.objects.library import generated_instance_directory, load_info
 from diagrams.perception import MakePoseEstimator
 from diagrams.scenario import load_scenario
 from diagrams.synthetic_scenes import SyntheticScene
-from systems.rgbd_noise import RgbdNoiseParameters, noise_parameters, noisy_depth
+from systems.rgbd_noise import RgbdNoiseParameters, noisy_depth, sensor_model
 from systems.segmenter import Segmentation
 from systems.shape_registrar import shape_space_file
 from systems.shape_space.cpd import deformable_cpd
@@ -113,6 +113,7 @@ def registration_trials(
             meshes[(category, instance)] = trimesh.load(
                 generated_instance_directory(category, instance) / "visual.obj", force="mesh"
             )
+        rotation_error = pose_errors(result.X_WO, X_WO_true)[1]  # (over 90 deg: registered end for end)
         reconstructed_O = X_WO_true.inverse().multiply(result.reconstructed_W.T).T
         errors = {
             name: pose_errors(result.grasp_poses_W[name], X_WO_true @ X_OG)
@@ -129,8 +130,8 @@ def registration_trials(
             "grasp_angle_error_rad": float(np.mean([e[1] for e in errors.values()])),
             "grasp_frame_translation_error_m": float(np.mean([errors[n][0] for n in ("left_grasp", "right_grasp")])),
             "chamfer_m": chamfer_to_mesh(reconstructed_O, meshes[(category, instance)]),
-            "yaw_error_rad": pose_errors(result.X_WO, X_WO_true)[1],
-            "flipped": pose_errors(result.X_WO, X_WO_true)[1] > np.pi / 2,
+            "rotation_error_rad": rotation_error,
+            "flipped": rotation_error > np.pi / 2,
             "poor_fit": bool(result.poor_fit),
             "inlier_share": result.inlier_share,
         }
@@ -205,7 +206,7 @@ def main():
     add_sensor_option(parser, default="kinect_v2")
     parser.add_argument("--json", type=Path)
     args = parser.parse_args()
-    sensor = None if args.sensor == "perfect" else noise_parameters(args.sensor)
+    sensor = sensor_model(args.sensor)
     rows = registration_trials(args.trials, args.seed, args.instances, space_dir=args.space_dir, sensor=sensor)
     cpd_rows = cpd_comparison(args.cpd_sizes)
     results = {"trials": args.trials, "seed": args.seed, "instances": args.instances, "sensor": args.sensor}

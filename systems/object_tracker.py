@@ -240,8 +240,8 @@ class ObjectTracker(LeafSystem):
             return ObjectEstimate(False, message="no reconstructed shape to track")
         model_O = model_X_WO.inverse().multiply(np.asarray(model_cloud_W).T).T
         X_WC = X_WB @ self.X_BC
-        everything = ~flying_pixels(depth)
-        points_W = X_WC.multiply(depth_to_points(depth, everything, self.intrinsics).T).T
+        surfaces = ~flying_pixels(depth)
+        points_W = X_WC.multiply(depth_to_points(depth, surfaces, self.intrinsics).T).T
         in_O = X_WO_expected.inverse().multiply(points_W.T).T
         lower, upper = model_O.min(axis=0) - CROP_MARGIN, model_O.max(axis=0) + CROP_MARGIN
         lower[2] = max(lower[2], SUPPORT_CLEARANCE)

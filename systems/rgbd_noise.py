@@ -106,6 +106,11 @@ def noise_parameters(preset: str, overrides: dict[str, float] | None = None) -> 
     return dataclasses.replace(PRESETS[preset], **(overrides or {}))
 
 
+def sensor_model(preset: str, overrides: dict[str, float] | None = None) -> RgbdNoiseParameters | None:
+    """noise_parameters, or None for the "perfect" preset: the renderer's images stay as they are."""
+    return None if preset == "perfect" else noise_parameters(preset, overrides)
+
+
 def depth_edges(depth: np.ndarray, jump: float) -> tuple[np.ndarray, np.ndarray]:
     """Pixels whose depth steps by more than `jump` (m) to a 4-neighbour, and that neighbour's depth there
     (the farthest such one; NaN elsewhere)."""

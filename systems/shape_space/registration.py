@@ -57,6 +57,7 @@ GRASP_SHIFT_LIMIT = 0.03  # m: a longer shift is not trusted (the handle is not 
 # grasps 3-7 cm off.
 INLIER_M = 0.01
 MIN_INLIER_SHARE = 0.8
+MIN_POINTS = 20  # finite observed points a registration needs
 
 
 @dataclass
@@ -67,7 +68,7 @@ class Registration:
     grasp_poses_W: dict[str, RigidTransform]  # POSE_NAMES -> X_WG
     fit_error_m: float  # mean distance of the observed points to the fitted model
     iterations: int
-    inlier_share: float = 1.0  # of the (thinned) observed points, within INLIER_M of the reconstruction
+    inlier_share: float  # of the (thinned) observed points, within INLIER_M of the reconstruction
 
     @property
     def poor_fit(self) -> str:
@@ -145,8 +146,10 @@ def _check_cloud(points: np.ndarray) -> np.ndarray:
     if points.ndim != 2 or points.shape[1] != 3:
         raise ValueError(f"the observed cloud must be N x 3, got shape {points.shape}")
     points = points[np.all(np.isfinite(points), axis=1)]
-    if len(points) < 20:
-        raise ValueError(f"the observed cloud has {len(points)} finite points; registration needs at least 20")
+    if len(points) < MIN_POINTS:
+        raise ValueError(
+            f"the observed cloud has {len(points)} finite points; registration needs at least {MIN_POINTS}"
+        )
     return points
 
 
@@ -185,7 +188,7 @@ class Registrar:
         # Strays (a real sensor's flying pixels, mis-segmented patches) out before the even thinning, which
         # would pick them first: farthest point sampling prefers isolated points.
         inliers = dense_inliers(observed)
-        if np.count_nonzero(inliers) >= 20:
+        if np.count_nonzero(inliers) >= MIN_POINTS:
             observed = observed[inliers]
         if viewpoint_W is not None:
             viewpoint_W = np.asarray(viewpoint_W, dtype=float)
