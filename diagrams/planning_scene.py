@@ -5,6 +5,7 @@ import hashlib
 
 import numpy as np
 import trimesh
+from pydrake.geometry import CollisionFilterDeclaration, GeometrySet
 from pydrake.math import RigidTransform
 from pydrake.multibody.plant import AddMultibodyPlantSceneGraph
 from pydrake.systems.framework import DiagramBuilder
@@ -25,12 +26,16 @@ def MakeRobotScene(
     open_width: float = OPEN_WIDTH,
     obstacle: ObjectModel | None = None,
     X_WO: RigidTransform | None = None,
+    held_object: ObjectModel | None = None,
+    X_GO: RigidTransform | None = None,
 ) -> RobotScene:
     """The planning model of the scenario's robot and table.
 
     Args:
         open_width: hand opening (m) of the collision model.
         obstacle, X_WO: an object welded at X_WO in the world, as one more obstacle.
+        held_object, X_GO: an object held in the left hand, welded to its grasp frame G at X_GO; it moves with the
+            hand and does not collide with either hand (they hold it).
     """
     builder = DiagramBuilder()
     plant, scene_graph = AddMultibodyPlantSceneGraph(builder, time_step=0.0)
@@ -43,7 +48,23 @@ def MakeRobotScene(
         body = plant.get_body(plant.GetBodyIndices(instance)[0])
         plant.WeldFrames(plant.world_frame(), body.body_frame(), X_WO)
         surface, spacing = object_surface_W(obstacle, X_WO, OBJECT_SURFACE_POINTS)
+    if held_object is not None:
+        (instance,) = make_parser(plant).AddModels(file_name=str(held_object.model_file))
+        held = plant.get_body(plant.GetBodyIndices(instance)[0])
+        plant.WeldFrames(plant.GetFrameByName("grasp_frame", hands["left"]), held.body_frame(), X_GO)
     plant.Finalize()
+    if held_object is not None:
+        hand_geometries = [
+            geometry
+            for hand in hands.values()
+            for body in plant.GetBodyIndices(hand)
+            for geometry in plant.GetCollisionGeometriesForBody(plant.get_body(body))
+        ]
+        scene_graph.collision_filter_manager().Apply(
+            CollisionFilterDeclaration().ExcludeBetween(
+                GeometrySet(plant.GetCollisionGeometriesForBody(held)), GeometrySet(hand_geometries)
+            )
+        )
     for hand in hands.values():
         for name in ("finger_1_joint", "finger_2_joint"):
             plant.GetJointByName(name, hand).set_default_translation(open_width / 2)

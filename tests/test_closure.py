@@ -1,5 +1,7 @@
 """The closure cost (paper equations (2)-(4)) and STOMP lifting a held object with the closure on."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 from pydrake.common.eigen_geometry import AngleAxis
@@ -110,6 +112,63 @@ def test_stomp_bar_lift_keeps_closure_and_both_hand_orientations(lift_problem):
     # The hands really rise (the orientation is kept along a real motion).
     lift = stomp.end_effectors.poses(result.trajectory[[0, -1]])[0][:, 2, 3]
     assert lift[1] - lift[0] > 0.1
+
+
+def test_the_closure_term_alone_keeps_the_closure_without_any_projection(lift_problem):
+    """Projection off (no Gauss-Newton steps on rollouts, updates or the first trajectory): the same lift, same
+    seed, with the closure term q_cc keeps the hands' relative pose densely; without it STOMP returns the straight
+    joint-space line, which is collision-free but breaks the closure."""
+    ik, q_grasp, _, _ = lift_problem
+    stomp = ik.stomp
+    X_desired = stomp.end_effectors.relative(q_grasp[None])[0]
+    # A higher lift than the fixture's (0.15 m): the straight joint-space line to it leaves the closure.
+    X = ik.grasp_frame_poses(q_grasp)
+    lifted = ik.solve_held(
+        RigidTransform([0, 0, 0.15]) @ X["left"], X["left"].InvertAndCompose(X["right"]), q_grasp, 0.002, 0.03
+    )
+    assert lifted.success, lifted.message
+    goal = stomp.project(lifted.q, X_desired, steps=18)[0]
+    table = Obstacles()
+    table.boxes = ik.planning_obstacles.boxes
+    saved = stomp.config
+    stomp.config = dataclasses.replace(
+        saved, projection_steps=0, rollout_projection_steps=0, constrained_noise_std=0.15, seed=1, time_limit_s=30
+    )
+    try:
+        with_term = stomp.plan(q_grasp, goal, table, ClosureConstraint())
+        without_term = stomp.plan(q_grasp, goal, table)
+    finally:
+        stomp.config = saved
+    closure = (ClosureConstraint(), X_desired)
+    assert with_term.success, with_term.message
+    assert stomp.closure_within_limits(with_term.trajectory, closure, steps=20)[0]
+    assert without_term.success and without_term.iterations == 0  # the straight line
+    within, t_dev, o_dev = stomp.closure_within_limits(without_term.trajectory, closure, steps=20)
+    assert not within, (t_dev, o_dev)
+
+
+def test_tangent_noise_and_projection_respect_the_constraints(lift_problem):
+    """Noise moved into the constraints' tangent space changes the closure only to second order; a few
+    Gauss-Newton steps then bring a configuration back within a micrometre."""
+    ik, q_grasp, q_lift, _ = lift_problem
+    stomp = ik.stomp
+    X_desired = stomp.end_effectors.relative(q_grasp[None])[0]
+    constraints = stomp.constraints(X_desired)
+    q = constraints.project(np.stack([q_grasp, q_lift]), 15)
+    assert np.abs(constraints.error_and_jacobian(q)[0]).max() < 1e-6
+    step = 0.01 * np.random.default_rng(0).standard_normal((1, 2, 14))
+    raw = np.abs(constraints.error_and_jacobian(q + step[0])[0]).max()
+    tangent = np.abs(constraints.error_and_jacobian(q + constraints.tangent(q, step)[0])[0]).max()
+    assert tangent < 0.05 * raw, (tangent, raw)
+    assert np.abs(constraints.error_and_jacobian(constraints.project(q + step[0], 3))[0]).max() < 1e-6
+    # The analytic Jacobian against finite differences.
+    error, jacobian = constraints.error_and_jacobian(q[:1])
+    for j in range(14):
+        shifted = q[:1].copy()
+        shifted[0, j] += 1e-6
+        np.testing.assert_allclose(
+            (constraints.error_and_jacobian(shifted)[0] - error)[0] / 1e-6, jacobian[0, :, j], atol=1e-4
+        )
 
 
 def test_held_move_is_played_within_the_closure_constraint_densely(lift_problem, scenario):

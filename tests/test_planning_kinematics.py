@@ -3,11 +3,12 @@
 import numpy as np
 import pytest
 from pydrake.multibody.plant import AddMultibodyPlantSceneGraph
+from pydrake.multibody.tree import MultibodyForces
 from pydrake.systems.framework import DiagramBuilder
 
 from diagrams.centauro_description import joint_names
 from diagrams.station import AddCentauro
-from systems.planning.kinematics import centauro_kinematics, gravity_torques
+from systems.planning.kinematics import centauro_kinematics, gravity_torques, joint_torques
 
 
 @pytest.fixture(scope="module")
@@ -91,3 +92,27 @@ def test_batched_gravity_torques_equal_drake(robot):
         tau_drake = plant.CalcGravityGeneralizedForces(plant_context)
         np.testing.assert_allclose(tau, [tau_drake[j.velocity_start()] for j in joints], atol=1e-9)
     plant.SetPositions(plant_context, default)
+
+
+def test_batched_inverse_dynamics_equal_drake(robot):
+    """joint_torques against Drake's CalcInverseDynamics (gravity and joint damping as applied forces), with every
+    joint but the arms' still."""
+    plant, _, plant_context, kinematics, _, joints = robot
+    rng = np.random.default_rng(5)
+    q = random_configurations(joints, 5, seed=5)
+    qd, qdd = rng.normal(size=q.shape), rng.normal(size=q.shape)
+    torques = joint_torques(kinematics, kinematics.body_poses(q), qd, qdd)
+    default_q, default_v = plant.GetPositions(plant_context).copy(), plant.GetVelocities(plant_context).copy()
+    indices = [joint.velocity_start() for joint in joints]
+    for k in range(len(q)):
+        for joint, value in zip(joints, q[k], strict=True):
+            joint.set_angle(plant_context, value)
+        v, vd = np.zeros(plant.num_velocities()), np.zeros(plant.num_velocities())
+        v[indices], vd[indices] = qd[k], qdd[k]
+        plant.SetVelocities(plant_context, v)
+        forces = MultibodyForces(plant)
+        plant.CalcForceElementsContribution(plant_context, forces)
+        expected = plant.CalcInverseDynamics(plant_context, vd, forces)[indices]
+        np.testing.assert_allclose(torques[k], expected, atol=1e-9)
+    plant.SetPositions(plant_context, default_q)
+    plant.SetVelocities(plant_context, default_v)

@@ -8,8 +8,8 @@ import pytest
 from diagrams.objects.library import resolve_object
 from diagrams.planning_scene import make_dual_arm_ik, true_grasp_poses
 from diagrams.station import object_pose_on_table
-from systems.planning.kinematics import gravity_torques
-from systems.planning.stomp import Obstacles
+from systems.planning.kinematics import Payload, joint_torques
+from systems.planning.stomp import TERMS, Obstacles
 
 # Both hands start under the table top, at its front edge: the straight move collides.
 BELOW_TABLE = np.array([0, 0.15, 0, -0.1, 0, 0, 0, 0, -0.15, 0, -0.1, 0, 0, 0.0])
@@ -78,19 +78,48 @@ def _colliding_configuration(ik) -> np.ndarray:
     raise AssertionError("no colliding sample found")
 
 
-def test_torque_and_duration_cost_terms_match_hand_computation(planning):
+def test_cost_terms_match_hand_computation(planning):
     ik, q_goal = planning
     stomp = ik.stomp
     trajectory = np.linspace(BELOW_TABLE, q_goal, stomp.config.keyframes)[None]
     free_space = Obstacles()
-    costs = stomp._costs(trajectory, free_space)
-    clearance_part = stomp._clearances(trajectory, free_space)[1]
-    load = np.abs(gravity_torques(stomp.kinematics, trajectory[0])) / ik.effort_limits
-    expected = clearance_part[0] + stomp.config.torque_weight * (load**2).sum(axis=1)
-    expected += stomp.config.torque_limit_penalty * np.maximum(load - 1, 0).sum(axis=1)
-    seconds = (np.abs(np.diff(trajectory[0], axis=0)) / ik.velocity_limits).max(axis=1)
-    expected[1:] += stomp.config.duration_weight * seconds
-    np.testing.assert_allclose(costs[0], expected, rtol=1e-9)
+    terms = stomp._cost_terms(trajectory, free_space)[0]
+    np.testing.assert_allclose(terms[:, TERMS.index("collision")], stomp._clearances(trajectory, free_space)[1][0])
+    # q_l: zero a limit margin inside the limits, growing to 1 per joint at a limit.
+    to_limit = np.minimum(trajectory[0] - ik.lower, ik.upper - trajectory[0])
+    expected = (np.clip(1 - to_limit / stomp.config.limit_margin, 0, None) ** 2).sum(axis=1)
+    np.testing.assert_allclose(terms[:, TERMS.index("limits")], expected)
+    at_limit = stomp._cost_terms(np.repeat(ik.upper[None, None], 3, axis=1), free_space)[0, :, TERMS.index("limits")]
+    np.testing.assert_allclose(at_limit, 14.0)
+    # Torques: inverse dynamics along the keyframes' timing, each step at least segment_s (at rest at both ends).
+    steps = np.diff(trajectory[0], axis=0)
+    seconds = np.maximum(stomp.config.segment_s, (np.abs(steps) / ik.velocity_limits).max(axis=1))
+    velocity = np.zeros_like(trajectory[0])
+    velocity[1:-1] = 0.5 * (steps[:-1] / seconds[:-1, None] + steps[1:] / seconds[1:, None])
+    acceleration = np.zeros_like(velocity)
+    acceleration[1:] = np.diff(velocity, axis=0) / seconds[:, None]
+    poses = stomp.kinematics.body_poses(trajectory[0])
+    load = np.abs(joint_torques(stomp.kinematics, poses, velocity, acceleration)) / ik.effort_limits
+    expected = (load**2).sum(axis=1) + stomp.config.torque_limit_penalty * np.maximum(load - 1, 0).sum(axis=1)
+    np.testing.assert_allclose(terms[:, TERMS.index("torque")], expected, rtol=1e-9)
+    np.testing.assert_allclose(terms[1:, TERMS.index("duration")], (np.abs(steps) / ik.velocity_limits).max(axis=1))
+    assert terms[0, TERMS.index("duration")] == 0
+    assert not terms[:, [TERMS.index("closure"), TERMS.index("orientation")]].any()  # no hand constraint asked
+
+
+def test_a_held_payload_loads_the_arms_as_its_weight_would(planning):
+    """Two point masses in the hands cost the arms the torque of their weight through the hands' Jacobians."""
+    ik, q_goal = planning
+    stomp = ik.stomp
+    kinematics, end_effectors = stomp.kinematics, stomp.end_effectors
+    q = q_goal[None]
+    poses = kinematics.body_poses(q)
+    still = np.zeros_like(q)
+    (X1, X2), (J1, J2) = end_effectors.jacobians(q)
+    payload = Payload(np.array(end_effectors.positions), np.stack([X[:3, 3] for X in end_effectors.X_BE]), np.ones(2))
+    added = joint_torques(kinematics, poses, still, still, payload) - joint_torques(kinematics, poses, still, still)
+    weight = -kinematics.gravity  # what each 1 kg hand must hold up, N
+    np.testing.assert_allclose(added[0], J1[0, 3:].T @ weight + J2[0, 3:].T @ weight, atol=1e-9)
 
 
 def test_point_set_distance_field_matches_exact_distances():

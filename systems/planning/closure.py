@@ -50,9 +50,13 @@ def rotation_angle(R: np.ndarray, R_desired: np.ndarray) -> np.ndarray:
 def deviations(end_effectors: EndEffectors, q: np.ndarray, X_E1E2_desired: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(t_dev, o_dev) of each configuration (B x 14): the largest translation component deviation (m) and
     the relative orientation's deviation angle (rad)."""
-    X = end_effectors.relative(q)
-    t_dev = np.abs(X[:, :3, 3] - X_E1E2_desired[:3, 3]).max(axis=1)
-    return t_dev, rotation_angle(X[:, :3, :3], X_E1E2_desired[:3, :3])
+    return relative_deviations(end_effectors.relative(q), X_E1E2_desired)
+
+
+def relative_deviations(X_E1E2: np.ndarray, X_E1E2_desired: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(t_dev, o_dev) of relative hand poses X_E1E2 (B x 4 x 4), as deviations()."""
+    t_dev = np.abs(X_E1E2[:, :3, 3] - X_E1E2_desired[:3, 3]).max(axis=1)
+    return t_dev, rotation_angle(X_E1E2[:, :3, :3], X_E1E2_desired[:3, :3])
 
 
 def threshold_cost(deviation: np.ndarray, maximum: float, C: float) -> np.ndarray:
@@ -83,8 +87,13 @@ def orientation_deviations(
 ) -> np.ndarray:
     """Largest deviation (rad) of either hand from its desired world orientation (the rotation's angle), or with
     upright_only the angle between the vertical seen from the hand and from R_desired, per configuration."""
+    return hand_orientation_deviations(end_effectors.poses(q), R_desired, upright_only)
+
+
+def hand_orientation_deviations(hand_poses, R_desired, upright_only: bool = False) -> np.ndarray:
+    """orientation_deviations() of the hands' poses (X_WE1, X_WE2), each B x 4 x 4."""
     angle = tilt_angle if upright_only else rotation_angle
-    return np.max([angle(X[:, :3, :3], R) for X, R in zip(end_effectors.poses(q), R_desired, strict=True)], axis=0)
+    return np.max([angle(X[:, :3, :3], R) for X, R in zip(hand_poses, R_desired, strict=True)], axis=0)
 
 
 def tilt_angle(R: np.ndarray, R_desired: np.ndarray) -> np.ndarray:

@@ -14,7 +14,6 @@ from dataclasses import dataclass
 import numpy as np
 from pydrake.geometry import Box, Capsule, Cylinder, Sphere
 from pydrake.multibody.plant import MultibodyPlant
-from scipy.spatial.transform import Rotation
 
 
 @dataclass
@@ -46,8 +45,20 @@ class BatchedKinematics:
         self._plant, self._context = plant, plant_context
         for body in bodies:
             self._add(body)
+        self.damping = np.array([joint.default_damping() for joint in arm_joints])  # N m s / rad
         self.masses = np.array([plant.get_body(link.body_index).default_mass() for link in self.links])
         self.coms_B = np.array([plant.get_body(link.body_index).default_com() for link in self.links])
+        # Each body's rotational inertia about its centre of mass, in its frame (kg m^2).
+        self.inertias_B = np.array(
+            [
+                plant.get_body(link.body_index)
+                .default_spatial_inertia()
+                .Shift(plant.get_body(link.body_index).default_com())
+                .CalcRotationalInertia()
+                .CopyToFullMatrix3()
+                for link in self.links
+            ]
+        )
         self.gravity = np.asarray(plant.gravity_field().gravity_vector())
         # For each arm coordinate: its link, and every tracked link it carries (its subtree).
         self.dof_link = np.full(len(arm_joints), -1)
@@ -103,14 +114,37 @@ class BatchedKinematics:
         batch = len(q)
         poses = np.empty((batch, len(self.links), 4, 4))
         for i, link in enumerate(self.links):
-            X_PB = np.broadcast_to(link.X_PF, (batch, 4, 4)).copy()
+            X_PB = link.X_PF
             if link.arm_dof >= 0:
+                # Rodrigues: the joint's rotation about its unit axis a, I + sin(q) [a]x + (1 - cos(q)) [a]x^2.
+                angle = q[:, link.arm_dof, None, None]
+                K = _skew(link.axis)
                 joint = np.zeros((batch, 4, 4))
-                joint[:, :3, :3] = Rotation.from_rotvec(np.outer(q[:, link.arm_dof], link.axis)).as_matrix()
+                joint[:, :3, :3] = np.eye(3) + np.sin(angle) * K + (1.0 - np.cos(angle)) * (K @ K)
                 joint[:, 3, 3] = 1.0
-                X_PB = X_PB @ joint @ link.X_MB
+                X_PB = link.X_PF @ joint @ link.X_MB
             poses[:, i] = X_PB if link.parent < 0 else poses[:, link.parent] @ X_PB
         return poses
+
+
+def _skew(v: np.ndarray) -> np.ndarray:
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a x b over the last axis (np.cross is slow on many small arrays)."""
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
+
+
+def joint_axes(kinematics: "BatchedKinematics", poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each arm joint's position p_j on its axis and unit axis a_j in W (each B x 14 x 3), from the bodies' poses."""
+    parents = np.array([kinematics.links[i].parent for i in kinematics.dof_link])
+    X_PF = np.array([kinematics.links[i].X_PF for i in kinematics.dof_link])  # 14 x 4 x 4
+    axes_F = np.array([kinematics.links[i].axis for i in kinematics.dof_link])  # 14 x 3
+    X_WF = poses[:, parents] @ X_PF  # every arm joint's parent is a tracked body
+    return X_WF[:, :, :3, 3], np.einsum("bjik,jk->bji", X_WF[:, :, :3, :3], axes_F)
 
 
 def gravity_torques(kinematics: "BatchedKinematics", q: np.ndarray, poses: np.ndarray | None = None) -> np.ndarray:
@@ -124,13 +158,82 @@ def gravity_torques(kinematics: "BatchedKinematics", q: np.ndarray, poses: np.nd
     coms = np.einsum("blij,lj->bli", poses[:, :, :3, :3], kinematics.coms_B) + poses[:, :, :3, 3]
     carried_mass = kinematics.carried @ kinematics.masses  # 14
     first_moment = np.einsum("jl,bli->bji", kinematics.carried * kinematics.masses, coms)  # B x 14 x 3
-    parents = np.array([kinematics.links[i].parent for i in kinematics.dof_link])
-    X_PF = np.array([kinematics.links[i].X_PF for i in kinematics.dof_link])  # 14 x 4 x 4
-    axes_F = np.array([kinematics.links[i].axis for i in kinematics.dof_link])  # 14 x 3
-    X_WF = poses[:, parents] @ X_PF  # every arm joint's parent is a tracked body
-    axes = np.einsum("bjik,jk->bji", X_WF[:, :, :3, :3], axes_F)
-    moment = np.cross(first_moment - carried_mass[:, None] * X_WF[:, :, :3, 3], kinematics.gravity)
+    positions, axes = joint_axes(kinematics, poses)
+    moment = np.cross(first_moment - carried_mass[:, None] * positions, kinematics.gravity)
     return np.einsum("bji,bji->bj", moment, axes)
+
+
+@dataclass
+class Payload:
+    """A held object as point masses, each fixed to one tracked body (e.g. half its mass in each hand)."""
+
+    slots: np.ndarray  # P, the bodies' positions in BatchedKinematics.links
+    points_B: np.ndarray  # P x 3, where each mass sits in its body's frame, m
+    masses: np.ndarray  # P, kg
+
+
+def joint_torques(
+    kinematics: "BatchedKinematics",
+    poses: np.ndarray,
+    qd: np.ndarray,
+    qdd: np.ndarray,
+    payload: Payload | None = None,
+) -> np.ndarray:
+    """Inverse dynamics of the arms (B x 14, N m): the joint torques that give accelerations qdd at velocities qd
+    (each B x 14, rad/s and rad/s^2) against gravity, with the payload's masses, as Drake's CalcInverseDynamics
+    with every other joint still (the arm joints' damping included).
+
+    Newton-Euler: velocities and accelerations outward along the links (gravity as an upward acceleration of the
+    root), each link's inertial force and moment about its centre of mass, and each joint's torque the axial
+    moment, about its axis, of the forces of everything it carries.
+    """
+    batch, count = len(poses), len(kinematics.links)
+    positions, axes = joint_axes(kinematics, poses)
+    origin = poses[:, :, :3, 3]
+    omega = np.zeros((batch, count, 3))
+    alpha = np.zeros((batch, count, 3))
+    accel = np.zeros((batch, count, 3))  # of each body's origin, W, with gravity's -g
+    for i, link in enumerate(kinematics.links):
+        if link.parent < 0:
+            accel[:, i] = -kinematics.gravity
+            continue
+        p = link.parent
+        w, a, ap = omega[:, p], alpha[:, p], accel[:, p]
+        pivot = origin[:, p]
+        if link.arm_dof >= 0:
+            j = link.arm_dof
+            pivot = positions[:, j]
+            spin = axes[:, j] * qd[:, j, None]
+            ap = ap + _cross(a, pivot - origin[:, p]) + _cross(w, _cross(w, pivot - origin[:, p]))
+            a = a + axes[:, j] * qdd[:, j, None] + _cross(w, spin)
+            w = w + spin
+        r = origin[:, i] - pivot
+        omega[:, i], alpha[:, i] = w, a
+        accel[:, i] = ap + _cross(a, r) + _cross(w, _cross(w, r))
+    R = poses[:, :, :3, :3]
+    offset = (R @ kinematics.coms_B[:, :, None])[..., 0]
+    com = origin + offset
+    com_accel = accel + _cross(alpha, offset) + _cross(omega, _cross(omega, offset))
+    force = kinematics.masses[:, None] * com_accel
+    # Euler's equation in each body's frame, turned back into W.
+    R_T = np.swapaxes(R, -1, -2)
+    omega_B, alpha_B = (R_T @ omega[..., None])[..., 0], (R_T @ alpha[..., None])[..., 0]
+    moment_B = (kinematics.inertias_B @ alpha_B[..., None])[..., 0] + _cross(
+        omega_B, (kinematics.inertias_B @ omega_B[..., None])[..., 0]
+    )
+    moment = (R @ moment_B[..., None])[..., 0] + _cross(com, force)  # about W's origin
+    carried = kinematics.carried.astype(float)  # 14 x L
+    total_force, total_moment = carried @ force, carried @ moment
+    if payload is not None:
+        s = payload.slots
+        offset = (R[:, s] @ payload.points_B[:, :, None])[..., 0]
+        w = omega[:, s]
+        mass_accel = accel[:, s] + _cross(alpha[:, s], offset) + _cross(w, _cross(w, offset))
+        point_force = payload.masses[:, None] * mass_accel
+        total_force += carried[:, s] @ point_force
+        total_moment += carried[:, s] @ _cross(origin[:, s] + offset, point_force)
+    torques = np.einsum("bji,bji->bj", total_moment - _cross(positions, total_force), axes)
+    return torques + kinematics.damping * qd
 
 
 @dataclass
@@ -165,8 +268,12 @@ class SphereModel:
 
     def centres_W(self, body_poses: np.ndarray) -> np.ndarray:
         """Sphere centres in W (B x S x 3) from the batch of body poses."""
-        X = body_poses[:, self.body]  # B x S x 4 x 4
-        return np.einsum("bsij,sj->bsi", X[:, :, :3, :3], self.centre_B) + X[:, :, :3, 3]
+        centres = np.empty((len(body_poses), len(self.radius), 3))
+        for body in np.unique(self.body):
+            mine = np.nonzero(self.body == body)[0]
+            X = body_poses[:, body]
+            centres[:, mine] = np.swapaxes(X[:, :3, :3] @ self.centre_B[mine].T, 1, 2) + X[:, None, :3, 3]
+        return centres
 
 
 BOX_SPHERE_SPACING = 0.04  # m: boxes thinner than this are covered by fewer, larger spheres
@@ -257,14 +364,38 @@ class EndEffectors:
 
     def poses(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(X_WE1, X_WE2), each B x 4 x 4."""
+        return self.from_body_poses(self.kinematics.body_poses(q))
+
+    def from_body_poses(self, body: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(X_WE1, X_WE2), each ... x 4 x 4, from the tracked bodies' poses (... x L x 4 x 4)."""
+        return tuple(body[..., p, :, :] @ X for p, X in zip(self.positions, self.X_BE, strict=True))
+
+    def jacobians(self, q: np.ndarray) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]:
+        """((X_WE1, X_WE2), (J_E1, J_E2)): the poses (B x 4 x 4) and geometric Jacobians (B x 6 x 14, rows angular
+        then translational velocity in W) of both end-effectors. Joint j at p_j with axis a_j moves E by
+        J_w = a_j, J_v = a_j x (p_E - p_j) if it carries E, else not at all."""
         body = self.kinematics.body_poses(q)
-        return tuple(body[:, p] @ X for p, X in zip(self.positions, self.X_BE, strict=True))
+        positions, axes = joint_axes(self.kinematics, body)
+        poses, jacobians = [], []
+        for slot, X_BE in zip(self.positions, self.X_BE, strict=True):
+            X = body[:, slot] @ X_BE
+            carries = self.kinematics.carried[:, slot].astype(float)[None, :, None]  # 1 x 14 x 1
+            J_w = axes * carries
+            J_v = np.cross(J_w, X[:, None, :3, 3] - positions)
+            poses.append(X)
+            jacobians.append(np.concatenate([np.transpose(J_w, (0, 2, 1)), np.transpose(J_v, (0, 2, 1))], axis=1))
+        return tuple(poses), tuple(jacobians)
 
     def relative(self, q: np.ndarray) -> np.ndarray:
         """X_E1E2 (B x 4 x 4): the right end-effector's pose seen from the left one's."""
         X1, X2 = self.poses(q)
-        inverse = np.zeros_like(X1)
-        inverse[:, :3, :3] = np.transpose(X1[:, :3, :3], (0, 2, 1))
-        inverse[:, :3, 3] = -np.einsum("bji,bj->bi", X1[:, :3, :3], X1[:, :3, 3])
-        inverse[:, 3, 3] = 1.0
-        return inverse @ X2
+        return relative_pose(X1, X2)
+
+
+def relative_pose(X1: np.ndarray, X2: np.ndarray) -> np.ndarray:
+    """X_12 = X_W1^-1 X_W2 for batches of poses (B x 4 x 4)."""
+    inverse = np.zeros_like(X1)
+    inverse[:, :3, :3] = np.transpose(X1[:, :3, :3], (0, 2, 1))
+    inverse[:, :3, 3] = -np.einsum("bji,bj->bi", X1[:, :3, :3], X1[:, :3, 3])
+    inverse[:, 3, 3] = 1.0
+    return inverse @ X2

@@ -27,6 +27,7 @@ from pydrake.trajectories import PiecewisePolynomial
 from systems.joint_plan import move_duration
 from systems.planning.closure import ClosureConstraint, OrientationConstraint, deviations, orientation_deviations
 from systems.planning.ik import SIDES, DualArmIk, IkResult
+from systems.planning.kinematics import Payload
 from systems.planning.stomp import CarriedPoints
 
 OPEN_WIDTH = 0.1  # m: the hands' opening while reaching
@@ -55,6 +56,9 @@ CARRIED_POINTS = 150
 CARRIED_RADIUS = 0.015
 # The played trajectory's closure is checked at this period, s.
 DENSE_CHECK_S = 0.01
+# The mass STOMP's torque term assumes for a held object, kg: the heaviest of the familiar categories (the generated
+# drills weigh 1.4-2.0 kg), not the object's own mass, which nothing perceives.
+HELD_MASS_KG = 2.0
 
 
 class PlanningError(RuntimeError):
@@ -72,8 +76,9 @@ class HeldMove:
 class PickMotions:
     """Plans the motions of a pick in `ik`'s scene (robot and table; the object as points when given)."""
 
-    def __init__(self, ik: DualArmIk):
+    def __init__(self, ik: DualArmIk, held_mass_kg: float = HELD_MASS_KG):
         self.ik = ik
+        self.held_mass_kg = held_mass_kg
         self.closure = ClosureConstraint()
         self.orientation = OrientationConstraint()
 
@@ -165,7 +170,7 @@ class PickMotions:
         """
         ik, stomp = self.ik, self.ik.stomp
         q_start = np.asarray(q_start, float)
-        path, fraction, tolerance = self._held_path(q_start, X_motion_W, min_fraction)
+        path, fraction, tolerance = self.held_path(q_start, X_motion_W, min_fraction)
         X_E1E2 = stomp.end_effectors.relative(q_start[None])[0]
         R_WE = [X[0, :3, :3] for X in stomp.end_effectors.poses(q_start[None])]
         # Project onto the closure manifold alone: the goal keeps its own orientation (a carry may turn the
@@ -185,10 +190,13 @@ class PickMotions:
             if tilt.max() >= 0.5 * orientation.o_max:  # the goal itself tilts (the edge of reach): no constraint
                 orientation = None
         scene = ik.table_obstacles
+        centre_W = None
         if carried_points_W is not None and len(carried_points_W):
-            scene = scene.carrying(self._carried(q_start, carried_points_W))
+            scene = scene.carrying(self.carried(q_start, carried_points_W))
+            centre_W = np.mean(carried_points_W, axis=0)
         path[-1] = q_goal
-        result = stomp.plan(q_start, q_goal, scene, self.closure, orientation, initial_path=path)
+        payload = self.payload(q_start, centre_W)
+        result = stomp.plan(q_start, q_goal, scene, self.closure, orientation, initial_path=path, payload=payload)
         if not result.success:
             raise PlanningError(f"STOMP: {result.message}")
         kept = "off" if orientation is None else "upright" if orientation.upright_only else "on"
@@ -198,7 +206,7 @@ class PickMotions:
         )  # fmt: skip
         return HeldMove(result.trajectory, X_E1E2)
 
-    def _held_path(self, q_start: np.ndarray, X_motion_W: RigidTransform, min_fraction: float):
+    def held_path(self, q_start: np.ndarray, X_motion_W: RigidTransform, min_fraction: float):
         """Configurations holding the object along the motion (HELD_PATH_STEPS of it, each solved from the one
         before, so the arms stay on their branch), the share of the motion reached and the hands' angle
         tolerance used: STOMP's first trajectory and its goal.
@@ -247,7 +255,18 @@ class PickMotions:
                     return result, tolerance
         return IkResult(False, q_near, "no configuration near the last one holds the object there"), tolerance
 
-    def _carried(self, q: np.ndarray, points_W: np.ndarray) -> CarriedPoints:
+    def payload(self, q: np.ndarray, centre_W: np.ndarray | None = None) -> Payload:
+        """The held object for the torque term: held_mass_kg at centre_W (m, in W at q; default midway between the
+        hands), half of it in each hand."""
+        stomp = self.ik.stomp
+        body = stomp.kinematics.body_poses(np.asarray(q)[None])[0]
+        if centre_W is None:
+            centre_W = np.mean([X[0, :3, 3] for X in stomp.end_effectors.poses(np.asarray(q)[None])], axis=0)
+        slots = np.array(stomp.end_effectors.positions)
+        points_B = np.array([(centre_W - body[slot][:3, 3]) @ body[slot][:3, :3] for slot in slots])
+        return Payload(slots, points_B, np.full(2, 0.5 * self.held_mass_kg))
+
+    def carried(self, q: np.ndarray, points_W: np.ndarray) -> CarriedPoints:
         """The held object's points fixed to the left hand's body (as at q), thinned to CARRIED_POINTS spheres."""
         stomp = self.ik.stomp
         slot = stomp.end_effectors.positions[0]

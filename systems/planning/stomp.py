@@ -1,21 +1,32 @@
 """STOMP (Kalakrishnan et al. 2011) for both arms: 14-DOF joint-space keyframes, start and goal fixed.
 
 Each iteration draws noisy rollouts around the current trajectory (noise shaped by the
-inverse of the finite-difference acceleration metric R, so it is smooth), evaluates a
-cost per rollout and keyframe, turns the costs into per-keyframe probabilities
-(exp(-h * normalised cost)), averages the noise with them, smooths the update with
-M (R^-1 with columns scaled) and keeps the best rollouts for the next iteration. It
-stops as soon as the trajectory is collision-free (and within the constraints), or
-at the iteration or time limit.
+inverse of the finite-difference acceleration metric R, so it is smooth), evaluates each
+cost term per rollout and keyframe, turns the costs into per-keyframe probabilities and
+averages the noise with them, smooths the update with M (R^-1 with columns scaled) and
+keeps the best rollouts for the next iteration. It stops as soon as the trajectory is
+collision-free (and within the constraints), or at the iteration or time limit.
 
-Costs per keyframe (STOMP-New's terms): sphere-model clearance to the scene (boxes
-and point sets) and between and within the arms and the torso; gravity joint torques
-against the effort limits; each transition's duration at full joint speed; and, when
-both hands hold an object, the kinematic-chain closure term q_cc of equations (2)-(4)
-(systems/planning/closure.py) over each transition; optionally the hands' world
-orientation. Joint limits are enforced by clipping every rollout. With a hand
-constraint on, every update is followed by a projection of both arms back onto the
-constraint manifold (a few damped Gauss-Newton steps), which STOMP-New did not have.
+Cost terms per keyframe (STOMP-New's):
+  collision:   sphere-model clearance below the margin, to the scene (boxes, point sets) and
+               between and within the arms and the torso (and of a carried object to the scene);
+  limits:      q_l, each joint's closeness to its limits within limit_margin (rollouts are also
+               clipped to the limits: the robot is never commanded beyond them);
+  torque:      joint torques from inverse dynamics along the keyframes' timing (gravity, velocity,
+               acceleration, joint damping and a held payload) against the effort limits;
+  duration:    each transition's duration at full joint speed;
+  closure:     q_cc of equations (2)-(4) (systems/planning/closure.py) over each transition, when
+               both hands hold an object;
+  orientation: the hands' world orientation (or tilt), when asked for.
+Each term's cost-to-go is scaled by its spread over the rollouts (at least its floor,
+COST_FLOORS), so every term steers the update: the closure's C = 1000 beyond its threshold
+does not drown the collision cost, and a term that hardly varies does not count.
+
+With hand constraints (systems/planning/hand_constraints.py), the sampling respects them:
+the noise of each rollout lies in the constraints' tangent space at the current trajectory,
+and each rollout is projected back onto them (rollout_projection_steps Gauss-Newton steps)
+before it is scored; the update is projected too (projection_steps), which STOMP-New did not
+do. With both set to 0, only the tangent-space noise and the cost terms keep the constraints.
 """
 
 import time
@@ -29,11 +40,27 @@ from systems.planning.closure import (
     ClosureConstraint,
     OrientationConstraint,
     deviations,
+    hand_orientation_deviations,
     orientation_deviations,
+    relative_deviations,
     threshold_cost,
     transition_costs,
 )
-from systems.planning.kinematics import BatchedKinematics, EndEffectors, SphereModel, gravity_torques
+from systems.planning.hand_constraints import HandConstraints
+from systems.planning.kinematics import (
+    BatchedKinematics,
+    EndEffectors,
+    Payload,
+    SphereModel,
+    joint_torques,
+    relative_pose,
+)
+
+TERMS = ("collision", "limits", "torque", "duration", "closure", "orientation")
+# Each term's unit, so that 1 means as much in each: the collision margin of shortfall (m, summed over the
+# spheres), a joint at its limit, a joint at its effort limit ((tau / tau_max)^2), a second at full joint speed,
+# and a transition at the closure's and orientation's thresholds.
+TERM_UNITS = np.array([0.02, 1.0, 1.0, 1.0, 1.0, 1.0])
 
 
 @dataclass
@@ -45,15 +72,20 @@ class StompConfig:
     time_limit_s: float = 2.0
     noise_std: float = 0.8  # rad, initial; shrinks by noise_decay per iteration
     noise_decay: float = 0.97
+    # rad, initial, with hand constraints: the noise lies in their tangent space and a held move is short
+    # (carry over a box, 3 seeds: 0.8 took 47-52 iterations, 0.4 took 25-53, 0.2 failed one in 300).
+    constrained_noise_std: float = 0.4
     margin: float = 0.02  # m: clearance below which the collision cost starts
     required_clearance: float = 0.005  # m: a plan counts as collision-free above this (covers model errors)
     sensitivity: float = 10.0  # h in exp(-h * normalised cost)
     seed: int = 0
-    closure_states: int = 3  # states checked along each transition for q_cc (including both ends)
-    torque_weight: float = 0.001  # per keyframe, times sum_j (tau_j / tau_max_j)^2 of the gravity torques
-    torque_limit_penalty: float = 100.0  # per unit of |tau| / tau_max beyond 1
-    duration_weight: float = 0.001  # per transition, times its duration at full joint speed (s)
-    projection_steps: int = 3
+    torque_limit_penalty: float = 100.0  # per unit of |tau| / tau_max beyond 1, besides (tau / tau_max)^2
+    limit_margin: float = 0.1  # rad: q_l grows from 0 to 1 over the last limit_margin before a joint's limit
+    segment_s: float = 0.25  # s: the shortest time between keyframes, for the torque term's velocities
+    # Weights of the terms in their units (TERM_UNITS), in TERMS' order.
+    weights: tuple = (1.0, 0.05, 0.01, 0.05, 1.0, 1.0)
+    projection_steps: int = 3  # Gauss-Newton steps projecting each update onto the hand constraints
+    rollout_projection_steps: int = 2  # ... and each rollout, before it is scored
 
 
 @dataclass
@@ -142,14 +174,6 @@ def interpolate_segments(keyframes: np.ndarray, steps: int) -> np.ndarray:
     """States along each segment between consecutive keyframes, `steps` per segment (both ends included), S x 14."""
     s = np.linspace(0, 1, steps + 1)[:, None, None]
     return ((1 - s) * keyframes[None, :-1] + s * keyframes[None, 1:]).reshape(-1, keyframes.shape[1])
-
-
-def _rotation_error(R_desired: np.ndarray, R: np.ndarray) -> np.ndarray:
-    """Small-angle rotation vectors (B x 3) of R_desired^T R for rotations R (B x 3 x 3)."""
-    R_error = np.einsum("ji,bjk->bik", R_desired, R)
-    return 0.5 * np.column_stack(
-        [R_error[:, 2, 1] - R_error[:, 1, 2], R_error[:, 0, 2] - R_error[:, 2, 0], R_error[:, 1, 0] - R_error[:, 0, 1]]
-    )
 
 
 def _resample(path: np.ndarray, n: int) -> np.ndarray:
@@ -263,50 +287,77 @@ class Stomp:
         close = (gap < self.config.margin).any(axis=0)
         return np.nonzero(close[self.pair_group])[0]
 
-    def _costs(self, trajectories: np.ndarray, obstacles: Obstacles, closure=None, orientation=None) -> np.ndarray:
-        """Cost of every keyframe of every rollout (K x N): clearance below the margin, plus q_cc of the
-        transition into the keyframe when the closure constraint is on, plus the orientation term."""
-        poses = self.kinematics.body_poses(trajectories.reshape(-1, 14))
-        costs = self._clearances(trajectories, obstacles, poses)[1]
+    def _cost_terms(
+        self, trajectories: np.ndarray, obstacles: Obstacles, closure=None, orientation=None, payload=None
+    ) -> np.ndarray:
+        """Every term's cost at every keyframe of every rollout (K x N x len(TERMS)); a transition's terms (duration,
+        closure, orientation) count at the keyframe it leads to."""
+        K, N = trajectories.shape[:2]
         config = self.config
+        terms = np.zeros((K, N, len(TERMS)))
+        poses = self.kinematics.body_poses(trajectories.reshape(-1, 14))
+        terms[..., 0] = self._clearances(trajectories, obstacles, poses)[1]
+        to_limit = np.minimum(trajectories - self.lower, self.upper - trajectories)
+        terms[..., 1] = (np.maximum(1.0 - to_limit / config.limit_margin, 0.0) ** 2).sum(axis=-1)
         if self.effort_limits is not None:
-            torques = gravity_torques(self.kinematics, None, poses).reshape(*trajectories.shape)
-            load = np.abs(torques) / self.effort_limits
-            costs += config.torque_weight * (load**2).sum(axis=-1)
-            costs += config.torque_limit_penalty * np.maximum(load - 1.0, 0.0).sum(axis=-1)
+            qd, qdd = self._rates(trajectories)
+            torques = joint_torques(self.kinematics, poses, qd.reshape(-1, 14), qdd.reshape(-1, 14), payload)
+            load = np.abs(torques.reshape(trajectories.shape)) / self.effort_limits
+            terms[..., 2] = (load**2).sum(axis=-1) + config.torque_limit_penalty * np.maximum(load - 1.0, 0.0).sum(-1)
         if self.velocity_limits is not None:
-            seconds = (np.abs(np.diff(trajectories, axis=1)) / self.velocity_limits).max(axis=-1)
-            costs[:, 1:] += config.duration_weight * seconds
+            terms[:, 1:, 3] = (np.abs(np.diff(trajectories, axis=1)) / self.velocity_limits).max(axis=-1)
+        if closure is not None or orientation is not None:
+            hands = self._transition_hand_poses(trajectories, poses)  # each (K x N-1 x 3) x 4 x 4
+            along = (K, N - 1, 3)
         if closure is not None:
             constraint, X_desired = closure
-            t_dev, o_dev = self._transition_deviations(trajectories, X_desired)
-            costs[:, 1:] += transition_costs(t_dev, o_dev, constraint)
+            t_dev, o_dev = relative_deviations(relative_pose(*hands), X_desired)
+            terms[:, 1:, 4] = transition_costs(t_dev.reshape(along), o_dev.reshape(along), constraint)
         if orientation is not None:
             constraint, R_desired = orientation
-            states = self._transition_states(trajectories)
-            o_dev = orientation_deviations(
-                self.end_effectors, states.reshape(-1, 14), R_desired, constraint.upright_only
-            )
-            q_o = threshold_cost(o_dev.reshape(states.shape[:-1]), constraint.o_max, constraint.C)
-            costs[:, 1:] += q_o.max(axis=-1)
-        return costs
+            o_dev = hand_orientation_deviations(hands, R_desired, constraint.upright_only).reshape(along)
+            terms[:, 1:, 5] = threshold_cost(o_dev, constraint.o_max, constraint.C).max(axis=-1)
+        return terms
 
-    def _transition_states(self, trajectories: np.ndarray) -> np.ndarray:
-        """The states along every transition (K x N-1 x closure_states x 14)."""
-        s = np.linspace(0.0, 1.0, self.config.closure_states)[None, None, :, None]
-        return (1 - s) * trajectories[:, :-1, None] + s * trajectories[:, 1:, None]
+    def _rates(self, trajectories: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Joint velocities and accelerations (each K x N x 14) at the keyframes, each transition taking
+        segment_s or longer at full joint speed, the ends at rest."""
+        steps = np.diff(trajectories, axis=1)
+        seconds = np.maximum(self.config.segment_s, (np.abs(steps) / self.velocity_limits).max(axis=-1))[..., None]
+        velocity = np.zeros_like(trajectories)
+        velocity[:, 1:-1] = 0.5 * (steps[:, :-1] / seconds[:, :-1] + steps[:, 1:] / seconds[:, 1:])
+        acceleration = np.zeros_like(trajectories)
+        acceleration[:, 1:] = np.diff(velocity, axis=1) / seconds
+        return velocity, acceleration
 
-    def _transition_deviations(self, trajectories: np.ndarray, X_desired: np.ndarray):
-        """Closure deviations at the states along every transition (K x N-1 x closure_states each)."""
-        states = self._transition_states(trajectories)
-        t_dev, o_dev = deviations(self.end_effectors, states.reshape(-1, 14), X_desired)
-        return t_dev.reshape(states.shape[:-1]), o_dev.reshape(states.shape[:-1])
+    def _total(self, terms: np.ndarray) -> np.ndarray:
+        """The weighted sum of the terms in their units (... x len(TERMS) -> ...)."""
+        return terms @ (np.asarray(self.config.weights) / TERM_UNITS)
 
-    def _project(self, theta: np.ndarray, X_desired: np.ndarray | None, R_desired=None, upright_only=False):
-        """`theta` with its interior keyframes projected (start and goal stay fixed)."""
-        theta = theta.copy()
-        theta[1:-1] = self.project(theta[1:-1], X_desired, R_desired, upright_only=upright_only)
-        return theta
+    def _weights(self, terms: np.ndarray) -> np.ndarray:
+        """Per-keyframe probabilities of the rollouts (K x N) from their total cost-to-go (STOMP's)."""
+        total = np.cumsum(self._total(terms)[:, ::-1], axis=1)[:, ::-1]
+        low, high = total.min(axis=0), total.max(axis=0)
+        weights = np.exp(-self.config.sensitivity * (total - low) / np.maximum(high - low, 1e-12))
+        return weights / weights.sum(axis=0)
+
+    def _transition_hand_poses(self, trajectories: np.ndarray, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Both hands' poses at the states along every transition (its start, middle and end), each
+        (K * (N-1) * 3) x 4 x 4; `poses` are the bodies' poses at the keyframes ((K * N) x L x 4 x 4)."""
+        K, N = trajectories.shape[:2]
+        middle = self.kinematics.body_poses((0.5 * (trajectories[:, :-1] + trajectories[:, 1:])).reshape(-1, 14))
+        at_keyframes = self.end_effectors.from_body_poses(poses.reshape(K, N, *poses.shape[1:]))
+        at_middles = self.end_effectors.from_body_poses(middle.reshape(K, N - 1, *middle.shape[1:]))
+        return tuple(
+            np.stack([X[:, :-1], X_middle, X[:, 1:]], axis=2).reshape(-1, 4, 4)
+            for X, X_middle in zip(at_keyframes, at_middles, strict=True)
+        )
+
+    def constraints(self, X_desired=None, R_desired=None, upright_only: bool = False) -> HandConstraints:
+        """The hand constraints: the relative hand pose X_E1E2 (X_desired) and/or the hands' world orientations."""
+        if self.end_effectors is None:
+            raise ValueError("hand constraints need the end effectors (Stomp(..., end_effectors=...))")
+        return HandConstraints(self.end_effectors, self.lower, self.upper, X_desired, R_desired, upright_only)
 
     def project(
         self,
@@ -317,38 +368,10 @@ class Stomp:
         upright_only: bool = False,
     ) -> np.ndarray:
         """Configurations (B x 14) moved back towards the desired relative hand pose X_E1E2 (X_desired)
-        and/or the hands' desired world orientations (R_desired; with upright_only their tilt only): the smallest
-        joint change, `steps` (default config.projection_steps) damped Gauss-Newton steps with a
-        finite-difference Jacobian."""
-
-        def error_of(q):
-            parts = []
-            if X_desired is not None:
-                parts.append(self._closure_error(q, X_desired))
-            if R_desired is not None:
-                for X, R in zip(self.end_effectors.poses(q), R_desired, strict=True):
-                    # The vertical seen from the hand, against the desired one; or the whole rotation.
-                    parts.append(X[:, 2, :3] - R[2] if upright_only else _rotation_error(R, X[:, :3, :3]))
-            return np.concatenate(parts, axis=1)
-
-        q = np.atleast_2d(q).copy()
-        step = 1e-5
-        for _ in range(self.config.projection_steps if steps is None else steps):
-            error = error_of(q)  # K x E
-            size = error.shape[1]
-            shifted = np.repeat(q[:, None], 14, axis=1) + step * np.eye(14)  # K x 14 x 14
-            moved = error_of(shifted.reshape(-1, 14)).reshape(len(q), 14, size)
-            jacobian = np.transpose(moved - error[:, None], (0, 2, 1)) / step  # K x E x 14
-            JT = np.transpose(jacobian, (0, 2, 1))
-            damped = jacobian @ JT + 1e-6 * np.eye(size)
-            q -= np.einsum("kij,kj->ki", JT, np.linalg.solve(damped, error[..., None])[..., 0])
-            np.clip(q, self.lower, self.upper, out=q)
-        return q
-
-    def _closure_error(self, q: np.ndarray, X_desired: np.ndarray) -> np.ndarray:
-        """6-vector per configuration: translation error and rotation error (axis * angle, small)."""
-        X = self.end_effectors.relative(q)
-        return np.column_stack([X[:, :3, 3] - X_desired[:3, 3], _rotation_error(X_desired[:3, :3], X[:, :3, :3])])
+        and/or the hands' desired world orientations (R_desired; with upright_only their tilt only): `steps`
+        (default config.projection_steps) damped Gauss-Newton steps, each the smallest joint change."""
+        steps = self.config.projection_steps if steps is None else steps
+        return self.constraints(X_desired, R_desired, upright_only).project(q, steps)
 
     def orientation_within_limits(self, theta: np.ndarray, orientation, steps: int = 10) -> tuple[bool, float]:
         """Whether both hands stay within o_max of their desired orientations densely; also the largest deviation."""
@@ -372,6 +395,7 @@ class Stomp:
         closure_constraint: ClosureConstraint | None = None,
         orientation_constraint: OrientationConstraint | None = None,
         initial_path: np.ndarray | None = None,
+        payload: Payload | None = None,
     ) -> StompResult:
         """Plans from q_start to q_goal (both fixed).
 
@@ -381,6 +405,7 @@ class Stomp:
             closure_constraint: keep the hands' relative pose as at q_start (both hands hold an object).
             orientation_constraint: keep both hands' world orientations (or with upright_only their tilt) as at
                 q_start.
+            payload: a held object's masses, for the torque term.
         """
         config = self.config
         rng = np.random.default_rng(config.seed)
@@ -399,48 +424,47 @@ class Stomp:
         if np.any(end_clearance < 0):
             which = "start" if end_clearance[0] < 0 else "goal"
             return StompResult(False, theta, 0, 0.0, float(end_clearance.min()), f"the {which} configuration collides")
-        closure = orientation = None
-        if (closure_constraint or orientation_constraint) and self.end_effectors is None:
-            raise ValueError("hand constraints need the end effectors (Stomp(..., end_effectors=...))")
+        closure = orientation = constraints = None
         if closure_constraint is not None:
             closure = (closure_constraint, self.end_effectors.relative(q_start[None])[0])
         if orientation_constraint is not None:
             orientation = (orientation_constraint, [X[0, :3, :3] for X in self.end_effectors.poses(q_start[None])])
-        X_desired = closure[1] if closure else None
-        R_desired = orientation[1] if orientation else None
-        upright_only = orientation_constraint is not None and orientation_constraint.upright_only
-        constrained = closure is not None or orientation is not None
-        if constrained:
-            theta = self._project(theta, X_desired, R_desired, upright_only)
+        if closure or orientation:
+            upright_only = orientation_constraint is not None and orientation_constraint.upright_only
+            constraints = self.constraints(
+                closure[1] if closure else None, orientation[1] if orientation else None, upright_only
+            )
+            theta[1:-1] = constraints.project(theta[1:-1], config.projection_steps)
         feasible, clearance = self._feasible(theta, obstacles, closure, orientation)
         if feasible:  # the first trajectory is already a solution: nothing to optimise (0 iterations)
             elapsed = time.perf_counter() - start
             return StompResult(True, theta, 0, elapsed, float(clearance.min()), "collision-free as first drawn")
-        std = config.noise_std
+        std = config.noise_std if constraints is None else config.constrained_noise_std
         kept = np.empty((0, n, 14))
-        kept_costs = np.empty((0, n))
+        kept_terms = np.empty((0, n, len(TERMS)))
         iteration = 0
         while True:
             iteration += 1
             noise = np.einsum("ij,kjd->kid", self.noise_factor, rng.standard_normal((config.rollouts, free, 14))) * std
             rollouts = np.repeat(theta[None], config.rollouts, axis=0)
+            if constraints is not None:
+                noise = constraints.tangent(theta[1:-1], noise)
             rollouts[:, 1:-1] += noise
             np.clip(rollouts, self.lower, self.upper, out=rollouts)
-            costs = self._costs(rollouts, obstacles, closure, orientation)
+            if constraints is not None and config.rollout_projection_steps:
+                interior = constraints.project(rollouts[:, 1:-1].reshape(-1, 14), config.rollout_projection_steps)
+                rollouts[:, 1:-1] = interior.reshape(config.rollouts, free, 14)
+            terms = self._cost_terms(rollouts, obstacles, closure, orientation, payload)
             all_rollouts = np.concatenate([rollouts, kept])
-            all_costs = np.concatenate([costs, kept_costs])
-            # Per-keyframe probabilities from the cost still to come (STOMP's cost-to-go).
-            to_go = np.cumsum(all_costs[:, ::-1], axis=1)[:, ::-1]
-            low, high = to_go.min(axis=0), to_go.max(axis=0)
-            weights = np.exp(-config.sensitivity * (to_go - low) / np.maximum(high - low, 1e-12))
-            weights /= weights.sum(axis=0)
+            all_terms = np.concatenate([terms, kept_terms])
+            weights = self._weights(all_terms)
             delta = np.einsum("kn,knd->nd", weights, all_rollouts - theta[None])[1:-1]
             theta[1:-1] += self.smoothing @ delta
             np.clip(theta, self.lower, self.upper, out=theta)
-            if constrained:
-                theta = self._project(theta, X_desired, R_desired, upright_only)
-            best = np.argsort(all_costs.sum(axis=1))[: config.reused_rollouts]
-            kept, kept_costs = all_rollouts[best], all_costs[best]
+            if constraints is not None and config.projection_steps:
+                theta[1:-1] = constraints.project(theta[1:-1], config.projection_steps)
+            best = np.argsort(self._total(all_terms).sum(axis=1))[: config.reused_rollouts]
+            kept, kept_terms = all_rollouts[best], all_terms[best]
             std *= config.noise_decay
             elapsed = time.perf_counter() - start
             feasible, clearance = self._feasible(theta, obstacles, closure, orientation)
