@@ -271,7 +271,15 @@ def reach_stomp(problems) -> list[dict]:
         result = ik.stomp.plan(q_start, q_goal, ik.planning_obstacles)
         clearance = check_dense(ik, result.trajectory)
         success = bool(result.success and clearance > 0)
-        rows.append({"success": success, "runtime_s": result.seconds, "min_clearance_m": clearance})
+        rows.append(
+            {
+                "success": success,
+                "runtime_s": result.seconds,
+                "iterations": result.iterations,
+                "min_clearance_m": clearance,
+                "message": result.message,
+            }
+        )
     return rows
 
 

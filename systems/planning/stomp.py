@@ -68,7 +68,7 @@ class StompConfig:
     keyframes: int = 16
     rollouts: int = 16
     reused_rollouts: int = 4
-    max_iterations: int = 300
+    max_iterations: int = 600
     time_limit_s: float = 2.0
     noise_std: float = 0.8  # rad, initial; shrinks by noise_decay per iteration
     noise_decay: float = 0.97
@@ -84,6 +84,9 @@ class StompConfig:
     segment_s: float = 0.25  # s: the shortest time between keyframes, for the torque term's velocities
     # Weights of the terms in their units (TERM_UNITS), in TERMS' order.
     weights: tuple = (1.0, 0.05, 0.01, 0.05, 1.0, 1.0)
+    via_candidates: int = 128  # random via points tried for the first trajectory of an unconstrained plan
+    via_std: float = 1.0  # rad
+    restart_after: int = 100  # iterations without a solution before an unconstrained plan starts again from the next
     projection_steps: int = 3  # Gauss-Newton steps projecting each update onto the hand constraints
     rollout_projection_steps: int = 2  # ... and each rollout, before it is scored
 
@@ -183,6 +186,18 @@ def _resample(path: np.ndarray, n: int) -> np.ndarray:
         return np.repeat(path[:1], n, axis=0)
     targets = np.linspace(0.0, length[-1], n)
     return np.column_stack([np.interp(targets, length, path[:, j]) for j in range(path.shape[1])])
+
+
+def _through(start: np.ndarray, vias: np.ndarray, goal: np.ndarray, n: int) -> np.ndarray:
+    """For each via point (V x 14), n configurations evenly spaced by joint-space length along start -> via -> goal
+    (V x n x 14)."""
+    first, second = vias - start, goal - vias
+    length_1 = np.linalg.norm(first, axis=1, keepdims=True)
+    length_2 = np.linalg.norm(second, axis=1, keepdims=True)
+    t = np.linspace(0.0, 1.0, n)[None] * (length_1 + length_2)  # V x n, length travelled
+    before = np.clip(t / np.maximum(length_1, 1e-12), 0.0, 1.0)[..., None]
+    after = np.clip((t - length_1) / np.maximum(length_2, 1e-12), 0.0, 1.0)[..., None]
+    return start + before * first[:, None] + after * second[:, None]
 
 
 def _smoothing_matrices(free: int) -> tuple[np.ndarray, np.ndarray]:
@@ -415,6 +430,10 @@ class Stomp:
         theta = (1 - s) * q_start + s * q_goal  # N x 14
         if initial_path is not None:
             theta = _resample(np.asarray(initial_path, float), n)
+        starts = []  # first trajectories to restart from, best first (unconstrained plans)
+        if initial_path is None and closure_constraint is None and orientation_constraint is None:
+            starts = self._initial_trajectories(theta, obstacles, rng)
+            theta = starts.pop(0)
         for q, name in ((q_start, "start"), (q_goal, "goal")):
             if np.any(q < self.lower - 1e-9) or np.any(q > self.upper + 1e-9):
                 return StompResult(
@@ -470,6 +489,9 @@ class Stomp:
             feasible, clearance = self._feasible(theta, obstacles, closure, orientation)
             if feasible:
                 return StompResult(True, theta, iteration, elapsed, float(clearance.min()), "collision-free")
+            if starts and iteration % config.restart_after == 0:  # stuck: start again from the next first trajectory
+                theta, std = starts.pop(0), config.noise_std
+                kept, kept_terms = kept[:0], kept_terms[:0]
             if iteration >= config.max_iterations or elapsed > config.time_limit_s:
                 return StompResult(
                     False,
@@ -479,6 +501,26 @@ class Stomp:
                     float(clearance.min()),
                     f"no collision-free trajectory after {iteration} iterations ({elapsed:.2f} s)",
                 )
+
+    def _initial_trajectories(self, straight: np.ndarray, obstacles: Obstacles, rng) -> list[np.ndarray]:
+        """First trajectories (each N x 14), least in collision first: the straight joint-space line and paths
+        through via_candidates random configurations around its middle (joint-space std via_std). STOMP is local:
+        from under the table the straight line can lead it into a minimum it does not leave."""
+        config = self.config
+        start, goal = straight[0], straight[-1]
+        middle = 0.5 * (start + goal)
+        vias = np.clip(
+            middle + config.via_std * rng.standard_normal((config.via_candidates, 14)), self.lower, self.upper
+        )
+        candidates = np.concatenate([straight[None], _through(start, vias, goal, len(straight))])
+        # Scored in small groups: a sphere pair counts where it comes near in any path of the group.
+        shortfall = np.concatenate(
+            [
+                self._clearances(group, obstacles)[1].sum(axis=1)
+                for group in np.array_split(candidates, len(candidates) // 4)
+            ]
+        )
+        return [candidates[i] for i in np.argsort(shortfall, kind="stable")]
 
     def _feasible(self, theta, obstacles, closure, orientation) -> tuple[bool, np.ndarray]:
         """Whether the trajectory is a solution (clear of collision at and between its keyframes, within the
