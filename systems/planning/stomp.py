@@ -517,7 +517,7 @@ class Stomp:
         shortfall = np.concatenate(
             [
                 self._clearances(group, obstacles)[1].sum(axis=1)
-                for group in np.array_split(candidates, len(candidates) // 4)
+                for group in np.array_split(candidates, max(1, len(candidates) // 4))
             ]
         )
         return [candidates[i] for i in np.argsort(shortfall, kind="stable")]
