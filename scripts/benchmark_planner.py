@@ -10,6 +10,7 @@ Held problems (both hands hold a test can; 3 cans in turn, seed = run; STOMP sta
       closure and the hands' world orientation kept, the can itself kept clear of table and box.
   turn: the can lifted, then turned 45 degrees about the vertical between the hands (the most the arms
       reach holding a can: the IK chain finds no configuration beyond), the closure and the hands' tilt kept.
+  carry_no_update_projection: the rollouts projected, the updates not (STOMP-New had neither).
   *_no_projection: the same with no Gauss-Newton projection (of rollouts or updates): only the tangent-space
       noise and the cost terms keep the constraints.
   peer_carry / peer_lift: KinematicTrajectoryOptimization on the carry / lift (deterministic: one run per can).
@@ -163,7 +164,7 @@ def held_problem(kind: str, instance: str) -> HeldProblem:
     return HeldProblem(ik, q_start, q_goal, scene, points, orientation, chain, motions.payload(q_start), scenario, kind)
 
 
-def held_experiment(kind: str, runs: int, closure: bool = True, projection: bool = True, fixed_orientation=None):
+def held_experiment(kind: str, runs: int, closure: bool = True, projection: str = "all", fixed_orientation=None):
     """STOMP on `runs` held problems (the 3 test cans in turn, seed = run), every result checked densely."""
     problems = [held_problem(kind, f"test_{i}") for i in range(3)]
     rows = []
@@ -172,7 +173,9 @@ def held_experiment(kind: str, runs: int, closure: bool = True, projection: bool
         stomp = problem.ik.stomp
         saved = stomp.config
         stomp.config = dataclasses.replace(saved, seed=run, time_limit_s=TIME_LIMIT_S)
-        if not projection:
+        if projection == "rollouts":  # the rollouts projected, the update not
+            stomp.config = dataclasses.replace(stomp.config, projection_steps=0)
+        if projection == "none":
             stomp.config = dataclasses.replace(
                 stomp.config, projection_steps=0, rollout_projection_steps=0, constrained_noise_std=NO_PROJECTION_NOISE
             )
@@ -439,12 +442,13 @@ def main():
     experiments = {
         "closure_off": lambda: held_experiment("lift", args.runs, closure=False),
         "closure_on": lambda: held_experiment("lift", args.runs),
-        "closure_on_no_projection": lambda: held_experiment("lift", args.runs, projection=False),
+        "closure_on_no_projection": lambda: held_experiment("lift", args.runs, projection="none"),
         "bar_lift": lambda: held_experiment("lift", args.runs, fixed_orientation=OrientationConstraint()),
         "carry": lambda: held_experiment("carry", args.runs),
-        "carry_no_projection": lambda: held_experiment("carry", args.runs, projection=False),
+        "carry_no_projection": lambda: held_experiment("carry", args.runs, projection="none"),
+        "carry_no_update_projection": lambda: held_experiment("carry", args.runs, projection="rollouts"),
         "turn": lambda: held_experiment("turn", args.runs),
-        "turn_no_projection": lambda: held_experiment("turn", args.runs, projection=False),
+        "turn_no_projection": lambda: held_experiment("turn", args.runs, projection="none"),
         "peer_lift": lambda: [peer_held(held_problem("lift", f"test_{i % 3}")) for i in range(args.kto_runs)],
         "peer_carry": lambda: [peer_held(held_problem("carry", f"test_{i % 3}")) for i in range(args.kto_runs)],
         "reach": lambda: reach_stomp(reach_problems(args.reach_runs, args.seed)),

@@ -305,13 +305,17 @@ class Stomp:
     def _cost_terms(
         self, trajectories: np.ndarray, obstacles: Obstacles, closure=None, orientation=None, payload=None
     ) -> np.ndarray:
-        """Every term's cost at every keyframe of every rollout (K x N x len(TERMS)); a transition's terms (duration,
-        closure, orientation) count at the keyframe it leads to."""
+        """Every term's cost at every keyframe of every rollout (K x N x len(TERMS)); a transition's terms (its
+        middle's collision, duration, closure, orientation) count at the keyframe it leads to."""
         K, N = trajectories.shape[:2]
         config = self.config
         terms = np.zeros((K, N, len(TERMS)))
         poses = self.kinematics.body_poses(trajectories.reshape(-1, 14))
+        middles = 0.5 * (trajectories[:, :-1] + trajectories[:, 1:])
+        middle_poses = self.kinematics.body_poses(middles.reshape(-1, 14))
         terms[..., 0] = self._clearances(trajectories, obstacles, poses)[1]
+        # Between keyframes too: else a plan clear at its keyframes can stall with a segment just short of clear.
+        terms[:, 1:, 0] += self._clearances(middles, obstacles, middle_poses)[1]
         to_limit = np.minimum(trajectories - self.lower, self.upper - trajectories)
         terms[..., 1] = (np.maximum(1.0 - to_limit / config.limit_margin, 0.0) ** 2).sum(axis=-1)
         if self.effort_limits is not None:
@@ -322,7 +326,7 @@ class Stomp:
         if self.velocity_limits is not None:
             terms[:, 1:, 3] = (np.abs(np.diff(trajectories, axis=1)) / self.velocity_limits).max(axis=-1)
         if closure is not None or orientation is not None:
-            hands = self._transition_hand_poses(trajectories, poses)  # each (K x N-1 x 3) x 4 x 4
+            hands = self._transition_hand_poses(trajectories, poses, middle_poses)  # each (K x N-1 x 3) x 4 x 4
             along = (K, N - 1, 3)
         if closure is not None:
             constraint, X_desired = closure
@@ -356,11 +360,11 @@ class Stomp:
         weights = np.exp(-self.config.sensitivity * (total - low) / np.maximum(high - low, 1e-12))
         return weights / weights.sum(axis=0)
 
-    def _transition_hand_poses(self, trajectories: np.ndarray, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _transition_hand_poses(self, trajectories: np.ndarray, poses: np.ndarray, middle: np.ndarray):
         """Both hands' poses at the states along every transition (its start, middle and end), each
-        (K * (N-1) * 3) x 4 x 4; `poses` are the bodies' poses at the keyframes ((K * N) x L x 4 x 4)."""
+        (K * (N-1) * 3) x 4 x 4; `poses` and `middle` are the bodies' poses at the keyframes ((K * N) x L x 4 x 4)
+        and the transitions' middles ((K * (N-1)) x L x 4 x 4)."""
         K, N = trajectories.shape[:2]
-        middle = self.kinematics.body_poses((0.5 * (trajectories[:, :-1] + trajectories[:, 1:])).reshape(-1, 14))
         at_keyframes = self.end_effectors.from_body_poses(poses.reshape(K, N, *poses.shape[1:]))
         at_middles = self.end_effectors.from_body_poses(middle.reshape(K, N - 1, *middle.shape[1:]))
         return tuple(
@@ -431,7 +435,8 @@ class Stomp:
         if initial_path is not None:
             theta = _resample(np.asarray(initial_path, float), n)
         starts = []  # first trajectories to restart from, best first (unconstrained plans)
-        if initial_path is None and closure_constraint is None and orientation_constraint is None:
+        unconstrained = closure_constraint is None and orientation_constraint is None
+        if initial_path is None and unconstrained and not self._feasible(theta, obstacles, None, None)[0]:
             starts = self._initial_trajectories(theta, obstacles, rng)
             theta = starts.pop(0)
         for q, name in ((q_start, "start"), (q_goal, "goal")):
