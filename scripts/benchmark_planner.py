@@ -45,7 +45,7 @@ from diagrams.planning_scene import (
     object_surface_W,
     true_grasp_poses,
 )
-from diagrams.scenario import load_scenario, replace_object
+from diagrams.scenario import Scenario, load_scenario, replace_object
 from diagrams.station import object_pose_on_table
 from systems.planning.closure import ClosureConstraint, OrientationConstraint, deviations, orientation_deviations
 from systems.planning.ik import DualArmIk
@@ -110,8 +110,8 @@ class HeldProblem:
     orientation: OrientationConstraint | None
     ik_chain: np.ndarray  # configurations holding the can along the Cartesian motion (the peer's initial guess)
     payload: Payload
-    scenario: object
-    kind: str
+    scenario: Scenario
+    X_WO: RigidTransform  # the can's pose at q_start
 
 
 def _held_scenario(instance: str, xy, box_height: float = 0.0):
@@ -161,7 +161,8 @@ def held_problem(kind: str, instance: str) -> HeldProblem:
     if kind != "lift":
         points = object_surface_W(model, lifted @ X_WO, OBJECT_CHECK_POINTS)[0]
         scene = scene.carrying(motions.carried(q_start, points))
-    return HeldProblem(ik, q_start, q_goal, scene, points, orientation, chain, motions.payload(q_start), scenario, kind)
+    payload = motions.payload(q_start)
+    return HeldProblem(ik, q_start, q_goal, scene, points, orientation, chain, payload, scenario, lifted @ X_WO)
 
 
 def held_experiment(kind: str, runs: int, closure: bool = True, projection: str = "all", fixed_orientation=None):
@@ -251,15 +252,20 @@ def reach_problems(runs: int, seed: int):
         scenario = replace_object(
             base, category=category, instance=f"test_{rng.integers(3)}", yaw=float(rng.uniform(-0.45, 0.45))
         )
-        model = resolve_object(scenario.object)
-        X_WO = object_pose_on_table(scenario, model)
-        ik = make_dual_arm_ik(scenario, obstacle=model, X_WO=X_WO)
-        poses = true_grasp_poses(scenario)
-        pregrasps = {side: poses[f"{side}_pregrasp"] for side in ("left", "right")}
-        goal = ik.solve(pregrasps, np.array(scenario.initial_arm_positions))
+        ik, goal = reach_goal(scenario, np.array(scenario.initial_arm_positions))
         if goal.success:
             problems.append((ik, BELOW_TABLE, goal.q))
     return problems
+
+
+def reach_goal(scenario: Scenario, q_guess: np.ndarray, restarts: int = 4):
+    """The planning model around the scenario's object, and its IK solution at both pre-grasps (`restarts` as
+    DualArmIk.solve's)."""
+    model = resolve_object(scenario.object)
+    ik = make_dual_arm_ik(scenario, obstacle=model, X_WO=object_pose_on_table(scenario, model))
+    poses = true_grasp_poses(scenario)
+    pregrasps = {side: poses[f"{side}_pregrasp"] for side in ("left", "right")}
+    return ik, ik.solve(pregrasps, q_guess, restarts=restarts)
 
 
 def check_dense(ik: DualArmIk, trajectory: np.ndarray) -> float:
@@ -286,36 +292,51 @@ def reach_stomp(problems) -> list[dict]:
     return rows
 
 
+def kto_program(ik: DualArmIk, plant, q_start, q_goal, guess_path: np.ndarray, control_points: int):
+    """KinematicTrajectoryOptimization over `plant`'s positions (the fingers held as they are) from q_start to
+    q_goal: joint position and velocity limits, 0.5-10 s, duration and path-length costs, control points started
+    evenly along `guess_path` (K x 14 arm configurations)."""
+    trajopt = KinematicTrajectoryOptimization(plant.num_positions(), control_points)
+    full_start, full_goal = ik.full_positions(q_start), ik.full_positions(q_goal)
+    lower, upper = full_start.copy(), full_start.copy()
+    lower[ik.arm_indices], upper[ik.arm_indices] = ik.lower, ik.upper
+    trajopt.AddPositionBounds(lower, upper)
+    velocity = np.zeros(plant.num_positions())
+    velocity[ik.arm_indices] = ik.velocity_limits
+    trajopt.AddVelocityBounds(-velocity, velocity)
+    trajopt.AddDurationConstraint(0.5, 10.0)
+    trajopt.AddDurationCost(1.0)
+    trajopt.AddPathLengthCost(1.0)
+    trajopt.AddPathPositionConstraint(full_start, full_start, 0)
+    trajopt.AddPathPositionConstraint(full_goal, full_goal, 1)
+    path = np.array([ik.full_positions(q) for q in guess_path])
+    along = np.linspace(0, 1, len(path))
+    guess = np.array([np.interp(np.linspace(0, 1, control_points), along, column) for column in path.T])
+    trajopt.SetInitialGuess(BsplineTrajectory(trajopt.basis(), guess))
+    return trajopt
+
+
+def kto_keyframes(ik: DualArmIk, trajopt, result, count: int = 16) -> np.ndarray:
+    """The solved B-spline's arm configurations at `count` evenly spaced times (count x 14)."""
+    path = trajopt.ReconstructTrajectory(result)
+    times = np.linspace(path.start_time(), path.end_time(), count)
+    return np.array([path.value(t).ravel()[ik.arm_indices] for t in times])
+
+
 def reach_kto(problems, control_points: int = 10, samples: int = 25) -> list[dict]:
     """Drake's KinematicTrajectoryOptimization: B-spline, collision as minimum-distance constraints at samples."""
     rows = []
     for ik, q_start, q_goal in problems:
         plant, context = ik.plant, ik.plant_context
         start = time.perf_counter()
-        trajopt = KinematicTrajectoryOptimization(plant.num_positions(), control_points)
+        trajopt = kto_program(ik, plant, q_start, q_goal, np.stack([q_start, q_goal]), control_points)
         prog = trajopt.get_mutable_prog()
-        full_start, full_goal = ik.full_positions(q_start), ik.full_positions(q_goal)
-        lower, upper = full_start.copy(), full_start.copy()  # fingers stay as they are
-        lower[ik.arm_indices], upper[ik.arm_indices] = ik.lower, ik.upper
-        trajopt.AddPositionBounds(lower, upper)
-        velocity = np.zeros(plant.num_positions())
-        velocity[ik.arm_indices] = ik.velocity_limits
-        trajopt.AddVelocityBounds(-velocity, velocity)
-        trajopt.AddDurationConstraint(0.5, 10.0)
-        trajopt.AddDurationCost(1.0)
-        trajopt.AddPathLengthCost(1.0)
-        trajopt.AddPathPositionConstraint(full_start, full_start, 0)
-        trajopt.AddPathPositionConstraint(full_goal, full_goal, 1)
-        guess = np.linspace(full_start, full_goal, control_points).T
-        trajopt.SetInitialGuess(BsplineTrajectory(trajopt.basis(), guess))
         collision = drake_ik.MinimumDistanceLowerBoundConstraint(plant, 0.005, context)
         for s in np.linspace(0, 1, samples):
             trajopt.AddPathPositionConstraint(collision, s)
         result = Solve(prog)
         seconds = time.perf_counter() - start
-        path = trajopt.ReconstructTrajectory(result)
-        times = np.linspace(path.start_time(), path.end_time(), 16)
-        keyframes = np.array([path.value(t).ravel()[ik.arm_indices] for t in times])
+        keyframes = kto_keyframes(ik, trajopt, result)
         clearance = check_dense(ik, keyframes)
         success = bool(result.is_success() and clearance > 0)
         rows.append({"success": success, "runtime_s": seconds, "min_clearance_m": clearance})
@@ -332,25 +353,8 @@ def peer_held(problem: HeldProblem, control_points: int = 12, samples: int = 24)
     scene = held_scene(problem)
     plant, context = scene.plant, scene.plant.GetMyMutableContextFromRoot(scene.diagram.CreateDefaultContext())
     start = time.perf_counter()
-    trajopt = KinematicTrajectoryOptimization(plant.num_positions(), control_points)
+    trajopt = kto_program(ik, plant, problem.q_start, problem.q_goal, problem.ik_chain, control_points)
     prog = trajopt.get_mutable_prog()
-    full_start, full_goal = ik.full_positions(problem.q_start), ik.full_positions(problem.q_goal)
-    lower, upper = full_start.copy(), full_start.copy()  # fingers stay as they are
-    lower[ik.arm_indices], upper[ik.arm_indices] = ik.lower, ik.upper
-    trajopt.AddPositionBounds(lower, upper)
-    velocity = np.zeros(plant.num_positions())
-    velocity[ik.arm_indices] = ik.velocity_limits
-    trajopt.AddVelocityBounds(-velocity, velocity)
-    trajopt.AddDurationConstraint(0.5, 10.0)
-    trajopt.AddDurationCost(1.0)
-    trajopt.AddPathLengthCost(1.0)
-    trajopt.AddPathPositionConstraint(full_start, full_start, 0)
-    trajopt.AddPathPositionConstraint(full_goal, full_goal, 1)
-    chain = np.array([ik.full_positions(q) for q in problem.ik_chain])
-    guess = np.array(
-        [np.interp(np.linspace(0, 1, control_points), np.linspace(0, 1, len(chain)), column) for column in chain.T]
-    )
-    trajopt.SetInitialGuess(BsplineTrajectory(trajopt.basis(), guess))
     left, right = (plant.GetFrameByName("grasp_frame", scene.hands[side]) for side in ("left", "right"))
     X_WG = ik.grasp_frame_poses(problem.q_start)
     X_LR = X_WG["left"].InvertAndCompose(X_WG["right"])
@@ -383,9 +387,7 @@ def peer_held(problem: HeldProblem, control_points: int = 12, samples: int = 24)
             trajopt.AddPathPositionConstraint(constraint, s)
     result = Solve(prog, solver_options=SNOPT_OPTIONS)
     seconds = time.perf_counter() - start
-    path = trajopt.ReconstructTrajectory(result)
-    times = np.linspace(path.start_time(), path.end_time(), 16)
-    keyframes = np.array([path.value(t).ravel()[ik.arm_indices] for t in times])
+    keyframes = kto_keyframes(ik, trajopt, result)
     row = check_held(problem, keyframes, problem.orientation)
     row.update(
         success=bool(result.is_success() and row["valid"]),
@@ -398,13 +400,9 @@ def peer_held(problem: HeldProblem, control_points: int = 12, samples: int = 24)
 
 def held_scene(problem: HeldProblem):
     """The problem's robot scene with the can welded to the left hand as at q_start."""
-    ik = problem.ik
-    X_WG = ik.grasp_frame_poses(problem.q_start)["left"]
+    X_WG = problem.ik.grasp_frame_poses(problem.q_start)["left"]
     model = resolve_object(problem.scenario.object)
-    X_WO = RigidTransform([0, 0, 0 if problem.kind == "lift" else CARRY_LIFT_M]) @ object_pose_on_table(
-        problem.scenario, model
-    )
-    return MakeRobotScene(problem.scenario, held_object=model, X_GO=X_WG.InvertAndCompose(X_WO))
+    return MakeRobotScene(problem.scenario, held_object=model, X_GO=X_WG.InvertAndCompose(problem.X_WO))
 
 
 def reach_unseen_problems():
@@ -416,12 +414,7 @@ def reach_unseen_problems():
         for instance in UNSEEN:
             for yaw in UNSEEN_YAWS:
                 scenario = replace_object(base, category=category, instance=instance, yaw=yaw)
-                model = resolve_object(scenario.object)
-                ik = make_dual_arm_ik(scenario, obstacle=model, X_WO=object_pose_on_table(scenario, model))
-                poses = true_grasp_poses(scenario)
-                goal = ik.solve(
-                    {side: poses[f"{side}_pregrasp"] for side in ("left", "right")}, BELOW_TABLE, restarts=12
-                )
+                ik, goal = reach_goal(scenario, BELOW_TABLE, restarts=12)
                 if goal.success:
                     problems.append((ik, BELOW_TABLE, goal.q))
                 else:

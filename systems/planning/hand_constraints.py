@@ -17,17 +17,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from systems.planning.kinematics import EndEffectors, relative_pose
+from systems.planning.kinematics import EndEffectors, relative_pose, skew
 
 DAMPING = 1e-6  # of the Gauss-Newton and null-space solves, in the error's squared units
-
-
-def skew(v: np.ndarray) -> np.ndarray:
-    """[v]x for vectors (... x 3): matrices (... x 3 x 3) with [v]x w = v x w."""
-    out = np.zeros(v.shape[:-1] + (3, 3))
-    out[..., 0, 1], out[..., 0, 2], out[..., 1, 2] = -v[..., 2], v[..., 1], -v[..., 0]
-    out[..., 1, 0], out[..., 2, 0], out[..., 2, 1] = v[..., 2], -v[..., 1], v[..., 0]
-    return out
 
 
 def rotation_error(R_desired: np.ndarray, R: np.ndarray) -> np.ndarray:

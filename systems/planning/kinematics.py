@@ -118,7 +118,7 @@ class BatchedKinematics:
             if link.arm_dof >= 0:
                 # Rodrigues: the joint's rotation about its unit axis a, I + sin(q) [a]x + (1 - cos(q)) [a]x^2.
                 angle = q[:, link.arm_dof, None, None]
-                K = _skew(link.axis)
+                K = skew(link.axis)
                 joint = np.zeros((batch, 4, 4))
                 joint[:, :3, :3] = np.eye(3) + np.sin(angle) * K + (1.0 - np.cos(angle)) * (K @ K)
                 joint[:, 3, 3] = 1.0
@@ -127,8 +127,12 @@ class BatchedKinematics:
         return poses
 
 
-def _skew(v: np.ndarray) -> np.ndarray:
-    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+def skew(v: np.ndarray) -> np.ndarray:
+    """[v]x for vectors (... x 3): matrices (... x 3 x 3) with [v]x w = v x w."""
+    out = np.zeros(v.shape[:-1] + (3, 3))
+    out[..., 0, 1], out[..., 0, 2], out[..., 1, 2] = -v[..., 2], v[..., 1], -v[..., 0]
+    out[..., 1, 0], out[..., 2, 0], out[..., 2, 1] = v[..., 2], -v[..., 1], v[..., 0]
+    return out
 
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -148,19 +152,12 @@ def joint_axes(kinematics: "BatchedKinematics", poses: np.ndarray) -> tuple[np.n
 
 
 def gravity_torques(kinematics: "BatchedKinematics", q: np.ndarray, poses: np.ndarray | None = None) -> np.ndarray:
-    """Generalized gravity forces on the arm joints (B x 14, N m), as Drake's CalcGravityGeneralizedForces.
-
-    For joint j at p_j with axis a_j carrying links of total mass M_j and first moment S_j = sum m_l c_l:
-    tau_j = a_j . ((S_j - M_j p_j) x g). `poses`: the bodies' poses at q if already computed.
-    """
+    """Generalized gravity forces on the arm joints (B x 14, N m), as Drake's CalcGravityGeneralizedForces: the
+    negated inverse dynamics at rest. `poses`: the bodies' poses at q if already computed."""
     if poses is None:
-        poses = kinematics.body_poses(np.atleast_2d(q))  # B x L x 4 x 4
-    coms = np.einsum("blij,lj->bli", poses[:, :, :3, :3], kinematics.coms_B) + poses[:, :, :3, 3]
-    carried_mass = kinematics.carried @ kinematics.masses  # 14
-    first_moment = np.einsum("jl,bli->bji", kinematics.carried * kinematics.masses, coms)  # B x 14 x 3
-    positions, axes = joint_axes(kinematics, poses)
-    moment = np.cross(first_moment - carried_mass[:, None] * positions, kinematics.gravity)
-    return np.einsum("bji,bji->bj", moment, axes)
+        poses = kinematics.body_poses(np.atleast_2d(q))
+    still = np.zeros((len(poses), len(kinematics.dof_link)))
+    return -joint_torques(kinematics, poses, still, still)
 
 
 @dataclass

@@ -261,7 +261,7 @@ class PickMotions:
         stomp = self.ik.stomp
         body = stomp.kinematics.body_poses(np.asarray(q)[None])[0]
         if centre_W is None:
-            centre_W = np.mean([X[0, :3, 3] for X in stomp.end_effectors.poses(np.asarray(q)[None])], axis=0)
+            centre_W = np.mean([X[:3, 3] for X in stomp.end_effectors.from_body_poses(body)], axis=0)
         slots = np.array(stomp.end_effectors.positions)
         points_B = np.array([(centre_W - body[slot][:3, 3]) @ body[slot][:3, :3] for slot in slots])
         return Payload(slots, points_B, np.full(2, 0.5 * self.held_mass_kg))

@@ -18,9 +18,10 @@ Cost terms per keyframe (STOMP-New's):
   closure:     q_cc of equations (2)-(4) (systems/planning/closure.py) over each transition, when
                both hands hold an object;
   orientation: the hands' world orientation (or tilt), when asked for.
-Each term's cost-to-go is scaled by its spread over the rollouts (at least its floor,
-COST_FLOORS), so every term steers the update: the closure's C = 1000 beyond its threshold
-does not drown the collision cost, and a term that hardly varies does not count.
+Each term is counted in its unit (TERM_UNITS: 2 cm of clearance shortfall, a joint at its
+limit, a joint at its effort limit, a second, a transition at the threshold) times a weight.
+Unconstrained plans (reaches) whose straight line is not a solution start from the least
+colliding of it and paths through random via points, and restart from the next one when stuck.
 
 With hand constraints (systems/planning/hand_constraints.py), the sampling respects them:
 the noise of each rollout lies in the constraints' tangent space at the current trajectory,
@@ -436,11 +437,6 @@ class Stomp:
         theta = (1 - s) * q_start + s * q_goal  # N x 14
         if initial_path is not None:
             theta = _resample(np.asarray(initial_path, float), n)
-        starts = []  # first trajectories to restart from, best first (unconstrained plans)
-        unconstrained = closure_constraint is None and orientation_constraint is None
-        if initial_path is None and unconstrained and not self._feasible(theta, obstacles, None, None)[0]:
-            starts = self._initial_trajectories(theta, obstacles, rng)
-            theta = starts.pop(0)
         for q, name in ((q_start, "start"), (q_goal, "goal")):
             if np.any(q < self.lower - 1e-9) or np.any(q > self.upper + 1e-9):
                 return StompResult(
@@ -462,6 +458,11 @@ class Stomp:
             )
             theta[1:-1] = constraints.project(theta[1:-1], config.projection_steps)
         feasible, clearance = self._feasible(theta, obstacles, closure, orientation)
+        starts = []  # first trajectories to restart from, best first (unconstrained plans)
+        if not feasible and initial_path is None and constraints is None:
+            starts = self._initial_trajectories(theta, obstacles, rng)
+            theta = starts.pop(0)
+            feasible, clearance = self._feasible(theta, obstacles, closure, orientation)
         if feasible:  # the first trajectory is already a solution: nothing to optimise (0 iterations)
             elapsed = time.perf_counter() - start
             return StompResult(True, theta, 0, elapsed, float(clearance.min()), "collision-free as first drawn")
