@@ -13,16 +13,21 @@ mesh (surface distances both ways), and whether the object was registered end fo
 python scripts/benchmark_registration.py --trials 30 --json registration.json
 python scripts/benchmark_registration.py --trials 48 --instances extra_101 extra_102 ... --cpd-sizes  # others
 python scripts/benchmark_registration.py --trials 30 --no-noise --cpd-sizes                          # perfect depth
+python scripts/benchmark_registration.py --trials 18 --annotation canonical --cpd-sizes  # the user's path, 1 annotated
 """
 
 import argparse
 import logging
+import shutil
+import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 import pycpd
 import trimesh
+import yaml
+from build_shape_space import build_from_folder, pose_entries, sample_mesh
 from json_report import write_json
 from scenario_options import add_sensor_option
 from scipy.spatial import cKDTree
@@ -35,9 +40,9 @@ from diagrams.synthetic_scenes import SyntheticScene
 from systems.rgbd_noise import RgbdNoiseParameters, noisy_depth, sensor_model
 from systems.segmenter import Segmentation
 from systems.shape_registrar import shape_space_file
-from systems.shape_space.cpd import deformable_cpd
+from systems.shape_space.cpd import deformable_cpd, thinned
 from systems.shape_space.registration import Registrar
-from systems.shape_space.space import ShapeSpace
+from systems.shape_space.space import ShapeSpace, choose_canonical
 
 NOMINAL_XY = (0.73, 0.0)  # m, where the scenario puts the object
 DEPTH_NOISE = 0.002  # m, standard deviation
@@ -150,6 +155,52 @@ def registration_trials(
     return rows
 
 
+def folder_spaces(annotation: str, directory: Path) -> dict:
+    """Builds each category's space through the user's path: its 8 training meshes exported to a folder, with
+    only the canonical model (their medoid) annotated ("canonical") or all of them ("all"), into `directory`.
+    Returns how far the propagated grasp frames were from the true ones, per category (errors in m and rad)."""
+    propagation = {}
+    for category in catalog.CATEGORIES:
+        folder = directory / category
+        folder.mkdir(parents=True, exist_ok=True)
+        names = [n for n in catalog.instance_names(category) if n.startswith("train")]
+        for name in names:
+            shutil.copy(generated_instance_directory(category, name) / "visual.obj", folder / f"{name}.obj")
+        canonical = choose_canonical({n: thinned(sample_mesh(folder / f"{n}.obj"), 2000) for n in names})
+        spec = {"canonical": f"{canonical}.obj", "poses": pose_entries(true_grasps(category, canonical))}
+        if annotation == "all":
+            spec["others"] = {f"{n}.obj": pose_entries(true_grasps(category, n)) for n in names if n != canonical}
+        poses_file = directory / f"{category}_poses.yaml"
+        poses_file.write_text(yaml.safe_dump(spec))
+        logging.info("%s: 8 training meshes, annotated: %s", category, annotation)
+        space = build_from_folder(folder, poses_file, category)
+        space.save(directory / shape_space_file(category).name)
+        errors = [  # the folder keeps the generated models' shared frame: C is every model's O
+            pose_errors(poses[name], true_grasps(category, Path(model).stem)[name])
+            for model, poses in space.propagated.items()
+            for name in ("left_grasp", "right_grasp")
+        ]
+        if errors:
+            translation, angle = np.array(errors).T
+            propagation[category] = {
+                "models": len(space.propagated),
+                "translation_m_median": float(np.median(translation)),
+                "translation_m_max": float(translation.max()),
+                "angle_rad_median": float(np.median(angle)),
+                "angle_rad_max": float(angle.max()),
+            }
+            logging.info(
+                "%s: grasp frames propagated to %d models: %.1f mm (max %.1f), %.1f deg (max %.1f) from the truth",
+                category,
+                len(space.propagated),
+                1000 * np.median(translation),
+                1000 * translation.max(),
+                np.degrees(np.median(angle)),
+                np.degrees(angle.max()),
+            )
+    return propagation
+
+
 def smooth_warp(points: np.ndarray) -> np.ndarray:
     return points + 0.02 * np.column_stack(
         [np.sin(8 * points[:, 1]), np.cos(7 * points[:, 0]) - 1, np.sin(6 * points[:, 2])]
@@ -203,13 +254,25 @@ def main():
     )
     parser.add_argument("--cpd-sizes", type=int, nargs="*", default=[500, 1000, 2000])
     parser.add_argument("--space-dir", type=Path, help="read shape_space_<category>.npz from here (default: models/)")
+    parser.add_argument(
+        "--annotation",
+        choices=("canonical", "all"),
+        help="build the spaces first, as a user's folder of the 8 training meshes with only the canonical model "
+        "(their medoid) annotated, or all 8 (default: the spaces in models/, 48 generated and annotated models)",
+    )
     add_sensor_option(parser, default="kinect_v2")
     parser.add_argument("--json", type=Path)
     args = parser.parse_args()
     sensor = sensor_model(args.sensor)
-    rows = registration_trials(args.trials, args.seed, args.instances, space_dir=args.space_dir, sensor=sensor)
+    space_dir, propagation = args.space_dir, {}
+    if args.annotation:
+        space_dir = Path(tempfile.mkdtemp(prefix="folder_spaces_"))
+        propagation = folder_spaces(args.annotation, space_dir)
+    rows = registration_trials(args.trials, args.seed, args.instances, space_dir=space_dir, sensor=sensor)
     cpd_rows = cpd_comparison(args.cpd_sizes)
     results = {"trials": args.trials, "seed": args.seed, "instances": args.instances, "sensor": args.sensor}
+    results["annotation"] = args.annotation or "generated (48 models, all annotated)"
+    results["propagation"] = propagation
     for category in catalog.CATEGORIES:
         subset = [r for r in rows if r["category"] == category]
         for key in METRICS:
@@ -238,7 +301,7 @@ def main():
     for key, target in (("flipped", "0 (end for end)"), ("poor_fit", "(named failures)")):
         values = results[key]
         print(f"{key + ' [trials]':37s} {values['watering_can']:13d} {values['drill']:10d}  {target}")
-    print(f"(sensor: {args.sensor})")
+    print(f"(sensor: {args.sensor}; annotated models: {results['annotation']})")
     header = ("CPD points", "ours s", "pycpd s", "speedup", "ours err mm", "pycpd err mm")
     print("\n" + " ".join(f"{h:>12s}" for h in header))
     for r in cpd_rows:

@@ -3,9 +3,15 @@
 python scripts/build_shape_space.py --category watering_can          # models/shape_space_watering_can.npz
 python scripts/build_shape_space.py --category drill --extra 8       # only 8 more generated instances (default 40)
 python scripts/build_shape_space.py --folder my_cans/ --poses my_cans/poses.yaml --category my_cans
+python scripts/build_shape_space.py --folder scans/ --poses scans/poses.yaml --category my_drills --align vertical
 
 A folder holds one model per file: meshes (.obj, .ply, .stl; surface-sampled) or point
-clouds (.ply, .pcd). The poses YAML names the canonical model and its control poses
+clouds (.ply, .pcd), in metres (a model 1000 times too large is an error naming the unit).
+The models are taken as sharing one upright frame (z up), kept as it is; --align vertical
+turns each about z and shifts it in x, y onto the canonical model, bottom on bottom;
+--align rigid moves each freely in 3D. A canonical model of fewer than 4000 points (a
+sparse scan) is densified (a Poisson surface, kept near the scan): it is the surface every
+reconstruction warps. The poses YAML names the canonical model and its control poses
 in that model's frame (metres, degrees):
 
   canonical: can_a.obj
@@ -17,10 +23,13 @@ in that model's frame (metres, degrees):
   others:           # optional: other models' control poses, each in its own file's frame
     can_b.obj: {left_pregrasp: {...}, left_grasp: {...}, right_pregrasp: {...}, right_grasp: {...}}
 
-Where other models' poses are given, they guide those models' CPD fields (landmarks: handle
-onto handle) and are learnt as their grasp frames; the transferred grasps then come out
-much closer (a folder of 6 cans, 4 components: 32-39 mm with the canonical's poses alone,
-14-21 mm with all six models' poses; see tests/test_build_shape_space_cli.py).
+Every other model's grasp frames guide its CPD field (landmarks: handle onto handle) and are
+learnt as its grasp frames. Where the YAML does not give them, they are carried from the
+canonical model (systems/shape_space/propagation.py: the canonical surface about each grasp,
+placed by ICP and a local CPD): one annotated model is enough. A folder of 6 cans, 4
+components, grasps transferred to an unseen can: 13-21 mm with the canonical's poses alone
+(12-37 mm where the fields carry them), 8-10 mm with all six models' poses (see
+tests/test_build_shape_space_cli.py).
 """
 
 import argparse
@@ -37,11 +46,18 @@ from pydrake.math import RigidTransform, RollPitchYaw
 from diagrams.objects import catalog
 from diagrams.objects.library import generated_instance_directory, load_info
 from diagrams.paths import MODELS_DIR
-from systems.shape_space.space import POSE_NAMES, build_shape_space
+from systems.shape_space.densify import densified
+from systems.shape_space.space import ALIGNMENTS, POSE_NAMES, build_shape_space
+from systems.shape_space.units import check_metres
 
 CLOUD_POINTS = 8000  # per model: all of them for the canonical surface, a thinned 2000 as CPD's target
 MESH_SUFFIXES = {".obj", ".stl", ".ply"}
 CLOUD_SUFFIXES = {".pcd", ".ply"}
+# A canonical model with fewer points than this (a sparse scan) is densified: its points are the surface
+# every reconstruction warps.
+DENSE_POINTS = 4000
+# Centres of extent farther apart than this share of the canonical's size suggest models in different frames.
+FRAME_OFFSET_WARNING = 0.25
 
 
 def sample_mesh(path: Path, count: int = CLOUD_POINTS) -> np.ndarray:
@@ -51,16 +67,37 @@ def sample_mesh(path: Path, count: int = CLOUD_POINTS) -> np.ndarray:
 
 
 def load_model_points(path: Path) -> np.ndarray:
-    """Surface points of a mesh file, or the points of a point-cloud file (thinned to CLOUD_POINTS)."""
+    """Surface points of a mesh file, or the points of a point-cloud file (thinned to CLOUD_POINTS), in metres.
+
+    Raises SystemExit naming the file if it holds nothing or is not in metres.
+    """
+    points = None
     if path.suffix.lower() in CLOUD_SUFFIXES:
         cloud = np.asarray(o3d.io.read_point_cloud(str(path)).points)
         if len(cloud) > 0 and (path.suffix.lower() == ".pcd" or len(trimesh.load(path, force="mesh").faces) == 0):
             index = np.random.default_rng(0).choice(len(cloud), min(CLOUD_POINTS, len(cloud)), replace=False)
-            return cloud[index]
-    points = sample_mesh(path)
+            points = cloud[np.sort(index)]
+    if points is None:
+        points = sample_mesh(path)
+    points = points[np.all(np.isfinite(points), axis=1)]
     if len(points) == 0:
-        raise ValueError(f"{path}: no surface or points")
+        raise SystemExit(f"error: {path}: no surface or points")
+    try:
+        check_metres(points, str(path))
+    except ValueError as error:
+        raise SystemExit(f"error: {error}") from None
     return points
+
+
+def frame_warnings(clouds: dict[str, np.ndarray], canonical: str) -> list[str]:
+    """Models whose extent lies far from the canonical's: their frames are probably not the canonical's."""
+    lo, hi = clouds[canonical].min(axis=0), clouds[canonical].max(axis=0)
+    warnings = []
+    for name, cloud in clouds.items():
+        offset = np.linalg.norm((cloud.min(axis=0) + cloud.max(axis=0)) / 2 - (lo + hi) / 2)
+        if offset > FRAME_OFFSET_WARNING * np.max(hi - lo):
+            warnings.append(f"{name}'s extent is centred {100 * offset:.0f} cm from {canonical}'s")
+    return warnings
 
 
 def generated_instances(category: str, extra: int):
@@ -93,7 +130,11 @@ def folder_instances(folder: Path, poses_file: Path):
     if unknown:
         raise SystemExit(f"error: {poses_file} gives poses of {unknown}, not among the models {names}")
     clouds = {p.name: load_model_points(p) for p in files}
-    return clouds, poses, spec["canonical"]
+    canonical = spec["canonical"]
+    if len(clouds[canonical]) < DENSE_POINTS:
+        logging.info("%s has %d points: densifying its surface", canonical, len(clouds[canonical]))
+        clouds[canonical] = densified(clouds[canonical], CLOUD_POINTS)
+    return clouds, poses, canonical
 
 
 def parse_poses(spec: dict, poses_file: Path, model: str = "the canonical model") -> dict[str, RigidTransform]:
@@ -104,6 +145,28 @@ def parse_poses(spec: dict, poses_file: Path, model: str = "the canonical model"
     return {n: RigidTransform(RollPitchYaw(np.radians(spec[n]["rpy_deg"])), spec[n]["translation"]) for n in POSE_NAMES}
 
 
+def build_from_folder(
+    folder: Path, poses_file: Path, category: str, components: int = 8, align: str = "none", landmarks: bool = True
+):
+    """The shape space of a folder of models (see the module's doc); models without poses get propagated ones."""
+    clouds, poses, canonical = folder_instances(folder, poses_file)
+    if align == "none":
+        for warning in frame_warnings(clouds, canonical):
+            logging.warning("warning: %s; if the models do not share one frame, pass --align vertical", warning)
+    return build_shape_space(category, clouds, poses, components, canonical=canonical, align=align, landmarks=landmarks)
+
+
+def pose_entries(poses: dict[str, RigidTransform]) -> dict:
+    """Control poses as the poses YAML holds them (the inverse of parse_poses)."""
+    return {
+        name: {
+            "translation": X.translation().tolist(),
+            "rpy_deg": np.degrees(RollPitchYaw(X.rotation()).vector()).tolist(),
+        }
+        for name, X in poses.items()
+    }
+
+
 def main():
     logging.basicConfig(level=logging.INFO, format="%(message)s")
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -111,11 +174,18 @@ def main():
     parser.add_argument("--extra", type=int, default=40, help="extra generated instances beyond train_0..7")
     parser.add_argument("--folder", type=Path, help="a folder of your own models (meshes or point clouds)")
     parser.add_argument("--poses", type=Path, help="with --folder: YAML with the canonical model's control poses")
+    parser.add_argument(
+        "--align",
+        choices=ALIGNMENTS,
+        default="none",
+        help="with --folder: none (default): the models share one upright frame, kept as it is; vertical: each "
+        "has its own heading and origin, z up; rigid: each has a frame of its own",
+    )
     parser.add_argument("--components", type=int, default=8, help="latent dimensions (the paper: 8)")
     parser.add_argument(
         "--no-landmarks",
         action="store_true",
-        help="plain CPD fields: ignore the control poses of instances other than the canonical one",
+        help="plain CPD fields carry the canonical poses: other models' poses are neither used nor propagated",
     )
     parser.add_argument("--out", type=Path, help="default: models/shape_space_<category>.npz")
     args = parser.parse_args()
@@ -123,15 +193,8 @@ def main():
     if args.folder:
         if not args.poses:
             parser.error("--folder needs --poses")
-        clouds, poses, canonical = folder_instances(args.folder, args.poses)
-        space = build_shape_space(
-            args.category,
-            clouds,
-            poses,
-            args.components,
-            canonical=canonical,
-            align=True,
-            landmarks=not args.no_landmarks,
+        space = build_from_folder(
+            args.folder, args.poses, args.category, args.components, args.align, landmarks=not args.no_landmarks
         )
     else:
         clouds, poses = generated_instances(args.category, args.extra)
@@ -139,7 +202,7 @@ def main():
     out = args.out or MODELS_DIR / f"shape_space_{args.category}.npz"
     space.save(out)
     explained = space.pca.variances / space.pca.variances.sum()
-    print(f"canonical: {space.canonical_name}; {len(clouds)} instances; {space.latent_size} components")
+    print(f"canonical: {space.canonical_name}; {len(space.instance_names)} instances; {space.latent_size} components")
     print("variance explained per component: " + " ".join(f"{v:.2f}" for v in explained))
     print(f"wrote {out} ({out.stat().st_size / 1e3:.0f} kB) in {time.perf_counter() - start:.1f} s")
 

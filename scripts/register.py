@@ -4,8 +4,9 @@ python scripts/register.py --space models/shape_space_watering_can.npz --cloud c
 python scripts/register.py --space my_space.npz --cloud scan.pcd --initial-xyz-yaw 0.7 0 0.76 0.1 --any-orientation
 python scripts/register.py --space models/shape_space_drill.npz --cloud view.ply --viewpoint 0.2 0 1.6  # a single view
 
-The cloud is in your world frame (metres). Without --initial-xyz-yaw the search starts
-at the cloud's lowest-centre point with yaw 0 (and the yaw hypotheses of the registrar).
+The cloud is in your world frame, in metres (a cloud in millimetres is rejected, saying so).
+Without --initial-xyz-yaw the search starts at the cloud's lowest-centre point with yaw 0
+(and the yaw hypotheses of the registrar).
 Writes the refined pose X_WO, the latent vector, the warped grasp poses (as 4 x 4
 matrices) and, with --reconstruction FILE.ply, the whole inferred shape. Give --viewpoint
 (the camera's position) for a single view: the model's unseen side then stays out of the
@@ -24,6 +25,7 @@ from pydrake.math import RigidTransform, RotationMatrix
 
 from systems.shape_space.registration import Registrar
 from systems.shape_space.space import ShapeSpace
+from systems.shape_space.units import check_metres
 
 
 def read_cloud(path: Path) -> np.ndarray:
@@ -34,6 +36,7 @@ def read_cloud(path: Path) -> np.ndarray:
     points = np.asarray(o3d.io.read_point_cloud(str(path)).points)
     if len(points) == 0:
         raise ValueError(f"{path}: the cloud is empty or could not be read")
+    check_metres(points, str(path))
     return points
 
 

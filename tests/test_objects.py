@@ -126,3 +126,5 @@ def test_a_users_mesh_becomes_a_model_placed_like_the_category(tmp_path, monkeyp
     (tmp_path / "notes.txt").write_text("not a model")
     with pytest.raises(ValueError, match="unsupported object file"):
         resolve_object(ObjectConfig(file=str(tmp_path / "notes.txt")))
+    with pytest.raises(ValueError, match="looks like millimetres"):  # the scale forgotten
+        resolve_object(ObjectConfig(category="watering_can", file=str(tmp_path / "my_can.obj"), mass=0.8))

@@ -42,3 +42,9 @@ def test_register_cli_places_the_grasps_of_an_unseen_drill_seen_from_one_side(tm
 
     bad = subprocess.run(command[:-4] + ["--viewpoint", "0", "nan", "1"], cwd=REPO, capture_output=True, text=True)
     assert bad.returncode == 2 and "viewpoint" in bad.stderr
+
+    millimetres = tmp_path / "view_mm.ply"
+    o3d.io.write_point_cloud(str(millimetres), o3d.geometry.PointCloud(o3d.utility.Vector3dVector(1000 * seen)))
+    command[command.index(str(cloud_file))] = str(millimetres)
+    run = subprocess.run(command, cwd=REPO, capture_output=True, text=True, timeout=300)
+    assert run.returncode == 2 and "looks like millimetres" in run.stderr, run.stderr

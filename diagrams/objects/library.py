@@ -19,6 +19,7 @@ from pydrake.common.yaml import yaml_load_typed
 from diagrams.objects import catalog
 from diagrams.objects.instance import ObjectInfo, export_obj, object_sdf
 from systems.paths import cache_dir
+from systems.shape_space.units import check_metres
 
 MESH_SUFFIXES = (".obj", ".ply", ".stl")
 MODEL_SUFFIXES = (".sdf", ".urdf")
@@ -108,6 +109,7 @@ def mesh_to_sdf(path: Path, mass: float, scale: float, category: str) -> Path:
     if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
         raise ValueError(f"{path} holds no triangle mesh")
     mesh.apply_scale(scale)
+    check_metres(mesh.vertices, f"{path} (scaled by {scale:g})")
     lo, hi = mesh.bounds
     box_centre_xy = catalog.mean_box_centre(category)
     mesh.apply_translation([box_centre_xy[0] - (lo[0] + hi[0]) / 2, box_centre_xy[1] - (lo[1] + hi[1]) / 2, -lo[2]])

@@ -29,6 +29,13 @@ def _check(points: np.ndarray, name: str) -> np.ndarray:
     return points
 
 
+def thinned(points: np.ndarray, count: int) -> np.ndarray:
+    """At most `count` of the points (in their order), a seeded random choice."""
+    if len(points) <= count:
+        return points
+    return points[np.sort(np.random.default_rng(0).choice(len(points), count, replace=False))]
+
+
 def _initial_sigma2(X, Y) -> float:
     N, D = X.shape
     M = Y.shape[0]
@@ -89,10 +96,12 @@ def rigid_cpd(
     estimate_scale: bool = False,
     max_iterations: int = 100,
     tolerance: float = 1e-5,
+    upright: bool = False,
 ) -> RigidResult:
     """Rigid (optionally similarity) CPD moving `source` onto `target`.
 
-    Stops when sigma^2 changes by less than `tolerance` relative to its value.
+    Stops when sigma^2 changes by less than `tolerance` relative to its value. upright (3D): turn only
+    about the z axis and shift only along x and y (both clouds stand upright on the same plane).
     """
     X, Y = _check(target, "target"), _check(source, "source")
     D = X.shape[1]
@@ -104,15 +113,22 @@ def rigid_cpd(
         Np = P1.sum()
         mu_x, mu_y = Pt1 @ X / Np, P1 @ Y / Np
         A = PX.T @ Y - Np * np.outer(mu_x, mu_y)  # = X_hat^T P^T Y_hat
-        U, _, Vt = np.linalg.svd(A)
-        C = np.eye(D)
-        C[-1, -1] = np.linalg.det(U @ Vt)
-        R = U @ C @ Vt
+        if upright:  # the yaw maximising trace(A^T R_z(yaw))
+            yaw = np.arctan2(A[1, 0] - A[0, 1], A[0, 0] + A[1, 1])
+            R = np.eye(D)
+            R[:2, :2] = [[np.cos(yaw), -np.sin(yaw)], [np.sin(yaw), np.cos(yaw)]]
+        else:
+            U, _, Vt = np.linalg.svd(A)
+            C = np.eye(D)
+            C[-1, -1] = np.linalg.det(U @ Vt)
+            R = U @ C @ Vt
         trace_AR = np.trace(A.T @ R)
         y_spread = np.sum(P1 * (Y**2).sum(1)) - Np * mu_y @ mu_y
         if estimate_scale:
             s = trace_AR / y_spread
         t = mu_x - s * R @ mu_y
+        if upright:
+            t[2] = 0.0  # R and t along x, y leave z alone: the best shift in x, y is unchanged
         x_spread = np.sum(Pt1 * (X**2).sum(1)) - Np * mu_x @ mu_x
         previous = sigma2
         sigma2 = max((x_spread - 2 * s * trace_AR + s * s * y_spread) / (Np * D), 1e-12)

@@ -12,6 +12,7 @@ instance's true frames, learnt beside its field, do not.
 
 import functools
 from dataclasses import dataclass
+from dataclasses import field as dataclass_field
 from pathlib import Path
 
 import numpy as np
@@ -20,8 +21,9 @@ from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 from tqdm import tqdm
 
-from systems.shape_space.cpd import FieldInterpolator, deformable_cpd, rigid_cpd
+from systems.shape_space.cpd import FieldInterpolator, deformable_cpd, rigid_cpd, thinned
 from systems.shape_space.pca_em import PcaModel, pca_em
+from systems.shape_space.propagation import propagated_poses
 
 # The control poses: the pre-grasp and grasp frame of each hand.
 POSE_NAMES = ("left_pregrasp", "left_grasp", "right_pregrasp", "right_grasp")
@@ -48,6 +50,9 @@ class ShapeSpace:
     # A denser sampling of the canonical surface (K x 3, in O), warped for reconstructions.
     canonical_surface: np.ndarray
     grasp_weight: float  # how the grasp stars' moves are scaled in the PCA samples
+    # Control poses carried from the canonical model onto instances that had none ({name: {pose: X_CG}}, in the
+    # canonical frame C), while the space was built; not saved.
+    propagated: dict = dataclass_field(default_factory=dict)
 
     @property
     def latent_size(self) -> int:
@@ -190,8 +195,9 @@ def build_shape_space(
     beta: float = 0.05,
     lam: float = 1.0,
     canonical: str | None = None,
-    align: bool = False,
+    align: str = "none",
     landmarks: bool = True,
+    propagate: bool = True,
     target_points: int = 2000,
     grasp_weight: float = 10.0,
     initial_sigma: float = 0.02,
@@ -210,10 +216,14 @@ def build_shape_space(
         canonical_points: how many of the canonical cloud's points carry the field.
         beta, lam: the CPD fields' kernel width (m) and smoothness weight.
         canonical: the canonical instance's name; default: the medoid (needs its control poses).
-        align: the clouds' frames differ (a user's folder): align each rigidly to the canonical first.
-            Generated instances share the category's O frame and need no alignment.
+        align: how each cloud is moved onto the canonical one before its field is built (ALIGNMENTS):
+            "none" where the clouds share an upright frame (generated instances, most scans and exports);
+            "vertical" where each has its own heading and origin but z is up: turned about z and shifted in x, y,
+            its bottom onto the canonical's (both stand on a table); "rigid" where even that differs.
         landmarks: let the other instances' control poses, where given, guide their fields and be
             their grasp frames.
+        propagate: (with landmarks) where an instance has no control poses, carry the canonical ones onto it
+            (propagation.propagated_poses) and use those as if given; else its field carries them.
         target_points: at most this many points of each other cloud are CPD's target.
         grasp_weight: scale of the grasp stars' moves (m) against the fields' (m) in the PCA samples;
             > 1 spends the latent components on what moves the grasps (10: cans' grasps 12.5 -> 8.4 mm
@@ -227,62 +237,70 @@ def build_shape_space(
     if len(clouds) < 2:
         raise ValueError(f"a shape space needs at least 2 instances, got {len(clouds)}")
     if canonical is None:
-        with_poses = {n: _thin(c, target_points) for n, c in clouds.items() if n in control_poses}
+        with_poses = {n: thinned(c, target_points) for n, c in clouds.items() if n in control_poses}
         if not with_poses:
             raise ValueError("no instance has control poses: give them for at least the canonical model")
         canonical = choose_canonical(with_poses)
     surface = clouds[canonical]
-    source = _thin(surface, canonical_points)
+    source = thinned(surface, canonical_points)
     canonical_grasps = control_poses[canonical]
-    canonical_stars = np.vstack([grasp_landmarks(canonical_grasps[n], FRAME_PROBE) for n in GRASP_NAMES])
-    samples = []
+    canonical_stars = _stars(canonical_grasps, FRAME_PROBE)
+    samples, propagated = [], {}
     bar = tqdm(clouds.items(), total=len(clouds), unit="model", desc=f"{category}: CPD to each", dynamic_ncols=True)
     for name, cloud in bar:
         if name == canonical:
             samples.append(np.zeros(source.size + canonical_stars.size))
             continue
-        target = _thin(cloud, target_points)
-        to_canonical = _identity
-        if align:
-            rigid = rigid_cpd(target, source, w=0.05)
-            target = rigid.transformed
-            to_canonical = rigid.transform
-        grasps = control_poses.get(name) if landmarks else None
-        guide = None
-        if grasps is not None:
-            guide = (
-                np.vstack([grasp_landmarks(canonical_grasps[n]) for n in GRASP_NAMES]),
-                to_canonical(np.vstack([grasp_landmarks(grasps[n]) for n in GRASP_NAMES])),
-            )
-        result = deformable_cpd(
-            source,
-            target,
-            beta=beta,
-            lam=lam,
-            w=0.05,
-            max_iterations=150,
-            landmarks=guide,
-            initial_sigma2=initial_sigma**2,
-        )
+        X_CF = alignment(thinned(cloud, target_points), source, align)  # the model's frame F in the canonical's C
+        cloud_C = X_CF.multiply(cloud.T).T
+        target = thinned(cloud_C, target_points)
+        options = {"beta": beta, "lam": lam, "w": 0.05, "max_iterations": 150, "initial_sigma2": initial_sigma**2}
+        fit = functools.partial(deformable_cpd, source, target, **options)
+        grasps_C = None  # the model's grasp frames, X_CG
+        if landmarks and name in control_poses:
+            grasps_C = {n: X_CF @ X_FG for n, X_FG in control_poses[name].items()}
+        elif landmarks and propagate:
+            grasps_C = propagated[name] = propagated_poses(surface, canonical_grasps, fit(), cloud_C)
+        if grasps_C is None:  # the field carries the canonical frames
+            result = fit()
+            stars = result.warp(canonical_stars)
+        else:  # the frames guide the field (handle onto handle) and are learnt beside it
+            result = fit(landmarks=(_stars(canonical_grasps, LANDMARK_PROBE), _stars(grasps_C, LANDMARK_PROBE)))
+            stars = _stars(grasps_C, FRAME_PROBE)
         bar.set_postfix_str(
             f"{name}: {result.iterations} iterations, Chamfer {1000 * chamfer(result.transformed, target):.1f} mm"
         )
-        if grasps is not None:
-            stars = to_canonical(np.vstack([grasp_landmarks(grasps[n], FRAME_PROBE) for n in GRASP_NAMES]))
-        else:
-            stars = result.warp(canonical_stars)
         field = (result.transformed - source).ravel()
         samples.append(np.concatenate([field, grasp_weight * (stars - canonical_stars).ravel()]))
     pca = pca_em(np.array(samples), min(components, len(clouds) - 1))
-    return ShapeSpace(category, canonical, source, pca, beta, canonical_grasps, list(clouds), surface, grasp_weight)
+    return ShapeSpace(
+        category, canonical, source, pca, beta, canonical_grasps, list(clouds), surface, grasp_weight, propagated
+    )
 
 
-def _identity(points: np.ndarray) -> np.ndarray:
-    return points
+ALIGNMENTS = ("none", "vertical", "rigid")
+VERTICAL_STARTS = 8  # headings tried by the "vertical" alignment, evenly spaced
 
 
-def _thin(points: np.ndarray, count: int) -> np.ndarray:
-    """At most `count` of the points, a seeded random choice."""
-    if len(points) <= count:
-        return points
-    return points[np.sort(np.random.default_rng(0).choice(len(points), count, replace=False))]
+def alignment(cloud: np.ndarray, canonical: np.ndarray, how: str) -> RigidTransform:
+    """The rigid move X_CF that takes `cloud` (in its frame F) onto `canonical` (in C), by `how` (ALIGNMENTS)."""
+    if how == "none":
+        return RigidTransform()
+    if how == "rigid":
+        result = rigid_cpd(cloud, canonical, w=0.05)
+        return RigidTransform(RotationMatrix(result.R), result.t)
+    if how != "vertical":
+        raise ValueError(f"unknown alignment {how!r}; one of {ALIGNMENTS}")
+    best, X_best = None, None
+    lift = np.percentile(canonical[:, 2], 1) - np.percentile(cloud[:, 2], 1)  # bottom onto bottom
+    for heading in 2 * np.pi * np.arange(VERTICAL_STARTS) / VERTICAL_STARTS:
+        X_start = RigidTransform(RotationMatrix.MakeZRotation(heading), [0.0, 0.0, lift])
+        result = rigid_cpd(X_start.multiply(cloud.T).T, canonical, w=0.05, upright=True)
+        if best is None or result.sigma2 < best.sigma2:
+            best, X_best = result, RigidTransform(RotationMatrix(result.R), result.t) @ X_start
+    return X_best
+
+
+def _stars(poses: dict[str, RigidTransform], radius: float) -> np.ndarray:
+    """Both grasp frames' grasp_landmarks, stacked (14 x 3)."""
+    return np.vstack([grasp_landmarks(poses[n], radius) for n in GRASP_NAMES])
