@@ -71,6 +71,7 @@ def test_a_folder_with_the_canonical_models_poses_builds_a_space_that_transfers_
     space = ShapeSpace.load(tmp_path / "space.npz")
     assert space.category == "my_cans" and space.canonical_name == canonical and space.latent_size == 4
     assert sorted(space.instance_names) == sorted(poses)
+    assert (tmp_path / "space.png").stat().st_size > 10_000  # the figure of the mean and first components
     errors = transfer_errors(space)
     # The canonical grasps at the can's pose, not warped, are 47-49 mm off; with the canonical's grasps propagated
     # to the other five, 13-21 mm (where the fields carry them: 12-37 mm).
