@@ -6,6 +6,8 @@ import open3d as o3d
 import trimesh
 from scipy.spatial import cKDTree
 
+from systems.shape_space.cpd import thinned
+
 POISSON_DEPTH = 7  # octree depth of the screened Poisson reconstruction: ~1 cm cells on a 0.5 m object
 KEEP_WITHIN_SPACINGS = 2.0  # reconstructed points farther from every scan point than this are Poisson's guesses
 
@@ -30,7 +32,4 @@ def densified(points: np.ndarray, count: int) -> np.ndarray:
     surface = trimesh.Trimesh(np.asarray(mesh.vertices), np.asarray(mesh.triangles), process=False)
     dense, _ = trimesh.sample.sample_surface(surface, 4 * count, seed=0)
     near = cKDTree(points).query(dense)[0] <= KEEP_WITHIN_SPACINGS * spacing
-    dense = np.vstack([points, dense[near]])
-    if len(dense) <= count:
-        return dense
-    return dense[np.sort(np.random.default_rng(0).choice(len(dense), count, replace=False))]
+    return thinned(np.vstack([points, dense[near]]), count)

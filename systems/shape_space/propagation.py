@@ -3,7 +3,7 @@
 Annotating one model is the paper's promise; the space still needs every training model's grasp
 frames (they are learnt beside its field). Offline, each whole model is at hand, so each grasp
 frame is carried part by part: the canonical surface about the grasp (the handle and what it joins)
-is moved by the model's CPD field, and its rigid best fit (Kabsch) starts an ICP of that patch onto
+is moved by the model's CPD field, and its rigid best fit starts an ICP of that patch onto
 the model's surface: the frame turns with the patch. Its origin then follows a second, local CPD of
 the placed patch onto the model's surface about it, with a narrow kernel: a handle's size differs
 from model to model, which a rigid patch cannot follow. The frame turns only as far as the handle's
@@ -11,8 +11,9 @@ axis does (swing). Pre-grasps keep their canonical pose relative to their grasps
 
 A field alone carries a frame poorly: the frames lie inside handles, where CPD's correspondences
 slide along the tube and the field bends the frame. On the generated training models (train_3
-canonical, the 7 others, both grasps), the field put grasp origins 8.4 mm (cans) and 11.8 mm (drills)
-off, median; this 3.5 and 2.0 mm (at most 13.5 and 10.3 mm), turned 2.2 and 1.4 degrees.
+canonical, the 7 others, both grasps), this puts grasp origins 3.0 mm (cans) and 2.2 mm (drills) from
+the true ones, median (at most 13.5 and 10.3 mm), turned 2.2 and 1.4 degrees (benchmark_registration.py
+--annotation canonical); a throwaway script found the fields alone 8.4 and 11.8 mm off.
 """
 
 import numpy as np
@@ -85,11 +86,12 @@ def swing(R_OG: RotationMatrix, turn: RotationMatrix) -> RotationMatrix:
 
 
 def best_fit(source: np.ndarray, target: np.ndarray) -> RigidTransform:
-    """The rigid transform X minimising sum |X source_i - target_i|^2 (Kabsch), corresponding rows."""
-    source_mean, target_mean = source.mean(axis=0), target.mean(axis=0)
-    turn, _ = Rotation.align_vectors(target - target_mean, source - source_mean)
-    R = turn.as_matrix()
-    return RigidTransform(RotationMatrix(R), target_mean - R @ source_mean)
+    """The rigid transform X minimising sum |X source_i - target_i|^2, rows corresponding (open3d's estimate)."""
+    rows = np.arange(len(source))
+    X = o3d.pipelines.registration.TransformationEstimationPointToPoint().compute_transformation(
+        _cloud(source), _cloud(target), o3d.utility.Vector2iVector(np.column_stack([rows, rows]))
+    )
+    return RigidTransform(X)
 
 
 def refined_fit(source: np.ndarray, target: np.ndarray, initial: RigidTransform) -> RigidTransform:

@@ -251,9 +251,10 @@ def build_shape_space(
         if name == canonical:
             samples.append(np.zeros(source.size + canonical_stars.size))
             continue
-        X_CF = alignment(thinned(cloud, target_points), source, align)  # the model's frame F in the canonical's C
-        cloud_C = X_CF.multiply(cloud.T).T
-        target = thinned(cloud_C, target_points)
+        sample = thinned(cloud, target_points)
+        X_CF = alignment(sample, source, align)  # the model's frame F in the canonical's C
+        cloud_C = X_CF.multiply(cloud.T).T  # all of it: the propagation's ICP fits onto it
+        target = X_CF.multiply(sample.T).T
         options = {"beta": beta, "lam": lam, "w": 0.05, "max_iterations": 150, "initial_sigma2": initial_sigma**2}
         fit = functools.partial(deformable_cpd, source, target, **options)
         grasps_C = None  # the model's grasp frames, X_CG
