@@ -66,7 +66,7 @@ def make_trials(
     """Every object at every yaw, `trials` times; trial n of the list gets the seed base.random_seed + n."""
     if trials < 1:
         raise ValueError(f"trials must be >= 1, got {trials}")
-    catalog.category_module(category)  # a clear error for an unknown category
+    catalog.presentation_yaw(category)  # a clear error for an unknown category
     out = []
     for name, changes in objects.items():
         for yaw in yaws:

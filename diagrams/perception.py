@@ -1,30 +1,38 @@
 """Wires the perception stages to a camera: colour image -> Segmenter -> PoseEstimator <- depth, pose."""
 
-import functools
 from pathlib import Path
 
 from pydrake.systems.framework import DiagramBuilder, OutputPort
 
 from diagrams.objects import catalog
 from diagrams.scenario import Scenario
+from systems import categories
 from systems.object_tracker import ObjectTracker
 from systems.pose_estimator import CategoryPrior, PoseEstimator
-from systems.segmenter import DEFAULT_WEIGHTS, Segmenter
+from systems.segmenter import Segmenter
 
 # The training instance whose shape is each category's pose template.
 TEMPLATE_INSTANCE = "train_0"
 
 
-@functools.cache
 def category_priors() -> dict[str, CategoryPrior]:
-    """The pose estimator's prior of every catalog category: a template mesh and where O sits in the extent."""
-    return {
-        category: CategoryPrior(
-            catalog.instance_directory(category, TEMPLATE_INSTANCE) / "visual.obj",
-            tuple(float(v) for v in catalog.mean_box_centre(category)),
-        )
-        for category in catalog.CATEGORIES
-    }
+    """The pose estimator's prior of every known category: a template mesh and where O sits in the extent.
+
+    A generated category's template is a training instance; a taught one's its canonical model.
+    """
+    priors = {}
+    for category in categories.known_categories():
+        box_centre = tuple(float(v) for v in catalog.mean_box_centre(category))
+        if category in catalog.CATEGORIES:
+            priors[category] = CategoryPrior(
+                catalog.instance_directory(category, TEMPLATE_INSTANCE) / "visual.obj", box_centre
+            )
+            continue
+        record = categories.load_record(category)
+        symmetric_about_yaw = record.presentation_yaw if record.half_turn_symmetric else None
+        template = categories.category_directory(category) / "template.obj"
+        priors[category] = CategoryPrior(template, box_centre, symmetric_about_yaw)
+    return priors
 
 
 def _depth_camera(scenario: Scenario):
@@ -51,14 +59,16 @@ def AddPerception(
     depth_image: OutputPort,
     camera_pose: OutputPort,
     scenario: Scenario,
-    weights: Path = DEFAULT_WEIGHTS,
+    weights: Path | None = None,
 ):
     """Adds the segmenter and the pose estimator, fed by a camera's (or a camera latch's) ports.
+
+    weights: the segmenter's; None: the one that knows every taught category (categories.active_segmenter).
 
     Returns:
         (segmenter, pose_estimator)
     """
-    segmenter = builder.AddNamedSystem("segmenter", Segmenter(weights))
+    segmenter = builder.AddNamedSystem("segmenter", Segmenter(weights or categories.active_segmenter()))
     pose_estimator = builder.AddNamedSystem("pose_estimator", MakePoseEstimator(scenario))
     builder.Connect(color_image, segmenter.GetInputPort("color_image"))
     builder.Connect(segmenter.GetOutputPort("segmentation"), pose_estimator.GetInputPort("segmentation"))

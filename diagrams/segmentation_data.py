@@ -1,7 +1,8 @@
 """Synthetic segmentation datasets: frames of randomised scenes at the network's input size.
 
-A dataset file (.npz) holds `rgb` (N x H x W x 3 uint8), `labels` (N x H x W uint8
-class ids, see synthetic_scenes.CLASSES) and `instances` (the objects in each frame).
+A dataset file (.npz) holds `rgb` (N x H x W x 3 uint8), `labels` (N x H x W uint8 class ids),
+`classes` (their names, background first; by default synthetic_scenes.CLASSES) and `instances`
+(the objects in each frame).
 The colour is what the scenario's RGB-D sensor model (camera_noise) reports: the network
 learns on the images the robot will see.
 """
@@ -39,18 +40,24 @@ class SceneJob:
     seed: int  # the dataset's seed
     index: int  # the scene's place in the dataset; with `seed`, its random stream
     frames: int
+    classes: tuple[str, ...] = CLASSES  # label ids: background, then the categories placed
 
 
-def scene_jobs(scenario: Scenario, frames: int, frames_per_scene: int, split: str, seed: int) -> list[SceneJob]:
+def scene_jobs(
+    scenario: Scenario, frames: int, frames_per_scene: int, split: str, seed: int, classes=CLASSES
+) -> list[SceneJob]:
     """`frames` frames as ceil(frames / frames_per_scene) scenes, each with a random stream of its own."""
     starts = range(0, frames, frames_per_scene)
-    return [SceneJob(scenario, split, seed, k, min(frames_per_scene, frames - s)) for k, s in enumerate(starts)]
+    return [
+        SceneJob(scenario, split, seed, k, min(frames_per_scene, frames - s), tuple(classes))
+        for k, s in enumerate(starts)
+    ]
 
 
 def render_scene(job: SceneJob) -> dict[str, np.ndarray]:
     """The job's frames, the same wherever they are rendered: every draw comes from the stream [seed, index]."""
     rng = np.random.default_rng([job.seed, job.index])
-    scene = SyntheticScene(job.scenario, rng, split=job.split)
+    scene = SyntheticScene(job.scenario, rng, split=job.split, classes=job.classes)
     sensor = job.scenario.camera_noise
     # The sensor's noise from a stream of its own: the scenes are those rendered without it.
     parameters = sensor_model(sensor.preset, sensor.overrides)
@@ -67,10 +74,10 @@ def render_scene(job: SceneJob) -> dict[str, np.ndarray]:
     return {"rgb": rgb, "labels": labels, "instances": np.array(instances)}
 
 
-def assemble(parts: list[dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
+def assemble(parts: list[dict[str, np.ndarray]], classes=CLASSES) -> dict[str, np.ndarray]:
     """The scenes' frames, in the jobs' order, as one dataset."""
     dataset = {key: np.concatenate([part[key] for part in parts]) for key in ("rgb", "labels", "instances")}
-    return dataset | {"classes": np.array(CLASSES)}
+    return dataset | {"classes": np.array(classes)}
 
 
 def render_here(jobs: list[SceneJob]) -> Iterator[tuple[int, dict[str, np.ndarray]]]:
@@ -86,19 +93,21 @@ def generate(
     split: str,
     seed: int,
     run_jobs: Callable[[list[SceneJob]], Iterable[tuple[int, dict[str, np.ndarray]]]] = render_here,
+    classes=CLASSES,
 ) -> dict[str, np.ndarray]:
     """Renders `frames` frames from ceil(frames / frames_per_scene) random scenes of `split`'s instances.
 
     run_jobs: renders the scene jobs, yielding (job number, frames) in any order (e.g. on worker processes or
         Ray); the dataset is the same whichever renders it.
+    classes: the label ids (background first); their categories are the ones placed.
     """
-    jobs = scene_jobs(scenario, frames, frames_per_scene, split, seed)
+    jobs = scene_jobs(scenario, frames, frames_per_scene, split, seed, classes)
     parts = [None] * len(jobs)
     with tqdm(total=frames, unit="frame", desc=f"rendering {split} frames", dynamic_ncols=True) as bar:
         for n, part in run_jobs(jobs):
             parts[n] = part
             bar.update(jobs[n].frames)
-    return assemble(parts)
+    return assemble(parts, classes)
 
 
 def save(path: Path, dataset: dict[str, np.ndarray]):

@@ -34,6 +34,7 @@ from diagrams.objects import catalog
 from diagrams.objects.library import generated_instance_directory
 from diagrams.scenario import Scenario
 from diagrams.station import AddCentauro, make_parser
+from systems import categories
 
 CLASSES = ("background", "watering_can", "drill")
 PARKED = RigidTransform([0.0, 0.0, -10.0])  # where unused bodies wait, out of every view
@@ -47,6 +48,19 @@ class Frame:
     X_WC: RigidTransform  # the colour camera's pose
     # Ground truth of each placed object: (category, instance name, X_WO).
     objects: list[tuple[str, str, RigidTransform]]
+
+
+def category_models(category: str, split: str, instances: list[str] | None = None) -> list[tuple[str, Path]]:
+    """(name, model file) of the category's instances of a split, or the named generated instances; a taught
+    category's training models whatever the split (it has no other)."""
+    if category not in catalog.CATEGORIES:
+        folder = categories.category_directory(category) / "training"
+        models = [(path.stem, path) for path in sorted(folder.glob("*.sdf"))]
+        if not models:
+            raise FileNotFoundError(f"{folder} holds no models: teach {category!r} again with scripts/add_category.py")
+        return models
+    names = instances or [n for n in catalog.instance_names(category) if n.startswith(split)]
+    return [(name, generated_instance_directory(category, name) / "model.sdf") for name in names]
 
 
 def recoloured_sdf(model_file: Path, rgb, model_name: str) -> str:
@@ -85,19 +99,21 @@ class SyntheticScene:
         rng: np.random.Generator,
         split: str = "train",
         cameras: int = 3,
-        categories=CLASSES[1:],
+        classes=CLASSES,
         camera_jitter: bool = True,
         instances: list[str] | None = None,
     ):
         """Args:
         scenario: robot, camera and nominal table placement.
         rng: the source of every random draw.
-        split: whose instances ("train" or "test").
+        split: whose instances ("train" or "test"; a taught category has its training models only).
         cameras: how many camera poses to choose from per frame.
+        classes: the label images' class names by id, background first: the categories placed.
         camera_jitter: perturb the cameras about the chest mount (else all sit at the nominal pose).
         instances: these instances of each category instead of the split's (any generated name, e.g. extra_101).
         """
         self.rng = rng
+        self.classes = tuple(classes)
         builder = DiagramBuilder()
         self.plant, self.scene_graph = AddMultibodyPlantSceneGraph(builder, time_step=0.0)
         plant = self.plant
@@ -111,10 +127,8 @@ class SyntheticScene:
         # Every instance of the split, freshly coloured.
         self.objects = []  # (category, instance, body)
         parser = make_parser(plant)
-        for category in categories:
-            names = instances or [n for n in catalog.instance_names(category) if n.startswith(split)]
-            for name in names:
-                model_file = generated_instance_directory(category, name) / "model.sdf"
+        for category in self.classes[1:]:
+            for name, model_file in category_models(category, split, instances):
                 color = random_color(rng, saturated=rng.uniform() < 0.8)
                 text = recoloured_sdf(model_file, color, f"{category}_{name}")
                 (instance,) = parser.AddModelsFromString(text, "sdf")
@@ -211,7 +225,7 @@ class SyntheticScene:
 
     def _label_classes(self) -> dict[int, int]:
         """Render label (the plant's body index) -> class id."""
-        return {int(body.index()): CLASSES.index(category) for category, _, body in self.objects}
+        return {int(body.index()): self.classes.index(category) for category, _, body in self.objects}
 
     def _place_on_table(self, body, xy, yaw):
         X = RigidTransform(RotationMatrix.MakeZRotation(yaw), [xy[0], xy[1], self.table_height])

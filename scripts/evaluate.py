@@ -62,7 +62,9 @@ STAGE_LABELS = {
 def parse_args(argv=None):
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--trials", type=int, default=3, help="picks per object and yaw (K)")
-    parser.add_argument("--category", default="watering_can", choices=("watering_can", "drill"))
+    parser.add_argument(
+        "--category", default="watering_can", help="watering_can, drill, or a taught one (scripts/add_category.py)"
+    )
     parser.add_argument(
         "--object-files", dest="object_files", type=Path, nargs="+", help="your own models instead of the test set"
     )

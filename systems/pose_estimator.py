@@ -59,6 +59,10 @@ class CategoryPrior:
     # Where the object frame's origin sits relative to the object's extent: the mean centre (x, y) of the
     # training instances' bounding boxes in O, m.
     box_centre: tuple[float, float]
+    # For a category that looks the same turned half a turn about z_O (a pot): the world yaw (rad) of its
+    # presentation pose. Of the two equally good yaws the one nearer it is kept, so that the left grasp stays
+    # on the robot's left. None: no such symmetry.
+    symmetric_about_yaw: float | None = None
 
 
 @dataclass
@@ -211,7 +215,17 @@ def estimate_pose(
     candidates.sort(key=lambda candidate: candidate[0])
     refined = [fit(thinned, yaw, xy, FINE_ITERATIONS) for _, yaw, xy in candidates[:FINE_CANDIDATES]]
     _, yaw, xy = min(refined, key=lambda candidate: candidate[0])
+    if prior.symmetric_about_yaw is not None:
+        yaw = folded_yaw(yaw, prior.symmetric_about_yaw)
     return RigidTransform(RotationMatrix.MakeZRotation(yaw), [xy[0], xy[1], z])
+
+
+def folded_yaw(yaw: float, reference: float) -> float:
+    """Of yaw and yaw + pi (rad), the one nearer `reference`: the pose of a half-turn symmetric object that
+    keeps O's z axis (the symmetry axis) where it is and turns O towards the reference."""
+    if abs(np.angle(np.exp(1j * (yaw - reference)))) > np.pi / 2:
+        yaw += np.pi
+    return float(np.angle(np.exp(1j * yaw)))
 
 
 def to_point_cloud(points: np.ndarray) -> PointCloud:

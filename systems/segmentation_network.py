@@ -116,6 +116,22 @@ class RefineNetLite(nn.Module):
         return F.interpolate(scores, size=image.shape[-2:], mode="bilinear", align_corners=False)
 
 
+def with_classes(model: RefineNetLite, num_classes: int) -> RefineNetLite:
+    """The model with its classifier widened to num_classes: the known classes keep their weights, each new
+    one starts as a copy of the background's with a lower bias (it must be learnt before it wins a pixel)."""
+    if num_classes < model.num_classes:
+        raise ValueError(f"cannot narrow a {model.num_classes}-class segmenter to {num_classes} classes")
+    old = model.classifier
+    model.classifier = nn.Conv2d(old.in_channels, num_classes, 1)
+    with torch.no_grad():
+        model.classifier.weight[: model.num_classes] = old.weight
+        model.classifier.bias[: model.num_classes] = old.bias
+        model.classifier.weight[model.num_classes :] = old.weight[0]
+        model.classifier.bias[model.num_classes :] = old.bias[0] - 1.0
+    model.num_classes = num_classes
+    return model
+
+
 def resize_to_input(rgb: np.ndarray) -> np.ndarray:
     """A camera-resolution colour image (H x W x 3 or 4, uint8) at the network's INPUT_SIZE, RGB."""
     return cv2.resize(rgb[:, :, :3], INPUT_SIZE, interpolation=cv2.INTER_AREA)

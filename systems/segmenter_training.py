@@ -7,8 +7,8 @@ from tqdm import tqdm
 
 from systems.segmentation_network import RefineNetLite, to_input
 
-# Background pixels dominate; weigh them down so thin spouts and handles count.
-CLASS_WEIGHTS = (0.4, 1.0, 1.0)
+# Background pixels dominate; weigh them down so thin spouts and handles count (every object class 1.0).
+BACKGROUND_WEIGHT = 0.4
 
 
 def augment(rgb: torch.Tensor, labels: torch.Tensor, generator: torch.Generator):
@@ -37,14 +37,29 @@ def train(
 ) -> tuple[RefineNetLite, list[float]]:
     """Trains a RefineNetLite from scratch; returns it (eval mode) and the mean loss of each epoch."""
     torch.manual_seed(seed)
+    return fit(RefineNetLite(num_classes), rgb, labels, epochs, seed, batch_size, learning_rate)
+
+
+def fit(
+    model: RefineNetLite,
+    rgb: np.ndarray,
+    labels: np.ndarray,
+    epochs: int,
+    seed: int,
+    batch_size: int = 8,
+    learning_rate: float = 3e-3,
+    description: str = "training the segmenter",
+) -> tuple[RefineNetLite, list[float]]:
+    """Trains `model` (fresh, or a trained one to fine-tune: see segmentation_network.with_classes) on the
+    frames (N x H x W x 3 uint8, N x H x W class ids); returns it (eval mode) and each epoch's mean loss."""
     generator = torch.Generator().manual_seed(seed)
-    model = RefineNetLite(num_classes)
+    num_classes = model.num_classes
     optimizer = torch.optim.AdamW(model.parameters(), lr=learning_rate, weight_decay=1e-4)
     steps = epochs * int(np.ceil(len(rgb) / batch_size))
     schedule = torch.optim.lr_scheduler.OneCycleLR(optimizer, learning_rate, total_steps=steps, pct_start=0.15)
-    weights = torch.tensor(CLASS_WEIGHTS[:num_classes])
+    weights = torch.tensor([BACKGROUND_WEIGHT] + [1.0] * (num_classes - 1))
     history = []
-    bar = tqdm(range(epochs), unit="epoch", desc="training the segmenter", dynamic_ncols=True)
+    bar = tqdm(range(epochs), unit="epoch", desc=description, dynamic_ncols=True)
     for _ in bar:
         model.train()
         order = torch.randperm(len(rgb), generator=generator).numpy()

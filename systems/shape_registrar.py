@@ -1,21 +1,17 @@
 """The shape registrar system: observed cloud + initial pose -> refined pose, full shape, grasp poses."""
 
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.math import RigidTransform
 from pydrake.systems.framework import LeafSystem, ValueProducer
 
-from systems.paths import MODELS_DIR
+from systems import categories
+from systems.categories import shape_space_file
 from systems.pose_estimator import ObjectEstimate
 from systems.shape_space.registration import Registrar
 from systems.shape_space.space import ShapeSpace
-
-
-def shape_space_file(category: str) -> Path:
-    return MODELS_DIR / f"shape_space_{category}.npz"
 
 
 @dataclass
@@ -47,9 +43,10 @@ class ShapeRegistrar(LeafSystem):
     ``reconstructed_cloud_W``: N x 3 numpy array, the whole inferred shape (also the unseen side), m.
     """
 
-    def __init__(self, categories=("watering_can", "drill")):
+    def __init__(self, category_names=None):
+        """category_names: the categories to register (default: every known one, generated and taught)."""
         super().__init__()
-        self.registrars = {c: Registrar(ShapeSpace.load(shape_space_file(c))) for c in categories}
+        self.registrars = {c: _registrar(c) for c in category_names or categories.known_categories()}
         self.DeclareAbstractInputPort("estimate", AbstractValue.Make(ObjectEstimate(False)))
         self._registration = self.DeclareCacheEntry(
             description="registration",
@@ -98,6 +95,11 @@ class ShapeRegistrar(LeafSystem):
     def _calc_cloud(self, context, output):
         result = self._result(context)
         output.set_value(np.zeros((0, 3)) if result.registration is None else result.registration.reconstructed_W)
+
+
+def _registrar(category: str) -> Registrar:
+    symmetric = category not in categories.GENERATED and categories.load_record(category).half_turn_symmetric
+    return Registrar(ShapeSpace.load(shape_space_file(category)), half_turn_symmetric=symmetric)
 
 
 @dataclass

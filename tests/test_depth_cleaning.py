@@ -76,7 +76,7 @@ def test_a_shape_the_space_cannot_fit_is_a_named_registration_failure():
     camera = np.array([0.2, 0.0, 1.6])
     seen = surface[visible_from(surface, camera)] + rng.normal(0, 0.001, (1, 3))
     X_WO = RigidTransform(RotationMatrix.MakeZRotation(catalog.presentation_yaw("drill")), [0.73, 0.0, 0.76])
-    dut = ShapeRegistrar(categories=("drill",))
+    dut = ShapeRegistrar(("drill",))
     context = dut.CreateDefaultContext()
     estimate = ObjectEstimate(True, "drill", X_WO, seen, "a box", camera)
     dut.GetInputPort("estimate").FixValue(context, AbstractValue.Make(estimate))

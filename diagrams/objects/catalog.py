@@ -13,8 +13,10 @@ import trimesh
 from diagrams.objects import drill, watering_can
 from diagrams.objects.instance import ObjectInstance
 from diagrams.paths import SDF_DIR
+from systems import categories
 
 CATALOG_SEED = 2018
+# The generated categories (systems.categories.GENERATED); taught ones are data (systems/categories.py).
 CATEGORIES = {"watering_can": watering_can, "drill": drill}
 SPLITS = {"train": 8, "test": 3}
 # The paper's test cans differ clearly from each other: one body style each.
@@ -63,16 +65,24 @@ def instance_directory(category: str, name: str) -> Path:
 
 
 def presentation_yaw(category: str) -> float:
-    """World yaw (rad) of a category's object frame at the paper's 0 rad presentation."""
-    return category_module(category).PRESENTATION_YAW
+    """World yaw (rad) of a category's object frame at the paper's 0 rad presentation (a taught one's record)."""
+    if category in CATEGORIES:
+        return CATEGORIES[category].PRESENTATION_YAW
+    return categories.load_record(category).presentation_yaw
 
 
-@functools.cache
 def mean_box_centre(category: str) -> np.ndarray:
     """Mean over the training instances of the centre of their bounding box in O (x, y), metres.
 
     A category prior: where the object frame's origin sits relative to the object's extent.
     """
+    if category in CATEGORIES:
+        return _generated_box_centre(category)
+    return np.array(categories.load_record(category).box_centre, dtype=float)
+
+
+@functools.cache
+def _generated_box_centre(category: str) -> np.ndarray:
     centres = []
     for name in instance_names(category):
         if name.startswith("train"):

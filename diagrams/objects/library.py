@@ -100,7 +100,9 @@ def mesh_to_sdf(path: Path, mass: float, scale: float, category: str) -> Path:
     training instances have theirs (catalog.mean_box_centre): a scenario's object.xy then
     puts a user's can where it puts a generated one.
     """
-    digest = hashlib.sha256(path.read_bytes() + f"{mass}:{scale}:{category}".encode()).hexdigest()[:16]
+    box_centre_xy = catalog.mean_box_centre(category)
+    key = f"{mass}:{scale}:{category}:{box_centre_xy[0]:.6f}:{box_centre_xy[1]:.6f}"
+    digest = hashlib.sha256(path.read_bytes() + key.encode()).hexdigest()[:16]
     directory = cache_dir() / "user_objects" / f"{path.stem}_{digest}"
     sdf_path = directory / "model.sdf"
     if sdf_path.is_file():
@@ -110,9 +112,7 @@ def mesh_to_sdf(path: Path, mass: float, scale: float, category: str) -> Path:
         raise ValueError(f"{path} holds no triangle mesh")
     mesh.apply_scale(scale)
     check_metres(mesh.vertices, f"{path} (scaled by {scale:g})")
-    lo, hi = mesh.bounds
-    box_centre_xy = catalog.mean_box_centre(category)
-    mesh.apply_translation([box_centre_xy[0] - (lo[0] + hi[0]) / 2, box_centre_xy[1] - (lo[1] + hi[1]) / 2, -lo[2]])
+    mesh = recentred(mesh, box_centre_xy)
     pieces = convex_decomposition(mesh)
     directory.mkdir(parents=True, exist_ok=True)
     export_obj(mesh, directory / "visual.obj")
@@ -131,6 +131,14 @@ def mesh_to_sdf(path: Path, mass: float, scale: float, category: str) -> Path:
         )
     )
     return sdf_path
+
+
+def recentred(mesh: trimesh.Trimesh, box_centre_xy) -> trimesh.Trimesh:
+    """A copy of the mesh moved onto its bottom face (z = 0), the centre of its extent in x, y at box_centre_xy."""
+    lo, hi = mesh.bounds
+    moved = mesh.copy()
+    moved.apply_translation([box_centre_xy[0] - (lo[0] + hi[0]) / 2, box_centre_xy[1] - (lo[1] + hi[1]) / 2, -lo[2]])
+    return moved
 
 
 def convex_decomposition(mesh: trimesh.Trimesh) -> list[trimesh.Trimesh]:

@@ -17,19 +17,25 @@ def point_spacing(points: np.ndarray) -> float:
     return float(np.median(cKDTree(points).query(points, k=2)[0][:, 1]))
 
 
-def densified(points: np.ndarray, count: int) -> np.ndarray:
-    """`count` points (about; K x 3) on a surface reconstructed from a sparse cloud (N x 3, metres).
-
-    The surface is a screened Poisson reconstruction over normals estimated from the points, and only
-    what lies near the scan is kept: where the scan saw nothing, nothing is invented.
-    """
-    spacing = point_spacing(points)
+def surface_mesh(points: np.ndarray) -> trimesh.Trimesh:
+    """A closed surface through a cloud (N x 3, m): screened Poisson over normals estimated from the points,
+    cropped to the points' bounding box. Where the scan saw nothing, the surface is Poisson's guess."""
     cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points))
     cloud.estimate_normals(o3d.geometry.KDTreeSearchParamKNN(knn=15))
     cloud.orient_normals_consistent_tangent_plane(10)
     # One thread: the same surface every run.
     mesh, _ = o3d.geometry.TriangleMesh.create_from_point_cloud_poisson(cloud, depth=POISSON_DEPTH, n_threads=1)
-    surface = trimesh.Trimesh(np.asarray(mesh.vertices), np.asarray(mesh.triangles), process=False)
-    dense, _ = trimesh.sample.sample_surface(surface, 4 * count, seed=0)
+    mesh = mesh.crop(cloud.get_axis_aligned_bounding_box())
+    return trimesh.Trimesh(np.asarray(mesh.vertices), np.asarray(mesh.triangles), process=False)
+
+
+def densified(points: np.ndarray, count: int) -> np.ndarray:
+    """`count` points (about; K x 3) on a surface reconstructed from a sparse cloud (N x 3, metres).
+
+    The surface is surface_mesh's, and only what lies near the scan is kept: where the scan saw nothing,
+    nothing is invented.
+    """
+    spacing = point_spacing(points)
+    dense, _ = trimesh.sample.sample_surface(surface_mesh(points), 4 * count, seed=0)
     near = cKDTree(points).query(dense)[0] <= KEEP_WITHIN_SPACINGS * spacing
     return thinned(np.vstack([points, dense[near]]), count)

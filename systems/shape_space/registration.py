@@ -156,12 +156,17 @@ def _check_cloud(points: np.ndarray) -> np.ndarray:
 class Registrar:
     """Registers observed clouds to one category's ShapeSpace."""
 
-    def __init__(self, space: ShapeSpace, upright: bool = True, prior_weight: float = 1.0):
+    def __init__(
+        self, space: ShapeSpace, upright: bool = True, prior_weight: float = 1.0, half_turn_symmetric: bool = False
+    ):
         """Args:
         upright: the object stands upright (rotation about the world z only), else full 3D rotation.
         prior_weight: scales the latent prior against the data term.
+        half_turn_symmetric: the category looks the same turned by pi about z_O (a pot): the end-for-end
+            hypothesis is not tried, so the pose stays on the initial pose's side (and each grasp on its hand's).
         """
         self.space = space
+        self.yaw_hypotheses = tuple(h for h in YAW_HYPOTHESES if not (half_turn_symmetric and h == np.pi))
         self.upright = upright
         self.prior_weight = prior_weight
         M = len(space.canonical_points)
@@ -196,7 +201,7 @@ class Registrar:
                 raise ValueError(f"the viewpoint must be 3 finite numbers (m, in W), got {viewpoint_W!r}")
         X = evenly_thinned(observed, OBSERVED_POINTS)
         best = None
-        for offset in YAW_HYPOTHESES:
+        for offset in self.yaw_hypotheses:
             X0 = RigidTransform(RotationMatrix.MakeZRotation(offset)) @ X_WO_initial
             X0 = RigidTransform(X0.rotation(), X_WO_initial.translation())  # turn about the object's origin
             result = self._fit(X, X0, viewpoint_W)

@@ -1,0 +1,211 @@
+"""Teaches the robot a new familiar category from a folder of your own models, one of them annotated.
+
+python scripts/add_category.py --folder my_pots/ --poses my_pots/poses.yaml --name pot --symmetric
+python scripts/pick.py --object pot --object-file new_pot.obj                 # then pick an unseen one
+python scripts/evaluate.py --category pot --object-files pots/test/*.obj --trials 1
+
+The folder and the poses file are build_shape_space.py's (meshes or point clouds in metres, sharing one
+upright frame; the poses YAML names the canonical model and its control poses). The steps:
+
+  1. the models are read and checked (units, frames); the category's frame O is the folder's frame moved
+     so that the canonical model's bottom face is at z = 0 and its extent centred on x = y = 0;
+  2. the shape space is built, every model's grasps carried from the canonical one, and drawn (.png);
+  3. the canonical model is written as the pose estimator's template and every model as a visual-only
+     SDF (point clouds get a Poisson surface) to render from;
+  4. synthetic frames of scenes holding every known category are rendered and the segmenter in use is
+     fine-tuned with the new class (its classifier widened; the old classes keep their weights), then
+     checked on frames of another seed;
+  5. the new segmenter and the category's record are written: from then on every pick knows the class.
+
+Everything lands in systems.categories.categories_dir() ($DUALARM_CATEGORIES, default
+~/.local/share/dualarm/categories): <name>/ and segmenter.pt. --symmetric: the models look the same turned
+half a turn about z (a pot, a crate); the pose then keeps the left grasp on the robot's left.
+"""
+
+import argparse
+import json
+import logging
+import os
+import re
+import shutil
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+import trimesh
+from build_shape_space import draw_space, folder_instances, frame_warnings
+from pydrake.math import RigidTransform
+from scenario_options import add_sensor_option, with_sensor
+
+from diagrams import segmentation_data
+from diagrams.objects.instance import export_obj, object_sdf
+from diagrams.objects.library import recentred
+from diagrams.scenario import load_scenario
+from systems import categories, segmentation_network, segmenter_training
+from systems.shape_space.densify import surface_mesh
+from systems.shape_space.space import ALIGNMENTS, build_shape_space
+
+VALIDATION_SEED = 1000  # train_segmenter.py's: frames nobody trains on
+FINE_TUNE_LEARNING_RATE = 1e-3
+
+
+def parse_args(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--folder", type=Path, required=True, help="one model per file (meshes or point clouds)")
+    parser.add_argument("--poses", type=Path, required=True, help="the canonical model's control poses (YAML)")
+    parser.add_argument("--name", required=True, help="the category's name (lower case letters, digits, _)")
+    parser.add_argument("--symmetric", action="store_true", help="the models look the same turned pi about z")
+    parser.add_argument(
+        "--presentation-yaw", dest="presentation_yaw", type=float, default=0.0,
+        help="world yaw of O at the presentation the grasps are meant for, rad (0: x_O away from the robot)",
+    )  # fmt: skip
+    parser.add_argument("--components", type=int, default=8, help="latent dimensions (at most models - 1)")
+    parser.add_argument("--align", choices=ALIGNMENTS, default="none", help="as build_shape_space.py's")
+    parser.add_argument("--frames", type=int, default=400, help="synthetic frames to fine-tune the segmenter on")
+    parser.add_argument("--frames-per-scene", dest="frames_per_scene", type=int, default=25)
+    parser.add_argument("--epochs", type=int, default=8, help="fine-tuning epochs")
+    parser.add_argument("--validation-frames", dest="validation_frames", type=int, default=40)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--threads", type=int, default=2, help="torch CPU threads")
+    add_sensor_option(parser)
+    args = parser.parse_args(argv)
+    if not re.fullmatch(r"[a-z][a-z0-9_]*", args.name):
+        parser.error(f"--name {args.name!r}: use lower case letters, digits and _ (starting with a letter)")
+    if args.name in categories.GENERATED or args.name == "background":
+        parser.error(f"--name {args.name!r} is taken by a built-in class")
+    if min(args.frames, args.frames_per_scene, args.epochs, args.validation_frames) < 1:
+        parser.error("--frames, --frames-per-scene, --epochs and --validation-frames must be positive")
+    return args
+
+
+def model_mesh(path: Path, points: np.ndarray) -> trimesh.Trimesh:
+    """The file's triangle mesh, or a Poisson surface through its points where it is a point cloud."""
+    if path.suffix.lower() != ".pcd":
+        mesh = trimesh.load(path, force="mesh")
+        if isinstance(mesh, trimesh.Trimesh) and len(mesh.faces):
+            return mesh
+    logging.info("%s is a point cloud: its surface is reconstructed for rendering", path.name)
+    return surface_mesh(points)
+
+
+def visual_sdf(mesh: trimesh.Trimesh, directory: Path, name: str) -> Path:
+    """A free body with the mesh as its only (visual) geometry: what segmentation frames render."""
+    export_obj(mesh, directory / f"{name}.obj")
+    extents = np.maximum(mesh.extents, 1e-3)
+    inertia = np.diag([extents[1] ** 2 + extents[2] ** 2, extents[0] ** 2 + extents[2] ** 2,
+                       extents[0] ** 2 + extents[1] ** 2]) / 12.0  # fmt: skip
+    path = directory / f"{name}.sdf"
+    path.write_text(object_sdf(name, f"{name}.obj", [], 1.0, mesh.centroid, inertia, (0.6, 0.6, 0.65)))
+    return path
+
+
+def write_models(args, directory: Path):
+    """Steps 1-3: the category's shape space, template and training models in `directory`; its record."""
+    clouds, poses, canonical = folder_instances(args.folder, args.poses)
+    if args.align == "none":
+        for warning in frame_warnings(clouds, canonical):
+            logging.warning("warning: %s; if the models do not share one frame, pass --align vertical", warning)
+    lo, hi = clouds[canonical].min(axis=0), clouds[canonical].max(axis=0)
+    X_OF = RigidTransform([-(lo[0] + hi[0]) / 2, -(lo[1] + hi[1]) / 2, -lo[2]])  # the folder's frame F in O
+    clouds = {name: X_OF.multiply(points.T).T for name, points in clouds.items()}
+    poses = {name: {pose: X_OF @ X for pose, X in model_poses.items()} for name, model_poses in poses.items()}
+    box_centre = np.mean([(c.min(axis=0) + c.max(axis=0))[:2] / 2 for c in clouds.values()], axis=0)
+
+    logging.info("[2/5] the shape space of %d models (%d annotated)", len(clouds), len(poses))
+    components = min(args.components, len(clouds) - 1)
+    space = build_shape_space(args.name, clouds, poses, components, canonical=canonical, align=args.align)
+    space.save(directory / "shape_space.npz")
+    draw_space(space, directory / "shape_space.png")
+
+    logging.info("[3/5] the template and %d training models for rendering", len(clouds))
+    (directory / "training").mkdir()
+    for name in sorted(clouds):
+        path = args.folder / name
+        mesh = model_mesh(path, clouds[name])
+        if name == canonical:
+            template = mesh.copy()
+            template.apply_transform(X_OF.GetAsMatrix4())
+            export_obj(template, directory / "template.obj")
+        visual_sdf(recentred(mesh, box_centre), directory / "training", Path(name).stem)
+    return categories.CategoryRecord(
+        name=args.name,
+        presentation_yaw=args.presentation_yaw,
+        box_centre=[float(v) for v in box_centre],
+        half_turn_symmetric=args.symmetric,
+        models=sorted(clouds),
+        annotated_models=len(poses),
+    )
+
+
+def fine_tune_segmenter(args, classes: tuple[str, ...]) -> tuple[segmentation_network.RefineNetLite, dict]:
+    """Step 4: the segmenter in use, widened to `classes` and fine-tuned on frames of every class."""
+    base_path = categories.active_segmenter()
+    model, base = segmentation_network.load(base_path)
+    known = tuple(base["classes"])
+    if classes[: len(known)] != known:
+        raise SystemExit(f"error: {base_path} has classes {list(known)}; expected them to start {list(classes)}")
+    model = segmentation_network.with_classes(model, len(classes))
+    scenario = with_sensor(load_scenario(), args.sensor)
+    logging.info("[4/5] rendering %d frames of %s", args.frames, ", ".join(classes[1:]))
+    data = segmentation_data.generate(scenario, args.frames, args.frames_per_scene, "train", args.seed, classes=classes)
+    start = time.perf_counter()
+    model, history = segmenter_training.fit(
+        model, data["rgb"], data["labels"], args.epochs, args.seed, learning_rate=FINE_TUNE_LEARNING_RATE,
+        description=f"fine-tuning the segmenter with {classes[-1]!r}",
+    )  # fmt: skip
+    train_s = time.perf_counter() - start
+    validation = segmentation_data.generate(
+        scenario, args.validation_frames, args.frames_per_scene, "test", VALIDATION_SEED, classes=classes
+    )
+    predicted = segmenter_training.predict_labels(model, validation["rgb"])
+    iou = segmenter_training.intersection_over_union(predicted, validation["labels"], len(classes))
+    metadata = {
+        "classes": list(classes),
+        "fine_tuned_from": str(base_path),
+        "base": base,
+        "epochs": args.epochs,
+        "seed": args.seed,
+        "training_frames": len(data["rgb"]),
+        "sensor": scenario.camera_noise.preset,
+        "training_s": round(train_s, 1),
+        "final_loss": history[-1],
+        # The generated categories' test instances; a taught category's own training models (it has no others).
+        "validation": {"frames": args.validation_frames, "seed": VALIDATION_SEED,
+                       "iou": dict(zip(classes, iou.tolist(), strict=True))},
+    }  # fmt: skip
+    return model, metadata
+
+
+def main(argv=None) -> int:
+    logging.basicConfig(level=logging.INFO, format="%(message)s")
+    args = parse_args(argv)
+    torch.set_num_threads(args.threads)
+    root = categories.categories_dir()
+    directory = root / args.name
+    if directory.exists():
+        logging.warning("%s is taught already: it is taught again", args.name)
+        shutil.rmtree(directory)
+    directory.mkdir(parents=True)
+    logging.info("[1/5] reading %s into %s", args.folder, directory)
+    record = write_models(args, directory)
+
+    known = tuple(segmentation_network.load(categories.active_segmenter())[1]["classes"])
+    classes = known if args.name in known else (*known, args.name)
+    model, metadata = fine_tune_segmenter(args, classes)
+    logging.info("[5/5] writing the segmenter (%d classes) and the record", len(classes))
+    partial = root / f"segmenter.{os.getpid()}.tmp.pt"
+    segmentation_network.save(model, partial, metadata)
+    os.replace(partial, root / "segmenter.pt")
+    categories.save_record(record)  # last: until now the category was not known to any pick
+    print(json.dumps(metadata["validation"], indent=2))
+    print(
+        f"taught {args.name!r}: {len(record.models)} models, {record.annotated_models} annotated; "
+        f"segmenter IoU on it {metadata['validation']['iou'][args.name]:.3f}. Try: python scripts/pick.py "
+        f"--object {args.name} --object-file <an unseen {args.name}>.obj"
+    )
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
