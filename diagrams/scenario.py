@@ -28,7 +28,7 @@ class ObjectConfig:
 
     # False: an empty table (what a pick does when it sees nothing).
     present: bool = True
-    # Category: "watering_can" or "drill".
+    # Category: "watering_can", "drill", or one taught by scripts/add_category.py.
     category: str = "watering_can"
     # A generated instance: train_<i>, test_<i> (the fixed seeded ones) or extra_<seed>.
     instance: str = "test_0"

@@ -66,6 +66,10 @@ def parse_args(argv=None):
     parser.add_argument("--frames-per-scene", dest="frames_per_scene", type=int, default=25)
     parser.add_argument("--epochs", type=int, default=8, help="fine-tuning epochs")
     parser.add_argument("--validation-frames", dest="validation_frames", type=int, default=40)
+    parser.add_argument(
+        "--keep-segmenter", dest="keep_segmenter", action="store_true",
+        help="re-teach the shape space and grasps only: the segmenter in use knows the class already",
+    )  # fmt: skip
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--threads", type=int, default=2, help="torch CPU threads")
     add_sensor_option(parser)
@@ -145,6 +149,7 @@ def fine_tune_segmenter(args, classes: tuple[str, ...]) -> tuple[segmentation_ne
     known = tuple(base["classes"])
     if classes[: len(known)] != known:
         raise SystemExit(f"error: {base_path} has classes {list(known)}; expected them to start {list(classes)}")
+    before = segmentation_network.load(base_path)[0]
     model = segmentation_network.with_classes(model, len(classes))
     scenario = with_sensor(load_scenario(), args.sensor)
     logging.info("[4/5] rendering %d frames of %s", args.frames, ", ".join(classes[1:]))
@@ -160,6 +165,9 @@ def fine_tune_segmenter(args, classes: tuple[str, ...]) -> tuple[segmentation_ne
     )
     predicted = segmenter_training.predict_labels(model, validation["rgb"])
     iou = segmenter_training.intersection_over_union(predicted, validation["labels"], len(classes))
+    # The segmenter it started from, on the same frames: what the fine-tuning cost the classes it knew.
+    predicted = segmenter_training.predict_labels(before, validation["rgb"])
+    iou_before = segmenter_training.intersection_over_union(predicted, validation["labels"], len(classes))
     metadata = {
         "classes": list(classes),
         "fine_tuned_from": str(base_path),
@@ -170,9 +178,11 @@ def fine_tune_segmenter(args, classes: tuple[str, ...]) -> tuple[segmentation_ne
         "sensor": scenario.camera_noise.preset,
         "training_s": round(train_s, 1),
         "final_loss": history[-1],
-        # The generated categories' test instances; a taught category's own training models (it has no others).
+        # Raw network at its input size (no flip averaging). The frames hold the generated categories' test
+        # instances and a taught category's own training models (it has no others).
         "validation": {"frames": args.validation_frames, "seed": VALIDATION_SEED,
-                       "iou": dict(zip(classes, iou.tolist(), strict=True))},
+                       "iou": dict(zip(classes, iou.tolist(), strict=True)),
+                       "iou_before": dict(zip(known, iou_before[: len(known)].tolist(), strict=True))},
     }  # fmt: skip
     return model, metadata
 
@@ -182,6 +192,9 @@ def main(argv=None) -> int:
     args = parse_args(argv)
     torch.set_num_threads(args.threads)
     root = categories.categories_dir()
+    known = tuple(segmentation_network.load(categories.active_segmenter())[1]["classes"])
+    if args.keep_segmenter and args.name not in known:
+        raise SystemExit(f"error: --keep-segmenter: {categories.active_segmenter()} does not know {args.name!r}")
     directory = root / args.name
     if directory.exists():
         logging.warning("%s is taught already: it is taught again", args.name)
@@ -189,8 +202,12 @@ def main(argv=None) -> int:
     directory.mkdir(parents=True)
     logging.info("[1/5] reading %s into %s", args.folder, directory)
     record = write_models(args, directory)
+    if args.keep_segmenter:
+        categories.save_record(record)
+        print(f"taught {args.name!r} again: {len(record.models)} models, {record.annotated_models} annotated; "
+              f"the segmenter kept ({categories.active_segmenter()})")  # fmt: skip
+        return 0
 
-    known = tuple(segmentation_network.load(categories.active_segmenter())[1]["classes"])
     classes = known if args.name in known else (*known, args.name)
     model, metadata = fine_tune_segmenter(args, classes)
     logging.info("[5/5] writing the segmenter (%d classes) and the record", len(classes))

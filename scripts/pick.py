@@ -5,6 +5,7 @@ python scripts/pick.py --oracle                      # the same diagram, ground 
 python scripts/pick.py --oracle --object drill --instance test_1 --yaw 0.25 --json r.json
 python scripts/pick.py --oracle --object-file my_can.sdf --object watering_can
 python scripts/pick.py --oracle --meshcat --record pick.html
+python scripts/pick.py --object pot --object-file my_pot.obj       # a category taught by add_category.py
 """
 
 import argparse

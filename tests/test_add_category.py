@@ -56,6 +56,8 @@ def test_teaching_writes_the_category_and_a_segmenter_that_knows_it(taught, monk
     model, metadata = segmentation_network.load(root / "segmenter.pt")
     assert metadata["classes"] == ["background", "watering_can", "drill", "pot"] and model.num_classes == 4
     assert catalog.presentation_yaw("pot") == 0.0
+    with pytest.raises(ValueError, match="taught category: it has no generated instances"):
+        catalog.instance_names("pot")
     assert category_priors()["pot"].symmetric_about_yaw == 0.0
     # The template is the canonical model in O: on the table, centred on its extent.
     lo, hi = trimesh.load(root / "pot" / "template.obj", force="mesh").bounds

@@ -30,10 +30,15 @@ def instance_names(category: str) -> list[str]:
 
 
 def category_module(category: str):
-    try:
+    """The generator of a generated category.
+
+    Raises:
+        ValueError: a taught category (it has no generated instances: name a model file) or an unknown one.
+    """
+    if category in CATEGORIES:
         return CATEGORIES[category]
-    except KeyError:
-        raise ValueError(f"unknown object category {category!r}; known categories: {sorted(CATEGORIES)}") from None
+    categories.load_record(category)  # names the known categories if this one is not among them
+    raise ValueError(f"{category!r} is a taught category: it has no generated instances; give a model file instead")
 
 
 def parse_instance_name(name: str) -> tuple[str, int]:
