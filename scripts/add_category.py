@@ -62,9 +62,9 @@ def parse_args(argv=None):
     )  # fmt: skip
     parser.add_argument("--components", type=int, default=8, help="latent dimensions (at most models - 1)")
     parser.add_argument("--align", choices=ALIGNMENTS, default="none", help="as build_shape_space.py's")
-    parser.add_argument("--frames", type=int, default=400, help="synthetic frames to fine-tune the segmenter on")
+    parser.add_argument("--frames", type=int, default=800, help="synthetic frames to fine-tune the segmenter on")
     parser.add_argument("--frames-per-scene", dest="frames_per_scene", type=int, default=25)
-    parser.add_argument("--epochs", type=int, default=8, help="fine-tuning epochs")
+    parser.add_argument("--epochs", type=int, default=10, help="fine-tuning epochs")
     parser.add_argument("--validation-frames", dest="validation_frames", type=int, default=40)
     parser.add_argument(
         "--keep-segmenter", dest="keep_segmenter", action="store_true",
@@ -112,7 +112,7 @@ def write_models(args, directory: Path):
             logging.warning("warning: %s; if the models do not share one frame, pass --align vertical", warning)
     lo, hi = clouds[canonical].min(axis=0), clouds[canonical].max(axis=0)
     X_OF = RigidTransform([-(lo[0] + hi[0]) / 2, -(lo[1] + hi[1]) / 2, -lo[2]])  # the folder's frame F in O
-    clouds = {name: X_OF.multiply(points.T).T for name, points in clouds.items()}
+    folder_clouds, clouds = clouds, {name: X_OF.multiply(points.T).T for name, points in clouds.items()}
     poses = {name: {pose: X_OF @ X for pose, X in model_poses.items()} for name, model_poses in poses.items()}
     box_centre = np.mean([(c.min(axis=0) + c.max(axis=0))[:2] / 2 for c in clouds.values()], axis=0)
 
@@ -126,7 +126,7 @@ def write_models(args, directory: Path):
     (directory / "training").mkdir()
     for name in sorted(clouds):
         path = args.folder / name
-        mesh = model_mesh(path, clouds[name])
+        mesh = model_mesh(path, folder_clouds[name])  # in the folder's frame
         if name == canonical:
             template = mesh.copy()
             template.apply_transform(X_OF.GetAsMatrix4())

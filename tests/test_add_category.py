@@ -119,3 +119,40 @@ def test_a_bad_category_name_is_refused(name, capsys):
     with pytest.raises(SystemExit):
         add_category.parse_args(["--folder", "f", "--poses", "p.yaml", "--name", name])
     assert "--name" in capsys.readouterr().err
+
+
+def test_a_point_cloud_canonical_model_gets_a_surface_in_the_categorys_frame(tmp_path):
+    """A folder whose canonical model is a scan (a .pcd point cloud, lifted 5 cm off its frame's origin): the
+    template is a reconstructed surface standing on z = 0 of O, centred on its extent."""
+    import argparse
+
+    import open3d as o3d
+    import yaml
+    from build_shape_space import pose_entries
+    from make_pot_models import build, sample_parameters
+
+    folder = tmp_path / "pots"
+    folder.mkdir()
+    for i in range(3):
+        instance = build(f"pot_{i}", sample_parameters(np.random.default_rng([5, i])))
+        mesh = instance.visual_mesh()
+        mesh.apply_translation([0.0, 0.0, 0.05])
+        if i == 0:
+            points, _ = trimesh.sample.sample_surface_even(mesh, 3000, seed=0)
+            o3d.io.write_point_cloud(
+                str(folder / "pot_0.pcd"), o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points))
+            )
+            poses = {n: RigidTransform([0.0, 0.0, 0.05]) @ X for n, X in instance.info().control_poses().items()}
+            spec = {"canonical": "pot_0.pcd", "poses": pose_entries(poses)}
+            (folder / "poses.yaml").write_text(yaml.safe_dump(spec))
+        else:
+            mesh.export(folder / f"pot_{i}.obj")
+    args = argparse.Namespace(
+        folder=folder, poses=folder / "poses.yaml", name="pot", components=2, align="none", presentation_yaw=0.0,
+        symmetric=True,
+    )  # fmt: skip
+    record = add_category.write_models(args, tmp_path)
+    assert record.models == ["pot_0.pcd", "pot_1.obj", "pot_2.obj"] and record.annotated_models == 1
+    lo, hi = trimesh.load(tmp_path / "template.obj", force="mesh").bounds
+    np.testing.assert_allclose([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]], 0.0, atol=5e-3)
+    assert len(list((tmp_path / "training").glob("*.sdf"))) == 3
