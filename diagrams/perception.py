@@ -22,16 +22,15 @@ def category_priors() -> dict[str, CategoryPrior]:
     """
     priors = {}
     for category in categories.known_categories():
-        box_centre = tuple(float(v) for v in catalog.mean_box_centre(category))
         if category in catalog.CATEGORIES:
-            priors[category] = CategoryPrior(
-                catalog.instance_directory(category, TEMPLATE_INSTANCE) / "visual.obj", box_centre
-            )
+            template = catalog.instance_directory(category, TEMPLATE_INSTANCE) / "visual.obj"
+            box_centre = tuple(float(v) for v in catalog.mean_box_centre(category))
+            priors[category] = CategoryPrior(template, box_centre)
             continue
         record = categories.load_record(category)
-        symmetric_about_yaw = record.presentation_yaw if record.half_turn_symmetric else None
         template = categories.category_directory(category) / "template.obj"
-        priors[category] = CategoryPrior(template, box_centre, symmetric_about_yaw)
+        symmetric_about_yaw = record.presentation_yaw if record.half_turn_symmetric else None
+        priors[category] = CategoryPrior(template, tuple(record.box_centre), symmetric_about_yaw)
     return priors
 
 

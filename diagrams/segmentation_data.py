@@ -24,6 +24,7 @@ from systems.segmentation_network import INPUT_SIZE, resize_to_input
 DEFAULT_DATASET = REPO_ROOT / "data" / "segmentation" / "train.npz"
 DEFAULT_FRAMES = 800
 FRAMES_PER_SCENE = 25
+VALIDATION_SEED = 1000  # the seed of validation frames: no training set is drawn from it
 
 
 def resize_frame(rgb: np.ndarray, labels: np.ndarray):

@@ -46,7 +46,6 @@ from systems import categories, segmentation_network, segmenter_training
 from systems.shape_space.densify import surface_mesh
 from systems.shape_space.space import ALIGNMENTS, build_shape_space
 
-VALIDATION_SEED = 1000  # train_segmenter.py's: frames nobody trains on
 FINE_TUNE_LEARNING_RATE = 1e-3
 
 
@@ -96,9 +95,8 @@ def model_mesh(path: Path, points: np.ndarray) -> trimesh.Trimesh:
 def visual_sdf(mesh: trimesh.Trimesh, directory: Path, name: str) -> Path:
     """A free body with the mesh as its only (visual) geometry: what segmentation frames render."""
     export_obj(mesh, directory / f"{name}.obj")
-    extents = np.maximum(mesh.extents, 1e-3)
-    inertia = np.diag([extents[1] ** 2 + extents[2] ** 2, extents[0] ** 2 + extents[2] ** 2,
-                       extents[0] ** 2 + extents[1] ** 2]) / 12.0  # fmt: skip
+    box = trimesh.primitives.Box(extents=np.maximum(mesh.extents, 1e-3))
+    inertia = box.moment_inertia / box.volume  # of a unit mass filling the model's box: rendering needs no more
     path = directory / f"{name}.sdf"
     path.write_text(object_sdf(name, f"{name}.obj", [], 1.0, mesh.centroid, inertia, (0.6, 0.6, 0.65)))
     return path
@@ -117,8 +115,7 @@ def write_models(args, directory: Path):
     box_centre = np.mean([(c.min(axis=0) + c.max(axis=0))[:2] / 2 for c in clouds.values()], axis=0)
 
     logging.info("[2/5] the shape space of %d models (%d annotated)", len(clouds), len(poses))
-    components = min(args.components, len(clouds) - 1)
-    space = build_shape_space(args.name, clouds, poses, components, canonical=canonical, align=args.align)
+    space = build_shape_space(args.name, clouds, poses, args.components, canonical=canonical, align=args.align)
     space.save(directory / "shape_space.npz")
     draw_space(space, directory / "shape_space.png")
 
@@ -142,15 +139,10 @@ def write_models(args, directory: Path):
     )
 
 
-def fine_tune_segmenter(args, classes: tuple[str, ...]) -> tuple[segmentation_network.RefineNetLite, dict]:
-    """Step 4: the segmenter in use, widened to `classes` and fine-tuned on frames of every class."""
-    base_path = categories.active_segmenter()
-    model, base = segmentation_network.load(base_path)
-    known = tuple(base["classes"])
-    if classes[: len(known)] != known:
-        raise SystemExit(f"error: {base_path} has classes {list(known)}; expected them to start {list(classes)}")
-    before = segmentation_network.load(base_path)[0]
-    model = segmentation_network.with_classes(model, len(classes))
+def fine_tune_segmenter(args, base_model, base: dict, classes: tuple[str, ...]):
+    """Step 4: the segmenter in use (base_model, its metadata `base`), widened to `classes` and fine-tuned on
+    frames of every class. Returns the new model and its metadata."""
+    model = segmentation_network.with_classes(base_model, len(classes))
     scenario = with_sensor(load_scenario(), args.sensor)
     logging.info("[4/5] rendering %d frames of %s", args.frames, ", ".join(classes[1:]))
     data = segmentation_data.generate(scenario, args.frames, args.frames_per_scene, "train", args.seed, classes=classes)
@@ -160,57 +152,44 @@ def fine_tune_segmenter(args, classes: tuple[str, ...]) -> tuple[segmentation_ne
         description=f"fine-tuning the segmenter with {classes[-1]!r}",
     )  # fmt: skip
     train_s = time.perf_counter() - start
+    seed = segmentation_data.VALIDATION_SEED
     validation = segmentation_data.generate(
-        scenario, args.validation_frames, args.frames_per_scene, "test", VALIDATION_SEED, classes=classes
+        scenario, args.validation_frames, args.frames_per_scene, "test", seed, classes=classes
     )
-    predicted = segmenter_training.predict_labels(model, validation["rgb"])
-    iou = segmenter_training.intersection_over_union(predicted, validation["labels"], len(classes))
-    # The segmenter it started from, on the same frames: what the fine-tuning cost the classes it knew.
-    predicted = segmenter_training.predict_labels(before, validation["rgb"])
-    iou_before = segmenter_training.intersection_over_union(predicted, validation["labels"], len(classes))
-    metadata = {
-        "classes": list(classes),
-        "fine_tuned_from": str(base_path),
-        "base": base,
-        "epochs": args.epochs,
-        "seed": args.seed,
-        "training_frames": len(data["rgb"]),
-        "sensor": scenario.camera_noise.preset,
-        "training_s": round(train_s, 1),
-        "final_loss": history[-1],
-        # Raw network at its input size (no flip averaging). The frames hold the generated categories' test
-        # instances and a taught category's own training models (it has no others).
-        "validation": {"frames": args.validation_frames, "seed": VALIDATION_SEED,
-                       "iou": dict(zip(classes, iou.tolist(), strict=True)),
-                       "iou_before": dict(zip(known, iou_before[: len(known)].tolist(), strict=True))},
-    }  # fmt: skip
+    frames = validation["rgb"], validation["labels"]
+    metadata = segmenter_training.training_record(
+        classes, args.epochs, args.seed, len(data["rgb"]), scenario.camera_noise.preset, train_s, history
+    )
+    # The raw network at its input size (no flip averaging), on the generated categories' test instances and a
+    # taught category's own training models (it has no others); beside it the segmenter it started from on the
+    # same frames: what the fine-tuning cost the classes it knew.
+    before = segmenter_training.class_iou(base_model, *frames, classes)
+    metadata |= {
+        "fine_tuned_from": base,
+        "validation": {
+            "frames": args.validation_frames,
+            "seed": seed,
+            "iou": segmenter_training.class_iou(model, *frames, classes),
+            "iou_before": {name: before[name] for name in base["classes"]},
+        },
+    }
     return model, metadata
 
 
-def main(argv=None) -> int:
-    logging.basicConfig(level=logging.INFO, format="%(message)s")
-    args = parse_args(argv)
-    torch.set_num_threads(args.threads)
-    root = categories.categories_dir()
-    known = tuple(segmentation_network.load(categories.active_segmenter())[1]["classes"])
-    if args.keep_segmenter and args.name not in known:
-        raise SystemExit(f"error: --keep-segmenter: {categories.active_segmenter()} does not know {args.name!r}")
-    directory = root / args.name
-    if directory.exists():
-        logging.warning("%s is taught already: it is taught again", args.name)
-        shutil.rmtree(directory)
-    directory.mkdir(parents=True)
+def teach(args, directory: Path, base_model, base: dict) -> categories.CategoryRecord:
+    """Steps 1-5 into `directory` (and the segmenter beside it, unless --keep-segmenter)."""
     logging.info("[1/5] reading %s into %s", args.folder, directory)
     record = write_models(args, directory)
     if args.keep_segmenter:
         categories.save_record(record)
         print(f"taught {args.name!r} again: {len(record.models)} models, {record.annotated_models} annotated; "
               f"the segmenter kept ({categories.active_segmenter()})")  # fmt: skip
-        return 0
-
+        return record
+    known = tuple(base["classes"])
     classes = known if args.name in known else (*known, args.name)
-    model, metadata = fine_tune_segmenter(args, classes)
+    model, metadata = fine_tune_segmenter(args, base_model, base, classes)
     logging.info("[5/5] writing the segmenter (%d classes) and the record", len(classes))
+    root = directory.parent
     partial = root / f"segmenter.{os.getpid()}.tmp.pt"
     segmentation_network.save(model, partial, metadata)
     os.replace(partial, root / "segmenter.pt")
@@ -221,6 +200,37 @@ def main(argv=None) -> int:
         f"segmenter IoU on it {metadata['validation']['iou'][args.name]:.3f}. Try: python scripts/pick.py "
         f"--object {args.name} --object-file <an unseen {args.name}>.obj"
     )
+    return record
+
+
+def main(argv=None) -> int:
+    logging.basicConfig(level=logging.INFO, format="%(message)s")
+    args = parse_args(argv)
+    torch.set_num_threads(args.threads)
+    base_path = categories.active_segmenter()
+    base_model, base = segmentation_network.load(base_path)
+    base["path"] = str(base_path)
+    if args.keep_segmenter and args.name not in base["classes"]:
+        raise SystemExit(f"error: --keep-segmenter: {base_path} does not know {args.name!r}")
+    root = categories.categories_dir()
+    directory = root / args.name
+    # A category taught before waits aside (out of known_categories' sight) until the new one is done: a run
+    # that fails or is stopped puts it back.
+    aside = root / ".previous" / args.name
+    if directory.exists():
+        logging.warning("%s is taught already: it is taught again (the old one is kept until then)", args.name)
+        shutil.rmtree(aside, ignore_errors=True)
+        aside.parent.mkdir(parents=True, exist_ok=True)
+        directory.rename(aside)
+    directory.mkdir(parents=True)
+    try:
+        teach(args, directory, base_model, base)
+    except BaseException:
+        shutil.rmtree(directory, ignore_errors=True)
+        if aside.exists():
+            aside.rename(directory)
+        raise
+    shutil.rmtree(aside, ignore_errors=True)
     return 0
 
 

@@ -20,7 +20,6 @@ from diagrams.synthetic_scenes import CLASSES
 from systems import segmentation_network, segmenter_training
 
 VALIDATION_FRAMES = 60
-VALIDATION_SEED = 1000
 
 
 def main():
@@ -53,22 +52,15 @@ def main():
     train_s = time.perf_counter() - start
 
     logging.info("validating on %d frames of unseen (test) instances", VALIDATION_FRAMES)
-    validation = segmentation_data.generate(scenario, VALIDATION_FRAMES, 20, "test", VALIDATION_SEED)
-    predicted = segmenter_training.predict_labels(model, validation["rgb"])
-    iou = segmenter_training.intersection_over_union(predicted, validation["labels"], len(CLASSES))
-    metadata = {
-        "classes": list(CLASSES),
-        "epochs": args.epochs,
-        "seed": args.seed,
-        "training_frames": len(data["rgb"]),
-        "sensor": scenario.camera_noise.preset,
-        "training_s": round(train_s, 1),
-        "final_loss": history[-1],
-        "validation": {
-            "frames": VALIDATION_FRAMES,
-            "seed": VALIDATION_SEED,
-            "iou": dict(zip(CLASSES, iou.tolist(), strict=True)),
-        },
+    seed = segmentation_data.VALIDATION_SEED
+    validation = segmentation_data.generate(scenario, VALIDATION_FRAMES, 20, "test", seed)
+    metadata = segmenter_training.training_record(
+        CLASSES, args.epochs, args.seed, len(data["rgb"]), scenario.camera_noise.preset, train_s, history
+    )
+    metadata["validation"] = {
+        "frames": VALIDATION_FRAMES,
+        "seed": seed,
+        "iou": segmenter_training.class_iou(model, validation["rgb"], validation["labels"], CLASSES),
     }
     args.out.parent.mkdir(parents=True, exist_ok=True)
     segmentation_network.save(model, args.out, metadata)

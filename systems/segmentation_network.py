@@ -9,6 +9,8 @@ A linear (1x1) classifier gives per-pixel class scores, and the pixel-wise softm
 (or its argmax) the classes. Everything runs on the CPU.
 """
 
+import copy
+
 import cv2
 import numpy as np
 import torch
@@ -117,19 +119,20 @@ class RefineNetLite(nn.Module):
 
 
 def with_classes(model: RefineNetLite, num_classes: int) -> RefineNetLite:
-    """The model with its classifier widened to num_classes: the known classes keep their weights, each new
-    one starts as a copy of the background's with a lower bias (it must be learnt before it wins a pixel)."""
+    """A copy of the model with its classifier widened to num_classes: the known classes keep their weights, each
+    new one starts as a copy of the background's with a lower bias (it must be learnt before it wins a pixel)."""
     if num_classes < model.num_classes:
         raise ValueError(f"cannot narrow a {model.num_classes}-class segmenter to {num_classes} classes")
+    widened = copy.deepcopy(model)
     old = model.classifier
-    model.classifier = nn.Conv2d(old.in_channels, num_classes, 1)
+    widened.classifier = nn.Conv2d(old.in_channels, num_classes, 1)
     with torch.no_grad():
-        model.classifier.weight[: model.num_classes] = old.weight
-        model.classifier.bias[: model.num_classes] = old.bias
-        model.classifier.weight[model.num_classes :] = old.weight[0]
-        model.classifier.bias[model.num_classes :] = old.bias[0] - 1.0
-    model.num_classes = num_classes
-    return model
+        widened.classifier.weight[: model.num_classes] = old.weight
+        widened.classifier.bias[: model.num_classes] = old.bias
+        widened.classifier.weight[model.num_classes :] = old.weight[0]
+        widened.classifier.bias[model.num_classes :] = old.bias[0] - 1.0
+    widened.num_classes = num_classes
+    return widened
 
 
 def resize_to_input(rgb: np.ndarray) -> np.ndarray:

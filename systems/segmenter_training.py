@@ -90,6 +90,25 @@ def predict_labels(model: RefineNetLite, rgb: np.ndarray, batch_size: int = 16) 
     return np.concatenate(out).astype(np.uint8)
 
 
+def class_iou(model: RefineNetLite, rgb: np.ndarray, labels: np.ndarray, classes) -> dict[str, float]:
+    """{class name: IoU} of the raw network (predict_labels) on frames with their true labels."""
+    iou = intersection_over_union(predict_labels(model, rgb), labels, len(classes))
+    return dict(zip(classes, iou.tolist(), strict=True))
+
+
+def training_record(classes, epochs: int, seed: int, frames: int, sensor: str, seconds: float, history) -> dict:
+    """What is saved beside trained weights (segmentation_network.save): the classes and how they were learnt."""
+    return {
+        "classes": list(classes),
+        "epochs": epochs,
+        "seed": seed,
+        "training_frames": frames,
+        "sensor": sensor,
+        "training_s": round(seconds, 1),
+        "final_loss": history[-1],
+    }
+
+
 def intersection_over_union(predicted: np.ndarray, truth: np.ndarray, num_classes: int) -> np.ndarray:
     """IoU of each class over all pixels of all frames (NaN for a class absent from both)."""
     iou = np.full(num_classes, np.nan)
