@@ -20,11 +20,14 @@ import numpy as np
 from systems.planning.kinematics import EndEffectors, relative_pose, skew
 
 DAMPING = 1e-6  # of the Gauss-Newton and null-space solves, in the error's squared units
+OFFSET_WEIGHT = 0.3  # of a move's position error (m) against the constraints' errors (m, rad)
+MAX_STEP = 0.2  # rad: the largest joint change of one moving step (the full step overshoots near the reach's edge)
 
 
 def rotation_error(R_desired: np.ndarray, R: np.ndarray) -> np.ndarray:
-    """Small-angle rotation vectors (B x 3) of R_desired^T R for rotations R (B x 3 x 3)."""
-    R_error = np.einsum("ji,bjk->bik", R_desired, R)
+    """Small-angle rotation vectors (B x 3) of R_desired^T R for rotations R (B x 3 x 3); R_desired is one rotation
+    (3 x 3) or one per configuration (B x 3 x 3)."""
+    R_error = np.swapaxes(R_desired, -1, -2) @ R
     return 0.5 * np.column_stack(
         [R_error[:, 2, 1] - R_error[:, 1, 2], R_error[:, 0, 2] - R_error[:, 2, 0], R_error[:, 1, 0] - R_error[:, 0, 1]]
     )
@@ -43,7 +46,11 @@ class HandConstraints:
 
     def error_and_jacobian(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """e (B x E) and de/dq (B x E x 14) at configurations q (B x 14)."""
-        (X1, X2), (J1, J2) = self.end_effectors.jacobians(q)
+        return self._error_and_jacobian(*self.end_effectors.jacobians(q))
+
+    def _error_and_jacobian(self, poses, jacobians) -> tuple[np.ndarray, np.ndarray]:
+        """error_and_jacobian() from both end-effectors' poses and Jacobians (EndEffectors.jacobians())."""
+        (X1, X2), (J1, J2) = poses, jacobians
         errors, jacobians = [], []
         if self.X_E1E2 is not None:
             R1_T = np.swapaxes(X1[:, :3, :3], 1, 2)
@@ -69,12 +76,24 @@ class HandConstraints:
         """Configurations (B x 14) moved towards e = 0 by `steps` damped Gauss-Newton steps, within the limits."""
         q = np.atleast_2d(q).copy()
         for _ in range(steps):
-            error, jacobian = self.error_and_jacobian(q)
-            JT = np.swapaxes(jacobian, 1, 2)
-            damped = jacobian @ JT + DAMPING * np.eye(error.shape[1])
-            q -= (JT @ np.linalg.solve(damped, error[..., None]))[..., 0]
-            np.clip(q, self.lower, self.upper, out=q)
+            q = bounded_step(q, *self.error_and_jacobian(q), self.lower, self.upper)
         return q
+
+    def moved(self, q: np.ndarray, offsets_W: np.ndarray, steps: int = 10) -> np.ndarray:
+        """Configurations (B x 14) with the left grasp frame (and the object held) moved by offsets_W (B x 3, m, in
+        W) from q where the constraints allow it: damped Gauss-Newton steps of the constraints' error stacked with
+        the offset's (weighted OFFSET_WEIGHT: the constraints come first), each joint change at most MAX_STEP,
+        then `steps` // 2 plain projection steps."""
+        q = np.atleast_2d(q).copy()
+        target = self.end_effectors.poses(q)[0][:, :3, 3] + offsets_W
+        for _ in range(steps):
+            poses, jacobians = self.end_effectors.jacobians(q)
+            error, jacobian = self._error_and_jacobian(poses, jacobians)
+            X1, J1 = poses[0], jacobians[0]
+            error = np.concatenate([error, OFFSET_WEIGHT * (X1[:, :3, 3] - target)], axis=1)
+            jacobian = np.concatenate([jacobian, OFFSET_WEIGHT * J1[:, 3:]], axis=1)
+            q = bounded_step(q, error, jacobian, self.lower, self.upper, MAX_STEP)
+        return self.project(q, steps // 2)
 
     def tangent(self, q: np.ndarray, displacements: np.ndarray) -> np.ndarray:
         """Displacements (R x B x 14, R sets of one per configuration of q, B x 14) with their components that
@@ -85,3 +104,27 @@ class HandConstraints:
         change = np.einsum("beq,rbq->rbe", jacobian, displacements)
         correction = np.linalg.solve(damped[None], change[..., None])[..., 0]
         return displacements - np.einsum("bqe,rbe->rbq", JT, correction)
+
+
+def bounded_step(
+    q: np.ndarray, error: np.ndarray, jacobian: np.ndarray, lower, upper, max_step: float | None = None
+) -> np.ndarray:
+    """One damped Gauss-Newton step towards error = 0 (B x E, Jacobian B x E x 14), scaled to at most max_step
+    (rad) per joint if given, that keeps the joints within their limits: a joint the step would push beyond its
+    limit is held there and the step solved again without it (up to 3 times; clipped after). Clipping alone
+    stalls where the step keeps pushing a joint at its limit."""
+    free = np.ones_like(q)
+    for _ in range(4):
+        J = jacobian * free[:, None, :]
+        JT = np.swapaxes(J, 1, 2)
+        damped = J @ JT + DAMPING * np.eye(error.shape[1])
+        step = (JT @ np.linalg.solve(damped, error[..., None]))[..., 0]
+        if max_step is not None:
+            step *= np.minimum(1.0, max_step / np.maximum(np.abs(step).max(axis=1, keepdims=True), 1e-12))
+        moved = q - step
+        beyond = (moved < lower) | (moved > upper)
+        if not beyond.any():
+            break
+        free = free * ~beyond
+    return np.clip(moved, lower, upper)
+

@@ -30,6 +30,7 @@ before it is scored; the update is projected too (projection_steps), which STOMP
 do. With both set to 0, only the tangent-space noise and the cost terms keep the constraints.
 """
 
+import itertools
 import time
 from dataclasses import dataclass
 
@@ -90,6 +91,11 @@ class StompConfig:
     restart_after: int = 100  # iterations without a solution before an unconstrained plan starts again from the next
     projection_steps: int = 3  # Gauss-Newton steps projecting each update onto the hand constraints
     rollout_projection_steps: int = 2  # ... and each rollout, before it is scored
+    # m: with hand constraints, first trajectories with the held object moved this much up and sideways along the
+    # way (over or around a box in its path) are tried beside the given one.
+    detour_heights: tuple = (0.0, 0.06, 0.12, 0.18)
+    detour_sideways: tuple = (-0.12, -0.06, 0.0, 0.06, 0.12)
+    detour_ramps: tuple = (1.0, 2.0)  # the detours' profiles along the way, tried in turn (see _detour_trajectory)
 
 
 @dataclass
@@ -163,12 +169,15 @@ class Obstacles:
         Nothing beyond the cap matters to the costs (it must exceed the margin plus the largest sphere).
         """
         flat = centres.reshape(-1, 3)
-        nearest = np.full(len(flat), cap)
-        for X_BW, half in self.boxes:
-            local = flat @ X_BW[:3, :3].T + X_BW[:3, 3]
-            excess = np.abs(local) - half
-            outside = np.linalg.norm(np.maximum(excess, 0.0), axis=1)
-            nearest = np.minimum(nearest, outside + np.minimum(excess.max(axis=1), 0.0))
+        nearest = np.full(len(flat), float(cap))
+        for X_BW, half in self.boxes:  # in place: this is most of a STOMP iteration's time
+            excess = flat @ X_BW[:3, :3].T
+            excess += X_BW[:3, 3]
+            np.abs(excess, out=excess)
+            excess -= half
+            inside = np.minimum(np.maximum(np.maximum(excess[:, 0], excess[:, 1]), excess[:, 2]), 0.0)  # (max(1) is slow)
+            np.maximum(excess, 0.0, out=excess)
+            np.minimum(nearest, np.sqrt(np.einsum("ij,ij->i", excess, excess)) + inside, out=nearest)
         for field_ in self.fields:
             nearest = np.minimum(nearest, field_(flat, cap))
         return nearest.reshape(centres.shape[:-1])
@@ -281,14 +290,15 @@ class Stomp:
         if obstacles.carried is not None:
             carried = obstacles.carried
             X = poses[:, carried.slot]
-            points = np.einsum("bij,mj->bmi", X[:, :3, :3], carried.points_B) + X[:, None, :3, 3]
+            points = carried.points_B @ np.swapaxes(X[:, :3, :3], 1, 2) + X[:, None, :3, 3]
             gaps.append(obstacles.distance(points) - carried.radius)
         near = self._near_sphere_pairs(poses)
         if len(near):
             a, b = self.pair_a[near], self.pair_b[near]
             centres32 = centres.astype(np.float32)
             difference = centres32[:, a] - centres32[:, b]
-            distance = np.sqrt(np.einsum("bpi,bpi->bp", difference, difference))
+            difference *= difference
+            distance = np.sqrt(difference[..., 0] + difference[..., 1] + difference[..., 2])
             gaps.append(distance - (radius[a] + radius[b]).astype(np.float32))
         gaps = np.concatenate(gaps, axis=1, dtype=np.float64)
         shortfall = np.maximum(self.config.margin - gaps, 0.0).sum(axis=1)
@@ -297,7 +307,7 @@ class Stomp:
     def _near_sphere_pairs(self, body_poses: np.ndarray) -> np.ndarray:
         """Indices of the sphere pairs whose bodies' bounding spheres come within the margin in any configuration."""
         poses = body_poses[:, self.bound_body]
-        centres = np.einsum("bkij,kj->bki", poses[:, :, :3, :3], self.bound_centre) + poses[:, :, :3, 3]
+        centres = (poses[:, :, :3, :3] @ self.bound_centre[:, :, None])[..., 0] + poses[:, :, :3, 3]
         i, j = self.body_pairs[:, 0], self.body_pairs[:, 1]
         gap = np.linalg.norm(centres[:, i] - centres[:, j], axis=-1) - self.bound_radius[i] - self.bound_radius[j]
         close = (gap < self.config.margin).any(axis=0)
@@ -463,6 +473,9 @@ class Stomp:
             starts = self._initial_trajectories(theta, obstacles, rng)
             theta = starts.pop(0)
             feasible, clearance = self._feasible(theta, obstacles, closure, orientation)
+        if not feasible and constraints is not None and config.detour_heights:
+            theta = self._detour_trajectory(theta, obstacles, closure, orientation, constraints, payload)
+            feasible, clearance = self._feasible(theta, obstacles, closure, orientation)
         if feasible:  # the first trajectory is already a solution: nothing to optimise (0 iterations)
             elapsed = time.perf_counter() - start
             return StompResult(True, theta, 0, elapsed, float(clearance.min()), "collision-free as first drawn")
@@ -529,6 +542,36 @@ class Stomp:
             ]
         )
         return [candidates[i] for i in np.argsort(shortfall, kind="stable")]
+
+    def _detour_trajectory(self, theta, obstacles, closure, orientation, constraints, payload) -> np.ndarray:
+        """The cheapest (in STOMP's cost) of theta and detours of it: the held object moved up by each of
+        detour_heights and sideways (across its straight path) by each of detour_sideways, as far as the
+        constraints allow, along the profile min(1, ramp sin(pi s)) (s from 0 to 1) of each of detour_ramps in
+        turn until one is collision-free: a held object carried over or around what stands in its straight path."""
+        n = len(theta)
+        travel = self.end_effectors.poses(theta[[0, -1]])[0][:, :3, 3]
+        across = np.cross([0.0, 0.0, 1.0], travel[1] - travel[0])
+        across /= max(np.linalg.norm(across), 1e-9)
+        offsets = np.array(
+            [
+                height * np.array([0.0, 0.0, 1.0]) + sideways * across
+                for height, sideways in itertools.product(self.config.detour_heights, self.config.detour_sideways)
+                if height or sideways
+            ]
+        )
+        best, best_cost = theta, self._total(self._cost_terms(theta[None], obstacles, closure, orientation, payload))
+        for ramp in self.config.detour_ramps:
+            profile = np.minimum(1.0, ramp * np.sin(np.pi * np.linspace(0.0, 1.0, n)[1:-1]))
+            targets = np.einsum("ok,od->okd", np.broadcast_to(profile, (len(offsets), n - 2)), offsets)
+            interior = constraints.moved(np.tile(theta[1:-1], (len(offsets), 1)), targets.reshape(-1, 3))
+            candidates = np.repeat(theta[None], len(offsets), axis=0)
+            candidates[:, 1:-1] = interior.reshape(len(offsets), n - 2, 14)
+            costs = self._total(self._cost_terms(candidates, obstacles, closure, orientation, payload)).sum(axis=1)
+            if costs.min() < best_cost.sum():
+                best, best_cost = candidates[np.argmin(costs)], costs.min()
+            if self._feasible(best, obstacles, closure, orientation)[0]:
+                break
+        return best
 
     def _feasible(self, theta, obstacles, closure, orientation) -> tuple[bool, np.ndarray]:
         """Whether the trajectory is a solution (clear of collision at and between its keyframes, within the
