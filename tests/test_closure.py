@@ -8,7 +8,7 @@ from pydrake.common.eigen_geometry import AngleAxis
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 
 from diagrams.objects.library import resolve_object
-from diagrams.planning_scene import grasp_configuration, make_dual_arm_ik
+from diagrams.planning_scene import grasp_configuration, make_dual_arm_ik, object_surface_W
 from diagrams.scenario import replace_object
 from diagrams.station import object_pose_on_table
 from systems.planning.closure import (
@@ -21,8 +21,9 @@ from systems.planning.closure import (
     tilt_angle,
     transition_costs,
 )
+from systems.planning.hand_constraints import bounded_step
 from systems.planning.pick_motions import HELD_SPEED_M_S, HELD_TURN_SPEED_RAD_S, PickMotions, time_parameterise
-from systems.planning.stomp import Obstacles
+from systems.planning.stomp import Obstacles, interpolate_segments
 
 
 def test_threshold_cost_below_at_and_beyond_the_maximum():
@@ -219,3 +220,68 @@ def test_carry_that_turns_the_object_keeps_the_hands_upright_and_slow(lift_probl
     for X in end_effectors.poses(q):  # as played, every 10 ms (0.074 and 0.083 m/s at most when written)
         assert np.linalg.norm(np.diff(X[:, :3, 3], axis=0), axis=1).max() / 0.01 <= HELD_SPEED_M_S
     assert trajectory.end_time() >= max(0.15 / HELD_SPEED_M_S, 0.3 / HELD_TURN_SPEED_RAD_S)
+
+
+def test_a_bounded_step_holds_a_joint_at_its_limit_where_clipping_stalls():
+    """e = q0 + q1 - 1 from q = 0 with q0 at most 0.2: the plain step (0.5, 0.5) clipped leaves e = -0.3; the
+    bounded step holds q0 at its limit and moves q1 alone, reaching e = 0 at once."""
+    q = np.zeros((1, 2))
+    jacobian = np.ones((1, 1, 2))
+    lower, upper = np.zeros(2), np.array([0.2, 1.0])
+    moved = bounded_step(q, np.array([[-1.0]]), jacobian, lower, upper)
+    np.testing.assert_allclose(moved, [[0.2, 0.8]], atol=1e-5)
+    capped = bounded_step(q, np.array([[-1.0]]), jacobian, lower, upper, max_step=0.1)
+    np.testing.assert_allclose(capped, [[0.1, 0.1]], atol=1e-6)
+
+
+def test_moved_raises_the_held_object_as_far_as_the_constraints_allow(lift_problem):
+    """HandConstraints.moved: both hands 5 cm higher, the closure and their orientation kept (from the grasp; from
+    the lift a joint at its limit stops the hands 4.2 cm up)."""
+    ik, q_grasp, _, _ = lift_problem
+    stomp = ik.stomp
+    X_desired = stomp.end_effectors.relative(q_grasp[None])[0]
+    R_WE = [X[0, :3, :3] for X in stomp.end_effectors.poses(q_grasp[None])]
+    constraints = stomp.constraints(X_desired, R_WE)
+    start = constraints.project(q_grasp[None], 15)
+    moved = constraints.moved(start, np.array([[0.0, 0.0, 0.05]]))
+    assert np.abs(constraints.error_and_jacobian(moved)[0]).max() < 1e-4
+    rise = [X[0, :3, 3] - X0[0, :3, 3] for X, X0 in zip(*map(stomp.end_effectors.poses, (moved, start)), strict=True)]
+    for side in rise:
+        np.testing.assert_allclose(side, [0.0, 0.0, 0.05], atol=0.005)
+
+
+def test_a_carry_over_a_box_starts_from_a_detour_clear_of_it(scenario):
+    """The benchmark's carry on a training can: the can held 10 cm up is moved 40 cm across the table with a 16 cm
+    box midway. The projected straight line puts the can into the box; STOMP's first trajectory is the cheapest
+    detour (up and across), and the plan keeps the can clear of the box and the closure densely."""
+    box = dataclasses.replace(scenario.obstacle, present=True, xy=[-0.12, 0.0], size=[0.16, 0.03, 0.16])
+    scenario = replace_object(scenario, category="watering_can", instance="train_1", yaw=0.0)
+    scenario = dataclasses.replace(
+        scenario, obstacle=box, object=dataclasses.replace(scenario.object, xy=[-0.12, 0.20])
+    )
+    model = resolve_object(scenario.object)
+    X_WO = object_pose_on_table(scenario, model)
+    q_grasp = grasp_configuration(scenario, make_dual_arm_ik(scenario, obstacle=model, X_WO=X_WO))
+    motions = PickMotions(make_dual_arm_ik(scenario))
+    stomp = motions.ik.stomp
+    q_start = motions.held_path(q_grasp, RigidTransform([0, 0, 0.10]), 1.0)[0][-1]
+    points = object_surface_W(model, RigidTransform([0, 0, 0.10]) @ X_WO, 500)[0]
+    scene = motions.ik.table_obstacles.carrying(motions.carried(q_start, points))
+    X_desired = stomp.end_effectors.relative(q_start[None])[0]
+    q_goal = stomp.project(motions.held_path(q_start, RigidTransform([0, -0.40, 0]), 1.0)[0][-1], X_desired, steps=15)[
+        0
+    ]
+    straight = np.linspace(q_start, q_goal, stomp.config.keyframes)
+    closure = (ClosureConstraint(), X_desired)
+    orientation = (OrientationConstraint(), [X[0, :3, :3] for X in stomp.end_effectors.poses(q_start[None])])
+    constraints = stomp.constraints(X_desired, orientation[1])
+    straight[1:-1] = constraints.project(straight[1:-1], 3)
+    assert stomp.clearance(straight, scene).min() < -0.01  # the can goes through the box
+    detour = stomp._detour_trajectory(straight, scene, closure, orientation, constraints, motions.payload(q_start))
+    assert stomp.clearance(detour, scene).min() > stomp.clearance(straight, scene).min() + 0.01
+    result = stomp.plan(q_start, q_goal, scene, ClosureConstraint(), OrientationConstraint())
+    assert result.success, result.message
+    states = interpolate_segments(result.trajectory, 20)
+    assert stomp.clearance(states, scene).min() > 0.0
+    within, t_dev, o_dev = stomp.closure_within_limits(result.trajectory, closure, steps=20)
+    assert within, (t_dev, o_dev)

@@ -110,21 +110,23 @@ def bounded_step(
     q: np.ndarray, error: np.ndarray, jacobian: np.ndarray, lower, upper, max_step: float | None = None
 ) -> np.ndarray:
     """One damped Gauss-Newton step towards error = 0 (B x E, Jacobian B x E x 14), scaled to at most max_step
-    (rad) per joint if given, that keeps the joints within their limits: a joint the step would push beyond its
-    limit is held there and the step solved again without it (up to 3 times; clipped after). Clipping alone
-    stalls where the step keeps pushing a joint at its limit."""
+    (rad) per joint if given, within the joints' limits: a joint the step would push beyond its limit is pinned
+    at the limit and the rest of the error solved by the other joints (up to 3 times; clipped after). Clipping
+    alone stalls where every step pushes a joint beyond its limit again."""
+    pinned = np.zeros_like(q)  # the pinned joints' moves to their limits
     free = np.ones_like(q)
     for _ in range(4):
+        residual = error + np.einsum("beq,bq->be", jacobian, pinned)
         J = jacobian * free[:, None, :]
         JT = np.swapaxes(J, 1, 2)
         damped = J @ JT + DAMPING * np.eye(error.shape[1])
-        step = (JT @ np.linalg.solve(damped, error[..., None]))[..., 0]
+        step = (JT @ np.linalg.solve(damped, residual[..., None]))[..., 0]
         if max_step is not None:
             step *= np.minimum(1.0, max_step / np.maximum(np.abs(step).max(axis=1, keepdims=True), 1e-12))
-        moved = q - step
+        moved = q + pinned - step
         beyond = (moved < lower) | (moved > upper)
         if not beyond.any():
             break
+        pinned = np.where(beyond, np.clip(moved, lower, upper) - q, pinned)
         free = free * ~beyond
     return np.clip(moved, lower, upper)
-

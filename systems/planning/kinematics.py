@@ -265,12 +265,8 @@ class SphereModel:
 
     def centres_W(self, body_poses: np.ndarray) -> np.ndarray:
         """Sphere centres in W (B x S x 3) from the batch of body poses."""
-        centres = np.empty((len(body_poses), len(self.radius), 3))
-        for body in np.unique(self.body):
-            mine = np.nonzero(self.body == body)[0]
-            X = body_poses[:, body]
-            centres[:, mine] = np.swapaxes(X[:, :3, :3] @ self.centre_B[mine].T, 1, 2) + X[:, None, :3, 3]
-        return centres
+        X = body_poses[:, self.body]  # B x S x 4 x 4: each sphere's body
+        return (X[..., :3, :3] @ self.centre_B[..., None])[..., 0] + X[..., :3, 3]
 
 
 BOX_SPHERE_SPACING = 0.04  # m: boxes thinner than this are covered by fewer, larger spheres

@@ -175,7 +175,8 @@ class Obstacles:
             excess += X_BW[:3, 3]
             np.abs(excess, out=excess)
             excess -= half
-            inside = np.minimum(np.maximum(np.maximum(excess[:, 0], excess[:, 1]), excess[:, 2]), 0.0)  # (max(1) is slow)
+            largest = np.maximum(np.maximum(excess[:, 0], excess[:, 1]), excess[:, 2])  # (.max(axis=1) is slow)
+            inside = np.minimum(largest, 0.0)
             np.maximum(excess, 0.0, out=excess)
             np.minimum(nearest, np.sqrt(np.einsum("ij,ij->i", excess, excess)) + inside, out=nearest)
         for field_ in self.fields:
@@ -526,7 +527,8 @@ class Stomp:
     def _initial_trajectories(self, straight: np.ndarray, obstacles: Obstacles, rng) -> list[np.ndarray]:
         """First trajectories (each N x 14), least in collision first: the straight joint-space line and paths
         through via_candidates random configurations around its middle (joint-space std via_std). STOMP is local:
-        from under the table the straight line can lead it into a minimum it does not leave."""
+        from under the table the straight line can lead it into a minimum it does not leave. Where one is clear at
+        its keyframes, those drawn after it come last, unranked (restarts are rare)."""
         config = self.config
         start, goal = straight[0], straight[-1]
         middle = 0.5 * (start + goal)
@@ -534,14 +536,15 @@ class Stomp:
             middle + config.via_std * rng.standard_normal((config.via_candidates, 14)), self.lower, self.upper
         )
         candidates = np.concatenate([straight[None], _through(start, vias, goal, len(straight))])
-        # Scored in small groups: a sphere pair counts where it comes near in any path of the group.
-        shortfall = np.concatenate(
-            [
-                self._clearances(group, obstacles)[1].sum(axis=1)
-                for group in np.array_split(candidates, max(1, len(candidates) // 4))
-            ]
-        )
-        return [candidates[i] for i in np.argsort(shortfall, kind="stable")]
+        # Scored in small groups (a sphere pair counts where it comes near in any path of the group), in the order
+        # drawn until one is clear at its keyframes: none after it could rank before it. The rest follow unscored.
+        shortfall = []
+        for group in np.array_split(candidates, max(1, len(candidates) // 4)):
+            shortfall.extend(self._clearances(group, obstacles)[1].sum(axis=1))
+            if min(shortfall) == 0.0:
+                break
+        ranked = [candidates[i] for i in np.argsort(shortfall, kind="stable")]
+        return ranked + list(candidates[len(shortfall) :])
 
     def _detour_trajectory(self, theta, obstacles, closure, orientation, constraints, payload) -> np.ndarray:
         """The cheapest (in STOMP's cost) of theta and detours of it: the held object moved up by each of
