@@ -268,9 +268,8 @@ def test_a_carry_over_a_box_starts_from_a_detour_clear_of_it(scenario):
     points = object_surface_W(model, RigidTransform([0, 0, 0.10]) @ X_WO, 500)[0]
     scene = motions.ik.table_obstacles.carrying(motions.carried(q_start, points))
     X_desired = stomp.end_effectors.relative(q_start[None])[0]
-    q_goal = stomp.project(motions.held_path(q_start, RigidTransform([0, -0.40, 0]), 1.0)[0][-1], X_desired, steps=15)[
-        0
-    ]
+    q_across = motions.held_path(q_start, RigidTransform([0, -0.40, 0]), 1.0)[0][-1]
+    q_goal = stomp.project(q_across, X_desired, steps=15)[0]
     straight = np.linspace(q_start, q_goal, stomp.config.keyframes)
     closure = (ClosureConstraint(), X_desired)
     orientation = (OrientationConstraint(), [X[0, :3, :3] for X in stomp.end_effectors.poses(q_start[None])])

@@ -170,7 +170,7 @@ class Obstacles:
         """
         flat = centres.reshape(-1, 3)
         nearest = np.full(len(flat), float(cap))
-        for X_BW, half in self.boxes:  # in place: this is most of a STOMP iteration's time
+        for X_BW, half in self.boxes:  # in place: a large share of a STOMP iteration's time
             excess = flat @ X_BW[:3, :3].T
             excess += X_BW[:3, 3]
             np.abs(excess, out=excess)
@@ -527,8 +527,7 @@ class Stomp:
     def _initial_trajectories(self, straight: np.ndarray, obstacles: Obstacles, rng) -> list[np.ndarray]:
         """First trajectories (each N x 14), least in collision first: the straight joint-space line and paths
         through via_candidates random configurations around its middle (joint-space std via_std). STOMP is local:
-        from under the table the straight line can lead it into a minimum it does not leave. Where one is clear at
-        its keyframes, those drawn after it come last, unranked (restarts are rare)."""
+        from under the table the straight line can lead it into a minimum it does not leave."""
         config = self.config
         start, goal = straight[0], straight[-1]
         middle = 0.5 * (start + goal)
@@ -536,15 +535,14 @@ class Stomp:
             middle + config.via_std * rng.standard_normal((config.via_candidates, 14)), self.lower, self.upper
         )
         candidates = np.concatenate([straight[None], _through(start, vias, goal, len(straight))])
-        # Scored in small groups (a sphere pair counts where it comes near in any path of the group), in the order
-        # drawn until one is clear at its keyframes: none after it could rank before it. The rest follow unscored.
-        shortfall = []
-        for group in np.array_split(candidates, max(1, len(candidates) // 4)):
-            shortfall.extend(self._clearances(group, obstacles)[1].sum(axis=1))
-            if min(shortfall) == 0.0:
-                break
-        ranked = [candidates[i] for i in np.argsort(shortfall, kind="stable")]
-        return ranked + list(candidates[len(shortfall) :])
+        # Scored in small groups: a sphere pair counts where it comes near in any path of the group.
+        shortfall = np.concatenate(
+            [
+                self._clearances(group, obstacles)[1].sum(axis=1)
+                for group in np.array_split(candidates, max(1, len(candidates) // 4))
+            ]
+        )
+        return [candidates[i] for i in np.argsort(shortfall, kind="stable")]
 
     def _detour_trajectory(self, theta, obstacles, closure, orientation, constraints, payload) -> np.ndarray:
         """The cheapest (in STOMP's cost) of theta and detours of it: the held object moved up by each of
@@ -562,15 +560,19 @@ class Stomp:
                 if height or sideways
             ]
         )
-        best, best_cost = theta, self._total(self._cost_terms(theta[None], obstacles, closure, orientation, payload))
+
+        def cost(trajectories):  # STOMP's total cost of each trajectory (K x N x 14)
+            return self._total(self._cost_terms(trajectories, obstacles, closure, orientation, payload)).sum(axis=1)
+
+        best, best_cost = theta, cost(theta[None])[0]
         for ramp in self.config.detour_ramps:
             profile = np.minimum(1.0, ramp * np.sin(np.pi * np.linspace(0.0, 1.0, n)[1:-1]))
-            targets = np.einsum("ok,od->okd", np.broadcast_to(profile, (len(offsets), n - 2)), offsets)
+            targets = profile[None, :, None] * offsets[:, None, :]  # detours x interior keyframes x 3
             interior = constraints.moved(np.tile(theta[1:-1], (len(offsets), 1)), targets.reshape(-1, 3))
             candidates = np.repeat(theta[None], len(offsets), axis=0)
             candidates[:, 1:-1] = interior.reshape(len(offsets), n - 2, 14)
-            costs = self._total(self._cost_terms(candidates, obstacles, closure, orientation, payload)).sum(axis=1)
-            if costs.min() < best_cost.sum():
+            costs = cost(candidates)
+            if costs.min() < best_cost:
                 best, best_cost = candidates[np.argmin(costs)], costs.min()
             if self._feasible(best, obstacles, closure, orientation)[0]:
                 break
