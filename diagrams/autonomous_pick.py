@@ -21,24 +21,24 @@ from pydrake.lcm import DrakeLcm, DrakeLcmInterface
 from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.systems.primitives import ConstantValueSource
 
+from diagrams.generation.objects.library import resolve_object
 from diagrams.hardware_station import MakeHardwareStation
-from diagrams.objects.library import resolve_object
 from diagrams.perception import AddPerception, MakeObjectTracker
 from diagrams.pick_simulation import PickOutcome, PlaceJudge, pose_error, simulate_pick, station_plant
 from diagrams.planning_scene import make_dual_arm_ik, object_surface_W, true_grasp_poses
 from diagrams.robot_driver import MakeRobotDriver
 from diagrams.scenario import Scenario
 from diagrams.station import HAND_INSTANCES, MakeStation, object_pose_on_table, place_target
-from systems.camera_latch import CameraLatch
-from systems.hand_command import HandCommandSource
+from systems.perception.camera_latch import CameraLatch
+from systems.perception.pose_estimator import to_point_cloud
+from systems.perception.pose_noise import PoseYawOffset, draw_yaw_offset
+from systems.perception.robot_spheres import RobotSpheres
+from systems.perception.shape_registrar import GraspPoses, ShapeRegistrar
 from systems.pick_sequencer import PickSequencer, PickStatus, lift_task, place_task
-from systems.planner import StompPlanner
 from systems.planning.pick_motions import PickMotions, PlanningError
-from systems.pose_estimator import to_point_cloud
-from systems.pose_noise import PoseYawOffset, draw_yaw_offset
-from systems.robot_spheres import RobotSpheres
-from systems.shape_registrar import GraspPoses, ShapeRegistrar
-from systems.trajectory_source import JointTrajectorySource
+from systems.planning.stomp_planner import StompPlanner
+from systems.robot_io.hand_command import HandCommandSource
+from systems.robot_io.trajectory_source import JointTrajectorySource
 
 # Perceive once the object has settled on the table, s.
 PERCEIVE_AT_S = 0.5

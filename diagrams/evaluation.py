@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 from scipy.stats import binomtest
 
-from diagrams.objects import catalog
+from diagrams.generation.objects import catalog
 from diagrams.scenario import Scenario, replace_object
 
 PAPER_YAWS = (0.25, 0.0, -0.25)  # rad
@@ -100,8 +100,8 @@ def run_trial_in_worker(trial: Trial) -> dict:
 def run_trial(trial: Trial) -> dict:
     """Runs one autonomous pick in simulation; a JSON-ready record of what happened."""
     from diagrams.autonomous_pick import run_pick  # (heavy: torch, the shape spaces)
+    from systems.perception.pose_noise import draw_yaw_offset
     from systems.planning.pick_motions import PlanningError
-    from systems.pose_noise import draw_yaw_offset
 
     scenario = trial.scenario
     record = {

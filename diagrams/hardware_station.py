@@ -15,7 +15,7 @@ bus is scenario.lcm.
 
 Received messages are decoded with checks (malformed ones are counted and dropped); commands
 leave only after a status has arrived, within the position and velocity limits, and hold when
-the status stops (systems/lcm_safety.py). Call wait_for_robot() before starting a simulator.
+the status stops (systems/robot_io/lcm_safety.py). Call wait_for_robot() before starting a simulator.
 """
 
 import contextlib
@@ -34,12 +34,18 @@ from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.systems.lcm import LcmInterfaceSystem, LcmPublisherSystem, LcmSubscriberSystem
 from pydrake.systems.primitives import ConstantValueSource, Demultiplexer, Multiplexer
 
-from diagrams.centauro_description import joint_names
+from diagrams.generation.centauro_description import joint_names
 from diagrams.scenario import Scenario
 from diagrams.station import HAND_INSTANCES, AddCentauro
-from systems.command_stream import CommandStream, CommandStreamSender
-from systems.lcm_messages import MalformedMessage, RawMessage, decode_arm_status, decode_hand_status, decode_images
-from systems.lcm_safety import CommandGuard, ImageMonitor, MessageMonitor
+from systems.robot_io.command_stream import CommandStream, CommandStreamSender
+from systems.robot_io.lcm_messages import (
+    MalformedMessage,
+    RawMessage,
+    decode_arm_status,
+    decode_hand_status,
+    decode_images,
+)
+from systems.robot_io.lcm_safety import CommandGuard, ImageMonitor, MessageMonitor
 
 # The first command leaves this many control periods after the start, once the guards have seen a status.
 COMMAND_OFFSET_PERIODS = 3

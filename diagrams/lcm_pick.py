@@ -31,8 +31,8 @@ from diagrams.hardware_station import command_stream, wait_for_robot
 from diagrams.paths import REPO_ROOT
 from diagrams.pick_simulation import SAMPLE_S, PickOutcome
 from diagrams.scenario import Scenario
-from systems.lcm_safety import CommandGuard, MessageMonitor
 from systems.pick_sequencer import PickStatus
+from systems.robot_io.lcm_safety import CommandGuard, MessageMonitor
 
 # The bus inside the private namespace: loopback multicast, never routed (ttl=0).
 NAMESPACE_LCM_URL = "udpm://239.255.76.67:7667?ttl=0&recv_buf_size=4194304"

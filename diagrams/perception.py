@@ -4,12 +4,12 @@ from pathlib import Path
 
 from pydrake.systems.framework import DiagramBuilder, OutputPort
 
-from diagrams.objects import catalog
+from diagrams.generation.objects import catalog
 from diagrams.scenario import Scenario
 from systems import categories
-from systems.object_tracker import ObjectTracker
-from systems.pose_estimator import CategoryPrior, PoseEstimator
-from systems.segmenter import Segmenter
+from systems.perception.object_tracker import ObjectTracker
+from systems.perception.pose_estimator import CategoryPrior, PoseEstimator
+from systems.perception.segmenter import Segmenter
 
 # The training instance whose shape is each category's pose template.
 TEMPLATE_INSTANCE = "train_0"

@@ -10,8 +10,8 @@ from pydrake.math import RigidTransform
 from pydrake.multibody.plant import AddMultibodyPlantSceneGraph
 from pydrake.systems.framework import DiagramBuilder
 
-from diagrams.centauro_description import joint_names
-from diagrams.objects.library import ObjectModel, resolve_object
+from diagrams.generation.centauro_description import joint_names
+from diagrams.generation.objects.library import ObjectModel, resolve_object
 from diagrams.paths import SDF_DIR
 from diagrams.scenario import Scenario
 from diagrams.station import AddBoxObstacle, AddCentauro, AddTable, make_parser, object_pose_on_table

@@ -21,8 +21,8 @@ from pydrake.systems.sensors import ImageToLcmImageArrayT, PixelType
 from diagrams.hardware_station import RobotModel
 from diagrams.scenario import Scenario
 from diagrams.station import HAND_INSTANCES, MakeStation
-from systems.lcm_messages import RawMessage, decode_arm_command, decode_hand_command
-from systems.lcm_safety import MessageMonitor
+from systems.robot_io.lcm_messages import RawMessage, decode_arm_command, decode_hand_command
+from systems.robot_io.lcm_safety import MessageMonitor
 
 
 def MakeRobotDriver(scenario: Scenario, lcm: DrakeLcmInterface, meshcat: Meshcat | None = None) -> Diagram:

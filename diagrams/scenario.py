@@ -16,7 +16,7 @@ from pydrake.systems.analysis import SimulatorConfig
 from pydrake.systems.sensors import CameraConfig
 from pydrake.visualization import VisualizationConfig
 
-from systems.rgbd_noise import noise_parameters
+from systems.perception.rgbd_noise import noise_parameters
 
 SCENARIO_DIR = Path(__file__).resolve().parent
 DEFAULT_SCENARIO = SCENARIO_DIR / "default.yaml"
@@ -132,7 +132,7 @@ class PlanningConfig:
 
 @dataclass
 class CameraNoiseConfig:
-    """The RGB-D sensor model between the camera and everything that reads it (systems/rgbd_noise.py)."""
+    """The RGB-D sensor model between the camera and everything that reads it (systems/perception/rgbd_noise.py)."""
 
     # "perfect" (the renderer's images as they are), "kinect_v2" or "realsense_d435".
     preset: str = "perfect"

@@ -39,13 +39,13 @@ from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.systems.primitives import Demultiplexer, MatrixGain, PassThrough, StateInterpolatorWithDiscreteDerivative
 from pydrake.systems.sensors import RgbdSensor
 
-from diagrams.centauro_description import joint_names
-from diagrams.objects import catalog
-from diagrams.objects.library import ObjectModel, resolve_object
+from diagrams.generation.centauro_description import joint_names
+from diagrams.generation.objects import catalog
+from diagrams.generation.objects.library import ObjectModel, resolve_object
 from diagrams.paths import PACKAGE_XML
 from diagrams.scenario import Scenario
-from systems.gravity_compensation import GravityCompensation
-from systems.rgbd_noise import RgbdNoise, sensor_model
+from systems.perception.rgbd_noise import RgbdNoise, sensor_model
+from systems.robot_io.gravity_compensation import GravityCompensation
 
 ARM_INSTANCE = "centauro"
 HAND_INSTANCES = {"left": "left_hand", "right": "right_hand"}

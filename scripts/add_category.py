@@ -38,11 +38,12 @@ from build_shape_space import draw_space, folder_instances, frame_warnings
 from pydrake.math import RigidTransform
 from scenario_options import add_sensor_option, with_sensor
 
-from diagrams import segmentation_data
-from diagrams.objects.instance import export_obj, object_sdf
-from diagrams.objects.library import recentred
+from diagrams.generation import segmentation_data
+from diagrams.generation.objects.instance import export_obj, object_sdf
+from diagrams.generation.objects.library import recentred
 from diagrams.scenario import load_scenario
-from systems import categories, segmentation_network, segmenter_training
+from systems import categories
+from systems.perception import segmentation_network, segmenter_training
 from systems.shape_space.densify import surface_mesh
 from systems.shape_space.space import ALIGNMENTS, build_shape_space
 

@@ -1,6 +1,6 @@
 """How regularly the arm command stream sends on this machine, with nothing else of the pick running.
 
-The pick's arm commands go out from a process of their own (systems/command_stream.py: real-time
+The pick's arm commands go out from a process of their own (systems/robot_io/command_stream.py: real-time
 priority where the OS allows, no garbage collector). Its largest gap between two sends during a pick
 is bounded below by how late the OS wakes such a process at all. This runs the same CommandStream on an
 in-memory LCM bus (memq://, no network), idle and then beside busy processes (one per core, each
@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 from json_report import write_json
 
-from systems.command_stream import CommandStream
+from systems.robot_io.command_stream import CommandStream
 
 PERIOD_S = 0.005  # the scenario's hardware.control_period_s
 JOINTS = 14

@@ -24,12 +24,12 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.sensors import ImageDepth32F, ImageRgba8U
 from scenario_options import add_sensor_option
 
+from diagrams.generation.synthetic_scenes import CLASSES, SyntheticScene
 from diagrams.perception import MakePoseEstimator
 from diagrams.scenario import load_scenario
-from diagrams.synthetic_scenes import CLASSES, SyntheticScene
-from systems.rgbd_noise import noisy_color, noisy_depth, sensor_model
-from systems.segmenter import DEFAULT_WEIGHTS, Segmenter
-from systems.segmenter_training import intersection_over_union
+from systems.perception.rgbd_noise import noisy_color, noisy_depth, sensor_model
+from systems.perception.segmenter import DEFAULT_WEIGHTS, Segmenter
+from systems.perception.segmenter_training import intersection_over_union
 
 OBJECT_REGION = ((0.6, 0.85), (-0.2, 0.2))  # m, in W: where the robot picks from
 MIN_OBJECT_PIXELS = 1500

@@ -39,7 +39,7 @@ from pydrake.planning import KinematicTrajectoryOptimization
 from pydrake.solvers import SnoptSolver, Solve, SolverOptions
 from pydrake.trajectories import BsplineTrajectory
 
-from diagrams.objects.library import resolve_object
+from diagrams.generation.objects.library import resolve_object
 from diagrams.planning_scene import (
     MakeRobotScene,
     grasp_configuration,

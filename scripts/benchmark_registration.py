@@ -32,14 +32,14 @@ from json_report import write_json
 from scenario_options import add_sensor_option
 from scipy.spatial import cKDTree
 
-from diagrams.objects import catalog
-from diagrams.objects.library import generated_instance_directory, load_info
+from diagrams.generation.objects import catalog
+from diagrams.generation.objects.library import generated_instance_directory, load_info
+from diagrams.generation.synthetic_scenes import SyntheticScene
 from diagrams.perception import MakePoseEstimator
 from diagrams.scenario import load_scenario
-from diagrams.synthetic_scenes import SyntheticScene
-from systems.rgbd_noise import RgbdNoiseParameters, noisy_depth, sensor_model
-from systems.segmenter import Segmentation
-from systems.shape_registrar import shape_space_file
+from systems.perception.rgbd_noise import RgbdNoiseParameters, noisy_depth, sensor_model
+from systems.perception.segmenter import Segmentation
+from systems.perception.shape_registrar import shape_space_file
 from systems.shape_space.cpd import deformable_cpd, thinned
 from systems.shape_space.registration import Registrar
 from systems.shape_space.space import ShapeSpace, choose_canonical

@@ -43,8 +43,8 @@ import trimesh
 import yaml
 from pydrake.math import RigidTransform, RollPitchYaw
 
-from diagrams.objects import catalog
-from diagrams.objects.library import generated_instance_directory, load_info
+from diagrams.generation.objects import catalog
+from diagrams.generation.objects.library import generated_instance_directory, load_info
 from diagrams.paths import MODELS_DIR
 from systems.shape_space.densify import densified
 from systems.shape_space.space import ALIGNMENTS, POSE_NAMES, build_shape_space

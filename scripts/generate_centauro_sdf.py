@@ -1,9 +1,9 @@
-"""Writes sdf/centauro/centauro.sdf from the kinematics in diagrams/centauro_description.py."""
+"""Writes sdf/centauro/centauro.sdf from the kinematics in diagrams/generation/centauro_description.py."""
 
 import argparse
 from pathlib import Path
 
-from diagrams.centauro_description import centauro_sdf
+from diagrams.generation.centauro_description import centauro_sdf
 from diagrams.paths import SDF_DIR
 
 

@@ -9,7 +9,7 @@ import argparse
 import time
 from pathlib import Path
 
-from diagrams.objects import catalog
+from diagrams.generation.objects import catalog
 
 
 def main():

@@ -16,7 +16,7 @@ from pathlib import Path
 from campaign import fan_out
 from scenario_options import add_sensor_option, with_sensor
 
-from diagrams import segmentation_data
+from diagrams.generation import segmentation_data
 from diagrams.scenario import load_scenario
 
 

@@ -23,8 +23,8 @@ import yaml
 from build_shape_space import pose_entries
 from pydrake.common.yaml import yaml_dump_typed
 
-from diagrams.objects import geometry
-from diagrams.objects.instance import ObjectInstance, Part, export_obj, make_grasp
+from diagrams.generation.objects import geometry
+from diagrams.generation.objects.instance import ObjectInstance, Part, export_obj, make_grasp
 
 CATEGORY = "pot"
 # The hands come down onto the handles tilted this far outwards from vertical (rad). 0.6 (the can's top handle's)

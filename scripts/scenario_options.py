@@ -5,7 +5,7 @@ import dataclasses
 from pathlib import Path
 
 from diagrams.scenario import DEFAULT_SCENARIO, Scenario, load_scenario, replace_object
-from systems.rgbd_noise import PRESETS
+from systems.perception.rgbd_noise import PRESETS
 
 
 def add_scenario_options(parser: argparse.ArgumentParser) -> None:

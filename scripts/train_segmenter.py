@@ -13,11 +13,11 @@ from pathlib import Path
 import torch
 from scenario_options import add_sensor_option, with_sensor
 
-from diagrams import segmentation_data
+from diagrams.generation import segmentation_data
+from diagrams.generation.synthetic_scenes import CLASSES
 from diagrams.paths import MODELS_DIR
 from diagrams.scenario import load_scenario
-from diagrams.synthetic_scenes import CLASSES
-from systems import segmentation_network, segmenter_training
+from systems.perception import segmentation_network, segmenter_training
 
 VALIDATION_FRAMES = 60
 

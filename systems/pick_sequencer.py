@@ -24,12 +24,12 @@ from pydrake.common.value import AbstractValue
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 from pydrake.systems.framework import BasicVector, EventStatus, LeafSystem
 
-from systems.hand_command import HandCommand
-from systems.planner import PlanRequest, PlanResult
+from systems.perception.pose_estimator import ObjectEstimate
+from systems.perception.segmenter import Segmentation
+from systems.perception.shape_registrar import GraspPoses
 from systems.planning.pick_motions import CLOSED_WIDTH, OPEN_WIDTH
-from systems.pose_estimator import ObjectEstimate
-from systems.segmenter import Segmentation
-from systems.shape_registrar import GraspPoses
+from systems.planning.stomp_planner import PlanRequest, PlanResult
+from systems.robot_io.hand_command import HandCommand
 
 STAGES = ("camera", "segmentation", "pose", "registration", "planning")
 CLOSE_S = 1.0  # s: the hands close over this long

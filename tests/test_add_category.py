@@ -13,12 +13,13 @@ import torch
 import trimesh
 from pydrake.math import RigidTransform, RotationMatrix
 
-from diagrams.objects import catalog
-from diagrams.objects.library import load_info, recentred
+from diagrams.generation.objects import catalog
+from diagrams.generation.objects.library import load_info, recentred
 from diagrams.perception import category_priors
-from systems import categories, segmentation_network
-from systems.pose_estimator import folded_yaw
-from systems.shape_registrar import ShapeRegistrar
+from systems import categories
+from systems.perception import segmentation_network
+from systems.perception.pose_estimator import folded_yaw
+from systems.perception.shape_registrar import ShapeRegistrar
 from systems.shape_space.registration import Registrar
 from systems.shape_space.space import ShapeSpace
 

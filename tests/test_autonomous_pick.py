@@ -17,12 +17,12 @@ from pydrake.trajectories import PiecewisePolynomial
 from diagrams.autonomous_pick import PERCEIVE_AT_S, MakePickDiagram, draw_perception, run_pick
 from diagrams.paths import REPO_ROOT
 from diagrams.scenario import PlaceConfig, load_scenario, place_over_box_scenario, replace_object
+from systems.perception.pose_estimator import ObjectEstimate
+from systems.perception.segmenter import Segmentation
+from systems.perception.shape_registrar import GraspPoses, ShapeRegistrar
 from systems.pick_sequencer import PickSequencer, PickStatus, lift_task
-from systems.planner import PlanResult
 from systems.planning.pick_motions import CLOSED_WIDTH
-from systems.pose_estimator import ObjectEstimate
-from systems.segmenter import Segmentation
-from systems.shape_registrar import GraspPoses, ShapeRegistrar
+from systems.planning.stomp_planner import PlanResult
 from systems.shape_space.space import POSE_NAMES
 
 Q0 = np.linspace(-0.5, 0.5, 14)
@@ -331,7 +331,7 @@ def test_the_looks_at_the_held_object_have_their_own_latch_and_tracker(scenario)
 
 def test_robot_spheres_cover_the_arms_where_they_stand(scenario):
     from diagrams.planning_scene import make_dual_arm_ik
-    from systems.robot_spheres import RobotSpheres
+    from systems.perception.robot_spheres import RobotSpheres
 
     ik = make_dual_arm_ik(scenario)
     spheres = RobotSpheres(ik.stomp)

@@ -11,8 +11,8 @@ import trimesh
 import yaml
 from pydrake.math import RigidTransform, RotationMatrix
 
-from diagrams.objects import catalog
-from diagrams.objects.library import load_info
+from diagrams.generation.objects import catalog
+from diagrams.generation.objects.library import load_info
 from systems.shape_space.registration import Registrar
 from systems.shape_space.space import ShapeSpace
 

@@ -7,8 +7,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from diagrams import segmentation_data
 from diagrams.evaluation import make_trials, wilson_interval
+from diagrams.generation import segmentation_data
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
 import campaign  # noqa: E402

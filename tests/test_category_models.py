@@ -7,7 +7,7 @@ import trimesh
 from pydrake.math import RigidTransform, RotationMatrix
 from scipy.spatial import cKDTree
 
-from diagrams.objects.library import generated_instance_directory, load_info
+from diagrams.generation.objects.library import generated_instance_directory, load_info
 from systems.shape_space.cpd import deformable_cpd, thinned
 from systems.shape_space.densify import densified
 from systems.shape_space.propagation import propagated_poses

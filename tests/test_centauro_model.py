@@ -5,11 +5,11 @@ import pytest
 from pydrake.math import RigidTransform, RollPitchYaw
 from pydrake.multibody.plant import MultibodyPlant
 
-from diagrams.centauro_description import centauro_sdf
+from diagrams.generation.centauro_description import centauro_sdf
 from diagrams.paths import SDF_DIR
 from diagrams.station import make_parser
 
-# From ../shared/SPEC.md, typed here independently of diagrams/centauro_description.py.
+# From ../shared/SPEC.md, typed here independently of diagrams/generation/centauro_description.py.
 LEFT_LIMITS = [
     (-3.312, 1.615),
     (0.02, 3.431),

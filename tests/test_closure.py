@@ -7,7 +7,7 @@ import pytest
 from pydrake.common.eigen_geometry import AngleAxis
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 
-from diagrams.objects.library import resolve_object
+from diagrams.generation.objects.library import resolve_object
 from diagrams.planning_scene import grasp_configuration, make_dual_arm_ik, object_surface_W
 from diagrams.scenario import replace_object
 from diagrams.station import object_pose_on_table

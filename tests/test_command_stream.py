@@ -10,7 +10,7 @@ import lcm
 import numpy as np
 from drake import lcmt_iiwa_command
 
-from systems.command_stream import CommandStream, CommandStreamSender
+from systems.robot_io.command_stream import CommandStream, CommandStreamSender
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
 import benchmark_command_stream  # noqa: E402
@@ -79,7 +79,7 @@ def test_stream_benchmark_reports_idle_and_loaded_runs(tmp_path):
 def test_the_streamer_never_waits_for_a_writer_caught_mid_write():
     """A writer preempted between its two version increments (odd version) must not hold the real-time reader:
     it sends the last consistent command again."""
-    from systems.command_stream import _Q, _VERSION, _read
+    from systems.robot_io.command_stream import _Q, _VERSION, _read
 
     shared = np.zeros(_Q + 14)
     shared[_VERSION], shared[_Q:] = 2.0, 1.0

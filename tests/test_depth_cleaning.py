@@ -6,11 +6,11 @@ import trimesh
 from pydrake.common.value import AbstractValue
 from pydrake.math import RigidTransform, RotationMatrix
 
-from diagrams.objects import catalog
-from diagrams.objects.library import load_info
-from systems.depth_cleaning import dense_inliers, flying_pixels
-from systems.pose_estimator import ObjectEstimate
-from systems.shape_registrar import ShapeRegistrar, shape_space_file
+from diagrams.generation.objects import catalog
+from diagrams.generation.objects.library import load_info
+from systems.perception.depth_cleaning import dense_inliers, flying_pixels
+from systems.perception.pose_estimator import ObjectEstimate
+from systems.perception.shape_registrar import ShapeRegistrar, shape_space_file
 from systems.shape_space.registration import Registrar, visible_from
 from systems.shape_space.space import ShapeSpace
 

@@ -13,8 +13,8 @@ from pydrake.math import RigidTransform, RollPitchYaw
 
 from diagrams.autonomous_pick import MakePickDiagram
 from diagrams.evaluation import COMPONENTS, Trial, file_objects, generated_objects, make_trials, summarize
-from systems.pose_estimator import ObjectEstimate
-from systems.pose_noise import PoseYawOffset, draw_yaw_offset
+from systems.perception.pose_estimator import ObjectEstimate
+from systems.perception.pose_noise import PoseYawOffset, draw_yaw_offset
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
 import evaluate  # noqa: E402

@@ -23,8 +23,8 @@ from diagrams.paths import REPO_ROOT
 from diagrams.robot_driver import MakeRobotDriver
 from diagrams.scenario import load_scenario, replace_object
 from diagrams.station import MakeStation
-from systems.lcm_messages import MalformedMessage, RawMessage, decode_arm_status, decode_images
-from systems.lcm_safety import CommandGuard, LinkHealth
+from systems.robot_io.lcm_messages import MalformedMessage, RawMessage, decode_arm_status, decode_images
+from systems.robot_io.lcm_safety import CommandGuard, LinkHealth
 
 
 def port_names(diagram):

@@ -5,7 +5,7 @@ import pytest
 import trimesh
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 
-from systems.object_tracker import MAX_CORRECTION_RAD, off_the_robot, refine_pose, track
+from systems.perception.object_tracker import MAX_CORRECTION_RAD, off_the_robot, refine_pose, track
 
 
 def an_l_shaped_object(count=3000) -> np.ndarray:

@@ -5,8 +5,8 @@ import pytest
 import trimesh
 from scipy.spatial import Delaunay
 
-from diagrams.objects import catalog
-from diagrams.objects.library import load_info, resolve_object
+from diagrams.generation.objects import catalog
+from diagrams.generation.objects.library import load_info, resolve_object
 from diagrams.scenario import ObjectConfig
 
 INSTANCES = [(c, n) for c in sorted(catalog.CATEGORIES) for n in catalog.instance_names(c)]

@@ -6,16 +6,16 @@ from pydrake.common.value import AbstractValue
 from pydrake.math import RigidTransform
 from pydrake.systems.framework import DiagramBuilder
 
-from diagrams import segmentation_data
-from diagrams.objects.library import resolve_object
+from diagrams.generation import segmentation_data
+from diagrams.generation.objects.library import resolve_object
+from diagrams.generation.synthetic_scenes import CLASSES, SyntheticScene
 from diagrams.perception import AddPerception, MakePoseEstimator
 from diagrams.scenario import load_scenario, replace_object
 from diagrams.station import MakeStation, object_pose_on_table, true_label_image
-from diagrams.synthetic_scenes import CLASSES, SyntheticScene
-from systems import segmentation_network
-from systems.depth_cleaning import flying_pixels
-from systems.segmenter import DEFAULT_WEIGHTS, Segmentation, Segmenter, dominant_object
-from systems.segmenter_training import intersection_over_union, predict_labels, train
+from systems.perception import segmentation_network
+from systems.perception.depth_cleaning import flying_pixels
+from systems.perception.segmenter import DEFAULT_WEIGHTS, Segmentation, Segmenter, dominant_object
+from systems.perception.segmenter_training import intersection_over_union, predict_labels, train
 
 TRANSLATION_TOLERANCE = 0.03  # m
 YAW_TOLERANCE = np.radians(12)

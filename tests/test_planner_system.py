@@ -9,13 +9,13 @@ from pydrake.systems.sensors import ImageRgba8U
 from pydrake.trajectories import PiecewisePolynomial
 
 from diagrams.planning_scene import make_dual_arm_ik, true_grasp_poses
-from systems.camera_latch import CameraLatch
-from systems.hand_command import HandCommand, HandCommandSource
-from systems.joint_plan import SPEED_FRACTION
-from systems.planner import PlanRequest, PlanResult, StompPlanner
+from systems.perception.camera_latch import CameraLatch
+from systems.perception.shape_registrar import GraspPoses
 from systems.planning.pick_motions import PickMotions
-from systems.shape_registrar import GraspPoses
-from systems.trajectory_source import JointTrajectorySource
+from systems.planning.stomp_planner import PlanRequest, PlanResult, StompPlanner
+from systems.robot_io.hand_command import HandCommand, HandCommandSource
+from systems.robot_io.joint_plan import SPEED_FRACTION
+from systems.robot_io.trajectory_source import JointTrajectorySource
 
 LATENCY_S = 0.3
 

@@ -6,7 +6,7 @@ from pydrake.multibody.plant import AddMultibodyPlantSceneGraph
 from pydrake.multibody.tree import MultibodyForces
 from pydrake.systems.framework import DiagramBuilder
 
-from diagrams.centauro_description import joint_names
+from diagrams.generation.centauro_description import joint_names
 from diagrams.station import AddCentauro
 from systems.planning.kinematics import centauro_kinematics, gravity_torques, joint_torques
 

@@ -10,9 +10,9 @@ import open3d as o3d
 import trimesh
 from pydrake.math import RigidTransform, RotationMatrix
 
-from diagrams.objects import catalog
-from diagrams.objects.library import load_info
-from systems.shape_registrar import shape_space_file
+from diagrams.generation.objects import catalog
+from diagrams.generation.objects.library import load_info
+from systems.perception.shape_registrar import shape_space_file
 from systems.shape_space.registration import visible_from
 
 REPO = Path(__file__).resolve().parents[1]

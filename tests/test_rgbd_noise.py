@@ -6,7 +6,14 @@ import numpy as np
 import pytest
 from pydrake.systems.sensors import CameraInfo, ImageDepth32F, ImageRgba8U
 
-from systems.rgbd_noise import PRESETS, RgbdNoise, RgbdNoiseParameters, noise_parameters, noisy_color, noisy_depth
+from systems.perception.rgbd_noise import (
+    PRESETS,
+    RgbdNoise,
+    RgbdNoiseParameters,
+    noise_parameters,
+    noisy_color,
+    noisy_depth,
+)
 
 INTRINSICS = CameraInfo(640, 480, np.radians(50.0))
 BRIGHT = np.full((480, 640, 4), 200, np.uint8)

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from diagrams.evaluation import PAPER_YAWS
-from diagrams.objects.library import resolve_object
+from diagrams.generation.objects.library import resolve_object
 from diagrams.paths import REPO_ROOT
 from diagrams.planning_scene import object_surface_W
 from diagrams.scenario import load_scenario, place_over_box_scenario, replace_object

@@ -6,9 +6,9 @@ import trimesh
 from pydrake.math import RigidTransform, RotationMatrix
 from scipy.spatial.transform import Rotation
 
-from diagrams.objects import catalog
-from diagrams.objects.library import load_info
-from systems.shape_registrar import shape_space_file
+from diagrams.generation.objects import catalog
+from diagrams.generation.objects.library import load_info
+from systems.perception.shape_registrar import shape_space_file
 from systems.shape_space.cpd import deformable_cpd, rigid_cpd
 from systems.shape_space.pca_em import pca_em
 from systems.shape_space.registration import Registrar, evenly_thinned, grasp_shift, visible_from

@@ -10,7 +10,7 @@ from pydrake.systems.analysis import Simulator
 
 from diagrams.scenario import CameraNoiseConfig, load_scenario
 from diagrams.station import MakeStation, true_label_image
-from systems.gravity_compensation import GravityCompensation
+from systems.robot_io.gravity_compensation import GravityCompensation
 
 INPUTS = {"centauro.position", "left_hand.position", "right_hand.position"}
 OUTPUTS = {

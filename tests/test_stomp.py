@@ -5,7 +5,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from diagrams.objects.library import resolve_object
+from diagrams.generation.objects.library import resolve_object
 from diagrams.planning_scene import make_dual_arm_ik, true_grasp_poses
 from diagrams.station import object_pose_on_table
 from systems.planning.kinematics import Payload, joint_torques

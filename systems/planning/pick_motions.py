@@ -24,11 +24,11 @@ from pydrake.common.eigen_geometry import AngleAxis
 from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.trajectories import PiecewisePolynomial
 
-from systems.joint_plan import move_duration
 from systems.planning.closure import ClosureConstraint, OrientationConstraint, deviations, orientation_deviations
 from systems.planning.ik import SIDES, DualArmIk, IkResult
 from systems.planning.kinematics import Payload
 from systems.planning.stomp import CarriedPoints
+from systems.robot_io.joint_plan import move_duration
 
 OPEN_WIDTH = 0.1  # m: the hands' opening while reaching
 CLOSED_WIDTH = 0.0  # m: the fingers stop on the handle; the joint effort limit sets the squeeze

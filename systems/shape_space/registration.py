@@ -31,7 +31,7 @@ from scipy.spatial import cKDTree
 from scipy.spatial.distance import cdist
 from scipy.spatial.transform import Rotation
 
-from systems.depth_cleaning import dense_inliers
+from systems.perception.depth_cleaning import dense_inliers
 from systems.shape_space.cpd import gmm_posteriors
 from systems.shape_space.space import ShapeSpace
 

@@ -116,8 +116,8 @@ class CommandStream:
     def start(self):
         if self._process is not None:
             return
-        command = [sys.executable, "-m", "systems.command_stream", self.lcm_url, self.channel, str(self.joints),
-                   str(self.period_s), self._memory.name, str(os.getpid())]  # fmt: skip
+        command = [sys.executable, "-m", "systems.robot_io.command_stream", self.lcm_url, self.channel,
+                   str(self.joints), str(self.period_s), self._memory.name, str(os.getpid())]  # fmt: skip
         self._process = subprocess.Popen(command)
         self._processes.append(self._process)
         logging.info("%s: commands stream from process %d every %.1f ms", self.channel, self._process.pid,

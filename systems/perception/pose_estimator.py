@@ -2,7 +2,7 @@
 
 Frames: C is the depth camera (x right, y down, z along the optical axis), W the
 world (z up), O the object (origin on its support surface, z up, x towards the
-spout / chuck; see diagrams/objects/).
+spout / chuck; see diagrams/generation/objects/).
 
   * points: the mask's pixels with a valid depth (NaN, inf and 0 are holes) that are no flying pixels
     (depth_cleaning: a real sensor's mixtures of two surfaces at depth edges), back-projected
@@ -33,9 +33,9 @@ from pydrake.systems.framework import LeafSystem
 from pydrake.systems.sensors import CameraInfo, ImageDepth32F
 from scipy.spatial import cKDTree
 
-from systems.depth_cleaning import flying_pixels
 from systems.paths import cache_dir, save_npz_atomically
-from systems.segmenter import Segmentation
+from systems.perception.depth_cleaning import flying_pixels
+from systems.perception.segmenter import Segmentation
 
 MIN_POINTS = 50
 MAX_OBJECT_RADIUS = 0.35  # m from the points' median: farther points are strays

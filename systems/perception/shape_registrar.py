@@ -9,7 +9,7 @@ from pydrake.systems.framework import LeafSystem, ValueProducer
 
 from systems import categories
 from systems.categories import shape_space_file
-from systems.pose_estimator import ObjectEstimate
+from systems.perception.pose_estimator import ObjectEstimate
 from systems.shape_space.registration import Registrar
 from systems.shape_space.space import ShapeSpace
 

@@ -15,11 +15,11 @@ import cv2
 import numpy as np
 from tqdm import tqdm
 
+from diagrams.generation.synthetic_scenes import CLASSES, SyntheticScene
 from diagrams.paths import REPO_ROOT
 from diagrams.scenario import Scenario
-from diagrams.synthetic_scenes import CLASSES, SyntheticScene
-from systems.rgbd_noise import noisy_color, sensor_model
-from systems.segmentation_network import INPUT_SIZE, resize_to_input
+from systems.perception.rgbd_noise import noisy_color, sensor_model
+from systems.perception.segmentation_network import INPUT_SIZE, resize_to_input
 
 DEFAULT_DATASET = REPO_ROOT / "data" / "segmentation" / "train.npz"
 DEFAULT_FRAMES = 800

@@ -29,9 +29,9 @@ from pydrake.multibody.tree import SpatialInertia
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.sensors import RgbdSensor
 
-from diagrams.centauro_description import joint_names
-from diagrams.objects import catalog
-from diagrams.objects.library import generated_instance_directory
+from diagrams.generation.centauro_description import joint_names
+from diagrams.generation.objects import catalog
+from diagrams.generation.objects.library import generated_instance_directory
 from diagrams.scenario import Scenario
 from diagrams.station import AddCentauro, make_parser
 from systems import categories

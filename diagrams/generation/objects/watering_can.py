@@ -7,8 +7,8 @@ handle from behind (approach about +x_O).
 
 import numpy as np
 
-from diagrams.objects import geometry
-from diagrams.objects.instance import ObjectInstance, Part, make_grasp
+from diagrams.generation.objects import geometry
+from diagrams.generation.objects.instance import ObjectInstance, Part, make_grasp
 
 CATEGORY = "watering_can"
 # Yaw of O in the world at the paper's "0 rad" presentation: spout pointing away from

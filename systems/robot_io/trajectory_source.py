@@ -7,7 +7,7 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import BasicVector, EventStatus, LeafSystem
 from pydrake.trajectories import PiecewisePolynomial
 
-from systems.planner import PlanResult
+from systems.planning.stomp_planner import PlanResult
 
 
 @dataclass

@@ -1,6 +1,6 @@
 """Safety between a diagram and a robot on LCM: checked reception, watchdog, and a command guard.
 
-MessageMonitor takes a subscriber's RawMessage, decodes it with checks (systems/lcm_messages.py),
+MessageMonitor takes a subscriber's RawMessage, decodes it with checks (systems/robot_io/lcm_messages.py),
 keeps the last valid values, counts the rejected messages, and reports the link's health:
 whether anything valid has arrived and whether it has gone stale (nothing valid for longer
 than `stale_after_s`).
@@ -22,7 +22,7 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import BasicVector, EventStatus, LeafSystem
 from pydrake.systems.sensors import ImageDepth32F, ImageRgba8U
 
-from systems.lcm_messages import MalformedMessage, RawMessage
+from systems.robot_io.lcm_messages import MalformedMessage, RawMessage
 
 # How many rejected messages of one link are logged (all are counted).
 LOGGED_REJECTIONS = 5

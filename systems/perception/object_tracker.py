@@ -34,8 +34,8 @@ from pydrake.systems.framework import LeafSystem
 from pydrake.systems.sensors import CameraInfo, ImageDepth32F
 from scipy.spatial import cKDTree
 
-from systems.depth_cleaning import flying_pixels
-from systems.pose_estimator import ObjectEstimate, depth_to_points, fit_yaw_translation, voxel_thin
+from systems.perception.depth_cleaning import flying_pixels
+from systems.perception.pose_estimator import ObjectEstimate, depth_to_points, fit_yaw_translation, voxel_thin
 
 CROP_MARGIN = 0.03  # m
 SUPPORT_CLEARANCE = 0.01  # m: points lower than this over the object's origin are the table

@@ -10,8 +10,8 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from diagrams.objects import drill, watering_can
-from diagrams.objects.instance import ObjectInstance
+from diagrams.generation.objects import drill, watering_can
+from diagrams.generation.objects.instance import ObjectInstance
 from diagrams.paths import SDF_DIR
 from systems import categories
 

@@ -18,6 +18,7 @@ from pydrake.math import RigidTransform
 from pydrake.systems.framework import EventStatus, LeafSystem
 from pydrake.trajectories import PiecewisePolynomial
 
+from systems.perception.shape_registrar import GraspPoses
 from systems.planning.ik import SIDES
 from systems.planning.pick_motions import (
     SPARSE_SEGMENT_S,
@@ -26,7 +27,6 @@ from systems.planning.pick_motions import (
     PlanningError,
     time_parameterise,
 )
-from systems.shape_registrar import GraspPoses
 
 # The reconstruction, thinned to about this many points, is the reach's obstacle: the margin about it
 # (ik.PERCEIVED_SHAPE_MARGIN) was set for a cloud this dense, and planning cost grows with it.

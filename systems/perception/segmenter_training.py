@@ -5,7 +5,7 @@ import torch
 from torch.nn import functional as F
 from tqdm import tqdm
 
-from systems.segmentation_network import RefineNetLite, to_input
+from systems.perception.segmentation_network import RefineNetLite, to_input
 
 # Background pixels dominate; weigh them down so thin spouts and handles count (every object class 1.0).
 BACKGROUND_WEIGHT = 0.4

@@ -16,8 +16,8 @@ import numpy as np
 import trimesh
 from pydrake.common.yaml import yaml_load_typed
 
-from diagrams.objects import catalog
-from diagrams.objects.instance import ObjectInfo, export_obj, object_sdf
+from diagrams.generation.objects import catalog
+from diagrams.generation.objects.instance import ObjectInfo, export_obj, object_sdf
 from systems.paths import cache_dir
 from systems.shape_space.units import check_metres
 

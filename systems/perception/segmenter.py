@@ -11,8 +11,8 @@ from pydrake.systems.framework import LeafSystem
 from pydrake.systems.sensors import ImageRgba8U
 from torch.nn import functional as F
 
-from systems import segmentation_network
 from systems.paths import MODELS_DIR
+from systems.perception import segmentation_network
 
 DEFAULT_WEIGHTS = MODELS_DIR / "segmenter.pt"
 

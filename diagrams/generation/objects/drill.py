@@ -8,8 +8,8 @@ side handle from above.
 
 import numpy as np
 
-from diagrams.objects import geometry
-from diagrams.objects.instance import ObjectInstance, Part, make_grasp
+from diagrams.generation.objects import geometry
+from diagrams.generation.objects.instance import ObjectInstance, Part, make_grasp
 
 CATEGORY = "drill"
 # Yaw of O in the world at the "0 rad" presentation: chuck away from the robot.
