@@ -29,11 +29,12 @@ from diagrams.planning_scene import make_dual_arm_ik, object_surface_W, true_gra
 from diagrams.robot_driver import MakeRobotDriver
 from diagrams.scenario import Scenario
 from diagrams.station import HAND_INSTANCES, MakeStation, object_pose_on_table, place_target
+from systems.messages import GraspPoses
 from systems.perception.camera_latch import CameraLatch
 from systems.perception.pose_estimator import to_point_cloud
 from systems.perception.pose_noise import PoseYawOffset, draw_yaw_offset
 from systems.perception.robot_spheres import RobotSpheres
-from systems.perception.shape_registrar import GraspPoses, ShapeRegistrar
+from systems.perception.shape_registrar import ShapeRegistrar
 from systems.pick_sequencer import PickSequencer, PickStatus, lift_task, place_task
 from systems.planning.pick_motions import PickMotions, PlanningError
 from systems.planning.stomp_planner import StompPlanner

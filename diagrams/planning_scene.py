@@ -15,8 +15,9 @@ from diagrams.generation.objects.library import ObjectModel, resolve_object
 from diagrams.paths import SDF_DIR
 from diagrams.scenario import Scenario
 from diagrams.station import AddBoxObstacle, AddCentauro, AddTable, make_parser, object_pose_on_table
+from systems.messages import OPEN_WIDTH
 from systems.planning.ik import SIDES, DualArmIk, RobotScene
-from systems.planning.pick_motions import OPEN_WIDTH, PickMotions
+from systems.planning.pick_motions import PickMotions
 
 OBJECT_SURFACE_POINTS = 6000
 

@@ -37,8 +37,8 @@ from diagrams.generation.objects.library import generated_instance_directory, lo
 from diagrams.generation.synthetic_scenes import SyntheticScene
 from diagrams.perception import MakePoseEstimator
 from diagrams.scenario import load_scenario
+from systems.messages import Segmentation
 from systems.perception.rgbd_noise import RgbdNoiseParameters, noisy_depth, sensor_model
-from systems.perception.segmenter import Segmentation
 from systems.perception.shape_registrar import shape_space_file
 from systems.shape_space.cpd import deformable_cpd, thinned
 from systems.shape_space.registration import Registrar

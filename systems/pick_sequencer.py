@@ -24,12 +24,16 @@ from pydrake.common.value import AbstractValue
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 from pydrake.systems.framework import BasicVector, EventStatus, LeafSystem
 
-from systems.perception.pose_estimator import ObjectEstimate
-from systems.perception.segmenter import Segmentation
-from systems.perception.shape_registrar import GraspPoses
-from systems.planning.pick_motions import CLOSED_WIDTH, OPEN_WIDTH
-from systems.planning.stomp_planner import PlanRequest, PlanResult
-from systems.robot_io.hand_command import HandCommand
+from systems.messages import (
+    CLOSED_WIDTH,
+    OPEN_WIDTH,
+    GraspPoses,
+    HandCommand,
+    ObjectEstimate,
+    PlanRequest,
+    PlanResult,
+    Segmentation,
+)
 
 STAGES = ("camera", "segmentation", "pose", "registration", "planning")
 CLOSE_S = 1.0  # s: the hands close over this long

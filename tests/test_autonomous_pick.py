@@ -17,12 +17,9 @@ from pydrake.trajectories import PiecewisePolynomial
 from diagrams.autonomous_pick import PERCEIVE_AT_S, MakePickDiagram, draw_perception, run_pick
 from diagrams.paths import REPO_ROOT
 from diagrams.scenario import PlaceConfig, load_scenario, place_over_box_scenario, replace_object
-from systems.perception.pose_estimator import ObjectEstimate
-from systems.perception.segmenter import Segmentation
-from systems.perception.shape_registrar import GraspPoses, ShapeRegistrar
+from systems.messages import CLOSED_WIDTH, GraspPoses, ObjectEstimate, PlanResult, Segmentation
+from systems.perception.shape_registrar import ShapeRegistrar
 from systems.pick_sequencer import PickSequencer, PickStatus, lift_task
-from systems.planning.pick_motions import CLOSED_WIDTH
-from systems.planning.stomp_planner import PlanResult
 from systems.shape_space.space import POSE_NAMES
 
 Q0 = np.linspace(-0.5, 0.5, 14)

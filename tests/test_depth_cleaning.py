@@ -8,8 +8,8 @@ from pydrake.math import RigidTransform, RotationMatrix
 
 from diagrams.generation.objects import catalog
 from diagrams.generation.objects.library import load_info
+from systems.messages import ObjectEstimate
 from systems.perception.depth_cleaning import dense_inliers, flying_pixels
-from systems.perception.pose_estimator import ObjectEstimate
 from systems.perception.shape_registrar import ShapeRegistrar, shape_space_file
 from systems.shape_space.registration import Registrar, visible_from
 from systems.shape_space.space import ShapeSpace

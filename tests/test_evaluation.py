@@ -13,7 +13,7 @@ from pydrake.math import RigidTransform, RollPitchYaw
 
 from diagrams.autonomous_pick import MakePickDiagram
 from diagrams.evaluation import COMPONENTS, Trial, file_objects, generated_objects, make_trials, summarize
-from systems.perception.pose_estimator import ObjectEstimate
+from systems.messages import ObjectEstimate
 from systems.perception.pose_noise import PoseYawOffset, draw_yaw_offset
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))

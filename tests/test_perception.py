@@ -12,9 +12,10 @@ from diagrams.generation.synthetic_scenes import CLASSES, SyntheticScene
 from diagrams.perception import AddPerception, MakePoseEstimator
 from diagrams.scenario import load_scenario, replace_object
 from diagrams.station import MakeStation, object_pose_on_table, true_label_image
+from systems.messages import Segmentation
 from systems.perception import segmentation_network
 from systems.perception.depth_cleaning import flying_pixels
-from systems.perception.segmenter import DEFAULT_WEIGHTS, Segmentation, Segmenter, dominant_object
+from systems.perception.segmenter import DEFAULT_WEIGHTS, Segmenter, dominant_object
 from systems.perception.segmenter_training import intersection_over_union, predict_labels, train
 
 TRANSLATION_TOLERANCE = 0.03  # m

@@ -9,11 +9,11 @@ from pydrake.systems.sensors import ImageRgba8U
 from pydrake.trajectories import PiecewisePolynomial
 
 from diagrams.planning_scene import make_dual_arm_ik, true_grasp_poses
+from systems.messages import GraspPoses, HandCommand, PlanRequest, PlanResult
 from systems.perception.camera_latch import CameraLatch
-from systems.perception.shape_registrar import GraspPoses
 from systems.planning.pick_motions import PickMotions
-from systems.planning.stomp_planner import PlanRequest, PlanResult, StompPlanner
-from systems.robot_io.hand_command import HandCommand, HandCommandSource
+from systems.planning.stomp_planner import StompPlanner
+from systems.robot_io.hand_command import HandCommandSource
 from systems.robot_io.joint_plan import SPEED_FRACTION
 from systems.robot_io.trajectory_source import JointTrajectorySource
 

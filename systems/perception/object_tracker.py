@@ -25,6 +25,8 @@ the pose it was at), where it is believed to be now, and where the robot's own b
     look that disagrees that much is not trusted over the first one.
 """
 
+import time
+
 import numpy as np
 import open3d as o3d
 from pydrake.common.eigen_geometry import AngleAxis
@@ -34,8 +36,9 @@ from pydrake.systems.framework import LeafSystem
 from pydrake.systems.sensors import CameraInfo, ImageDepth32F
 from scipy.spatial import cKDTree
 
+from systems.messages import ObjectEstimate
 from systems.perception.depth_cleaning import flying_pixels
-from systems.perception.pose_estimator import ObjectEstimate, depth_to_points, fit_yaw_translation, voxel_thin
+from systems.perception.pose_estimator import depth_to_points, fit_yaw_translation, voxel_thin
 
 CROP_MARGIN = 0.03  # m
 SUPPORT_CLEARANCE = 0.01  # m: points lower than this over the object's origin are the table
@@ -255,4 +258,7 @@ class ObjectTracker(LeafSystem):
             self.GetInputPort(name).Eval(context)
             for name in ("camera_pose", "robot_spheres_W", "expected_X_WO", "model_cloud_W", "model_X_WO")
         ]
-        output.set_value(self.estimate(depth, *values))
+        started = time.perf_counter()
+        estimate = self.estimate(depth, *values)
+        estimate.compute_s = time.perf_counter() - started
+        output.set_value(estimate)

@@ -20,7 +20,8 @@ spout / chuck; see diagrams/generation/objects/).
 
 import functools
 import hashlib
-from dataclasses import dataclass, field
+import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import cv2
@@ -33,9 +34,9 @@ from pydrake.systems.framework import LeafSystem
 from pydrake.systems.sensors import CameraInfo, ImageDepth32F
 from scipy.spatial import cKDTree
 
+from systems.messages import ObjectEstimate, Segmentation
 from systems.paths import cache_dir, save_npz_atomically
 from systems.perception.depth_cleaning import flying_pixels
-from systems.perception.segmenter import Segmentation
 
 MIN_POINTS = 50
 MAX_OBJECT_RADIUS = 0.35  # m from the points' median: farther points are strays
@@ -63,18 +64,6 @@ class CategoryPrior:
     # presentation pose. Of the two equally good yaws the one nearer it is kept, so that the left grasp stays
     # on the robot's left. None: no such symmetry.
     symmetric_about_yaw: float | None = None
-
-
-@dataclass
-class ObjectEstimate:
-    """The object's point cloud and initial pose, or why there is none."""
-
-    found: bool
-    category: str = ""
-    X_WO: RigidTransform = field(default_factory=RigidTransform)
-    points_W: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))  # N x 3, metres
-    message: str = ""
-    viewpoint_W: np.ndarray | None = None  # where the points were seen from: the camera's position in W, m
 
 
 def depth_to_points(depth: np.ndarray, mask: np.ndarray, intrinsics: CameraInfo) -> np.ndarray:
@@ -358,7 +347,10 @@ class PoseEstimator(LeafSystem):
         segmentation = self.get_input_port(0).Eval(context)
         depth = np.asarray(self.get_input_port(1).Eval(context).data)[:, :, 0]
         X_WB = self.get_input_port(2).Eval(context)
-        output.set_value(self.estimate(segmentation, depth, X_WB))
+        started = time.perf_counter()
+        estimate = self.estimate(segmentation, depth, X_WB)
+        estimate.compute_s = time.perf_counter() - started
+        output.set_value(estimate)
 
     def _calc_cloud(self, context, output):
         output.set_value(to_point_cloud(self.get_output_port(0).Eval(context).points_W))

@@ -7,7 +7,7 @@ from pydrake.common.value import AbstractValue
 from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.systems.framework import LeafSystem
 
-from systems.perception.pose_estimator import ObjectEstimate
+from systems.messages import ObjectEstimate
 
 
 def draw_yaw_offset(amplitude_rad: float, seed: int) -> float:

@@ -1,6 +1,6 @@
 """The segmenter system: colour image in, per-pixel classes and the dominant object's mask out."""
 
-from dataclasses import dataclass, field
+import time
 from pathlib import Path
 
 import cv2
@@ -11,22 +11,11 @@ from pydrake.systems.framework import LeafSystem
 from pydrake.systems.sensors import ImageRgba8U
 from torch.nn import functional as F
 
+from systems.messages import Segmentation
 from systems.paths import MODELS_DIR
 from systems.perception import segmentation_network
 
 DEFAULT_WEIGHTS = MODELS_DIR / "segmenter.pt"
-
-
-@dataclass
-class Segmentation:
-    """The dominant object in view, or an explicit "nothing found"."""
-
-    found: bool
-    category: str = ""
-    # H x W bool at the camera's resolution; all False when nothing was found.
-    mask: np.ndarray = field(default_factory=lambda: np.zeros((0, 0), bool))
-    pixel_count: int = 0
-    message: str = ""
 
 
 def dominant_object(labels: np.ndarray, classes, min_pixels: int) -> Segmentation:
@@ -111,5 +100,8 @@ class Segmenter(LeafSystem):
         output.set_value(self.segment(np.asarray(image.data)))
 
     def _calc_mask(self, context, output):
+        started = time.perf_counter()
         labels = self.get_output_port(0).Eval(context)
-        output.set_value(dominant_object(labels, self.classes, self.min_pixels))
+        segmentation = dominant_object(labels, self.classes, self.min_pixels)
+        segmentation.compute_s = time.perf_counter() - started
+        output.set_value(segmentation)

@@ -1,5 +1,6 @@
 """The shape registrar system: observed cloud + initial pose -> refined pose, full shape, grasp poses."""
 
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -9,18 +10,9 @@ from pydrake.systems.framework import LeafSystem, ValueProducer
 
 from systems import categories
 from systems.categories import shape_space_file
-from systems.perception.pose_estimator import ObjectEstimate
+from systems.messages import GraspPoses, ObjectEstimate
 from systems.shape_space.registration import Registrar
 from systems.shape_space.space import ShapeSpace
-
-
-@dataclass
-class GraspPoses:
-    """Per-arm control poses in the world, or why there are none."""
-
-    found: bool
-    poses_W: dict[str, RigidTransform] = field(default_factory=dict)  # left/right pregrasp/grasp -> X_WG
-    message: str = ""
 
 
 class ShapeRegistrar(LeafSystem):
@@ -61,23 +53,25 @@ class ShapeRegistrar(LeafSystem):
 
     def _calc_registration(self, context, cache):
         estimate = self.get_input_port(0).Eval(context)
+        started = time.perf_counter()
+        result = self._register(estimate)
+        result.compute_s = time.perf_counter() - started
+        cache.set_value(result)
+
+    def _register(self, estimate) -> "_Result":
         if not estimate.found:
-            cache.set_value(_Result(estimate.X_WO, None, f"nothing to register: {estimate.message}"))
-            return
+            return _Result(estimate.X_WO, None, f"nothing to register: {estimate.message}")
         registrar = self.registrars.get(estimate.category)
         if registrar is None:
-            cache.set_value(_Result(estimate.X_WO, None, f"no shape space for category {estimate.category!r}"))
-            return
+            return _Result(estimate.X_WO, None, f"no shape space for category {estimate.category!r}")
         try:
             registration = registrar.register(estimate.points_W, estimate.X_WO, estimate.viewpoint_W)
         except ValueError as error:
-            cache.set_value(_Result(estimate.X_WO, None, str(error)))
-            return
+            return _Result(estimate.X_WO, None, str(error))
         if registration.poor_fit:  # named, not passed on: a grasp 30 cm off is worse than no grasp
-            cache.set_value(_Result(estimate.X_WO, None, registration.poor_fit))
-            return
+            return _Result(estimate.X_WO, None, registration.poor_fit)
         fit = f"fit error {registration.fit_error_m:.4f} m, {100 * registration.inlier_share:.0f}% of the points on it"
-        cache.set_value(_Result(registration.X_WO, registration, fit))
+        return _Result(registration.X_WO, registration, fit)
 
     def _result(self, context) -> "_Result":
         return self._registration.Eval(context)
@@ -88,9 +82,9 @@ class ShapeRegistrar(LeafSystem):
     def _calc_grasps(self, context, output):
         result = self._result(context)
         if result.registration is None:
-            output.set_value(GraspPoses(False, message=result.message))
+            output.set_value(GraspPoses(False, message=result.message, compute_s=result.compute_s))
         else:
-            output.set_value(GraspPoses(True, result.registration.grasp_poses_W, result.message))
+            output.set_value(GraspPoses(True, result.registration.grasp_poses_W, result.message, result.compute_s))
 
     def _calc_cloud(self, context, output):
         result = self._result(context)
@@ -107,3 +101,4 @@ class _Result:
     X_WO: RigidTransform = field(default_factory=RigidTransform)
     registration: object = None
     message: str = ""
+    compute_s: float = 0.0  # wall time of the registration

@@ -30,8 +30,6 @@ from systems.planning.kinematics import Payload
 from systems.planning.stomp import CarriedPoints
 from systems.robot_io.joint_plan import move_duration
 
-OPEN_WIDTH = 0.1  # m: the hands' opening while reaching
-CLOSED_WIDTH = 0.0  # m: the fingers stop on the handle; the joint effort limit sets the squeeze
 APPROACH_STEPS = 3
 REACH_LIMIT_MARGIN = 0.15  # rad: a reach's goal keeps its joints this far inside their limits where it can
 MAX_STRAIGHT_STEP = 0.6  # rad: the most a joint may turn between two keyframes of a straight motion

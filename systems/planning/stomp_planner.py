@@ -18,7 +18,7 @@ from pydrake.math import RigidTransform
 from pydrake.systems.framework import EventStatus, LeafSystem
 from pydrake.trajectories import PiecewisePolynomial
 
-from systems.perception.shape_registrar import GraspPoses
+from systems.messages import GraspPoses, MoveKind, PlanRequest, PlanResult, Targets
 from systems.planning.ik import SIDES
 from systems.planning.pick_motions import (
     SPARSE_SEGMENT_S,
@@ -32,54 +32,6 @@ from systems.planning.pick_motions import (
 # (ik.PERCEIVED_SHAPE_MARGIN) was set for a cloud this dense, and planning cost grows with it.
 OBSTACLE_POINTS = 2000
 RETREAT_M = 0.1  # m: how far the hands back off an object they let go of
-# Motions the planner knows.
-PATHS = ("free", "straight", "held")
-
-
-@dataclass
-class PlanRequest:
-    """What to plan. Goals are Cartesian: hand poses named in the grasp_poses input, or a held move."""
-
-    id: int = -1  # a new id asks for a new plan
-    phase: str = ""  # the pick's phase it serves ("reach", "approach", "lift", ...), for messages
-    q_start: np.ndarray = field(default_factory=lambda: np.zeros(14))  # rad; the robot holds here meanwhile
-    # "free": both hands to the `targets` poses around the obstacles (STOMP when the straight move collides);
-    # "straight": each hand on a line to its `targets` pose; "held": both hands hold the object and move it
-    # by `X_motion_W` under the closure and orientation constraints.
-    path: str = "free"
-    # "pregrasp" or "grasp": the grasp_poses input's <side>_<targets> poses; "retreat": each hand RETREAT_M back
-    # along its approach axis from where it is at q_start.
-    targets: str = "pregrasp"
-    X_motion_W: RigidTransform = field(default_factory=RigidTransform)  # held moves: X_WG -> X_motion_W X_WG
-    # Held moves: where the whole translation is out of reach, shorter ones down to this fraction will do.
-    min_fraction: float = 1.0
-    # Held moves: keep the held object (the obstacle_cloud_W input moved by this, its motion since it was seen)
-    # clear of the scene; None: the robot only.
-    carried_motion_W: RigidTransform | None = None
-
-
-@dataclass
-class PlanResult:
-    """A plan, or why there is none. Times are context seconds."""
-
-    id: int = -1
-    phase: str = ""
-    success: bool = False
-    trajectory: PiecewisePolynomial | None = None  # 14 arm joints over context time
-    message: str = "no plan requested"
-    planning_s: float = 0.0  # wall time the planning took (reported, never simulated)
-    # Held moves: the largest deviation of the hands' relative pose along the played trajectory
-    # (every 10 ms), m and rad; NaN for other motions.
-    closure_translation_dev_m: float = math.nan
-    closure_orientation_dev_rad: float = math.nan
-    # Held moves: the motion the hands (and the object) made, X_WG(end) X_WG(start)^-1 of the left hand.
-    achieved_motion_W: RigidTransform | None = None
-    # Each hand's grasp frame origin along the trajectory, samples x 3 in W (for the viewer).
-    grasp_paths_W: dict[str, np.ndarray] = field(default_factory=dict)
-
-    @property
-    def end_s(self) -> float:
-        return self.trajectory.end_time() if self.trajectory is not None else math.inf
 
 
 @dataclass
@@ -151,10 +103,10 @@ class StompPlanner(LeafSystem):
         motions = self.motions
         result = PlanResult(request.id, request.phase)
         try:
-            if request.path not in PATHS:
-                raise PlanningError(f"unknown path {request.path!r} (one of {PATHS})")
+            if request.path not in tuple(MoveKind):
+                raise PlanningError(f"unknown path {request.path!r} (one of {', '.join(MoveKind)})")
             held = None
-            if request.path == "held":
+            if request.path == MoveKind.HELD:
                 carried = None
                 if request.carried_motion_W is not None:
                     cloud = self.GetInputPort("obstacle_cloud_W").Eval(context)
@@ -166,7 +118,7 @@ class StompPlanner(LeafSystem):
                 result.achieved_motion_W = end @ start.inverse()
             else:
                 targets = self._targets(request, context)
-                if request.path == "free":
+                if request.path == MoveKind.FREE:
                     cloud = self.GetInputPort("obstacle_cloud_W").Eval(context)
                     motions.ik.set_obstacle_points(
                         cloud[:: max(1, len(cloud) // OBSTACLE_POINTS)] if len(cloud) else None
@@ -192,15 +144,15 @@ class StompPlanner(LeafSystem):
         return result
 
     def _targets(self, request: PlanRequest, context) -> dict[str, RigidTransform]:
-        if request.targets == "retreat":
+        if request.targets == Targets.RETREAT:
             back = RigidTransform([0.0, 0.0, -RETREAT_M])
             return {side: X @ back for side, X in self.motions.ik.grasp_frame_poses(request.q_start).items()}
         grasps = self.GetInputPort("grasp_poses").Eval(context)
         if not grasps.found:
             raise PlanningError(f"no grasp poses ({grasps.message})")
-        if request.targets not in ("pregrasp", "grasp"):
+        if request.targets not in (Targets.PREGRASP, Targets.GRASP):
             raise PlanningError(f"unknown targets {request.targets!r} (pregrasp, grasp or retreat)")
-        deeper = self.deeper if request.targets == "grasp" else RigidTransform()
+        deeper = self.deeper if request.targets == Targets.GRASP else RigidTransform()
         return {side: grasps.poses_W[f"{side}_{request.targets}"] @ deeper for side in SIDES}
 
     def _grasp_paths(self, trajectory: PiecewisePolynomial, samples: int = 60) -> dict[str, np.ndarray]:

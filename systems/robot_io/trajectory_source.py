@@ -7,7 +7,7 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import BasicVector, EventStatus, LeafSystem
 from pydrake.trajectories import PiecewisePolynomial
 
-from systems.planning.stomp_planner import PlanResult
+from systems.messages import PlanResult
 
 
 @dataclass

@@ -1,0 +1,192 @@
+"""The messages that pass between the pick's systems, and the names they use.
+
+Every abstract port value of the pick lives here, so that a system knows another's message without
+importing that system (and its dependencies: torch, the planner). Frames: W is the world (z up),
+O the object, G a hand's grasp frame (z_G its approach axis). Lengths in metres, angles in radians,
+times in seconds (context time unless a field says wall time).
+"""
+
+import enum
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from pydrake.math import RigidTransform
+from pydrake.trajectories import PiecewisePolynomial
+
+SIDES = ("left", "right")
+OPEN_WIDTH = 0.1  # m: the hands' opening while reaching (and the hand command's default)
+CLOSED_WIDTH = 0.0  # m: the fingers stop on the handle; the joint effort limit sets the squeeze
+
+
+class MoveKind(enum.StrEnum):
+    """How a PlanRequest moves the hands."""
+
+    FREE = "free"  # both hands to their targets around the obstacles (STOMP when the straight move collides)
+    STRAIGHT = "straight"  # each hand on a line to its target
+    HELD = "held"  # both hands hold the object and move it by a rigid motion (closure constraint)
+
+
+class Targets(enum.StrEnum):
+    """Where a free or straight move takes the hands."""
+
+    PREGRASP = "pregrasp"  # the grasp poses' <side>_pregrasp
+    GRASP = "grasp"  # the grasp poses' <side>_grasp
+    RETREAT = "retreat"  # each hand back along its approach axis from where it is
+
+
+class PlaceGoal(enum.StrEnum):
+    """The held moves of a place task, towards the place target."""
+
+    CARRY = "carry"  # over the target, turned to its yaw, at the height the object is carried at
+    SET_DOWN = "set_down"  # straight down onto the target
+
+
+class Mode(enum.StrEnum):
+    """Where a pick stands: before perceiving, one of the task's phases, or the end."""
+
+    WAITING = "waiting"
+    PERCEIVING = "perceiving"
+    REACH = "reach"
+    APPROACH = "approach"
+    CLOSE = "close"
+    LOOK = "look"
+    LIFT = "lift"
+    HOLD = "hold"
+    CARRY = "carry"
+    LOOK_AGAIN = "look_again"
+    SET_DOWN = "set_down"
+    RELEASE = "release"
+    RETREAT = "retreat"
+    DONE = "done"
+    FAILED = "failed"
+
+
+class Stage(enum.StrEnum):
+    """The stage a failed pick stopped at."""
+
+    CAMERA = "camera"
+    SEGMENTATION = "segmentation"
+    POSE = "pose"
+    REGISTRATION = "registration"
+    PLANNING = "planning"
+    GRASP = "grasp"  # a hand closed on nothing
+
+
+# Perception's stages, in the order they run.
+PERCEPTION_STAGES = (Stage.SEGMENTATION, Stage.POSE, Stage.REGISTRATION)
+
+
+@dataclass
+class Segmentation:
+    """The dominant object in view, or an explicit "nothing found"."""
+
+    found: bool
+    category: str = ""
+    # H x W bool at the camera's resolution; all False when nothing was found.
+    mask: np.ndarray = field(default_factory=lambda: np.zeros((0, 0), bool))
+    pixel_count: int = 0
+    message: str = ""
+    compute_s: float = 0.0  # wall time of the segmentation alone
+
+
+@dataclass
+class ObjectEstimate:
+    """The object's point cloud and initial pose, or why there is none."""
+
+    found: bool
+    category: str = ""
+    X_WO: RigidTransform = field(default_factory=RigidTransform)
+    points_W: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))  # N x 3, metres
+    message: str = ""
+    viewpoint_W: np.ndarray | None = None  # where the points were seen from: the camera's position in W, m
+    compute_s: float = 0.0  # wall time of the estimate alone (its inputs' stages excluded)
+
+
+@dataclass
+class GraspPoses:
+    """Per-arm control poses in the world, or why there are none."""
+
+    found: bool
+    poses_W: dict[str, RigidTransform] = field(default_factory=dict)  # left/right pregrasp/grasp -> X_WG
+    message: str = ""
+    compute_s: float = 0.0  # wall time of the registration alone
+
+
+@dataclass
+class PerceptionResult:
+    """What perception made of one camera frame, or the stage that found nothing and why.
+
+    The ground-truth source fills the same fields from the simulator (no stage seconds)."""
+
+    found: bool = False
+    failed_stage: Stage | None = None
+    message: str = ""
+    category: str = ""
+    X_WO_seen: RigidTransform | None = None  # the object's pose as perceived (registered)
+    grasps: GraspPoses = field(default_factory=lambda: GraspPoses(False))
+    points_W: np.ndarray | None = None  # the camera's object points, N x 3 (None: not seen by a camera)
+    reconstruction_W: np.ndarray | None = None  # the whole inferred shape, N x 3
+    # Wall seconds of each stage that ran, by stage name (segmentation, pose, registration).
+    stage_seconds: dict[str, float] = field(default_factory=dict)
+
+
+@dataclass
+class PlanRequest:
+    """What to plan. Goals are Cartesian: hand poses named in the grasp_poses input, or a held move."""
+
+    id: int = -1  # a new id asks for a new plan
+    phase: str = ""  # the pick's phase it serves ("reach", "approach", "lift", ...), for messages
+    q_start: np.ndarray = field(default_factory=lambda: np.zeros(14))  # rad; the robot holds here meanwhile
+    path: MoveKind = MoveKind.FREE
+    targets: Targets = Targets.PREGRASP  # free and straight moves
+    X_motion_W: RigidTransform = field(default_factory=RigidTransform)  # held moves: X_WG -> X_motion_W X_WG
+    # Held moves: where the whole translation is out of reach, shorter ones down to this fraction will do.
+    min_fraction: float = 1.0
+    # Held moves: keep the held object (the obstacle cloud moved by this, its motion since it was seen)
+    # clear of the scene; None: the robot only.
+    carried_motion_W: RigidTransform | None = None
+
+
+@dataclass
+class PlanResult:
+    """A plan, or why there is none. Times are context seconds."""
+
+    id: int = -1
+    phase: str = ""
+    success: bool = False
+    trajectory: PiecewisePolynomial | None = None  # 14 arm joints over context time
+    message: str = "no plan requested"
+    planning_s: float = 0.0  # wall time the planning took (reported, never simulated)
+    # Held moves: the largest deviation of the hands' relative pose along the played trajectory
+    # (every 10 ms), m and rad; NaN for other motions.
+    closure_translation_dev_m: float = math.nan
+    closure_orientation_dev_rad: float = math.nan
+    # Held moves: the motion the hands (and the object) made, X_WG(end) X_WG(start)^-1 of the left hand.
+    achieved_motion_W: RigidTransform | None = None
+    # Each hand's grasp frame origin along the trajectory, samples x 3 in W (for the viewer).
+    grasp_paths_W: dict[str, np.ndarray] = field(default_factory=dict)
+
+    @property
+    def end_s(self) -> float:
+        return self.trajectory.end_time() if self.trajectory is not None else math.inf
+
+
+@dataclass
+class HandCommand:
+    """Move both hands' opening from `from_width` to `width` (m) linearly over [start_s, start_s + duration_s]."""
+
+    width: float = OPEN_WIDTH
+    from_width: float = OPEN_WIDTH
+    start_s: float = 0.0
+    duration_s: float = 0.0
+
+    def at(self, t: float) -> float:
+        if self.duration_s <= 0 or t >= self.start_s + self.duration_s:
+            return self.width if t >= self.start_s else self.from_width
+        s = max(0.0, (t - self.start_s) / self.duration_s)
+        return (1 - s) * self.from_width + s * self.width
+
+    @property
+    def end_s(self) -> float:
+        return self.start_s + self.duration_s
