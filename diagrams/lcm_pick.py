@@ -26,12 +26,12 @@ from pydrake.lcm import DrakeLcm, DrakeLcmInterface
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Diagram
 
-from diagrams.autonomous_pick import PERCEIVE_AT_S, MakePickDiagram, PickWatcher
+from diagrams.autonomous_pick import PERCEIVE_AT_S, MakePickDiagram, PickReport, PickWatcher, pick_report
 from diagrams.hardware_station import command_stream, wait_for_robot
 from diagrams.paths import REPO_ROOT
 from diagrams.pick_simulation import SAMPLE_S, PickOutcome
 from diagrams.scenario import Scenario
-from systems.pick_sequencer import PickStatus
+from systems.messages import Mode
 from systems.robot_io.lcm_safety import CommandGuard, MessageMonitor
 
 # The bus inside the private namespace: loopback multicast, never routed (ttl=0).
@@ -49,10 +49,11 @@ DRIVER_START_TIMEOUT_S = 60.0
 
 def run_pick_on_robot(
     scenario: Scenario, lcm: DrakeLcmInterface | None = None, meshcat: Meshcat | None = None
-) -> tuple[PickStatus, list[str], dict]:
+) -> tuple[PickReport, list[str], dict]:
     """Runs the pick diagram in real time against a robot (or scripts/robot_driver.py) over LCM.
 
-    Nothing is judged here (no ground truth): returns the sequencer's final status, the safety
+    Nothing is judged here (no ground truth): returns the pick's report (the supervisor's final status,
+    the stages' times, the closure deviations), the safety
     problems seen (tripped watchdogs, rejected messages and commands), and on a real bus the arm
     commands' figures ({"sent": n, "max_gap_s": s, "late": sends more than two periods after the one
     before}; {} on memq://).
@@ -61,14 +62,14 @@ def run_pick_on_robot(
         RobotNotResponding: no status or images within scenario.hardware.status_timeout_s.
     """
     lcm = lcm or DrakeLcm(scenario.lcm)
-    diagram = MakePickDiagram(scenario, hardware=True, lcm=lcm)
+    diagram = MakePickDiagram(scenario, meshcat, hardware=True, lcm=lcm)
     station = diagram.GetSubsystemByName("station")
     logging.info("waiting for the robot on %s", lcm.get_lcm_url())
     wait_for_robot(scenario, lcm, robot_time_s=PERCEIVE_AT_S)  # a simulated scene has settled by then
     simulator = Simulator(diagram)
     simulator.set_target_realtime_rate(1.0)
     context = simulator.get_mutable_context()
-    watch = PickWatcher(diagram, meshcat)
+    watch = PickWatcher(diagram)
     simulator.Initialize()
     tripped, problems, commands = False, [], {}
     stream = command_stream(station)
@@ -92,7 +93,7 @@ def run_pick_on_robot(
             commands = {"sent": stream.sends, "max_gap_s": stream.max_gap_s, "late": stream.late_sends}
             logging.info("arm commands: %d sent, %d more than two periods after the one before, largest gap %.1f ms",
                          stream.sends, stream.late_sends, 1000 * stream.max_gap_s)  # fmt: skip
-    return watch.status(context), problems, commands
+    return pick_report(diagram, context), problems, commands
 
 
 def _hold_while_the_robot_catches_up(simulator: Simulator, station: Diagram, timeout_s: float = 60.0):
@@ -137,17 +138,18 @@ def run_on_robot(scenario: Scenario, lcm_url: str | None = None, meshcat: Meshca
     return _outcome(*run_pick_on_robot(scenario, lcm, meshcat))
 
 
-def _outcome(status: PickStatus, problems: list[str], commands: dict) -> PickOutcome:
-    played = status.mode == "done"
+def _outcome(report: PickReport, problems: list[str], commands: dict) -> PickOutcome:
+    status = report.status
+    played = status.mode == Mode.DONE
     message = (
-        status.message if status.mode == "failed" else ("plan played out" if played else f"stopped in {status.mode}")
+        status.message if status.mode == Mode.FAILED else ("plan played out" if played else f"stopped in {status.mode}")
     )
     if problems:
         message += "; " + "; ".join(problems)
     outcome = PickOutcome(played and not problems, math.nan, math.nan, message=message)
-    outcome.stages, outcome.failed_stage = status.stage_seconds, status.failed_stage
-    outcome.planning_s = status.stage_seconds.get("image_to_trajectory", 0.0)
-    outcome.closure = status.closure
+    outcome.stages, outcome.failed_stage = report.stages, status.failed_stage
+    outcome.planning_s = report.stages.get("image_to_trajectory", 0.0)
+    outcome.closure = report.closure
     outcome.commands = commands
     return outcome
 
@@ -184,14 +186,14 @@ def run_with_spawned_driver(scenario: Scenario, driver_arguments: list[str]) -> 
         command += ["--lcm-url", NAMESPACE_LCM_URL, "--result", str(result)]
         driver = subprocess.Popen(command)
         try:
-            status, problems, commands = run_pick_on_robot(scenario, DrakeLcm(NAMESPACE_LCM_URL))
+            report, problems, commands = run_pick_on_robot(scenario, DrakeLcm(NAMESPACE_LCM_URL))
         finally:
             driver.send_signal(signal.SIGTERM)
             try:
                 driver.wait(timeout=60)
             except subprocess.TimeoutExpired:
                 driver.kill()
-        outcome = _outcome(status, problems, commands)
+        outcome = _outcome(report, problems, commands)
         if not result.is_file():
             outcome.success, outcome.message = False, f"{outcome.message}; the driver wrote no result"
             return outcome

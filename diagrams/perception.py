@@ -1,18 +1,31 @@
-"""Wires the perception stages to a camera: colour image -> Segmenter -> PoseEstimator <- depth, pose."""
+"""Perception as one subsystem: camera latch -> segmenter -> pose estimator -> shape registrar, one result;
+and the ground-truth source with the same output ports."""
 
 from pathlib import Path
 
-from pydrake.systems.framework import DiagramBuilder, OutputPort
+from pydrake.common.value import AbstractValue
+from pydrake.systems.framework import Diagram, DiagramBuilder
+from pydrake.systems.primitives import ConstantValueSource, ConstantVectorSource
 
 from diagrams.generation.objects import catalog
+from diagrams.generation.objects.library import resolve_object
+from diagrams.planning_scene import object_surface_W, true_grasp_poses
 from diagrams.scenario import Scenario
+from diagrams.station import object_pose_on_table
 from systems import categories
+from systems.messages import GraspPoses, PerceptionResult
+from systems.perception.camera_latch import CameraLatch
 from systems.perception.object_tracker import ObjectTracker
+from systems.perception.perception_result import PerceptionResultCollector
 from systems.perception.pose_estimator import CategoryPrior, PoseEstimator
+from systems.perception.pose_noise import PoseYawOffset, draw_yaw_offset
 from systems.perception.segmenter import Segmenter
+from systems.perception.shape_registrar import ShapeRegistrar
 
 # The training instance whose shape is each category's pose template.
 TEMPLATE_INSTANCE = "train_0"
+# The ground-truth source's object surface: this many points (the planner thins to its own density).
+TRUE_SURFACE_POINTS = 4000
 
 
 def category_priors() -> dict[str, CategoryPrior]:
@@ -52,25 +65,77 @@ def MakeObjectTracker(scenario: Scenario) -> ObjectTracker:
     return ObjectTracker(*_depth_camera(scenario))
 
 
-def AddPerception(
-    builder: DiagramBuilder,
-    color_image: OutputPort,
-    depth_image: OutputPort,
-    camera_pose: OutputPort,
-    scenario: Scenario,
-    weights: Path | None = None,
-):
-    """Adds the segmenter and the pose estimator, fed by a camera's (or a camera latch's) ports.
+def MakePerception(scenario: Scenario, weights: Path | None = None) -> Diagram:
+    """Perception as one subsystem ("perception"): camera_latch -> segmenter -> pose_estimator ->
+    [registration_yaw_noise] -> shape_registrar, gathered by perception_result.
 
-    weights: the segmenter's; None: the one that knows every taught category (categories.active_segmenter).
+    Input ports: color_image, depth_image, camera_pose (the camera's), trigger (1: the frame wanted).
+    Output ports: frame_id (1: the frame latched), result (PerceptionResult), and the registrar's
+    grasp_poses (GraspPoses), reconstructed_cloud_W (N x 3, m) and X_WO (RigidTransform).
 
-    Returns:
-        (segmenter, pose_estimator)
+    Args:
+        weights: the segmenter's; None: the one that knows every taught category (categories.active_segmenter).
     """
+    builder = DiagramBuilder()
+    latch = builder.AddNamedSystem("camera_latch", CameraLatch())
     segmenter = builder.AddNamedSystem("segmenter", Segmenter(weights or categories.active_segmenter()))
     pose_estimator = builder.AddNamedSystem("pose_estimator", MakePoseEstimator(scenario))
-    builder.Connect(color_image, segmenter.GetInputPort("color_image"))
+    registrar = builder.AddNamedSystem("shape_registrar", ShapeRegistrar())
+    collector = builder.AddNamedSystem("perception_result", PerceptionResultCollector())
+    for port in ("color_image", "depth_image", "camera_pose", "trigger"):
+        builder.ExportInput(latch.GetInputPort(port), port)
+    builder.Connect(latch.GetOutputPort("color_image"), segmenter.GetInputPort("color_image"))
     builder.Connect(segmenter.GetOutputPort("segmentation"), pose_estimator.GetInputPort("segmentation"))
-    builder.Connect(depth_image, pose_estimator.GetInputPort("depth_image"))
-    builder.Connect(camera_pose, pose_estimator.GetInputPort("camera_pose"))
-    return segmenter, pose_estimator
+    builder.Connect(latch.GetOutputPort("depth_image"), pose_estimator.GetInputPort("depth_image"))
+    builder.Connect(latch.GetOutputPort("camera_pose"), pose_estimator.GetInputPort("camera_pose"))
+    estimate = pose_estimator.GetOutputPort("estimate")
+    if scenario.registration_yaw_noise > 0:  # the paper's experiment: a perturbed pose for the registration
+        offset = draw_yaw_offset(scenario.registration_yaw_noise, scenario.random_seed)
+        noise = builder.AddNamedSystem("registration_yaw_noise", PoseYawOffset(offset))
+        builder.Connect(estimate, noise.get_input_port())
+        estimate = noise.get_output_port()
+    builder.Connect(estimate, registrar.GetInputPort("estimate"))
+    for port, source in (
+        ("segmentation", segmenter.GetOutputPort("segmentation")),
+        ("estimate", pose_estimator.GetOutputPort("estimate")),
+        ("grasp_poses", registrar.GetOutputPort("grasp_poses")),
+        ("reconstructed_cloud_W", registrar.GetOutputPort("reconstructed_cloud_W")),
+        ("X_WO", registrar.GetOutputPort("X_WO")),
+    ):
+        builder.Connect(source, collector.GetInputPort(port))
+    builder.ExportOutput(latch.GetOutputPort("frame_id"), "frame_id")
+    builder.ExportOutput(collector.GetOutputPort("result"), "result")
+    for port in ("grasp_poses", "reconstructed_cloud_W", "X_WO"):
+        builder.ExportOutput(registrar.GetOutputPort(port), port)
+    diagram = builder.Build()
+    diagram.set_name("perception")
+    return diagram
+
+
+def MakeGroundTruthPerception(scenario: Scenario, surface_points: int = TRUE_SURFACE_POINTS) -> Diagram:
+    """The ground-truth source ("ground_truth") with perception's output ports: the object's true grasp
+    frames, surface and pose where the station puts it (the oracle pick; no camera, frame_id 0).
+
+    Raises:
+        ValueError: the object's model has no grasp frames.
+    """
+    poses = true_grasp_poses(scenario)
+    model = resolve_object(scenario.object)
+    X_WO = object_pose_on_table(scenario, model)
+    surface, _ = object_surface_W(model, X_WO, surface_points)
+    grasps = GraspPoses(True, poses, "ground truth")
+    result = PerceptionResult(True, None, "ground truth", scenario.object.category, X_WO, grasps, None, surface)
+    builder = DiagramBuilder()
+    for name, value in (
+        ("result", result),
+        ("grasp_poses", grasps),
+        ("reconstructed_cloud_W", surface),
+        ("X_WO", X_WO),
+    ):
+        source = builder.AddNamedSystem(name, ConstantValueSource(AbstractValue.Make(value)))
+        builder.ExportOutput(source.get_output_port(), name)
+    frame = builder.AddNamedSystem("frame_id", ConstantVectorSource([0.0]))
+    builder.ExportOutput(frame.get_output_port(), "frame_id")
+    diagram = builder.Build()
+    diagram.set_name("ground_truth")
+    return diagram

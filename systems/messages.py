@@ -190,3 +190,52 @@ class HandCommand:
     @property
     def end_s(self) -> float:
         return self.start_s + self.duration_s
+
+
+@dataclass(frozen=True)
+class ObjectBelief:
+    """X_WO as perceived (`seen_W`) and where the pick's held moves and looks put it since (`now_W`)."""
+
+    seen_W: RigidTransform
+    now_W: RigidTransform
+
+    @staticmethod
+    def seen(X_WO: RigidTransform) -> "ObjectBelief":
+        return ObjectBelief(X_WO, X_WO)
+
+    def moved(self, X_motion_W: RigidTransform) -> "ObjectBelief":
+        """The object moved by X_motion_W in W (a held move's achieved motion)."""
+        return ObjectBelief(self.seen_W, X_motion_W @ self.now_W)
+
+    def looked(self, X_WO: RigidTransform) -> "ObjectBelief":
+        """A look found the object at X_WO."""
+        return ObjectBelief(self.seen_W, X_WO)
+
+
+@dataclass(frozen=True)
+class LookRequest:
+    """The supervisor asks for a look at the held object: frame `id`, the object expected at `expected_X_WO`."""
+
+    id: int = 0
+    expected_X_WO: RigidTransform = field(default_factory=RigidTransform)
+
+
+@dataclass
+class PickStatus:
+    """Where the pick stands (the supervisor's state). Times are context (simulation or robot) seconds."""
+
+    mode: Mode = Mode.WAITING
+    failed_stage: str = ""  # a Stage, when mode == FAILED
+    message: str = ""
+    phase_index: int = -1  # into the task's phases
+    phase_start_s: float = 0.0
+    perceive_id: int = 0  # the camera frame asked for
+    perceived: bool = False  # perception's result has been read
+    request: PlanRequest = field(default_factory=PlanRequest)
+    applied_plan_id: int = -1  # the last plan whose achieved motion the belief has taken
+    hand: HandCommand = field(default_factory=HandCommand)
+    grasp_widths: tuple[float, ...] = ()  # each hand's measured opening once closed, m
+    # Where the robot stands still: first measured, then where each played trajectory ends (14 joints, rad).
+    plan_end_q: np.ndarray | None = None
+    belief: ObjectBelief | None = None  # where the object is, once perceived
+    looks_read: int = 0  # looks at the held object whose result was read

@@ -1,0 +1,326 @@
+"""The pick supervisor: a state machine over the pick's phases.
+
+It asks perception for a camera frame and reads perception's one result, then walks through the
+task's phases: a motion phase sends a PlanRequest to the planner stage and waits for its PlanResult
+and for the trajectory to be played; a hand phase sends a HandCommand and, after closing, checks the
+measured hand openings; a look phase asks the object tracker where the held object is. A failure at
+any point leaves the arms holding where they are (the trajectory source holds the last played
+trajectory's end) and names the stage.
+
+Modes: waiting -> perceiving -> (the task's phases: reach, approach, close, lift, then hold; or close,
+look, lift, carry, look_again, set_down, release, retreat) -> done, or failed. A place moves the object
+from where it is in the hands, not from where it was seen before the hands touched it (closing turned
+cans by up to 21 degrees, the lift a few more): the object belief and the place goals are
+systems/planning/place_goals.py's.
+"""
+
+import dataclasses
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+from pydrake.common.value import AbstractValue
+from pydrake.math import RigidTransform
+from pydrake.systems.framework import BasicVector, EventStatus, LeafSystem
+
+from systems.messages import (
+    CLOSED_WIDTH,
+    OPEN_WIDTH,
+    HandCommand,
+    LookRequest,
+    Mode,
+    MoveKind,
+    ObjectBelief,
+    ObjectEstimate,
+    PerceptionResult,
+    PickStatus,
+    PlaceGoal,
+    PlanRequest,
+    PlanResult,
+    Stage,
+    Targets,
+)
+from systems.planning.place_goals import place_motion
+
+CLOSE_S = 1.0  # s: the hands close over this long
+SETTLE_S = 0.5  # s: then the grip settles before it is checked
+# A hand whose measured opening is below this after closing holds nothing, m.
+MIN_GRASPED_WIDTH = 0.004
+LIFT_HEIGHT = 0.15  # m: aimed for
+MIN_LIFT_FRACTION = 0.8  # of it: near the edge of the arms' reach a lower lift will do (0.12 m)
+HOLD_S = 2.5  # s
+# The place task carries the object this high (its bottom clears the 6 cm boxes of the place_over_box layouts;
+# over an 8 cm box STOMP found no upright carry for a can); higher, the arms are near the edge of their reach
+# and cannot move it sideways, m.
+PLACE_LIFT_HEIGHT = 0.10
+# Letting go of a set-down object, the hands open this much wider than the widest handle they closed on, m:
+# enough to back off it, no wider. In one can pick, set down within 1.1 deg: + 10 cm (fully open), the
+# fingers turned it by 7.9 deg; + 2.5 cm, hand and retreat by 4.2 deg; + 1.2 cm, by 1.2 deg. (A fixed 5 cm
+# opening left a hand that had closed on a 48 mm handle dragging the can away.)
+RELEASE_MARGIN = 0.012
+
+
+@dataclass(frozen=True)
+class Phase:
+    """One step of a task: a motion (path set), a hand command (hand_width set), a look, or a wait."""
+
+    name: Mode
+    path: MoveKind | None = None
+    targets: Targets | None = None  # free and straight moves: the grasp poses named so
+    X_motion_W: RigidTransform | None = None  # held moves: the object's motion in W
+    min_fraction: float = 1.0  # held moves: the shortest share of the motion's translation that will do
+    goal: PlaceGoal | None = None  # held moves to the place target
+    hand_width: float | None = None  # m
+    beyond_grasp: bool = False  # hand_width is an opening beyond the widest measured grasp (letting go)
+    wait_s: float = 0.0
+    look: bool = False  # find the held object again (the object tracker; skipped without looks)
+
+
+def lift_task(lift_height: float = LIFT_HEIGHT) -> tuple[Phase, ...]:
+    """The paper's task: reach the pre-grasps, approach, close both hands, lift the object, hold it."""
+    return (
+        Phase(Mode.REACH, path=MoveKind.FREE, targets=Targets.PREGRASP),
+        Phase(Mode.APPROACH, path=MoveKind.STRAIGHT, targets=Targets.GRASP),
+        Phase(Mode.CLOSE, hand_width=CLOSED_WIDTH, wait_s=SETTLE_S),
+        Phase(Mode.LIFT, path=MoveKind.HELD, X_motion_W=RigidTransform([0, 0, lift_height]), min_fraction=MIN_LIFT_FRACTION),
+        Phase(Mode.HOLD, wait_s=HOLD_S),
+    )  # fmt: skip
+
+
+def place_task(lift_height: float = PLACE_LIFT_HEIGHT) -> tuple[Phase, ...]:
+    """Beyond the paper: lift the object, carry it to the place target, set it down upright, let go, back off."""
+    reach, approach, close, lift = lift_task(lift_height)[:4]
+    return (reach, approach, close, Phase(Mode.LOOK, look=True), lift) + (
+        Phase(Mode.CARRY, path=MoveKind.HELD, goal=PlaceGoal.CARRY),
+        Phase(Mode.LOOK_AGAIN, look=True),  # the object turns a few degrees in the hands as they move it
+        Phase(Mode.SET_DOWN, path=MoveKind.HELD, goal=PlaceGoal.SET_DOWN),
+        Phase(Mode.RELEASE, hand_width=RELEASE_MARGIN, beyond_grasp=True, wait_s=SETTLE_S),
+        Phase(Mode.RETREAT, path=MoveKind.STRAIGHT, targets=Targets.RETREAT),
+    )
+
+
+class PickSupervisor(LeafSystem):
+    """Supervises a pick: asks perception for a frame, the planner for plans, the hands for widths.
+
+    .. pydrake_system::
+
+        name: PickSupervisor
+        input_ports:
+        - position_measured
+        - left_hand_state
+        - right_hand_state
+        - plan
+        - frame_id
+        - perception
+        - look_frame_id (optional)
+        - look (optional)
+        output_ports:
+        - trigger
+        - plan_request
+        - hand_command
+        - look_trigger
+        - expected_X_WO
+        - status
+
+    ``position_measured`` (14, rad); ``<side>_hand_state`` (2: opening m, rate m/s); ``plan`` (PlanResult);
+    ``frame_id`` (1): the frame perception has latched; ``perception`` (PerceptionResult). ``trigger`` (1):
+    the camera frame wanted; ``plan_request`` (PlanRequest); ``hand_command`` (HandCommand); ``status``
+    (PickStatus). With looks, a look phase asks for a frame of the held object (``look_trigger`` (1),
+    answered by ``look_frame_id`` (1)) and reads ``look`` (ObjectEstimate: the object tracker's, told
+    where to look by ``expected_X_WO`` (RigidTransform)); without looks it is skipped.
+
+    Args:
+        phases: the task (lift_task() or place_task()).
+        perceive_at_s: when to ask for the camera frame (the object has settled), s.
+        place_target_W: where a place task leaves the object (X_WO on the table).
+        from_camera: perception needs a camera frame (False: a ground-truth source, read at once).
+        looks: the look phases ask the object tracker (False: they are skipped).
+    """
+
+    def __init__(
+        self,
+        phases: tuple[Phase, ...],
+        perceive_at_s: float = 0.5,
+        place_target_W: RigidTransform | None = None,
+        from_camera: bool = True,
+        looks: bool = False,
+        period_s: float = 0.01,
+    ):
+        super().__init__()
+        self.phases, self.perceive_at_s, self.place_target_W = phases, perceive_at_s, place_target_W
+        self.from_camera, self.looks = from_camera, looks
+        if any(phase.goal for phase in phases) and place_target_W is None:
+            raise ValueError("a task with carry or set_down phases needs place_target_W")
+        self.position_port = self.DeclareVectorInputPort("position_measured", 14)
+        self.hand_state_ports = {side: self.DeclareVectorInputPort(f"{side}_hand_state", 2) for side in ("left", "right")}
+        self.plan_port = self.DeclareAbstractInputPort("plan", AbstractValue.Make(PlanResult()))
+        self.frame_id_port = self.DeclareVectorInputPort("frame_id", 1)
+        self.perception_port = self.DeclareAbstractInputPort("perception", AbstractValue.Make(PerceptionResult()))
+        self.look_frame_id_port = self.DeclareVectorInputPort("look_frame_id", 1)
+        self.look_port = self.DeclareAbstractInputPort("look", AbstractValue.Make(ObjectEstimate(False)))
+        self._state = self.DeclareAbstractState(AbstractValue.Make(PickStatus()))
+        # A look request is state of its own: the tracker's inputs change only when a new look is asked for.
+        self._look_state = self.DeclareAbstractState(AbstractValue.Make(LookRequest()))
+        status = {self.abstract_state_ticket(self._state)}
+        looking = {self.abstract_state_ticket(self._look_state)}
+        self.DeclareVectorOutputPort(
+            "trigger", BasicVector(1), lambda c, o: o.SetFromVector([self._status(c).perceive_id]), status
+        )
+        self.DeclareAbstractOutputPort(
+            "plan_request", lambda: AbstractValue.Make(PlanRequest()), lambda c, o: o.set_value(self._status(c).request), status
+        )  # fmt: skip
+        self.DeclareAbstractOutputPort(
+            "hand_command", lambda: AbstractValue.Make(HandCommand()), lambda c, o: o.set_value(self._status(c).hand), status
+        )  # fmt: skip
+        self.DeclareVectorOutputPort(
+            "look_trigger", BasicVector(1), lambda c, o: o.SetFromVector([self._look_request(c).id]), looking
+        )
+        self.DeclareAbstractOutputPort(
+            "expected_X_WO",
+            lambda: AbstractValue.Make(RigidTransform()),
+            lambda c, o: o.set_value(self._look_request(c).expected_X_WO),
+            looking,
+        )
+        self.DeclareAbstractOutputPort(
+            "status", lambda: AbstractValue.Make(PickStatus()), lambda c, o: o.set_value(self._status(c)), status
+        )
+        self.DeclarePeriodicUnrestrictedUpdateEvent(period_s, 0.0, self._update)
+
+    def _status(self, context) -> PickStatus:
+        return context.get_abstract_state(self._state).get_value()
+
+    def _look_request(self, context) -> LookRequest:
+        return context.get_abstract_state(self._look_state).get_value()
+
+    def _update(self, context, state) -> EventStatus:
+        before = self._status(context)
+        if before.mode in (Mode.DONE, Mode.FAILED):
+            return EventStatus.DidNothing()
+        status = dataclasses.replace(before)
+        look = self._look_request(context)
+        t = context.get_time()
+        if before.mode == Mode.WAITING:
+            changed = self._wait(context, status, t)
+        elif before.mode == Mode.PERCEIVING:
+            changed = self.frame_id_port.Eval(context)[0] >= status.perceive_id
+            if changed:
+                self._perceive(context, status, t)
+        else:
+            changed, look = self._follow_phase(context, status, look, t)
+        if look is not self._look_request(context):
+            state.get_mutable_abstract_state(self._look_state).set_value(look)
+        if not changed:  # (most updates: nothing to copy into the state)
+            return EventStatus.DidNothing()
+        state.get_mutable_abstract_state(self._state).set_value(status)
+        return EventStatus.Succeeded()
+
+    def _wait(self, context, status: PickStatus, t: float) -> bool:
+        """Latches where the robot stands, then at perceive_at_s asks for a frame; whether it changed anything."""
+        changed = False
+        if status.plan_end_q is None:
+            measured = self.position_port.Eval(context)
+            if not np.all(np.isfinite(measured)):  # (the hardware station's NaN before the robot's status)
+                return False
+            status.plan_end_q, changed = measured.copy(), True
+        if t < self.perceive_at_s:
+            return changed
+        if self.from_camera:
+            status.mode, status.perceive_id = Mode.PERCEIVING, status.perceive_id + 1
+        else:  # a ground-truth source needs no frame
+            self._perceive(context, status, t)
+        return True
+
+    def _perceive(self, context, status: PickStatus, t: float):
+        """Reads perception's result; a stage that found nothing ends the pick."""
+        result = self.perception_port.Eval(context)
+        status.perceived = True
+        if not result.found:
+            self._fail(status, result.failed_stage, result.message)
+            return
+        status.belief = ObjectBelief.seen(result.X_WO_seen)
+        self._start_phase(context, status, 0, t)
+
+    def _start_phase(self, context, status: PickStatus, index: int, t: float, look: LookRequest | None = None):
+        """Starts phase `index` (done after the last); returns the look request (a new one for a look phase)."""
+        status.phase_index, status.phase_start_s = index, t
+        if index >= len(self.phases):
+            status.mode = Mode.DONE
+            return look
+        phase = self.phases[index]
+        status.mode = phase.name
+        if phase.path is not None:
+            X_motion_W, carried = phase.X_motion_W or RigidTransform(), None
+            if phase.goal is not None:
+                X_motion_W, carried = place_motion(phase.goal, status.belief, self.place_target_W)
+            status.request = PlanRequest(
+                status.request.id + 1 if status.request.id >= 0 else 1,
+                phase.name,
+                status.plan_end_q,
+                phase.path,
+                phase.targets or Targets.PREGRASP,
+                X_motion_W,
+                phase.min_fraction,
+                carried,
+            )
+        elif phase.hand_width is not None:
+            width = phase.hand_width + (max(status.grasp_widths, default=OPEN_WIDTH) if phase.beyond_grasp else 0.0)
+            status.hand = HandCommand(min(width, OPEN_WIDTH), status.hand.at(t), t, CLOSE_S)
+        elif phase.look and self.looks and look is not None:
+            look = LookRequest(look.id + 1, status.belief.now_W)
+        return look
+
+    def _follow_phase(self, context, status: PickStatus, look: LookRequest, t: float) -> tuple[bool, LookRequest]:
+        """Moves on when the phase is over (or fails it). Returns whether the status changed, and the look request."""
+        phase = self.phases[status.phase_index]
+        if phase.path is not None:
+            plan = self.plan_port.Eval(context)
+            if plan.id != status.request.id:
+                return False, look  # not planned yet
+            if not plan.success:
+                self._fail(status, Stage.PLANNING, plan.message)
+                return True, look
+            applied = status.applied_plan_id != plan.id
+            if applied:  # the object moved with the hands
+                status.applied_plan_id = plan.id
+                if plan.achieved_motion_W is not None:
+                    status.belief = status.belief.moved(plan.achieved_motion_W)
+            if t + 1e-9 < plan.end_s:
+                return applied, look
+            status.plan_end_q = plan.trajectory.value(plan.end_s).ravel()
+        elif phase.hand_width is not None:
+            if t + 1e-9 < status.hand.end_s + phase.wait_s:
+                return False, look
+            if phase.hand_width == CLOSED_WIDTH and not self._holding(context, status):
+                return True, look
+        elif phase.look and self.looks:
+            if self.look_frame_id_port.Eval(context)[0] < look.id:
+                return False, look
+            self._read_look(context, status)
+        elif t + 1e-9 < status.phase_start_s + phase.wait_s:
+            return False, look
+        return True, self._start_phase(context, status, status.phase_index + 1, t, look)
+
+    def _read_look(self, context, status: PickStatus):
+        """Where the tracker found the object in the hands: the held moves start from there. If it did not,
+        the pick goes on from where the object was believed to be."""
+        found = self.look_port.Eval(context)
+        status.looks_read += 1
+        logging.info("look: %s (%.3f s)", found.message, found.compute_s)
+        if found.found:
+            status.belief = status.belief.looked(found.X_WO)
+        else:
+            logging.warning("look: %s; going on from where the object was believed to be", found.message)
+
+    def _holding(self, context, status: PickStatus) -> bool:
+        status.grasp_widths = tuple(self.hand_state_ports[s].Eval(context)[0] for s in ("left", "right"))
+        for side, width in zip(("left", "right"), status.grasp_widths, strict=True):
+            logging.info("%s hand closed to %.1f mm", side, width * 1000)
+            if width < MIN_GRASPED_WIDTH:
+                self._fail(status, Stage.GRASP, f"the {side} hand closed on nothing (opening {width * 1000:.1f} mm)")
+                return False
+        return True
+
+    def _fail(self, status: PickStatus, stage: Stage, message: str):
+        logging.warning("pick stopped at %s: %s", stage, message)
+        status.mode, status.failed_stage = Mode.FAILED, stage
+        status.message = message if message.startswith(stage) else f"{stage}: {message}"

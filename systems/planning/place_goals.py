@@ -1,0 +1,35 @@
+"""Where the object is believed to be during a pick, and the held moves that take it to a place target.
+
+Frames: W the world, O the object (origin on its support surface, z up). The belief starts where
+perception saw the object; every held move that was planned moves it by the hands' achieved motion,
+and a look at the object in the hands replaces it with what the tracker found.
+"""
+
+from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
+
+from systems.messages import ObjectBelief, PlaceGoal
+
+# The place task sets the object down to this height above the table: a little into it, so that the object
+# rests on the table before the hands open (held 2 mm above it, the object dropped and turned by 2-4 degrees
+# when let go, and a hand still on its handle then dragged it; three drill picks), m.
+PLACE_CLEARANCE = -0.003
+
+
+def place_motion(
+    goal: PlaceGoal, belief: ObjectBelief, target_W: RigidTransform
+) -> tuple[RigidTransform, RigidTransform | None]:
+    """The held move of a carry or set-down towards target_W (X_WO on the table) from where the object is
+    believed to be, as (X_motion_W, carried_motion_W): the carry also gives the object's motion since it
+    was seen (the planner keeps the perceived object, moved by it, clear of the scene); a set-down None."""
+    now = belief.now_W
+    if goal == PlaceGoal.CARRY:  # over the target, turned about the vertical to its yaw, at the carried height
+        turn = RollPitchYaw(target_W.rotation()).yaw_angle() - RollPitchYaw(now.rotation()).yaw_angle()
+        over = RigidTransform(
+            RotationMatrix.MakeZRotation(turn) @ now.rotation(), [*target_W.translation()[:2], now.translation()[2]]
+        )
+        return over @ now.inverse(), now @ belief.seen_W.inverse()
+    if goal != PlaceGoal.SET_DOWN:
+        raise ValueError(f"unknown place goal {goal!r}: one of {', '.join(PlaceGoal)}")
+    # Onto the target, PLACE_CLEARANCE above the table (down, and what a look found still to turn).
+    down = RigidTransform(target_W.rotation(), target_W.translation() + [0.0, 0.0, PLACE_CLEARANCE])
+    return down @ now.inverse(), None
