@@ -82,9 +82,14 @@ def lift_task(lift_height: float = LIFT_HEIGHT) -> tuple[Phase, ...]:
         Phase(Mode.REACH, path=MoveKind.FREE, targets=Targets.PREGRASP),
         Phase(Mode.APPROACH, path=MoveKind.STRAIGHT, targets=Targets.GRASP),
         Phase(Mode.CLOSE, hand_width=CLOSED_WIDTH, wait_s=SETTLE_S),
-        Phase(Mode.LIFT, path=MoveKind.HELD, X_motion_W=RigidTransform([0, 0, lift_height]), min_fraction=MIN_LIFT_FRACTION),
+        Phase(
+            Mode.LIFT,
+            path=MoveKind.HELD,
+            X_motion_W=RigidTransform([0, 0, lift_height]),
+            min_fraction=MIN_LIFT_FRACTION,
+        ),
         Phase(Mode.HOLD, wait_s=HOLD_S),
-    )  # fmt: skip
+    )
 
 
 def place_task(lift_height: float = PLACE_LIFT_HEIGHT) -> tuple[Phase, ...]:
@@ -152,7 +157,9 @@ class PickSupervisor(LeafSystem):
         if any(phase.goal for phase in phases) and place_target_W is None:
             raise ValueError("a task with carry or set_down phases needs place_target_W")
         self.position_port = self.DeclareVectorInputPort("position_measured", 14)
-        self.hand_state_ports = {side: self.DeclareVectorInputPort(f"{side}_hand_state", 2) for side in ("left", "right")}
+        self.hand_state_ports = {
+            side: self.DeclareVectorInputPort(f"{side}_hand_state", 2) for side in ("left", "right")
+        }
         self.plan_port = self.DeclareAbstractInputPort("plan", AbstractValue.Make(PlanResult()))
         self.frame_id_port = self.DeclareVectorInputPort("frame_id", 1)
         self.perception_port = self.DeclareAbstractInputPort("perception", AbstractValue.Make(PerceptionResult()))
@@ -166,12 +173,16 @@ class PickSupervisor(LeafSystem):
         self.DeclareVectorOutputPort(
             "trigger", BasicVector(1), lambda c, o: o.SetFromVector([self._status(c).perceive_id]), status
         )
-        self.DeclareAbstractOutputPort(
-            "plan_request", lambda: AbstractValue.Make(PlanRequest()), lambda c, o: o.set_value(self._status(c).request), status
-        )  # fmt: skip
-        self.DeclareAbstractOutputPort(
-            "hand_command", lambda: AbstractValue.Make(HandCommand()), lambda c, o: o.set_value(self._status(c).hand), status
-        )  # fmt: skip
+        for name, model, attribute in (
+            ("plan_request", PlanRequest(), "request"),
+            ("hand_command", HandCommand(), "hand"),
+        ):
+            self.DeclareAbstractOutputPort(
+                name,
+                lambda model=model: AbstractValue.Make(model),
+                lambda c, o, attribute=attribute: o.set_value(getattr(self._status(c), attribute)),
+                status,
+            )
         self.DeclareVectorOutputPort(
             "look_trigger", BasicVector(1), lambda c, o: o.SetFromVector([self._look_request(c).id]), looking
         )

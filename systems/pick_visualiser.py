@@ -38,6 +38,7 @@ class PickVisualiser(LeafSystem):
         self.plan_port = self.DeclareAbstractInputPort("plan", AbstractValue.Make(PlanResult()))
         self._drawn_perception, self._drawn_plans = False, set()
         self.DeclarePeriodicPublishEvent(period_s, 0.0, self._publish)
+        self.DeclareForcedPublishEvent(self._publish)
 
     def _publish(self, context):
         if not self._drawn_perception and self.status_port.Eval(context).perceived:

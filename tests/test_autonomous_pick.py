@@ -1,5 +1,5 @@
-"""The pick sequencer and the shape registrar alone, and the pick diagram end to end (no ground truth
-until judging; the ground-truth pick is the same diagram), including its failure paths."""
+"""The pick supervisor, the perception result and the shape registrar alone, and the pick diagram end to
+end (no ground truth until judging; the ground-truth pick is the same diagram), including its failure paths."""
 
 import dataclasses
 import json
@@ -14,12 +14,23 @@ from pydrake.math import RigidTransform
 from pydrake.systems.analysis import Simulator
 from pydrake.trajectories import PiecewisePolynomial
 
-from diagrams.autonomous_pick import PERCEIVE_AT_S, MakePickDiagram, draw_perception, run_pick
+from diagrams.autonomous_pick import PERCEIVE_AT_S, MakePickDiagram, run_pick
 from diagrams.paths import REPO_ROOT
 from diagrams.scenario import PlaceConfig, load_scenario, place_over_box_scenario, replace_object
-from systems.messages import CLOSED_WIDTH, GraspPoses, ObjectEstimate, PlanResult, Segmentation
+from systems.messages import (
+    CLOSED_WIDTH,
+    GraspPoses,
+    ObjectEstimate,
+    PerceptionResult,
+    PickStatus,
+    PlanResult,
+    Segmentation,
+    Stage,
+)
+from systems.perception.perception_result import PerceptionResultCollector
 from systems.perception.shape_registrar import ShapeRegistrar
-from systems.pick_sequencer import PickSequencer, PickStatus, lift_task
+from systems.pick_supervisor import PickSupervisor, lift_task
+from systems.pick_visualiser import PickVisualiser
 from systems.shape_space.space import POSE_NAMES
 
 Q0 = np.linspace(-0.5, 0.5, 14)
@@ -46,21 +57,45 @@ def test_shape_registrar_system_alone(scenario):
     assert len(registrar.GetOutputPort("reconstructed_cloud_W").Eval(context)) == 0
 
 
+def _perception(segmentation_found=True, grasps_found=True) -> PerceptionResult:
+    """What the perception result collector makes of stages that found (or did not find) something."""
+    collector = PerceptionResultCollector()
+    context = collector.CreateDefaultContext()
+    mask = np.ones((4, 4), bool)
+    for port, value in (
+        (
+            "segmentation",
+            Segmentation(segmentation_found, "drill", mask, 16, "ok" if segmentation_found else "none", 0.1),
+        ),
+        ("estimate", ObjectEstimate(True, "drill", points_W=np.ones((7, 3)), compute_s=0.2)),
+        ("grasp_poses", GraspPoses(grasps_found, {}, "ok" if grasps_found else "diverged", 0.3)),
+        ("reconstructed_cloud_W", np.zeros((0, 3))),
+        ("X_WO", RigidTransform([0.7, 0.0, 0.8])),
+    ):
+        collector.GetInputPort(port).FixValue(context, AbstractValue.Make(value))
+    return collector.GetOutputPort("result").Eval(context)
+
+
+def test_perception_result_names_the_first_stage_that_found_nothing():
+    found = _perception()
+    assert found.found and found.failed_stage is None and found.category == "drill"
+    assert found.stage_seconds == {"segmentation": 0.1, "pose": 0.2, "registration": 0.3}
+    np.testing.assert_array_equal(found.X_WO_seen.translation(), [0.7, 0.0, 0.8])
+    nothing = _perception(segmentation_found=False)
+    assert not nothing.found and nothing.failed_stage == Stage.SEGMENTATION and nothing.message == "none"
+    assert set(nothing.stage_seconds) == {"segmentation"}  # the later stages did not run
+    diverged = _perception(grasps_found=False)
+    assert diverged.failed_stage == Stage.REGISTRATION and diverged.message == "diverged"
+
+
 def _sequencer_context(dut, segmentation_found=True, grasps_found=True):
     context = dut.CreateDefaultContext()
     dut.GetInputPort("position_measured").FixValue(context, Q0)
     for side in ("left", "right"):
         dut.GetInputPort(f"{side}_hand_state").FixValue(context, [0.03, 0.0])  # closed on a handle
     dut.GetInputPort("frame_id").FixValue(context, [0.0])
-    mask = np.ones((4, 4), bool)
-    for port, value in (
-        ("segmentation", Segmentation(segmentation_found, "drill", mask, 16, "ok" if segmentation_found else "none")),
-        ("estimate", ObjectEstimate(True, "drill", points_W=np.ones((7, 3)))),
-        ("grasp_poses", GraspPoses(grasps_found, {}, "ok" if grasps_found else "diverged")),
-        ("reconstructed_cloud_W", np.zeros((0, 3))),
-        ("plan", PlanResult()),
-    ):
-        dut.GetInputPort(port).FixValue(context, AbstractValue.Make(value))
+    dut.GetInputPort("perception").FixValue(context, AbstractValue.Make(_perception(segmentation_found, grasps_found)))
+    dut.GetInputPort("plan").FixValue(context, AbstractValue.Make(PlanResult()))
     return context
 
 
@@ -78,8 +113,8 @@ def _mode(dut, context):
     return dut.GetOutputPort("status").Eval(context).mode
 
 
-def test_sequencer_perceives_once_then_requests_each_phase_in_turn():
-    dut = PickSequencer(lift_task(), perceive_at_s=0.5)
+def test_supervisor_perceives_once_then_requests_each_phase_in_turn():
+    dut = PickSupervisor(lift_task(), perceive_at_s=0.5)
     context = _sequencer_context(dut)
     simulator = Simulator(dut, context)
     simulator.AdvanceTo(0.3)
@@ -89,7 +124,8 @@ def test_sequencer_perceives_once_then_requests_each_phase_in_turn():
     dut.GetInputPort("frame_id").FixValue(context, [1.0])  # the latch has the frame
     simulator.AdvanceTo(0.7)
     status = dut.GetOutputPort("status").Eval(context)
-    assert status.mode == "reach" and set(status.stage_seconds) >= {"segmentation", "pose", "registration"}
+    assert status.mode == "reach" and status.perceived
+    np.testing.assert_array_equal(status.belief.seen_W.translation(), [0.7, 0.0, 0.8])  # where perception saw it
     request = dut.GetOutputPort("plan_request").Eval(context)
     assert request.id == 1 and request.path == "free" and request.targets == "pregrasp"
     np.testing.assert_array_equal(request.q_start, Q0)  # where the robot was measured
@@ -113,14 +149,14 @@ def test_sequencer_perceives_once_then_requests_each_phase_in_turn():
     assert _mode(dut, context) == "hold"
     simulator.AdvanceTo(8.5)
     status = dut.GetOutputPort("status").Eval(context)
-    assert status.mode == "done" and status.stage_seconds["planning_total"] >= 0
+    assert status.mode == "done" and status.applied_plan_id == 3
 
 
 @pytest.mark.parametrize(
     ("segmentation_found", "grasps_found", "stage"), [(False, True, "segmentation"), (True, False, "registration")]
 )
-def test_sequencer_stops_at_the_failing_perception_stage(segmentation_found, grasps_found, stage):
-    dut = PickSequencer(lift_task(), perceive_at_s=0.1)
+def test_supervisor_stops_at_the_failing_perception_stage(segmentation_found, grasps_found, stage):
+    dut = PickSupervisor(lift_task(), perceive_at_s=0.1)
     context = _sequencer_context(dut, segmentation_found, grasps_found)
     dut.GetInputPort("frame_id").FixValue(context, [1.0])
     Simulator(dut, context).AdvanceTo(0.5)
@@ -129,8 +165,8 @@ def test_sequencer_stops_at_the_failing_perception_stage(segmentation_found, gra
     assert dut.GetOutputPort("plan_request").Eval(context).id == -1  # nothing was asked of the planner
 
 
-def test_sequencer_names_a_failed_plan_and_an_empty_grasp():
-    dut = PickSequencer(lift_task(), perceive_at_s=0.1)
+def test_supervisor_names_a_failed_plan_and_an_empty_grasp():
+    dut = PickSupervisor(lift_task(), perceive_at_s=0.1)
     context = _sequencer_context(dut)
     dut.GetInputPort("frame_id").FixValue(context, [1.0])
     simulator = Simulator(dut, context)
@@ -154,29 +190,44 @@ def test_sequencer_names_a_failed_plan_and_an_empty_grasp():
     assert status.mode == "failed" and status.failed_stage == "grasp" and "closed on nothing" in status.message
 
 
-def test_viewer_draws_what_the_plan_was_made_from():
+def test_visualiser_draws_what_the_plan_was_made_from():
     points = np.random.default_rng(0).uniform(size=(50, 3))
-    paths = [{"left": np.zeros((5, 3)), "right": np.ones((5, 3))}]
-    status = PickStatus("reach", seen_points_W=points, reconstruction_W=points[:10], grasp_paths_W=paths)
     meshcat = Meshcat(MeshcatParams(host="localhost"))
-    draw_perception(meshcat, status)
-    for path in ("camera_points", "reconstruction", "grasp_path_0_left", "grasp_path_0_right"):
+    dut = PickVisualiser(meshcat)
+    context = dut.CreateDefaultContext()
+    perception = PerceptionResult(True, points_W=points, reconstruction_W=points[:10])
+    plan = PlanResult(4, "reach", True, grasp_paths_W={"left": np.zeros((5, 3)), "right": np.ones((5, 3))})
+    for port, value in (("status", PickStatus("waiting")), ("perception", perception), ("plan", PlanResult())):
+        dut.GetInputPort(port).FixValue(context, AbstractValue.Make(value))
+    dut.ForcedPublish(context)
+    assert not meshcat.HasPath("/drake/perception/camera_points")  # not perceived yet: nothing to draw
+    dut.GetInputPort("status").FixValue(context, AbstractValue.Make(PickStatus("reach", perceived=True)))
+    dut.GetInputPort("plan").FixValue(context, AbstractValue.Make(plan))
+    dut.ForcedPublish(context)
+    for path in ("camera_points", "reconstruction", "grasp_path_4_left", "grasp_path_4_right"):
         assert meshcat.HasPath(f"/drake/perception/{path}")
 
 
-# The design card's chain: each stage feeds the next, by port name.
+# The design card's chain: each stage feeds the next, by port name (perception's stages inside it).
 CHAIN = (
-    ("station", "camera0.rgb_image", "camera_latch", "color_image"),
+    ("station", "camera0.rgb_image", "perception", "color_image"),
+    ("perception", "grasp_poses", "stomp_planner", "grasp_poses"),
+    ("perception", "reconstructed_cloud_W", "stomp_planner", "obstacle_cloud_W"),
+    ("perception", "result", "pick_supervisor", "perception"),
+    ("stomp_planner", "plan", "trajectory_source", "plan"),
+    ("trajectory_source", "position", "station", "centauro.position"),
+    ("pick_supervisor", "trigger", "perception", "trigger"),
+    ("pick_supervisor", "plan_request", "stomp_planner", "request"),
+    ("pick_supervisor", "hand_command", "hand_command", "command"),
+    ("hand_command", "width", "station", "left_hand.position"),
+)
+PERCEPTION_CHAIN = (
     ("camera_latch", "color_image", "segmenter", "color_image"),
     ("segmenter", "segmentation", "pose_estimator", "segmentation"),
     ("pose_estimator", "estimate", "shape_registrar", "estimate"),
-    ("shape_registrar", "grasp_poses", "stomp_planner", "grasp_poses"),
-    ("shape_registrar", "reconstructed_cloud_W", "stomp_planner", "obstacle_cloud_W"),
-    ("stomp_planner", "plan", "trajectory_source", "plan"),
-    ("trajectory_source", "position", "station", "centauro.position"),
-    ("pick_sequencer", "plan_request", "stomp_planner", "request"),
-    ("pick_sequencer", "hand_command", "hand_command", "command"),
-    ("hand_command", "width", "station", "left_hand.position"),
+    ("segmenter", "segmentation", "perception_result", "segmentation"),
+    ("pose_estimator", "estimate", "perception_result", "estimate"),
+    ("shape_registrar", "grasp_poses", "perception_result", "grasp_poses"),
 )
 
 
@@ -192,19 +243,20 @@ def _assert_wired(diagram, connections):
 
 
 def test_pick_diagram_is_the_cards_chain_of_stages(scenario):
-    _assert_wired(MakePickDiagram(scenario), CHAIN)
+    diagram = MakePickDiagram(scenario)
+    _assert_wired(diagram, CHAIN)
+    _assert_wired(diagram.GetSubsystemByName("perception"), PERCEPTION_CHAIN)
 
 
 def test_ground_truth_pick_is_the_same_diagram_with_a_ground_truth_source(scenario):
     autonomous = {s.get_name() for s in MakePickDiagram(scenario).GetSystems()}
     oracle = MakePickDiagram(scenario, perception="ground_truth")
     names = {s.get_name() for s in oracle.GetSystems()}
-    perception = {"camera_latch", "segmenter", "pose_estimator", "shape_registrar"}
-    perception |= {"look_latch", "robot_spheres", "object_tracker"}  # the place task's looks at the held object
-    assert names - autonomous == {"ground_truth.grasp_poses", "ground_truth.object_cloud_W", "ground_truth.X_WO"}
-    assert autonomous - names == perception
-    _assert_wired(oracle, CHAIN[6:])
-    assert _connected(oracle, "ground_truth.grasp_poses", "y0", "stomp_planner", "grasp_poses")
+    assert names - autonomous == {"ground_truth"} and autonomous - names == {"perception"}
+    _assert_wired(oracle, CHAIN[4:6] + CHAIN[7:])
+    for port in ("grasp_poses", "reconstructed_cloud_W", "result", "X_WO", "frame_id"):  # perception's ports
+        assert oracle.GetSubsystemByName("ground_truth").HasOutputPort(port)
+    assert _connected(oracle, "ground_truth", "grasp_poses", "stomp_planner", "grasp_poses")
 
 
 def test_autonomous_pick_of_an_unseen_drill_lifts_it_with_the_closure_kept(scenario):
@@ -310,20 +362,20 @@ def test_same_seed_same_outcome_on_an_idle_and_a_busy_machine(tmp_path):
 
 
 LOOK = (
-    ("pick_sequencer", "look_trigger", "look_latch", "trigger"),
+    ("pick_supervisor", "look_trigger", "look_latch", "trigger"),
     ("station", "camera0.depth_image", "look_latch", "depth_image"),
     ("station", "centauro.position_measured", "look_latch", "robot_position"),
     ("look_latch", "robot_position", "robot_spheres", "position"),
     ("look_latch", "depth_image", "object_tracker", "depth_image"),
     ("robot_spheres", "spheres_W", "object_tracker", "robot_spheres_W"),
-    ("pick_sequencer", "expected_X_WO", "object_tracker", "expected_X_WO"),
-    ("shape_registrar", "reconstructed_cloud_W", "object_tracker", "model_cloud_W"),
-    ("object_tracker", "estimate", "pick_sequencer", "look"),
+    ("pick_supervisor", "expected_X_WO", "object_tracker", "expected_X_WO"),
+    ("perception", "reconstructed_cloud_W", "object_tracker", "model_cloud_W"),
+    ("object_tracker", "estimate", "pick_supervisor", "look"),
 )
 
 
 def test_the_looks_at_the_held_object_have_their_own_latch_and_tracker(scenario):
-    _assert_wired(MakePickDiagram(scenario), LOOK)
+    _assert_wired(MakePickDiagram(dataclasses.replace(scenario, task="place")), LOOK)
 
 
 def test_robot_spheres_cover_the_arms_where_they_stand(scenario):

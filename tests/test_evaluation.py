@@ -47,9 +47,9 @@ def test_pose_yaw_offset_turns_the_estimate_about_the_object_origin():
 
 
 def test_pick_diagram_inserts_the_noise_only_when_asked(scenario):
-    assert not MakePickDiagram(scenario).HasSubsystemNamed("registration_yaw_noise")
+    assert not MakePickDiagram(scenario).GetSubsystemByName("perception").HasSubsystemNamed("registration_yaw_noise")
     noisy = MakePickDiagram(dataclasses.replace(scenario, registration_yaw_noise=0.2, random_seed=3))
-    offset = noisy.GetSubsystemByName("registration_yaw_noise").yaw_offset_rad
+    offset = noisy.GetSubsystemByName("perception").GetSubsystemByName("registration_yaw_noise").yaw_offset_rad
     assert offset == draw_yaw_offset(0.2, 3)
 
 

@@ -4,12 +4,14 @@ import numpy as np
 import pytest
 from pydrake.common.value import AbstractValue
 from pydrake.math import RigidTransform
+from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.primitives import ConstantVectorSource
 
 from diagrams.generation import segmentation_data
 from diagrams.generation.objects.library import resolve_object
 from diagrams.generation.synthetic_scenes import CLASSES, SyntheticScene
-from diagrams.perception import AddPerception, MakePoseEstimator
+from diagrams.perception import MakePerception, MakePoseEstimator
 from diagrams.scenario import load_scenario, replace_object
 from diagrams.station import MakeStation, object_pose_on_table, true_label_image
 from systems.messages import Segmentation
@@ -144,19 +146,38 @@ def test_pose_estimator_survives_depth_holes_and_reports_no_depth(station_frame)
     assert not teapot.found and "no pose prior for 'teapot'" in teapot.message
 
 
-def test_perception_wired_to_station_localises_the_object():
+def test_perception_subsystem_wired_to_station_localises_the_object():
     scenario = load_scenario()
     builder = DiagramBuilder()
     station = builder.AddNamedSystem("station", MakeStation(scenario))
-    ports = (station.GetOutputPort(f"camera0.{name}") for name in ("rgb_image", "depth_image", "pose"))
-    _, pose_estimator = AddPerception(builder, *ports, scenario)
+    perception = builder.AddNamedSystem("perception", MakePerception(scenario))
+    for port, output in (("color_image", "rgb_image"), ("depth_image", "depth_image"), ("camera_pose", "pose")):
+        builder.Connect(station.GetOutputPort(f"camera0.{output}"), perception.GetInputPort(port))
+    builder.Connect(
+        builder.AddSystem(ConstantVectorSource([1.0])).get_output_port(), perception.GetInputPort("trigger")
+    )
     diagram = builder.Build()
-    context = diagram.CreateDefaultContext()
-    estimate = pose_estimator.GetOutputPort("estimate").Eval(pose_estimator.GetMyContextFromRoot(context))
-    assert estimate.found and estimate.category == "watering_can"
+    simulator = Simulator(diagram)
+    station_context = station.GetMyMutableContextFromRoot(simulator.get_mutable_context())
+    station.GetInputPort("centauro.position").FixValue(station_context, np.array(scenario.initial_arm_positions))
+    for hand in ("left_hand", "right_hand"):
+        station.GetInputPort(f"{hand}.position").FixValue(station_context, [scenario.initial_hand_width])
+    simulator.AdvanceTo(0.02)  # the latch takes frame 1
+    context = perception.GetMyContextFromRoot(simulator.get_context())
+    assert perception.GetOutputPort("frame_id").Eval(context)[0] == 1
+    pose_estimator = perception.GetSubsystemByName("pose_estimator")
+    estimate = pose_estimator.GetOutputPort("estimate").Eval(
+        pose_estimator.GetMyContextFromRoot(simulator.get_context())
+    )
+    assert estimate.found and estimate.category == "watering_can" and estimate.compute_s > 0
     X_WO = object_pose_on_table(scenario, resolve_object(scenario.object))
     assert np.linalg.norm(estimate.X_WO.translation() - X_WO.translation()) < TRANSLATION_TOLERANCE
     assert yaw_error(estimate.X_WO, X_WO) < YAW_TOLERANCE
+    result = perception.GetOutputPort("result").Eval(context)  # the one result: every stage found something
+    assert result.found and result.category == "watering_can" and len(result.grasps.poses_W) == 4
+    assert set(result.stage_seconds) == {"segmentation", "pose", "registration"}
+    assert np.linalg.norm(result.X_WO_seen.translation() - X_WO.translation()) < TRANSLATION_TOLERANCE
+    assert result.points_W is estimate.points_W and len(result.reconstruction_W) > 1000
 
 
 def test_tiny_training_run_reduces_loss():

@@ -36,7 +36,8 @@ from diagrams.scenario import Scenario
 from diagrams.station import AddCentauro, make_parser
 from systems import categories
 
-CLASSES = ("background", "watering_can", "drill")
+# The segmenter's classes: background, then the generated categories (a taught one widens it: add_category.py).
+CLASSES = ("background", *categories.GENERATED)
 PARKED = RigidTransform([0.0, 0.0, -10.0])  # where unused bodies wait, out of every view
 
 

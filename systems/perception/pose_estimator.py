@@ -226,13 +226,21 @@ def to_point_cloud(points: np.ndarray) -> PointCloud:
 class PoseEstimator(LeafSystem):
     """Initial 6D pose of the segmented object from depth (paper §III).
 
-    Input ports:
-        segmentation: Segmentation from the Segmenter.
-        depth_image: ImageDepth32F, metres (NaN, inf and 0 are holes).
-        camera_pose: RigidTransform X_WB of the camera body (the station's `camera0.pose`).
-    Output ports:
-        estimate: ObjectEstimate (found False, with the reason, when there is no object or too few points).
-        point_cloud: the object's points in W as a drake PointCloud (empty when not found).
+    .. pydrake_system::
+
+        name: PoseEstimator
+        input_ports:
+        - segmentation
+        - depth_image
+        - camera_pose
+        output_ports:
+        - estimate
+        - point_cloud
+
+    Inputs ``segmentation`` (Segmentation from the Segmenter), ``depth_image`` (ImageDepth32F, metres: NaN,
+    inf and 0 are holes), ``camera_pose`` (RigidTransform X_WB of the camera body, the station's
+    ``camera0.pose``). Outputs ``estimate`` (ObjectEstimate: found False, with the reason, when there is no
+    object or too few points) and ``point_cloud`` (the object's points in W as a drake PointCloud).
     """
 
     def __init__(
@@ -252,12 +260,12 @@ class PoseEstimator(LeafSystem):
         self.erode_pixels = erode_pixels
         for prior in priors.values():  # loaded now, not on the first image
             category_template(prior.template_mesh)
-        self.DeclareAbstractInputPort("segmentation", AbstractValue.Make(Segmentation(False)))
-        self.DeclareAbstractInputPort("depth_image", AbstractValue.Make(ImageDepth32F()))
-        self.DeclareAbstractInputPort("camera_pose", AbstractValue.Make(RigidTransform()))
+        self.segmentation_port = self.DeclareAbstractInputPort("segmentation", AbstractValue.Make(Segmentation(False)))
+        self.depth_port = self.DeclareAbstractInputPort("depth_image", AbstractValue.Make(ImageDepth32F()))
+        self.camera_pose_port = self.DeclareAbstractInputPort("camera_pose", AbstractValue.Make(RigidTransform()))
         # Computed from the inputs alone (not from time): a latched frame is localised once.
         inputs = {self.all_input_ports_ticket()}
-        self.DeclareAbstractOutputPort(
+        self.estimate_port = self.DeclareAbstractOutputPort(
             "estimate", lambda: AbstractValue.Make(ObjectEstimate(False)), self._calc, inputs
         )
         self.DeclareAbstractOutputPort(
@@ -344,13 +352,13 @@ class PoseEstimator(LeafSystem):
         return float(np.median(table)) if len(table) >= MIN_POINTS else None
 
     def _calc(self, context, output):
-        segmentation = self.get_input_port(0).Eval(context)
-        depth = np.asarray(self.get_input_port(1).Eval(context).data)[:, :, 0]
-        X_WB = self.get_input_port(2).Eval(context)
+        segmentation = self.segmentation_port.Eval(context)
+        depth = np.asarray(self.depth_port.Eval(context).data)[:, :, 0]
+        X_WB = self.camera_pose_port.Eval(context)
         started = time.perf_counter()
         estimate = self.estimate(segmentation, depth, X_WB)
         estimate.compute_s = time.perf_counter() - started
         output.set_value(estimate)
 
     def _calc_cloud(self, context, output):
-        output.set_value(to_point_cloud(self.get_output_port(0).Eval(context).points_W))
+        output.set_value(to_point_cloud(self.estimate_port.Eval(context).points_W))

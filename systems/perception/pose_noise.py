@@ -28,19 +28,27 @@ def rotate_yaw(X_WO: RigidTransform, yaw_rad: float) -> RigidTransform:
 class PoseYawOffset(LeafSystem):
     """Passes an ObjectEstimate through with its X_WO turned by a fixed yaw (points untouched).
 
-    Input port:  estimate (ObjectEstimate).
-    Output port: estimate (ObjectEstimate), X_WO = Rz(yaw_offset_rad) about the object origin.
+    .. pydrake_system::
+
+        name: PoseYawOffset
+        input_ports:
+        - estimate
+        output_ports:
+        - estimate
+
+    Input ``estimate`` (ObjectEstimate); output ``estimate`` (ObjectEstimate), X_WO = Rz(yaw_offset_rad) about
+    the object origin.
     """
 
     def __init__(self, yaw_offset_rad: float):
         super().__init__()
         self.yaw_offset_rad = float(yaw_offset_rad)
         model = AbstractValue.Make(ObjectEstimate(False))
-        self.DeclareAbstractInputPort("estimate", model)
+        self.estimate_port = self.DeclareAbstractInputPort("estimate", model)
         self.DeclareAbstractOutputPort("estimate", model.Clone, self._calc, {self.all_input_ports_ticket()})
 
     def _calc(self, context, output):
-        estimate = self.get_input_port().Eval(context)
+        estimate = self.estimate_port.Eval(context)
         if estimate.found:
             estimate = dataclasses.replace(estimate, X_WO=rotate_yaw(estimate.X_WO, self.yaw_offset_rad))
         output.set_value(estimate)

@@ -53,11 +53,18 @@ def dominant_object(labels: np.ndarray, classes, min_pixels: int) -> Segmentatio
 class Segmenter(LeafSystem):
     """RefineNet-style semantic segmentation of the colour image.
 
-    Input ports:
-        color_image: ImageRgba8U from the camera.
-    Output ports:
-        labels: H x W uint8 class ids at the camera's resolution (0 background, then `classes`).
-        segmentation: a Segmentation of the dominant object (largest region by pixel count).
+    .. pydrake_system::
+
+        name: Segmenter
+        input_ports:
+        - color_image
+        output_ports:
+        - labels
+        - segmentation
+
+    Input ``color_image`` (ImageRgba8U from the camera). Outputs ``labels`` (H x W uint8 class ids at the
+    camera's resolution: 0 background, then ``classes``) and ``segmentation`` (a Segmentation of the dominant
+    object: the largest region by pixel count; its compute_s counts the network too).
     """
 
     def __init__(self, weights: Path = DEFAULT_WEIGHTS, min_pixels: int = 400):
@@ -67,10 +74,10 @@ class Segmenter(LeafSystem):
         self.min_pixels = min_pixels
         # One inference now: torch's first call is several times slower than the next ones.
         self.segment(np.zeros((*segmentation_network.INPUT_SIZE[::-1], 3), np.uint8))
-        self.DeclareAbstractInputPort("color_image", AbstractValue.Make(ImageRgba8U()))
+        self.color_image_port = self.DeclareAbstractInputPort("color_image", AbstractValue.Make(ImageRgba8U()))
         # Computed from the image alone (not from time): an image that does not change is segmented once.
         inputs = {self.all_input_ports_ticket()}
-        self.DeclareAbstractOutputPort(
+        self.labels_port = self.DeclareAbstractOutputPort(
             "labels", lambda: AbstractValue.Make(np.zeros((0, 0), np.uint8)), self._calc_labels, inputs
         )
         self.DeclareAbstractOutputPort(
@@ -96,12 +103,12 @@ class Segmenter(LeafSystem):
         return scores.argmax(1)[0].numpy().astype(np.uint8)
 
     def _calc_labels(self, context, output):
-        image = self.get_input_port(0).Eval(context)
+        image = self.color_image_port.Eval(context)
         output.set_value(self.segment(np.asarray(image.data)))
 
     def _calc_mask(self, context, output):
         started = time.perf_counter()
-        labels = self.get_output_port(0).Eval(context)
+        labels = self.labels_port.Eval(context)
         segmentation = dominant_object(labels, self.classes, self.min_pixels)
         segmentation.compute_s = time.perf_counter() - started
         output.set_value(segmentation)

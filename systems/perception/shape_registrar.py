@@ -39,11 +39,11 @@ class ShapeRegistrar(LeafSystem):
         """category_names: the categories to register (default: every known one, generated and taught)."""
         super().__init__()
         self.registrars = {c: _registrar(c) for c in category_names or categories.known_categories()}
-        self.DeclareAbstractInputPort("estimate", AbstractValue.Make(ObjectEstimate(False)))
+        self.estimate_port = self.DeclareAbstractInputPort("estimate", AbstractValue.Make(ObjectEstimate(False)))
         self._registration = self.DeclareCacheEntry(
             description="registration",
             value_producer=ValueProducer(allocate=AbstractValue.Make(_Result()).Clone, calc=self._calc_registration),
-            prerequisites_of_calc={self.input_port_ticket(self.get_input_port(0).get_index())},
+            prerequisites_of_calc={self.input_port_ticket(self.estimate_port.get_index())},
         )
         self.DeclareAbstractOutputPort("X_WO", lambda: AbstractValue.Make(RigidTransform()), self._calc_pose)
         self.DeclareAbstractOutputPort("grasp_poses", lambda: AbstractValue.Make(GraspPoses(False)), self._calc_grasps)
@@ -52,7 +52,7 @@ class ShapeRegistrar(LeafSystem):
         )
 
     def _calc_registration(self, context, cache):
-        estimate = self.get_input_port(0).Eval(context)
+        estimate = self.estimate_port.Eval(context)
         started = time.perf_counter()
         result = self._register(estimate)
         result.compute_s = time.perf_counter() - started

@@ -49,7 +49,19 @@ class _Reception:
 
 
 class MessageMonitor(LeafSystem):
-    """Input `raw` (RawMessage from an LcmSubscriberSystem); outputs `values` and `health` (LinkHealth).
+    """Decodes a channel's latest message and watches the link.
+
+    .. pydrake_system::
+
+        name: MessageMonitor
+        input_ports:
+        - raw
+        output_ports:
+        - values
+        - health
+
+    Input ``raw`` (RawMessage from an LcmSubscriberSystem); outputs ``values`` (the decoded vector; absent
+    where ``default`` is None) and ``health`` (LinkHealth).
 
     Args:
         channel: for messages and the health report.
@@ -70,7 +82,7 @@ class MessageMonitor(LeafSystem):
     ):
         super().__init__()
         self.channel, self.decode, self.stale_after_s = channel, decode, stale_after_s
-        self.DeclareAbstractInputPort("raw", AbstractValue.Make(RawMessage()))
+        self.raw_port = self.DeclareAbstractInputPort("raw", AbstractValue.Make(RawMessage()))
         self._state = self.DeclareAbstractState(AbstractValue.Make(_Reception(LinkHealth(channel), 0, default)))
         if default is not None:
             self.DeclareVectorOutputPort("values", BasicVector(len(default)), self._calc_values)
@@ -78,7 +90,7 @@ class MessageMonitor(LeafSystem):
         self.DeclarePeriodicUnrestrictedUpdateEvent(period_s, 0.0, self._take_in)
 
     def _take_in(self, context, state) -> EventStatus:
-        raw = self.get_input_port(0).Eval(context)
+        raw = self.raw_port.Eval(context)
         reception = context.get_abstract_state(self._state).get_value()
         if raw.sequence == reception.sequence:
             return EventStatus.DidNothing()
@@ -142,8 +154,21 @@ class GuardReport:
 
 
 class CommandGuard(LeafSystem):
-    """Input ports: `desired` (n), `measured` (n, the robot's status), `status_health` (LinkHealth).
-    Output ports: `command` (n): safe, see the module docstring; `report` (GuardReport).
+    """Passes on only safe commands (see the module docstring).
+
+    .. pydrake_system::
+
+        name: CommandGuard
+        input_ports:
+        - desired
+        - measured
+        - status_health
+        output_ports:
+        - command
+        - report
+
+    Inputs ``desired`` (n), ``measured`` (n, the robot's status), ``status_health`` (LinkHealth). Outputs
+    ``command`` (n): safe; ``report`` (GuardReport).
 
     The `command` output raises (so nothing is published) while no status has arrived:
     publish it with an offset of a few periods after the status wait.

@@ -5,19 +5,20 @@ split id, index])`, so `train_3` is the same can on every machine.
 """
 
 import functools
+import importlib
 from pathlib import Path
 
 import numpy as np
 import trimesh
 
-from diagrams.generation.objects import drill, watering_can
 from diagrams.generation.objects.instance import ObjectInstance
 from diagrams.paths import SDF_DIR
 from systems import categories
 
 CATALOG_SEED = 2018
-# The generated categories (systems.categories.GENERATED); taught ones are data (systems/categories.py).
-CATEGORIES = {"watering_can": watering_can, "drill": drill}
+# Each generated category's generator: the module of its name (the registry, systems/categories.py, lists
+# them; taught categories are data). Their order seeds the instances: never reorder GENERATED.
+CATEGORIES = {name: importlib.import_module(f"diagrams.generation.objects.{name}") for name in categories.GENERATED}
 SPLITS = {"train": 8, "test": 3}
 # The paper's test cans differ clearly from each other: one body style each.
 TEST_CAN_STYLES = ("cylinder", "oval", "tapered")
