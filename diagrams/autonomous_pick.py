@@ -288,5 +288,5 @@ class PickWatcher:
             outcome.failed_stage, outcome.message = status.failed_stage, status.message
         elif status.mode != Mode.DONE:
             outcome.success = False
-            outcome.message = f"stopped in mode {status.mode!r} after {MAX_PICK_S} s"
+            outcome.message = f"stopped in mode {str(status.mode)!r} after {MAX_PICK_S} s"
         return outcome
