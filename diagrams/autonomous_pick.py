@@ -102,10 +102,7 @@ def MakePickDiagram(
 
     if from_camera:
         seen = builder.AddNamedSystem("perception", MakePerception(scenario))
-        camera = scenario.camera.name
-        for port, output in (("color_image", "rgb_image"), ("depth_image", "depth_image"), ("camera_pose", "pose")):
-            builder.Connect(station.GetOutputPort(f"{camera}.{output}"), seen.GetInputPort(port))
-        builder.Connect(supervisor.GetOutputPort("trigger"), seen.GetInputPort("trigger"))
+        _ConnectCamera(builder, station, scenario, seen, supervisor.GetOutputPort("trigger"))
         if looks:
             _AddLooks(builder, station, supervisor, seen, scenario, RobotSpheres(motions.ik.stomp))
     else:
@@ -139,15 +136,20 @@ def MakePickDiagram(
     return diagram
 
 
+def _ConnectCamera(builder, station, scenario, latched, trigger):
+    """The scenario's camera and a trigger into a system that latches its frames (perception, a look latch)."""
+    camera = scenario.camera.name
+    for port, output in (("color_image", "rgb_image"), ("depth_image", "depth_image"), ("camera_pose", "pose")):
+        builder.Connect(station.GetOutputPort(f"{camera}.{output}"), latched.GetInputPort(port))
+    builder.Connect(trigger, latched.GetInputPort("trigger"))
+
+
 def _AddLooks(builder, station, supervisor, perception, scenario, robot_spheres):
     """The supervisor's looks at the held object: look_latch (the frame and the arms' joints then) ->
     robot_spheres -> object_tracker, which fits perception's reconstruction (seen at its X_WO) near the
     supervisor's expected_X_WO."""
     look = builder.AddNamedSystem("look_latch", CameraLatch())
-    camera = scenario.camera.name
-    for port, output in (("color_image", "rgb_image"), ("depth_image", "depth_image"), ("camera_pose", "pose")):
-        builder.Connect(station.GetOutputPort(f"{camera}.{output}"), look.GetInputPort(port))
-    builder.Connect(supervisor.GetOutputPort("look_trigger"), look.GetInputPort("trigger"))
+    _ConnectCamera(builder, station, scenario, look, supervisor.GetOutputPort("look_trigger"))
     builder.Connect(look.GetOutputPort("frame_id"), supervisor.GetInputPort("look_frame_id"))
     builder.Connect(station.GetOutputPort("centauro.position_measured"), look.GetInputPort("robot_position"))
     robot = builder.AddNamedSystem("robot_spheres", robot_spheres)
