@@ -24,7 +24,7 @@ from pydrake.systems.framework import Diagram, DiagramBuilder
 from diagrams.hardware_station import MakeHardwareStation
 from diagrams.perception import MakeGroundTruthPerception, MakeObjectTracker, MakePerception
 from diagrams.pick_simulation import PickOutcome, PlaceJudge, pose_error, simulate_pick, station_plant
-from diagrams.planning_scene import make_dual_arm_ik
+from diagrams.planning_scene import make_planning_world
 from diagrams.robot_driver import MakeRobotDriver
 from diagrams.scenario import Scenario
 from diagrams.station import HAND_INSTANCES, MakeStation, place_target
@@ -33,8 +33,9 @@ from systems.perception.camera_latch import CameraLatch
 from systems.perception.robot_spheres import RobotSpheres
 from systems.pick_supervisor import PickSupervisor, lift_task, place_task
 from systems.pick_visualiser import PickVisualiser
-from systems.planning.pick_motions import PickMotions, PlanningError
+from systems.planning.pick_motions import PickMotions, PlannerConfig, PlanningError
 from systems.planning.plan_telemetry import PlanTelemetryRecorder
+from systems.planning.stomp import StompConfig
 from systems.planning.stomp_planner import StompPlanner
 from systems.robot_io.hand_command import HandCommandSource
 from systems.robot_io.trajectory_source import JointTrajectorySource
@@ -79,14 +80,12 @@ def MakePickDiagram(
         station = builder.AddNamedSystem("station", MakeHardwareStation(scenario, lcm))
     else:
         station = builder.AddNamedSystem("station", MakeStation(scenario, meshcat))
-    motions = PickMotions(make_dual_arm_ik(scenario))
     if hardware:  # the robot holds while the computer thinks: the plan starts once it exists
-        motions.ik.stomp.config.time_limit_s = scenario.planning.hardware_time_limit_s
-        latency_s = 0.0
+        time_limit_s, latency_s = scenario.planning.hardware_time_limit_s, 0.0
     else:  # simulated planning takes a fixed time, whatever the machine: iterations, not seconds, limit STOMP
-        motions.ik.stomp.config.time_limit_s = np.inf
-        latency_s = scenario.planning.latency_s
-    motions.ik.stomp.config.seed = scenario.random_seed
+        time_limit_s, latency_s = np.inf, scenario.planning.latency_s
+    config = PlannerConfig(stomp=StompConfig(time_limit_s=time_limit_s, seed=scenario.random_seed))
+    motions = PickMotions(make_planning_world(scenario), config)
     margin = GRASP_DEPTH_MARGIN if perception == "camera" else 0.0
     planner = builder.AddNamedSystem("stomp_planner", StompPlanner(motions, latency_s, margin))
     source = builder.AddNamedSystem("trajectory_source", JointTrajectorySource())
@@ -104,7 +103,8 @@ def MakePickDiagram(
         seen = builder.AddNamedSystem("perception", MakePerception(scenario))
         _ConnectCamera(builder, station, scenario, seen, supervisor.GetOutputPort("trigger"))
         if looks:
-            _AddLooks(builder, station, supervisor, seen, scenario, RobotSpheres(motions.ik.stomp))
+            robot_spheres = RobotSpheres(motions.world.kinematics, motions.world.spheres)
+            _AddLooks(builder, station, supervisor, seen, scenario, robot_spheres)
     else:
         try:
             seen = builder.AddNamedSystem("ground_truth", MakeGroundTruthPerception(scenario))

@@ -1,5 +1,6 @@
 """Builds the scene that planning works in: the robot, its hands and the table (optionally an object
-welded where it stands), from the same files and placements as the station."""
+welded where it stands), from the same files and placements as the station, and the planning world,
+IK and pick motions in it."""
 
 import hashlib
 
@@ -16,8 +17,9 @@ from diagrams.paths import SDF_DIR
 from diagrams.scenario import Scenario
 from diagrams.station import AddBoxObstacle, AddCentauro, AddTable, make_parser, object_pose_on_table
 from systems.messages import OPEN_WIDTH
-from systems.planning.ik import SIDES, DualArmIk, RobotScene
-from systems.planning.pick_motions import PickMotions
+from systems.planning.ik import DualArmIk
+from systems.planning.pick_motions import PickMotions, PlannerConfig
+from systems.planning.world import SIDES, PlanningWorld, RobotScene
 
 OBJECT_SURFACE_POINTS = 6000
 
@@ -92,9 +94,20 @@ def object_surface_W(model: ObjectModel, X_WO: RigidTransform, count: int) -> tu
     return X_WO.multiply(points.T).T, float(np.sqrt(mesh.area / len(points)))
 
 
+def make_planning_world(scenario: Scenario, **scene_options) -> PlanningWorld:
+    """The PlanningWorld of MakeRobotScene(scenario, **scene_options)."""
+    return PlanningWorld(MakeRobotScene(scenario, **scene_options))
+
+
 def make_dual_arm_ik(scenario: Scenario, **scene_options) -> DualArmIk:
-    """DualArmIk in MakeRobotScene(scenario, **scene_options)."""
-    return DualArmIk(MakeRobotScene(scenario, **scene_options))
+    """DualArmIk in make_planning_world(scenario, **scene_options) (its world is `.world`)."""
+    return DualArmIk(make_planning_world(scenario, **scene_options))
+
+
+def make_pick_motions(scenario: Scenario, config: PlannerConfig | None = None, **scene_options) -> PickMotions:
+    """The pick's planning core (world, IK, STOMP) in make_planning_world(scenario, **scene_options), built with
+    `config` (default PlannerConfig())."""
+    return PickMotions(make_planning_world(scenario, **scene_options), config)
 
 
 def _cache_key(scenario, open_width, obstacle, X_WO) -> str:
@@ -127,15 +140,15 @@ def true_grasp_poses(scenario: Scenario) -> dict[str, RigidTransform]:
     return {name: X_WO @ X_OG for name, X_OG in model.info.control_poses().items()}
 
 
-def grasp_configuration(scenario: Scenario, ik: DualArmIk) -> np.ndarray:
+def grasp_configuration(scenario: Scenario, motions: PickMotions) -> np.ndarray:
     """Ground truth: the 14 arm joints holding the scenario's object at its true grasps, reached as the
-    pick reaches them (pre-grasp, then straight in). For tests and benchmarks.
+    pick reaches them (pre-grasp, then straight in) with `motions` (e.g. make_pick_motions(scenario, obstacle=...,
+    X_WO=...): the object welded where it stands). For tests and benchmarks.
 
     Raises:
         PlanningError: no such configuration.
     """
     poses = true_grasp_poses(scenario)
-    motions = PickMotions(ik)
     q = np.array(scenario.initial_arm_positions)
     pregrasp = motions.reach(q, {side: poses[f"{side}_pregrasp"] for side in SIDES})[-1]
     return motions.straight(pregrasp, {side: poses[f"{side}_grasp"] for side in SIDES})[-1]

@@ -43,17 +43,18 @@ from diagrams.generation.objects.library import resolve_object
 from diagrams.planning_scene import (
     MakeRobotScene,
     grasp_configuration,
-    make_dual_arm_ik,
+    make_pick_motions,
     object_surface_W,
     true_grasp_poses,
 )
 from diagrams.scenario import Scenario, load_scenario, replace_object
 from diagrams.station import object_pose_on_table
 from systems.planning.closure import ClosureConstraint, OrientationConstraint, deviations, orientation_deviations
-from systems.planning.ik import DualArmIk
 from systems.planning.kinematics import Payload
-from systems.planning.pick_motions import PickMotions
-from systems.planning.stomp import Obstacles, interpolate_segments
+from systems.planning.obstacles import Obstacles
+from systems.planning.pick_motions import PickMotions, PlannerConfig
+from systems.planning.stomp import Stomp, StompConfig, interpolate_segments
+from systems.planning.world import PlanningWorld
 
 BELOW_TABLE = np.array([0, 0.15, 0, -0.1, 0, 0, 0, 0, -0.15, 0, -0.1, 0, 0, 0.0])
 TIME_LIMIT_S = 10.0
@@ -111,7 +112,7 @@ def summary(rows: list[dict]) -> dict:
 class HeldProblem:
     """Both hands hold a can; STOMP moves them from q_start to q_goal (on the closure manifold) in `scene`."""
 
-    ik: DualArmIk
+    motions: PickMotions  # its world holds no object: the held object moves with the hands
     q_start: np.ndarray
     q_goal: np.ndarray
     scene: Obstacles  # the table (and a box); the carried can's points when it is kept clear of them
@@ -142,11 +143,10 @@ def held_problem(kind: str, instance: str) -> HeldProblem:
     scenario = _held_scenario(instance, xy, CARRY_BOX_HEIGHT * (kind == "carry"))
     model = resolve_object(scenario.object)
     X_WO = object_pose_on_table(scenario, model)
-    q_grasp = grasp_configuration(scenario, make_dual_arm_ik(scenario, obstacle=model, X_WO=X_WO))
-    ik = make_dual_arm_ik(scenario)  # the held object moves with the hands
-    motions = PickMotions(ik)
-    stomp = ik.stomp
-    X_E1E2 = stomp.end_effectors.relative(q_grasp[None])[0]
+    q_grasp = grasp_configuration(scenario, make_pick_motions(scenario, obstacle=model, X_WO=X_WO))
+    motions = make_pick_motions(scenario)  # the held object moves with the hands
+    world, stomp = motions.world, motions.stomp
+    X_E1E2 = world.end_effectors.relative(q_grasp[None])[0]
     if kind == "lift":
         q_start, motion, lifted = q_grasp, RigidTransform([0, 0, LIFT_M]), RigidTransform()
     else:
@@ -155,7 +155,7 @@ def held_problem(kind: str, instance: str) -> HeldProblem:
         if kind == "carry":
             motion = RigidTransform(CARRY_MOTION)
         else:
-            hands = ik.grasp_frame_poses(q_start)
+            hands = world.grasp_frame_poses(q_start)
             pivot = 0.5 * (hands["left"].translation() + hands["right"].translation())
             motion = (
                 RigidTransform(pivot) @ RigidTransform(RollPitchYaw(0, 0, TURN_RAD), [0, 0, 0]) @ RigidTransform(-pivot)
@@ -167,13 +167,13 @@ def held_problem(kind: str, instance: str) -> HeldProblem:
     orientation = OrientationConstraint(upright_only=kind == "turn")
     if kind == "lift":  # the paper's Table I: the closure alone
         orientation = None
-    scene, points = ik.table_obstacles, None
+    scene, points = world.table_obstacles(), None
     if kind != "lift":
         points = object_surface_W(model, lifted @ X_WO, OBJECT_CHECK_POINTS)[0]
         scene = scene.carrying(motions.carried(q_start, points))
     payload = motions.payload(q_start)
     return HeldProblem(
-        ik, q_start, q_goal, scene, points, orientation, chain, payload, scenario, lifted @ X_WO, fraction
+        motions, q_start, q_goal, scene, points, orientation, chain, payload, scenario, lifted @ X_WO, fraction
     )
 
 
@@ -186,33 +186,29 @@ def held_experiment(
     rows = []
     for run in range(runs):
         problem = problems[run % 3]
-        stomp = problem.ik.stomp
-        saved = stomp.config
-        stomp.config = dataclasses.replace(saved, seed=run, time_limit_s=TIME_LIMIT_S)
+        config = dataclasses.replace(problem.motions.stomp.config, seed=run, time_limit_s=TIME_LIMIT_S)
         if not detours:
-            stomp.config = dataclasses.replace(stomp.config, detour_heights=())
+            config = dataclasses.replace(config, detour_heights=())
         if projection == "rollouts":  # the rollouts projected, the update not
-            stomp.config = dataclasses.replace(stomp.config, projection_steps=0)
+            config = dataclasses.replace(config, projection_steps=0)
         if projection == "none":
-            stomp.config = dataclasses.replace(  # no detours either: they are projected
-                stomp.config,
+            config = dataclasses.replace(  # no detours either: they are projected
+                config,
                 projection_steps=0,
                 rollout_projection_steps=0,
                 constrained_noise_std=NO_PROJECTION_NOISE,
                 detour_heights=(),
             )
+        stomp = Stomp(problem.motions.world, config)
         orientation = problem.orientation if fixed_orientation is None else fixed_orientation
-        try:
-            result = stomp.plan(
-                problem.q_start,
-                problem.q_goal,
-                problem.scene,
-                ClosureConstraint() if closure else None,
-                orientation,
-                payload=problem.payload,
-            )
-        finally:
-            stomp.config = saved
+        result = stomp.plan(
+            problem.q_start,
+            problem.q_goal,
+            problem.scene,
+            ClosureConstraint() if closure else None,
+            orientation,
+            payload=problem.payload,
+        )
         row = check_held(problem, result.trajectory, orientation, closure)
         row.update(
             success=bool(result.success and row["valid"]),
@@ -228,17 +224,16 @@ def check_held(problem: HeldProblem, trajectory: np.ndarray, orientation, closur
     """Dense checks of a held move: Drake's exact clearance of the robot, the exact distance of the can's surface
     points to the scene's boxes, and the closure (unless not asked for) and orientation deviations at every
     state."""
-    ik, stomp = problem.ik, problem.ik.stomp
+    world = problem.motions.world
+    end_effectors = world.end_effectors
     states = interpolate_segments(trajectory, DENSE_STEPS)
-    X_desired = stomp.end_effectors.relative(problem.q_start[None])[0]
-    t_dev, o_dev = deviations(stomp.end_effectors, states, X_desired)
+    X_desired = end_effectors.relative(problem.q_start[None])[0]
+    t_dev, o_dev = deviations(end_effectors, states, X_desired)
     orientation_dev = 0.0
     if orientation is not None:
-        R_WE = [X[0, :3, :3] for X in stomp.end_effectors.poses(problem.q_start[None])]
-        orientation_dev = float(
-            orientation_deviations(stomp.end_effectors, states, R_WE, orientation.upright_only).max()
-        )
-    clearance = min(ik.clearance(q) for q in states[:: max(1, len(states) // 200)])
+        R_WE = [X[0, :3, :3] for X in end_effectors.poses(problem.q_start[None])]
+        orientation_dev = float(orientation_deviations(end_effectors, states, R_WE, orientation.upright_only).max())
+    clearance = min(world.clearance(q) for q in states[:: max(1, len(states) // 200)])
     if problem.object_points_W is not None:
         clearance = min(clearance, object_clearance(problem, states))
     constraint = ClosureConstraint()
@@ -255,11 +250,11 @@ def check_held(problem: HeldProblem, trajectory: np.ndarray, orientation, closur
 
 def object_clearance(problem: HeldProblem, states: np.ndarray) -> float:
     """Smallest distance (m) of the can's surface points, moving with the left hand, to the scene's boxes."""
-    stomp = problem.ik.stomp
-    slot = stomp.end_effectors.positions[0]
-    X_start = stomp.kinematics.body_poses(problem.q_start[None])[0, slot]
+    world = problem.motions.world
+    slot = world.end_effectors.positions[0]
+    X_start = world.kinematics.body_poses(problem.q_start[None])[0, slot]
     points_B = (problem.object_points_W - X_start[:3, 3]) @ X_start[:3, :3]
-    X = stomp.kinematics.body_poses(states)[:, slot]
+    X = world.kinematics.body_poses(states)[:, slot]
     points = np.einsum("bij,mj->bmi", X[:, :3, :3], points_B) + X[:, None, :3, 3]
     boxes = Obstacles()
     boxes.boxes = problem.scene.boxes
@@ -267,7 +262,7 @@ def object_clearance(problem: HeldProblem, states: np.ndarray) -> float:
 
 
 def reach_problems(runs: int, seed: int):
-    """(ik, q_start, q_goal) per run: a test can or drill at a random yaw, seeded."""
+    """(motions, q_start, q_goal) per run: a test can or drill at a random yaw, seeded."""
     rng = np.random.default_rng(seed)
     base = load_scenario()
     problems = []
@@ -276,33 +271,33 @@ def reach_problems(runs: int, seed: int):
         scenario = replace_object(
             base, category=category, instance=f"test_{rng.integers(3)}", yaw=float(rng.uniform(-0.45, 0.45))
         )
-        ik, goal = reach_goal(scenario, np.array(scenario.initial_arm_positions))
+        motions, goal = reach_goal(scenario, np.array(scenario.initial_arm_positions))
         if goal.success:
-            problems.append((ik, BELOW_TABLE, goal.q))
+            problems.append((motions, BELOW_TABLE, goal.q))
     return problems
 
 
 def reach_goal(scenario: Scenario, q_guess: np.ndarray, restarts: int = 4):
-    """The planning model around the scenario's object, and its IK solution at both pre-grasps (`restarts` as
-    DualArmIk.solve's)."""
+    """The planning core around the scenario's object (STOMP limited to TIME_LIMIT_S), and its IK solution at both
+    pre-grasps (`restarts` as DualArmIk.solve's)."""
     model = resolve_object(scenario.object)
-    ik = make_dual_arm_ik(scenario, obstacle=model, X_WO=object_pose_on_table(scenario, model))
+    config = PlannerConfig(stomp=StompConfig(time_limit_s=TIME_LIMIT_S))
+    motions = make_pick_motions(scenario, config, obstacle=model, X_WO=object_pose_on_table(scenario, model))
     poses = true_grasp_poses(scenario)
     pregrasps = {side: poses[f"{side}_pregrasp"] for side in ("left", "right")}
-    return ik, ik.solve(pregrasps, q_guess, restarts=restarts)
+    return motions, motions.ik.solve(pregrasps, q_guess, restarts=restarts)
 
 
-def check_dense(ik: DualArmIk, trajectory: np.ndarray) -> float:
+def check_dense(world: PlanningWorld, trajectory: np.ndarray) -> float:
     states = interpolate_segments(trajectory, DENSE_STEPS)
-    return min(ik.clearance(q) for q in states)
+    return min(world.clearance(q) for q in states)
 
 
 def reach_stomp(problems) -> list[dict]:
     rows = []
-    for ik, q_start, q_goal in problems:
-        ik.stomp.config.time_limit_s = TIME_LIMIT_S
-        result = ik.stomp.plan(q_start, q_goal, ik.planning_obstacles)
-        clearance = check_dense(ik, result.trajectory)
+    for motions, q_start, q_goal in problems:
+        result = motions.stomp.plan(q_start, q_goal, motions.world.planning_obstacles())
+        clearance = check_dense(motions.world, result.trajectory)
         success = bool(result.success and clearance > 0)
         rows.append(
             {
@@ -316,52 +311,53 @@ def reach_stomp(problems) -> list[dict]:
     return rows
 
 
-def kto_program(ik: DualArmIk, plant, q_start, q_goal, guess_path: np.ndarray, control_points: int):
+def kto_program(world: PlanningWorld, plant, q_start, q_goal, guess_path: np.ndarray, control_points: int):
     """KinematicTrajectoryOptimization over `plant`'s positions (the fingers held as they are) from q_start to
     q_goal: joint position and velocity limits, 0.5-10 s, duration and path-length costs, control points started
     evenly along `guess_path` (K x 14 arm configurations)."""
     trajopt = KinematicTrajectoryOptimization(plant.num_positions(), control_points)
-    full_start, full_goal = ik.full_positions(q_start), ik.full_positions(q_goal)
+    full_start, full_goal = world.full_positions(q_start), world.full_positions(q_goal)
     lower, upper = full_start.copy(), full_start.copy()
-    lower[ik.arm_indices], upper[ik.arm_indices] = ik.lower, ik.upper
+    lower[world.arm_indices], upper[world.arm_indices] = world.lower, world.upper
     trajopt.AddPositionBounds(lower, upper)
     velocity = np.zeros(plant.num_positions())
-    velocity[ik.arm_indices] = ik.velocity_limits
+    velocity[world.arm_indices] = world.velocity_limits
     trajopt.AddVelocityBounds(-velocity, velocity)
     trajopt.AddDurationConstraint(0.5, 10.0)
     trajopt.AddDurationCost(1.0)
     trajopt.AddPathLengthCost(1.0)
     trajopt.AddPathPositionConstraint(full_start, full_start, 0)
     trajopt.AddPathPositionConstraint(full_goal, full_goal, 1)
-    path = np.array([ik.full_positions(q) for q in guess_path])
+    path = np.array([world.full_positions(q) for q in guess_path])
     along = np.linspace(0, 1, len(path))
     guess = np.array([np.interp(np.linspace(0, 1, control_points), along, column) for column in path.T])
     trajopt.SetInitialGuess(BsplineTrajectory(trajopt.basis(), guess))
     return trajopt
 
 
-def kto_keyframes(ik: DualArmIk, trajopt, result, count: int = 16) -> np.ndarray:
+def kto_keyframes(world: PlanningWorld, trajopt, result, count: int = 16) -> np.ndarray:
     """The solved B-spline's arm configurations at `count` evenly spaced times (count x 14)."""
     path = trajopt.ReconstructTrajectory(result)
     times = np.linspace(path.start_time(), path.end_time(), count)
-    return np.array([path.value(t).ravel()[ik.arm_indices] for t in times])
+    return np.array([path.value(t).ravel()[world.arm_indices] for t in times])
 
 
 def reach_kto(problems, control_points: int = 10, samples: int = 25) -> list[dict]:
     """Drake's KinematicTrajectoryOptimization: B-spline, collision as minimum-distance constraints at samples."""
     rows = []
-    for ik, q_start, q_goal in problems:
-        plant, context = ik.plant, ik.plant_context
+    for motions, q_start, q_goal in problems:
+        world = motions.world
+        plant, context = world.plant, world.plant_context
         start = time.perf_counter()
-        trajopt = kto_program(ik, plant, q_start, q_goal, np.stack([q_start, q_goal]), control_points)
+        trajopt = kto_program(world, plant, q_start, q_goal, np.stack([q_start, q_goal]), control_points)
         prog = trajopt.get_mutable_prog()
         collision = drake_ik.MinimumDistanceLowerBoundConstraint(plant, 0.005, context)
         for s in np.linspace(0, 1, samples):
             trajopt.AddPathPositionConstraint(collision, s)
         result = Solve(prog)
         seconds = time.perf_counter() - start
-        keyframes = kto_keyframes(ik, trajopt, result)
-        clearance = check_dense(ik, keyframes)
+        keyframes = kto_keyframes(world, trajopt, result)
+        clearance = check_dense(world, keyframes)
         success = bool(result.is_success() and clearance > 0)
         rows.append({"success": success, "runtime_s": seconds, "min_clearance_m": clearance})
     return rows
@@ -374,14 +370,14 @@ def peer_held(problem: HeldProblem, control_points: int = 12, samples: int = 24)
     hands' world orientation (or tilt) within half of o_max, and MinimumDistanceLowerBoundConstraint
     (PEER_MIN_DISTANCE) over robot, table, box and the can (welded to the left hand, not checked against the hands
     that hold it)."""
-    ik = problem.ik
+    world = problem.motions.world
     scene = held_scene(problem)
     plant, context = scene.plant, scene.plant.GetMyMutableContextFromRoot(scene.diagram.CreateDefaultContext())
     start = time.perf_counter()
-    trajopt = kto_program(ik, plant, problem.q_start, problem.q_goal, problem.ik_chain, control_points)
+    trajopt = kto_program(world, plant, problem.q_start, problem.q_goal, problem.ik_chain, control_points)
     prog = trajopt.get_mutable_prog()
     left, right = (plant.GetFrameByName("grasp_frame", scene.hands[side]) for side in ("left", "right"))
-    X_WG = ik.grasp_frame_poses(problem.q_start)
+    X_WG = world.grasp_frame_poses(problem.q_start)
     X_LR = X_WG["left"].InvertAndCompose(X_WG["right"])
     limits = ClosureConstraint()
     p_LR, tolerance = X_LR.translation(), np.full(3, 0.5 * limits.t_max)
@@ -412,7 +408,7 @@ def peer_held(problem: HeldProblem, control_points: int = 12, samples: int = 24)
             trajopt.AddPathPositionConstraint(constraint, s)
     result = Solve(prog, solver_options=SNOPT_OPTIONS)
     seconds = time.perf_counter() - start
-    keyframes = kto_keyframes(ik, trajopt, result)
+    keyframes = kto_keyframes(world, trajopt, result)
     row = check_held(problem, keyframes, problem.orientation)
     row.update(
         success=bool(result.is_success() and row["valid"]),
@@ -425,13 +421,13 @@ def peer_held(problem: HeldProblem, control_points: int = 12, samples: int = 24)
 
 def held_scene(problem: HeldProblem):
     """The problem's robot scene with the can welded to the left hand as at q_start."""
-    X_WG = problem.ik.grasp_frame_poses(problem.q_start)["left"]
+    X_WG = problem.motions.world.grasp_frame_poses(problem.q_start)["left"]
     model = resolve_object(problem.scenario.object)
     return MakeRobotScene(problem.scenario, held_object=model, X_GO=X_WG.InvertAndCompose(problem.X_WO))
 
 
 def reach_unseen_problems():
-    """(ik, q_start, q_goal) for the unseen instances of both categories at UNSEEN_YAWS, where an IK goal exists;
+    """(motions, q_start, q_goal) for the unseen instances of both categories at UNSEEN_YAWS, where an IK goal exists;
     also how many had none."""
     base = load_scenario()
     problems, without_goal = [], 0
@@ -439,9 +435,9 @@ def reach_unseen_problems():
         for instance in UNSEEN:
             for yaw in UNSEEN_YAWS:
                 scenario = replace_object(base, category=category, instance=instance, yaw=yaw)
-                ik, goal = reach_goal(scenario, BELOW_TABLE, restarts=12)
+                motions, goal = reach_goal(scenario, BELOW_TABLE, restarts=12)
                 if goal.success:
-                    problems.append((ik, BELOW_TABLE, goal.q))
+                    problems.append((motions, BELOW_TABLE, goal.q))
                 else:
                     without_goal += 1
     return problems, without_goal

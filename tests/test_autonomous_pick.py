@@ -379,15 +379,15 @@ def test_the_looks_at_the_held_object_have_their_own_latch_and_tracker(scenario)
 
 
 def test_robot_spheres_cover_the_arms_where_they_stand(scenario):
-    from diagrams.planning_scene import make_dual_arm_ik
+    from diagrams.planning_scene import make_planning_world
     from systems.perception.robot_spheres import RobotSpheres
 
-    ik = make_dual_arm_ik(scenario)
-    spheres = RobotSpheres(ik.stomp)
+    world = make_planning_world(scenario)
+    spheres = RobotSpheres(world.kinematics, world.spheres)
     q = np.zeros(14)
     S = spheres.spheres_W(q)
     assert S.shape[1] == 4 and len(S) > 20 and np.all(S[:, 3] > 0)
-    hands = ik.grasp_frame_poses(q)
+    hands = world.grasp_frame_poses(q)
     for X in hands.values():  # each hand's grasp frame lies within a few cm of some sphere
         assert np.min(np.linalg.norm(S[:, :3] - X.translation(), axis=1) - S[:, 3]) < 0.05
     assert len(spheres.spheres_W(np.full(14, np.nan))) == 0  # (the hardware station before the robot's status)

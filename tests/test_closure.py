@@ -8,7 +8,7 @@ from pydrake.common.eigen_geometry import AngleAxis
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 
 from diagrams.generation.objects.library import resolve_object
-from diagrams.planning_scene import grasp_configuration, make_dual_arm_ik, object_surface_W
+from diagrams.planning_scene import grasp_configuration, make_pick_motions, object_surface_W
 from diagrams.scenario import replace_object
 from diagrams.station import object_pose_on_table
 from systems.planning.closure import (
@@ -22,8 +22,8 @@ from systems.planning.closure import (
     transition_costs,
 )
 from systems.planning.hand_constraints import bounded_step
-from systems.planning.pick_motions import HELD_SPEED_M_S, HELD_TURN_SPEED_RAD_S, PickMotions, time_parameterise
-from systems.planning.stomp import Obstacles, interpolate_segments
+from systems.planning.pick_motions import HELD_SPEED_M_S, HELD_TURN_SPEED_RAD_S, time_parameterise
+from systems.planning.stomp import Stomp, interpolate_segments
 
 
 def test_threshold_cost_below_at_and_beyond_the_maximum():
@@ -60,50 +60,48 @@ def lift_problem(scenario):
     scenario = replace_object(scenario, category="watering_can", instance="test_0", yaw=0.0)  # a fixed problem
     model = resolve_object(scenario.object)
     X_WO = object_pose_on_table(scenario, model)
-    ik = make_dual_arm_ik(scenario, obstacle=model, X_WO=X_WO)
-    q_grasp = grasp_configuration(scenario, ik)
+    motions = make_pick_motions(scenario, obstacle=model, X_WO=X_WO)
+    q_grasp = grasp_configuration(scenario, motions)
     # The lift's goal: both hands 0.12 m higher, holding the object as they do at q_grasp.
-    X = ik.grasp_frame_poses(q_grasp)
+    X = motions.world.grasp_frame_poses(q_grasp)
     up = RigidTransform([0.0, 0.0, 0.12])
-    lifted = ik.solve_held(up @ X["left"], X["left"].InvertAndCompose(X["right"]), q_grasp, 0.002, 0.03)
+    lifted = motions.ik.solve_held(up @ X["left"], X["left"].InvertAndCompose(X["right"]), q_grasp, 0.002, 0.03)
     assert lifted.success, lifted.message
-    return ik, q_grasp, lifted.q, scenario
+    return motions, q_grasp, lifted.q, scenario
 
 
 def test_end_effector_relative_pose_matches_drake(lift_problem):
-    ik, q_grasp, _, _ = lift_problem
-    X = ik.grasp_frame_poses(q_grasp)
+    motions, q_grasp, _, _ = lift_problem
+    X = motions.world.grasp_frame_poses(q_grasp)
     expected = (X["left"].inverse() @ X["right"]).GetAsMatrix4()
-    np.testing.assert_allclose(ik.stomp.end_effectors.relative(q_grasp[None])[0], expected, atol=1e-10)
+    np.testing.assert_allclose(motions.world.end_effectors.relative(q_grasp[None])[0], expected, atol=1e-10)
 
 
 def test_stomp_lifts_with_the_closure_kept_densely(lift_problem):
-    ik, q_grasp, q_lift, scenario = lift_problem
-    stomp = ik.stomp
+    motions, q_grasp, q_lift, scenario = lift_problem
+    stomp = motions.stomp
     constraint = ClosureConstraint()
     X_desired = stomp.end_effectors.relative(q_grasp[None])[0]
     # The goal keeps the grasp's relative hand pose exactly (projected onto the closure manifold).
     goal = stomp.project(q_lift, X_desired, steps=18)[0]
-    table = Obstacles()
-    table.boxes = ik.planning_obstacles.boxes  # the object moves with the hands
+    table = motions.world.table_obstacles()  # the object moves with the hands
     result = stomp.plan(q_grasp, goal, table, constraint)
     assert result.success, result.message
     within, t_dev, o_dev = stomp.closure_within_limits(result.trajectory, (constraint, X_desired), steps=20)
     assert within and t_dev < constraint.t_max and o_dev < constraint.o_max
     # Drake's exact check against robot and table (the object moves with the hands, so it is left out).
-    without_object = make_dual_arm_ik(scenario)
+    without_object = make_pick_motions(scenario)
     for q_from, q_to in zip(result.trajectory[:-1], result.trajectory[1:], strict=True):
         assert without_object.segment_is_free(q_from, q_to, max_step=0.01)
 
 
 def test_stomp_bar_lift_keeps_closure_and_both_hand_orientations(lift_problem):
-    ik, q_grasp, q_lift, _ = lift_problem
-    stomp = ik.stomp
+    motions, q_grasp, q_lift, _ = lift_problem
+    stomp = motions.stomp
     X_desired = stomp.end_effectors.relative(q_grasp[None])[0]
     R_desired = [X[0, :3, :3] for X in stomp.end_effectors.poses(q_grasp[None])]
     goal = stomp.project(q_lift, X_desired, R_desired, steps=15)[0]
-    table = Obstacles()
-    table.boxes = ik.planning_obstacles.boxes
+    table = motions.world.table_obstacles()
     closure, orientation = ClosureConstraint(), OrientationConstraint()
     result = stomp.plan(q_grasp, goal, table, closure, orientation)
     assert result.success, result.message
@@ -119,27 +117,27 @@ def test_the_closure_term_alone_keeps_the_closure_without_any_projection(lift_pr
     """Projection off (no Gauss-Newton steps on rollouts, updates or the first trajectory): the same lift, same
     seed, with the closure term q_cc keeps the hands' relative pose densely; without it STOMP returns the straight
     joint-space line, which is collision-free but breaks the closure."""
-    ik, q_grasp, _, _ = lift_problem
-    stomp = ik.stomp
-    X_desired = stomp.end_effectors.relative(q_grasp[None])[0]
+    motions, q_grasp, _, _ = lift_problem
+    X_desired = motions.stomp.end_effectors.relative(q_grasp[None])[0]
     # A higher lift than the fixture's (0.15 m): the straight joint-space line to it leaves the closure.
-    X = ik.grasp_frame_poses(q_grasp)
-    lifted = ik.solve_held(
+    X = motions.world.grasp_frame_poses(q_grasp)
+    lifted = motions.ik.solve_held(
         RigidTransform([0, 0, 0.15]) @ X["left"], X["left"].InvertAndCompose(X["right"]), q_grasp, 0.002, 0.03
     )
     assert lifted.success, lifted.message
-    goal = stomp.project(lifted.q, X_desired, steps=18)[0]
-    table = Obstacles()
-    table.boxes = ik.planning_obstacles.boxes
-    saved = stomp.config
-    stomp.config = dataclasses.replace(
-        saved, projection_steps=0, rollout_projection_steps=0, constrained_noise_std=0.15, seed=1, time_limit_s=30
+    goal = motions.stomp.project(lifted.q, X_desired, steps=18)[0]
+    table = motions.world.table_obstacles()
+    config = dataclasses.replace(
+        motions.stomp.config,
+        projection_steps=0,
+        rollout_projection_steps=0,
+        constrained_noise_std=0.15,
+        seed=1,
+        time_limit_s=30,
     )
-    try:
-        with_term = stomp.plan(q_grasp, goal, table, ClosureConstraint())
-        without_term = stomp.plan(q_grasp, goal, table)
-    finally:
-        stomp.config = saved
+    stomp = Stomp(motions.world, config)
+    with_term = stomp.plan(q_grasp, goal, table, ClosureConstraint())
+    without_term = stomp.plan(q_grasp, goal, table)
     closure = (ClosureConstraint(), X_desired)
     assert with_term.success, with_term.message
     assert stomp.closure_within_limits(with_term.trajectory, closure, steps=20)[0]
@@ -151,8 +149,8 @@ def test_the_closure_term_alone_keeps_the_closure_without_any_projection(lift_pr
 def test_tangent_noise_and_projection_respect_the_constraints(lift_problem):
     """Noise moved into the constraints' tangent space changes the closure only to second order; a few
     Gauss-Newton steps then bring a configuration back within a micrometre."""
-    ik, q_grasp, q_lift, _ = lift_problem
-    stomp = ik.stomp
+    motions, q_grasp, q_lift, _ = lift_problem
+    stomp = motions.stomp
     X_desired = stomp.end_effectors.relative(q_grasp[None])[0]
     constraints = stomp.constraints(X_desired)
     q = constraints.project(np.stack([q_grasp, q_lift]), 15)
@@ -175,17 +173,17 @@ def test_tangent_noise_and_projection_respect_the_constraints(lift_problem):
 def test_held_move_is_played_within_the_closure_constraint_densely(lift_problem, scenario):
     """The pick's lift as the planner stage plans it: STOMP with q_cc, time-parameterised, checked every 10 ms."""
     _, q_grasp, _, _ = lift_problem
-    motions = PickMotions(make_dual_arm_ik(scenario))  # the held object moves with the hands: no object here
+    motions = make_pick_motions(scenario)  # the held object moves with the hands: no object here
     held = motions.held_move(q_grasp, RigidTransform([0.0, 0.0, 0.15]), min_fraction=0.8)
-    trajectory = time_parameterise(held.keyframes, motions.ik.velocity_limits, 2.0, 0.25)
+    trajectory = time_parameterise(held.keyframes, motions.world.velocity_limits, 2.0, 0.25)
     t_dev, o_dev = motions.closure_deviations(trajectory, held)
     assert t_dev < motions.closure.t_max and o_dev < motions.closure.o_max
-    start, end = (motions.ik.grasp_frame_poses(trajectory.value(t).ravel()) for t in (2.0, trajectory.end_time()))
+    start, end = (motions.world.grasp_frame_poses(trajectory.value(t).ravel()) for t in (2.0, trajectory.end_time()))
     for side in ("left", "right"):
         assert end[side].translation()[2] - start[side].translation()[2] > 0.11  # at least 0.8 of 0.15 m, about
     times = np.arange(trajectory.start_time(), trajectory.end_time(), 0.01)
     q = np.array([trajectory.value(t).ravel() for t in times])
-    assert np.all(q >= motions.ik.lower - 1e-9) and np.all(q <= motions.ik.upper + 1e-9)
+    assert np.all(q >= motions.world.lower - 1e-9) and np.all(q <= motions.world.upper + 1e-9)
 
 
 def test_tilt_angle_ignores_turns_about_the_vertical_only():
@@ -201,16 +199,16 @@ def test_carry_that_turns_the_object_keeps_the_hands_upright_and_slow(lift_probl
     """A held move 15 cm sideways, turning the object 0.3 rad about the vertical: the hands turn with it but do
     not tip (the upright-only orientation constraint), and the played trajectory moves them no faster than
     the held-object speeds."""
-    ik, _, q_lift, _ = lift_problem
-    motions = PickMotions(make_dual_arm_ik(scenario))
-    X_WG = ik.grasp_frame_poses(q_lift)["left"]
+    _, _, q_lift, _ = lift_problem
+    motions = make_pick_motions(scenario)
+    X_WG = motions.world.grasp_frame_poses(q_lift)["left"]
     turn = RotationMatrix.MakeZRotation(0.3)
     about_hand = RigidTransform(X_WG.translation()) @ RigidTransform(turn) @ RigidTransform(-X_WG.translation())
     held = motions.held_move(q_lift, RigidTransform([0.0, -0.15, 0.0]) @ about_hand)
     durations = motions.held_segment_durations(held.keyframes)
-    trajectory = time_parameterise(held.keyframes, motions.ik.velocity_limits, 0.0, durations)
+    trajectory = time_parameterise(held.keyframes, motions.world.velocity_limits, 0.0, durations)
     q = np.array([trajectory.value(t).ravel() for t in np.arange(0.0, trajectory.end_time(), 0.01)])
-    end_effectors = motions.ik.stomp.end_effectors
+    end_effectors = motions.world.end_effectors
     R_start = [X[0, :3, :3] for X in end_effectors.poses(q[:1])]
     assert orientation_deviations(end_effectors, q, R_start, upright_only=True).max() < motions.orientation.o_max
     turned = rotation_angle(end_effectors.poses(q[-1:])[0][:, :3, :3], R_start[0])[0]
@@ -237,8 +235,8 @@ def test_a_bounded_step_holds_a_joint_at_its_limit_where_clipping_stalls():
 def test_moved_raises_the_held_object_as_far_as_the_constraints_allow(lift_problem):
     """HandConstraints.moved: both hands 5 cm higher, the closure and their orientation kept (from the grasp; from
     the lift a joint at its limit stops the hands 4.2 cm up)."""
-    ik, q_grasp, _, _ = lift_problem
-    stomp = ik.stomp
+    motions, q_grasp, _, _ = lift_problem
+    stomp = motions.stomp
     X_desired = stomp.end_effectors.relative(q_grasp[None])[0]
     R_WE = [X[0, :3, :3] for X in stomp.end_effectors.poses(q_grasp[None])]
     constraints = stomp.constraints(X_desired, R_WE)
@@ -261,12 +259,12 @@ def test_a_carry_over_a_box_starts_from_a_detour_clear_of_it(scenario):
     )
     model = resolve_object(scenario.object)
     X_WO = object_pose_on_table(scenario, model)
-    q_grasp = grasp_configuration(scenario, make_dual_arm_ik(scenario, obstacle=model, X_WO=X_WO))
-    motions = PickMotions(make_dual_arm_ik(scenario))
-    stomp = motions.ik.stomp
+    q_grasp = grasp_configuration(scenario, make_pick_motions(scenario, obstacle=model, X_WO=X_WO))
+    motions = make_pick_motions(scenario)
+    stomp = motions.stomp
     q_start = motions.held_path(q_grasp, RigidTransform([0, 0, 0.10]), 1.0)[0][-1]
     points = object_surface_W(model, RigidTransform([0, 0, 0.10]) @ X_WO, 500)[0]
-    scene = motions.ik.table_obstacles.carrying(motions.carried(q_start, points))
+    scene = motions.world.table_obstacles().carrying(motions.carried(q_start, points))
     X_desired = stomp.end_effectors.relative(q_start[None])[0]
     q_across = motions.held_path(q_start, RigidTransform([0, -0.40, 0]), 1.0)[0][-1]
     q_goal = stomp.project(q_across, X_desired, steps=15)[0]

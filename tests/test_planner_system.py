@@ -8,10 +8,9 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.sensors import ImageRgba8U
 from pydrake.trajectories import PiecewisePolynomial
 
-from diagrams.planning_scene import make_dual_arm_ik, true_grasp_poses
+from diagrams.planning_scene import make_pick_motions, true_grasp_poses
 from systems.messages import GraspPoses, HandCommand, PlanRequest, PlanResult
 from systems.perception.camera_latch import CameraLatch
-from systems.planning.pick_motions import PickMotions
 from systems.planning.stomp_planner import StompPlanner
 from systems.robot_io.hand_command import HandCommandSource
 from systems.robot_io.joint_plan import SPEED_FRACTION
@@ -22,7 +21,7 @@ LATENCY_S = 0.3
 
 @pytest.fixture(scope="module")
 def planner(scenario):
-    return StompPlanner(PickMotions(make_dual_arm_ik(scenario)), LATENCY_S, grasp_depth_margin=0.01)
+    return StompPlanner(make_pick_motions(scenario), LATENCY_S, grasp_depth_margin=0.01)
 
 
 def _planner_context(planner, request, grasps):
@@ -47,15 +46,15 @@ def test_planner_plans_a_request_once_and_releases_it_after_its_latency(planner,
     trajectory = plan.trajectory
     assert trajectory.start_time() == pytest.approx(LATENCY_S)  # requested at t = 0
     np.testing.assert_allclose(trajectory.value(trajectory.start_time()).ravel(), q_start, atol=1e-9)
-    reached = planner.motions.ik.grasp_frame_poses(trajectory.value(trajectory.end_time()).ravel())
+    world = planner.motions.world
+    reached = world.grasp_frame_poses(trajectory.value(trajectory.end_time()).ravel())
     for side in ("left", "right"):
         assert np.linalg.norm(reached[side].translation() - poses[f"{side}_pregrasp"].translation()) < 0.004
     times = np.linspace(trajectory.start_time(), trajectory.end_time(), 300)
     q = np.array([trajectory.value(t).ravel() for t in times])
     v = np.array([trajectory.EvalDerivative(t).ravel() for t in times])
-    ik = planner.motions.ik
-    assert np.all(q >= ik.lower - 1e-9) and np.all(q <= ik.upper + 1e-9)
-    assert np.all(np.abs(v) <= SPEED_FRACTION * ik.velocity_limits * 1.01)
+    assert np.all(q >= world.lower - 1e-9) and np.all(q <= world.upper + 1e-9)
+    assert np.all(np.abs(v) <= SPEED_FRACTION * world.velocity_limits * 1.01)
 
     # The straight approach goes grasp_depth_margin deeper along z_G than the grasp it was given.
     approach = PlanRequest(id=2, phase="approach", q_start=trajectory.value(trajectory.end_time()).ravel(),
@@ -64,7 +63,7 @@ def test_planner_plans_a_request_once_and_releases_it_after_its_latency(planner,
     simulator.AdvanceTo(context.get_time() + LATENCY_S + 0.02)
     plan = planner.GetOutputPort("plan").Eval(context)
     assert plan.id == 2 and plan.success, plan.message
-    reached = ik.grasp_frame_poses(plan.trajectory.value(plan.trajectory.end_time()).ravel())
+    reached = world.grasp_frame_poses(plan.trajectory.value(plan.trajectory.end_time()).ravel())
     for side in ("left", "right"):
         X_GR = poses[f"{side}_grasp"].InvertAndCompose(reached[side])
         assert np.linalg.norm(X_GR.translation() - [0, 0, 0.01]) < 0.002 * np.sqrt(3) + 1e-4

@@ -6,10 +6,11 @@ import numpy as np
 import pytest
 
 from diagrams.generation.objects.library import resolve_object
-from diagrams.planning_scene import make_dual_arm_ik, true_grasp_poses
+from diagrams.planning_scene import make_dual_arm_ik, make_pick_motions, make_planning_world, true_grasp_poses
 from diagrams.station import object_pose_on_table
 from systems.planning.kinematics import Payload, joint_torques
-from systems.planning.stomp import TERMS, Obstacles
+from systems.planning.obstacles import Obstacles
+from systems.planning.stomp import TERMS, Stomp
 
 # Both hands start under the table top, at its front edge: the straight move collides.
 BELOW_TABLE = np.array([0, 0.15, 0, -0.1, 0, 0, 0, 0, -0.15, 0, -0.1, 0, 0, 0.0])
@@ -19,13 +20,13 @@ BELOW_TABLE = np.array([0, 0.15, 0, -0.1, 0, 0, 0, 0, -0.15, 0, -0.1, 0, 0, 0.0]
 def planning(scenario):
     model = resolve_object(scenario.object)
     X_WO = object_pose_on_table(scenario, model)
-    ik = make_dual_arm_ik(scenario, obstacle=model, X_WO=X_WO)
+    motions = make_pick_motions(scenario, obstacle=model, X_WO=X_WO)
     poses = true_grasp_poses(scenario)
-    pregrasp = ik.solve(
+    pregrasp = motions.ik.solve(
         {s: poses[f"{s}_pregrasp"] for s in ("left", "right")}, np.array(scenario.initial_arm_positions)
     )
     assert pregrasp.success
-    return ik, pregrasp.q
+    return motions, pregrasp.q
 
 
 def test_box_distance_matches_hand_computed_values():
@@ -36,84 +37,86 @@ def test_box_distance_matches_hand_computed_values():
 
 
 def test_stomp_reaches_from_under_the_table_without_collision(planning):
-    ik, q_goal = planning
-    assert not ik.segment_is_free(BELOW_TABLE, q_goal)
-    result = ik.stomp.plan(BELOW_TABLE, q_goal, ik.planning_obstacles)
+    motions, q_goal = planning
+    world = motions.world
+    assert not motions.segment_is_free(BELOW_TABLE, q_goal)
+    result = motions.stomp.plan(BELOW_TABLE, q_goal, world.planning_obstacles())
     assert result.success, result.message
     trajectory = result.trajectory
     np.testing.assert_allclose(trajectory[0], BELOW_TABLE)
     np.testing.assert_allclose(trajectory[-1], q_goal)
-    assert np.all(trajectory >= ik.lower - 1e-9) and np.all(trajectory <= ik.upper + 1e-9)
+    assert np.all(trajectory >= world.lower - 1e-9) and np.all(trajectory <= world.upper + 1e-9)
     for q_from, q_to in zip(trajectory[:-1], trajectory[1:], strict=True):
-        assert ik.segment_is_free(q_from, q_to, max_step=0.01)  # Drake's exact geometry, densely
+        assert motions.segment_is_free(q_from, q_to, max_step=0.01)  # Drake's exact geometry, densely
 
 
 def test_stomp_rejects_bad_goals_and_keeps_its_time_limit(planning):
-    ik, q_goal = planning
-    outside = ik.stomp.plan(BELOW_TABLE, ik.upper + 0.1, ik.planning_obstacles)
+    motions, q_goal = planning
+    world = motions.world
+    scene = world.planning_obstacles()
+    outside = motions.stomp.plan(BELOW_TABLE, world.upper + 0.1, scene)
     assert not outside.success and "joint limits" in outside.message
-    colliding = _colliding_configuration(ik)
-    in_collision = ik.stomp.plan(BELOW_TABLE, colliding, ik.planning_obstacles)
+    colliding = _colliding_configuration(world)
+    in_collision = motions.stomp.plan(BELOW_TABLE, colliding, scene)
     assert not in_collision.success and "goal configuration collides" in in_collision.message
 
-    stomp = ik.stomp
-    saved = stomp.config
-    stomp.config = dataclasses.replace(
-        saved, time_limit_s=0.05, max_iterations=100_000, noise_std=1e-4, via_candidates=0, restart_after=10**9
+    config = dataclasses.replace(
+        motions.stomp.config,
+        time_limit_s=0.05,
+        max_iterations=100_000,
+        noise_std=1e-4,
+        via_candidates=0,
+        restart_after=10**9,
     )
-    try:
-        # Almost no exploration from the colliding straight line (no via points): the time limit ends the search.
-        timed_out = stomp.plan(BELOW_TABLE, q_goal, ik.planning_obstacles)
-    finally:
-        stomp.config = saved
+    # Almost no exploration from the colliding straight line (no via points): the time limit ends the search.
+    timed_out = Stomp(world, config).plan(BELOW_TABLE, q_goal, scene)
     assert not timed_out.success and "no collision-free trajectory" in timed_out.message
     assert timed_out.seconds < 0.5
 
 
-def _colliding_configuration(ik) -> np.ndarray:
+def _colliding_configuration(world) -> np.ndarray:
     """A configuration in collision under Drake's exact check (found by seeded sampling)."""
     rng = np.random.default_rng(0)
     for _ in range(2000):
-        q = rng.uniform(ik.lower, ik.upper)
-        if ik.in_collision(q):
+        q = rng.uniform(world.lower, world.upper)
+        if world.in_collision(q):
             return q
     raise AssertionError("no colliding sample found")
 
 
 def test_cost_terms_match_hand_computation(planning):
-    ik, q_goal = planning
-    stomp = ik.stomp
+    motions, q_goal = planning
+    world, stomp = motions.world, motions.stomp
     trajectory = np.linspace(BELOW_TABLE, q_goal, stomp.config.keyframes)[None]
     free_space = Obstacles()
     terms = stomp._cost_terms(trajectory, free_space)[0]
     np.testing.assert_allclose(terms[:, TERMS.index("collision")], stomp._clearances(trajectory, free_space)[1][0])
     # q_l: zero a limit margin inside the limits, growing to 1 per joint at a limit.
-    to_limit = np.minimum(trajectory[0] - ik.lower, ik.upper - trajectory[0])
+    to_limit = np.minimum(trajectory[0] - world.lower, world.upper - trajectory[0])
     expected = (np.clip(1 - to_limit / stomp.config.limit_margin, 0, None) ** 2).sum(axis=1)
     np.testing.assert_allclose(terms[:, TERMS.index("limits")], expected)
-    at_limit = stomp._cost_terms(np.repeat(ik.upper[None, None], 3, axis=1), free_space)[0, :, TERMS.index("limits")]
+    at_limit = stomp._cost_terms(np.repeat(world.upper[None, None], 3, axis=1), free_space)[0, :, TERMS.index("limits")]
     np.testing.assert_allclose(at_limit, 14.0)
     # Torques: inverse dynamics along the keyframes' timing, each step at least segment_s (at rest at both ends).
     steps = np.diff(trajectory[0], axis=0)
-    seconds = np.maximum(stomp.config.segment_s, (np.abs(steps) / ik.velocity_limits).max(axis=1))
+    seconds = np.maximum(stomp.config.segment_s, (np.abs(steps) / world.velocity_limits).max(axis=1))
     velocity = np.zeros_like(trajectory[0])
     velocity[1:-1] = 0.5 * (steps[:-1] / seconds[:-1, None] + steps[1:] / seconds[1:, None])
     acceleration = np.zeros_like(velocity)
     acceleration[1:] = np.diff(velocity, axis=0) / seconds[:, None]
     poses = stomp.kinematics.body_poses(trajectory[0])
-    load = np.abs(joint_torques(stomp.kinematics, poses, velocity, acceleration)) / ik.effort_limits
+    load = np.abs(joint_torques(stomp.kinematics, poses, velocity, acceleration)) / world.effort_limits
     expected = (load**2).sum(axis=1) + stomp.config.torque_limit_penalty * np.maximum(load - 1, 0).sum(axis=1)
     np.testing.assert_allclose(terms[:, TERMS.index("torque")], expected, rtol=1e-9)
-    np.testing.assert_allclose(terms[1:, TERMS.index("duration")], (np.abs(steps) / ik.velocity_limits).max(axis=1))
+    np.testing.assert_allclose(terms[1:, TERMS.index("duration")], (np.abs(steps) / world.velocity_limits).max(axis=1))
     assert terms[0, TERMS.index("duration")] == 0
     assert not terms[:, [TERMS.index("closure"), TERMS.index("orientation")]].any()  # no hand constraint asked
 
 
 def test_a_held_payload_loads_the_arms_as_its_weight_would(planning):
     """Two point masses in the hands cost the arms the torque of their weight through the hands' Jacobians."""
-    ik, q_goal = planning
-    stomp = ik.stomp
-    kinematics, end_effectors = stomp.kinematics, stomp.end_effectors
+    motions, q_goal = planning
+    kinematics, end_effectors = motions.world.kinematics, motions.world.end_effectors
     q = q_goal[None]
     poses = kinematics.body_poses(q)
     still = np.zeros_like(q)
@@ -136,14 +139,13 @@ def test_point_set_distance_field_matches_exact_distances():
 
 
 def test_planning_model_places_every_body_where_drakes_collision_model_does(scenario):
-    # A fresh model whose seed table comes from the cache: no collision query has touched its context.
-    ik = make_dual_arm_ik(scenario)
-    stomp = ik.stomp
-    q = np.random.default_rng(4).uniform(ik.lower, ik.upper)
-    poses = stomp.kinematics.body_poses(q)[0]
-    ik.plant.SetPositions(ik.plant_context, ik.full_positions(q))
-    for link, X in zip(stomp.kinematics.links, poses, strict=True):
-        X_drake = ik.plant.EvalBodyPoseInWorld(ik.plant_context, ik.plant.get_body(link.body_index))
+    # A fresh world: its kinematics was read from the context at the default positions.
+    world = make_planning_world(scenario)
+    q = np.random.default_rng(4).uniform(world.lower, world.upper)
+    poses = world.kinematics.body_poses(q)[0]
+    world.plant.SetPositions(world.plant_context, world.full_positions(q))
+    for link, X in zip(world.kinematics.links, poses, strict=True):
+        X_drake = world.plant.EvalBodyPoseInWorld(world.plant_context, world.plant.get_body(link.body_index))
         np.testing.assert_allclose(X, X_drake.GetAsMatrix4(), atol=1e-9)
 
 
@@ -155,5 +157,19 @@ def test_a_cold_cache_leaves_the_planner_as_a_warm_one(scenario, tmp_path, monke
     cold = make_dual_arm_ik(scenario)
     warm = make_dual_arm_ik(scenario)
     assert list((tmp_path / "dualarm" / "ik_seeds").iterdir())  # the second one loaded what the first built
-    np.testing.assert_array_equal(cold.plant.GetPositions(cold.plant_context), warm.q_default)
-    np.testing.assert_array_equal(cold.q_default, warm.q_default)
+    np.testing.assert_array_equal(cold.world.plant.GetPositions(cold.world.plant_context), warm.world.q_default)
+    np.testing.assert_array_equal(cold.world.q_default, warm.world.q_default)
+
+
+def test_obstacles_are_arguments_not_state(planning):
+    """The world's scene is fixed: each reach's obstacles are built for it, and changing them changes no world."""
+    motions, _ = planning
+    world = motions.world
+    boxes = len(world.table_boxes)
+    seen = world.planning_obstacles(np.zeros((10, 3)))
+    seen.add_box(np.eye(4), [1.0, 1.0, 1.0])
+    assert len(seen.fields) == 2  # the points as seen and the welded object's surface
+    assert len(world.table_obstacles().boxes) == boxes
+    assert len(world.planning_obstacles().fields) == 1  # the welded object's surface alone
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        motions.stomp.config.seed = 1  # a planner's settings are given when it is built

@@ -4,7 +4,7 @@ import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import LeafSystem
 
-from systems.planning.stomp import Stomp
+from systems.planning.kinematics import BatchedKinematics, SphereModel
 
 
 class RobotSpheres(LeafSystem):
@@ -22,9 +22,12 @@ class RobotSpheres(LeafSystem):
     (S x 4: each sphere's centre in W and its radius, m; no rows where a position is not finite).
     """
 
-    def __init__(self, stomp: Stomp):
+    def __init__(self, kinematics: BatchedKinematics, spheres: SphereModel):
+        """Args:
+        kinematics, spheres: the planner's batched kinematics and sphere model (e.g. a PlanningWorld's).
+        """
         super().__init__()
-        self.kinematics, self.spheres = stomp.kinematics, stomp.spheres
+        self.kinematics, self.spheres = kinematics, spheres
         self.DeclareVectorInputPort("position", 14)
         self.DeclareAbstractOutputPort("spheres_W", lambda: AbstractValue.Make(np.zeros((0, 4))), self._calc)
 

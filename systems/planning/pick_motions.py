@@ -12,12 +12,17 @@
 
 Each returns joint-space keyframes (K x 14, the start first); time parameterisation and the dense
 check of the played trajectory are time_parameterise() and closure_deviations() below.
+
+PickMotions is built once from a PlanningWorld (systems/planning/world.py) and a PlannerConfig; it keeps
+nothing between motions. What changes from one motion to the next (the object as seen, the points of a
+carried object) is each motion's argument.
 """
 
 import dataclasses
 import itertools
 import logging
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, field
 
 import numpy as np
 from pydrake.common.eigen_geometry import AngleAxis
@@ -25,9 +30,11 @@ from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.trajectories import PiecewisePolynomial
 
 from systems.planning.closure import ClosureConstraint, OrientationConstraint, deviations, orientation_deviations
-from systems.planning.ik import SIDES, DualArmIk, IkResult
+from systems.planning.ik import DualArmIk, IkResult
 from systems.planning.kinematics import Payload
-from systems.planning.stomp import CarriedPoints
+from systems.planning.obstacles import CarriedPoints, Obstacles
+from systems.planning.stomp import Stomp, StompConfig
+from systems.planning.world import SIDES, PlanningWorld
 from systems.robot_io.joint_plan import move_duration
 
 APPROACH_STEPS = 3
@@ -59,6 +66,14 @@ DENSE_CHECK_S = 0.01
 HELD_MASS_KG = 2.0
 
 
+@dataclass(frozen=True)
+class PlannerConfig:
+    """The planning core's settings, given once when it is built."""
+
+    stomp: StompConfig = field(default_factory=StompConfig)
+    held_mass_kg: float = HELD_MASS_KG  # what STOMP's torque term assumes a held object weighs (HELD_MASS_KG)
+
+
 class PlanningError(RuntimeError):
     """No motion: names the phase that failed and why."""
 
@@ -72,49 +87,77 @@ class HeldMove:
 
 
 class PickMotions:
-    """Plans the motions of a pick in `ik`'s scene (robot and table; the object as points when given)."""
+    """Plans the motions of a pick in a PlanningWorld (robot and table; the object as points when given).
 
-    def __init__(self, ik: DualArmIk, held_mass_kg: float = HELD_MASS_KG):
-        self.ik = ik
-        self.held_mass_kg = held_mass_kg
+    Attributes:
+        world: the robot and the fixed scene. ik, stomp: the IK and STOMP built from it.
+        config: the PlannerConfig it was built with.
+    """
+
+    def __init__(self, world: PlanningWorld, config: PlannerConfig | None = None):
+        self.world, self.config = world, config or PlannerConfig()
+        self.ik = DualArmIk(world)
+        self.stomp = Stomp(world, self.config.stomp)
         self.closure = ClosureConstraint()
         self.orientation = OrientationConstraint()
 
-    def reach(self, q_start: np.ndarray, targets_W: dict[str, RigidTransform]) -> np.ndarray:
-        """Keyframes from q_start to both hands at targets_W, collision-free (Drake's geometry and the
-        sphere model against the obstacle points).
+    def reach(
+        self, q_start: np.ndarray, targets_W: dict[str, RigidTransform], obstacle_points_W: np.ndarray | None = None
+    ) -> np.ndarray:
+        """Keyframes from q_start to both hands at targets_W, collision-free: Drake's geometry, and the sphere model
+        against the world's fixed scene and obstacle_points_W (the object as seen, N x 3 in W, e.g. a perceived
+        cloud: Drake's model has no geometry for it).
 
         Raises:
             PlanningError: no collision-free IK solution, or no collision-free path to it.
         """
-        ik = self.ik
+        obstacles = self.world.planning_obstacles(obstacle_points_W)
+        # Straight segments are checked with Drake's geometry, and with the sphere model where the object is points.
+        checked = obstacles if obstacle_points_W is not None else None
         # Joints well inside their limits first: a pre-grasp at a limit leaves no room for the approach. Where
         # that goal cannot be had, or reached, the goal without the margin.
         failure = None
         for margin in (REACH_LIMIT_MARGIN, 0.0):
-            goal = ik.solve(targets_W, q_start, restarts=12, limit_margin=margin)
+            goal = self.ik.solve(targets_W, q_start, restarts=12, limit_margin=margin)
             if not goal.success:
                 failure = failure or PlanningError(f"no collision-free IK solution at the goal ({goal.message})")
                 continue
             try:
-                return self._reach_path(q_start, goal.q)
+                return self._reach_path(q_start, goal.q, obstacles, checked)
             except PlanningError as error:
                 failure = error
         raise failure
 
-    def _reach_path(self, q_start: np.ndarray, q_goal: np.ndarray) -> np.ndarray:
-        """Keyframes from q_start to q_goal: the straight move if it is free, else STOMP's, shortened."""
-        ik = self.ik
-        if ik.segment_is_free(q_start, q_goal):
+    def _reach_path(
+        self, q_start: np.ndarray, q_goal: np.ndarray, obstacles: Obstacles, checked: Obstacles | None
+    ) -> np.ndarray:
+        """Keyframes from q_start to q_goal: the straight move if it is free, else STOMP's (in `obstacles`),
+        shortened; the straight segments are checked against `checked` too (segment_is_free)."""
+        if self.segment_is_free(q_start, q_goal, checked):
             return np.stack([q_start, q_goal])
-        result = ik.stomp.plan(q_start, q_goal, ik.planning_obstacles)
+        result = self.stomp.plan(q_start, q_goal, obstacles)
         if not result.success:
             raise PlanningError(result.message)
         logging.info("reach: STOMP, %d iterations, %.2f s", result.iterations, result.seconds)
-        keyframes = shortcut(ik, list(result.trajectory))
+        keyframes = shortcut(lambda a, b: self.segment_is_free(a, b, checked), list(result.trajectory))
         if keyframes is None:
             raise PlanningError("the STOMP trajectory collides under Drake's exact check")
         return np.stack(keyframes)
+
+    def segment_is_free(
+        self, q_from: np.ndarray, q_to: np.ndarray, obstacles: Obstacles | None = None, max_step: float = 0.02
+    ) -> bool:
+        """Whether the straight joint-space segment q_from -> q_to is collision-free (checked every max_step rad).
+
+        Drake's exact geometry, and the sphere model in `obstacles` if given (e.g. an object known by its points).
+        """
+        steps = max(1, int(np.ceil(np.max(np.abs(np.asarray(q_to) - q_from)) / max_step)))
+        states = [q_from + s * (q_to - q_from) for s in np.linspace(0, 1, steps + 1)]
+        if obstacles is not None:
+            clearance = self.stomp.clearance(np.array(states), obstacles)
+            if clearance.min() <= 0:
+                return False
+        return not any(self.world.in_collision(q) for q in states)
 
     def straight(self, q_start: np.ndarray, targets_W: dict[str, RigidTransform], steps: int = APPROACH_STEPS):
         """Keyframes moving each hand's origin along a straight line to its target, its orientation kept as
@@ -123,8 +166,7 @@ class PickMotions:
         Raises:
             PlanningError: naming the step whose IK failed.
         """
-        ik = self.ik
-        start_poses = ik.grasp_frame_poses(q_start)
+        start_poses = self.world.grasp_frame_poses(q_start)
         keyframes, q = [np.asarray(q_start, float)], q_start
         for step in range(1, steps + 1):
             s = step / steps
@@ -137,7 +179,7 @@ class PickMotions:
             }
             # From q first; SNOPT can stall there near a joint limit, then from the nearest seeds, as long as
             # the arms stay on their branch (a jump would leave the line between keyframes).
-            result = ik.solve(targets, q, min_distance=None, allow_half_turn=False, restarts=4)
+            result = self.ik.solve(targets, q, min_distance=None, allow_half_turn=False, restarts=4)
             if not result.success:
                 raise PlanningError(f"step {step} of {steps}: IK failed ({result.message})")
             if np.abs(result.q - q).max() > MAX_STRAIGHT_STEP:
@@ -166,11 +208,11 @@ class PickMotions:
         Raises:
             PlanningError: the moved hands are out of reach, or STOMP found no constrained path.
         """
-        ik, stomp = self.ik, self.ik.stomp
+        stomp, end_effectors = self.stomp, self.world.end_effectors
         q_start = np.asarray(q_start, float)
         path, fraction, tolerance = self.held_path(q_start, X_motion_W, min_fraction)
-        X_E1E2 = stomp.end_effectors.relative(q_start[None])[0]
-        R_WE = [X[0, :3, :3] for X in stomp.end_effectors.poses(q_start[None])]
+        X_E1E2 = end_effectors.relative(q_start[None])[0]
+        R_WE = [X[0, :3, :3] for X in end_effectors.poses(q_start[None])]
         # Project onto the closure manifold alone: the goal keeps its own orientation (a carry may turn the
         # object; a lift at the edge of reach may tilt it).
         q_goal = stomp.project(path[-1], X_E1E2, None, steps=PROJECTION_STEPS)[0]
@@ -184,10 +226,10 @@ class PickMotions:
             orientation = dataclasses.replace(self.orientation, upright_only=True)
         if orientation is not None:
             R_goal = [R_motion @ R for R in R_WE]
-            tilt = orientation_deviations(stomp.end_effectors, q_goal[None], R_goal, orientation.upright_only)
+            tilt = orientation_deviations(end_effectors, q_goal[None], R_goal, orientation.upright_only)
             if tilt.max() >= 0.5 * orientation.o_max:  # the goal itself tilts (the edge of reach): no constraint
                 orientation = None
-        scene = ik.table_obstacles
+        scene = self.world.table_obstacles()
         centre_W = None
         if carried_points_W is not None and len(carried_points_W):
             scene = scene.carrying(self.carried(q_start, carried_points_W))
@@ -212,8 +254,7 @@ class PickMotions:
         Raises:
             PlanningError: not even min_fraction of the motion is reachable.
         """
-        ik = self.ik
-        start_poses = ik.grasp_frame_poses(q_start)
+        start_poses = self.world.grasp_frame_poses(q_start)
         X_E1E2 = start_poses["left"].InvertAndCompose(start_poses["right"])
         angle_axis = X_motion_W.rotation().ToAngleAxis()
         path, q, worst = [np.asarray(q_start, float)], q_start, 0.0
@@ -254,21 +295,21 @@ class PickMotions:
         return IkResult(False, q_near, "no configuration near the last one holds the object there"), tolerance
 
     def payload(self, q: np.ndarray, centre_W: np.ndarray | None = None) -> Payload:
-        """The held object for the torque term: held_mass_kg at centre_W (m, in W at q; default midway between the
-        hands), half of it in each hand."""
-        stomp = self.ik.stomp
-        body = stomp.kinematics.body_poses(np.asarray(q)[None])[0]
+        """The held object for the torque term: config.held_mass_kg at centre_W (m, in W at q; default midway
+        between the hands), half of it in each hand."""
+        world = self.world
+        body = world.kinematics.body_poses(np.asarray(q)[None])[0]
         if centre_W is None:
-            centre_W = np.mean([X[:3, 3] for X in stomp.end_effectors.from_body_poses(body)], axis=0)
-        slots = np.array(stomp.end_effectors.positions)
+            centre_W = np.mean([X[:3, 3] for X in world.end_effectors.from_body_poses(body)], axis=0)
+        slots = np.array(world.end_effectors.positions)
         points_B = np.array([(centre_W - body[slot][:3, 3]) @ body[slot][:3, :3] for slot in slots])
-        return Payload(slots, points_B, np.full(2, 0.5 * self.held_mass_kg))
+        return Payload(slots, points_B, np.full(2, 0.5 * self.config.held_mass_kg))
 
     def carried(self, q: np.ndarray, points_W: np.ndarray) -> CarriedPoints:
         """The held object's points fixed to the left hand's body (as at q), thinned to CARRIED_POINTS spheres."""
-        stomp = self.ik.stomp
-        slot = stomp.end_effectors.positions[0]
-        X_WB = stomp.kinematics.body_poses(np.asarray(q)[None])[0, slot]
+        world = self.world
+        slot = world.end_effectors.positions[0]
+        X_WB = world.kinematics.body_poses(np.asarray(q)[None])[0, slot]
         points = points_W[:: max(1, len(points_W) // CARRIED_POINTS)]
         points_B = (points - X_WB[:3, 3]) @ X_WB[:3, :3]
         return CarriedPoints(slot, points_B, CARRIED_RADIUS)
@@ -277,7 +318,7 @@ class PickMotions:
         """Shortest duration of each segment of a held move (K - 1 values, s): HELD_SEGMENT_S, or longer where
         a grasp frame moves more than HELD_SPEED_M_S or turns more than HELD_TURN_SPEED_RAD_S would allow."""
         durations = np.full(len(keyframes) - 1, HELD_SEGMENT_S)
-        for X in self.ik.stomp.end_effectors.poses(np.asarray(keyframes)):
+        for X in self.world.end_effectors.poses(np.asarray(keyframes)):
             moved = np.linalg.norm(np.diff(X[:, :3, 3], axis=0), axis=1)
             trace = np.einsum("kij,kij->k", X[:-1, :3, :3], X[1:, :3, :3])  # trace(R_k^T R_k+1)
             turned = np.arccos(np.clip(0.5 * (trace - 1.0), -1.0, 1.0))
@@ -289,7 +330,7 @@ class PickMotions:
         one along the played trajectory, checked every DENSE_CHECK_S."""
         times = np.arange(trajectory.start_time(), trajectory.end_time() + 1e-9, DENSE_CHECK_S)
         q = np.array([trajectory.value(t).ravel() for t in times])
-        t_dev, o_dev = deviations(self.ik.stomp.end_effectors, q, held.X_E1E2)
+        t_dev, o_dev = deviations(self.world.end_effectors, q, held.X_E1E2)
         return float(t_dev.max()), float(o_dev.max())
 
 
@@ -308,11 +349,12 @@ def time_parameterise(
     return PiecewisePolynomial.CubicShapePreserving(times, np.asarray(keyframes).T, zero_end_point_derivatives=True)
 
 
-def shortcut(ik: DualArmIk, keyframes: list[np.ndarray]) -> list[np.ndarray] | None:
-    """Greedily drops keyframes while each remaining segment is collision-free (None if some segment is not)."""
+def shortcut(is_free: Callable[[np.ndarray, np.ndarray], bool], keyframes: list[np.ndarray]) -> list[np.ndarray] | None:
+    """Greedily drops keyframes while each remaining segment is free (is_free(q_from, q_to); None if some segment
+    is not)."""
     kept, i = [keyframes[0]], 0
     while i < len(keyframes) - 1:
-        j = next((j for j in range(len(keyframes) - 1, i, -1) if ik.segment_is_free(keyframes[i], keyframes[j])), None)
+        j = next((j for j in range(len(keyframes) - 1, i, -1) if is_free(keyframes[i], keyframes[j])), None)
         if j is None:
             return None
         kept.append(keyframes[j])

@@ -35,8 +35,6 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.ndimage import map_coordinates
-from scipy.spatial import cKDTree
 
 from systems.planning.closure import (
     ClosureConstraint,
@@ -49,14 +47,9 @@ from systems.planning.closure import (
     transition_costs,
 )
 from systems.planning.hand_constraints import HandConstraints
-from systems.planning.kinematics import (
-    BatchedKinematics,
-    EndEffectors,
-    Payload,
-    SphereModel,
-    joint_torques,
-    relative_pose,
-)
+from systems.planning.kinematics import Payload, joint_torques, relative_pose
+from systems.planning.obstacles import Obstacles
+from systems.planning.world import PlanningWorld
 
 TERMS = ("collision", "limits", "torque", "duration", "closure", "orientation")
 # Each term's unit, so that 1 means as much in each: the collision margin of shortfall (m, summed over the
@@ -65,7 +58,7 @@ TERMS = ("collision", "limits", "torque", "duration", "closure", "orientation")
 TERM_UNITS = np.array([0.02, 1.0, 1.0, 1.0, 1.0, 1.0])
 
 
-@dataclass
+@dataclass(frozen=True)
 class StompConfig:
     keyframes: int = 16
     rollouts: int = 16
@@ -106,82 +99,6 @@ class StompResult:
     seconds: float
     min_clearance_m: float  # smallest sphere-model clearance along the keyframes
     message: str = ""
-
-
-class DistanceField:
-    """Distance to a point set, precomputed on a grid (cell CELL) around it and interpolated trilinearly.
-
-    Points farther than REACH from the set's box get the cap.
-    """
-
-    CELL = 0.01  # m
-    REACH = 0.15  # m
-
-    def __init__(self, points: np.ndarray, inflation: float = 0.0):
-        self.inflation = inflation
-        self.lower = points.min(axis=0) - self.REACH
-        shape = np.ceil((points.max(axis=0) + self.REACH - self.lower) / self.CELL).astype(int) + 1
-        nodes = self.lower + self.CELL * np.stack(np.indices(shape), axis=-1).reshape(-1, 3)
-        self.values = cKDTree(points).query(nodes)[0].reshape(shape)
-
-    def __call__(self, query: np.ndarray, cap: float) -> np.ndarray:
-        grid = ((query - self.lower) / self.CELL).T
-        distance = map_coordinates(self.values, grid, order=1, mode="constant", cval=np.inf)
-        return np.minimum(distance - self.inflation, cap)
-
-
-@dataclass
-class CarriedPoints:
-    """An object the hands carry, as spheres fixed to one of the robot's bodies: kept clear of the scene."""
-
-    slot: int  # the body's index in the batched kinematics' poses
-    points_B: np.ndarray  # M x 3 sphere centres in that body's frame, m
-    radius: float  # m
-
-
-class Obstacles:
-    """The scene for the sphere model: oriented boxes and point sets (e.g. an object's surface), and what
-    the robot carries through it (`carried`, optional)."""
-
-    def __init__(self):
-        self.boxes: list[tuple[np.ndarray, np.ndarray]] = []  # (X_BW 4x4, half sizes)
-        self.fields: list[DistanceField] = []
-        self.carried: CarriedPoints | None = None
-
-    def carrying(self, carried: CarriedPoints) -> "Obstacles":
-        """The same scene with the robot carrying `carried`."""
-        scene = Obstacles()
-        scene.boxes, scene.fields, scene.carried = self.boxes, self.fields, carried
-        return scene
-
-    def add_box(self, X_WB: np.ndarray, size) -> "Obstacles":
-        self.boxes.append((np.linalg.inv(X_WB), 0.5 * np.asarray(size, float)))
-        return self
-
-    def add_points(self, points_W: np.ndarray, inflation: float = 0.0) -> "Obstacles":
-        """A surface given by points; distances to it are reduced by `inflation` (m), e.g. half their spacing."""
-        self.fields.append(DistanceField(np.asarray(points_W, float), inflation))
-        return self
-
-    def distance(self, centres: np.ndarray, cap: float = 0.3) -> np.ndarray:
-        """Distance (m, negative inside a box) from each point (... x 3) to the nearest obstacle, capped at `cap`.
-
-        Nothing beyond the cap matters to the costs (it must exceed the margin plus the largest sphere).
-        """
-        flat = centres.reshape(-1, 3)
-        nearest = np.full(len(flat), float(cap))
-        for X_BW, half in self.boxes:  # in place: a large share of a STOMP iteration's time
-            excess = flat @ X_BW[:3, :3].T
-            excess += X_BW[:3, 3]
-            np.abs(excess, out=excess)
-            excess -= half
-            largest = np.maximum(np.maximum(excess[:, 0], excess[:, 1]), excess[:, 2])  # (.max(axis=1) is slow)
-            inside = np.minimum(largest, 0.0)
-            np.maximum(excess, 0.0, out=excess)
-            np.minimum(nearest, np.sqrt(np.einsum("ij,ij->i", excess, excess)) + inside, out=nearest)
-        for field_ in self.fields:
-            nearest = np.minimum(nearest, field_(flat, cap))
-        return nearest.reshape(centres.shape[:-1])
 
 
 def interpolate_segments(keyframes: np.ndarray, steps: int) -> np.ndarray:
@@ -225,36 +142,25 @@ def _smoothing_matrices(free: int) -> tuple[np.ndarray, np.ndarray]:
 class Stomp:
     """Plans joint-space trajectories for both arms with STOMP."""
 
-    def __init__(
-        self,
-        kinematics: BatchedKinematics,
-        spheres: SphereModel,
-        inspector,
-        lower: np.ndarray,
-        upper: np.ndarray,
-        config: StompConfig | None = None,
-        end_effectors: EndEffectors | None = None,
-        velocity_limits: np.ndarray | None = None,
-        effort_limits: np.ndarray | None = None,
-    ):
+    def __init__(self, world: PlanningWorld, config: StompConfig | None = None):
         """Args:
-        kinematics, spheres: the robot's batched kinematics and sphere model.
-        inspector: the SceneGraph's model inspector (its collision filters decide which sphere pairs count).
-        lower, upper: the 14 joints' limits, rad.
-        end_effectors: the hands' grasp frames, needed for the closure constraint.
-        velocity_limits, effort_limits: the joints' limits (rad/s, N m) for the duration and torque costs.
+        world: the robot (batched kinematics, sphere model, grasp frames, joint limits) and the collision filters
+            that decide which sphere pairs count. The scene to plan in is each plan's argument.
+        config: fixed for this planner's life (default StompConfig()).
         """
-        self.end_effectors = end_effectors
-        self.velocity_limits, self.effort_limits = velocity_limits, effort_limits
-        self.kinematics, self.spheres = kinematics, spheres
-        self.lower, self.upper = np.asarray(lower), np.asarray(upper)
+        self.world = world
+        self.end_effectors = world.end_effectors
+        self.velocity_limits, self.effort_limits = world.velocity_limits, world.effort_limits
+        self.kinematics, self.spheres = world.kinematics, world.spheres
+        self.lower, self.upper = np.asarray(world.lower), np.asarray(world.upper)
         self.config = config or StompConfig()
         self.noise_covariance, self.smoothing = _smoothing_matrices(self.config.keyframes - 2)
         self.noise_factor = np.linalg.cholesky(self.noise_covariance + 1e-12 * np.eye(len(self.noise_covariance)))
         # Sphere pairs that must not meet (unless their geometries are filtered): the arms with each other,
         # with the torso, and within each arm.
         groups = ((1, 2), (1, 0), (2, 0), (1, 1), (2, 2))
-        pairs = [spheres.pairs(inspector, a, b) for a, b in groups]
+        spheres = world.spheres
+        pairs = [spheres.pairs(world.inspector, a, b) for a, b in groups]
         self.pair_a = np.concatenate([a for a, _ in pairs])
         self.pair_b = np.concatenate([b for _, b in pairs])
         # Broad phase: a bounding sphere per body; sphere pairs are grouped by their bodies' pair.
@@ -388,8 +294,6 @@ class Stomp:
 
     def constraints(self, X_desired=None, R_desired=None, upright_only: bool = False) -> HandConstraints:
         """The hand constraints: the relative hand pose X_E1E2 (X_desired) and/or the hands' world orientations."""
-        if self.end_effectors is None:
-            raise ValueError("hand constraints need the end effectors (Stomp(..., end_effectors=...))")
         return HandConstraints(self.end_effectors, self.lower, self.upper, X_desired, R_desired, upright_only)
 
     def project(

@@ -19,7 +19,6 @@ from pydrake.systems.framework import EventStatus, LeafSystem
 from pydrake.trajectories import PiecewisePolynomial
 
 from systems.messages import GraspPoses, MoveKind, PlanRequest, PlanResult, Targets
-from systems.planning.ik import SIDES
 from systems.planning.pick_motions import (
     SPARSE_SEGMENT_S,
     STOMP_SEGMENT_S,
@@ -27,9 +26,10 @@ from systems.planning.pick_motions import (
     PlanningError,
     time_parameterise,
 )
+from systems.planning.world import SIDES
 
 # The reconstruction, thinned to about this many points, is the reach's obstacle: the margin about it
-# (ik.PERCEIVED_SHAPE_MARGIN) was set for a cloud this dense, and planning cost grows with it.
+# (world.PERCEIVED_SHAPE_MARGIN) was set for a cloud this dense, and planning cost grows with it.
 OBSTACLE_POINTS = 2000
 RETREAT_M = 0.1  # m: how far the hands back off an object they let go of
 
@@ -59,7 +59,7 @@ class StompPlanner(LeafSystem):
     Output: ``plan`` (PlanResult of the latest request whose latency has passed).
 
     Args:
-        motions: the planning core (robot model, IK, STOMP).
+        motions: the planning core (its world, IK and STOMP, built with their PlannerConfig).
         latency_s: context seconds from a request to its result; the trajectory starts then.
         grasp_depth_margin: the "grasp" targets are moved this far along each hand's approach axis z_G, m
             (a perceived grasp can be 1-2 cm off; a hand that stops short closes on a handle's edge).
@@ -114,20 +114,18 @@ class StompPlanner(LeafSystem):
                 held = motions.held_move(request.q_start, request.X_motion_W, request.min_fraction, carried)
                 keyframes = held.keyframes
                 min_segment = motions.held_segment_durations(keyframes)
-                start, end = (motions.ik.grasp_frame_poses(q)["left"] for q in (keyframes[0], keyframes[-1]))
+                start, end = (motions.world.grasp_frame_poses(q)["left"] for q in (keyframes[0], keyframes[-1]))
                 result.achieved_motion_W = end @ start.inverse()
             else:
                 targets = self._targets(request, context)
                 if request.path == MoveKind.FREE:
                     cloud = self.GetInputPort("obstacle_cloud_W").Eval(context)
-                    motions.ik.set_obstacle_points(
-                        cloud[:: max(1, len(cloud) // OBSTACLE_POINTS)] if len(cloud) else None
-                    )
-                    keyframes = motions.reach(request.q_start, targets)
+                    points = cloud[:: max(1, len(cloud) // OBSTACLE_POINTS)] if len(cloud) else None
+                    keyframes = motions.reach(request.q_start, targets, points)
                     min_segment = STOMP_SEGMENT_S if len(keyframes) > 3 else SPARSE_SEGMENT_S
                 else:
                     keyframes, min_segment = motions.straight(request.q_start, targets), SPARSE_SEGMENT_S
-            trajectory = time_parameterise(keyframes, motions.ik.velocity_limits, start_s, min_segment)
+            trajectory = time_parameterise(keyframes, motions.world.velocity_limits, start_s, min_segment)
             if held is not None:
                 t_dev, o_dev = motions.closure_deviations(trajectory, held)
                 result.closure_translation_dev_m, result.closure_orientation_dev_rad = t_dev, o_dev
@@ -146,7 +144,7 @@ class StompPlanner(LeafSystem):
     def _targets(self, request: PlanRequest, context) -> dict[str, RigidTransform]:
         if request.targets == Targets.RETREAT:
             back = RigidTransform([0.0, 0.0, -RETREAT_M])
-            return {side: X @ back for side, X in self.motions.ik.grasp_frame_poses(request.q_start).items()}
+            return {side: X @ back for side, X in self.motions.world.grasp_frame_poses(request.q_start).items()}
         grasps = self.GetInputPort("grasp_poses").Eval(context)
         if not grasps.found:
             raise PlanningError(f"no grasp poses ({grasps.message})")
@@ -158,7 +156,7 @@ class StompPlanner(LeafSystem):
     def _grasp_paths(self, trajectory: PiecewisePolynomial, samples: int = 60) -> dict[str, np.ndarray]:
         times = np.linspace(trajectory.start_time(), trajectory.end_time(), samples)
         q = np.array([trajectory.value(t).ravel() for t in times])
-        poses = self.motions.ik.stomp.end_effectors.poses(q)
+        poses = self.motions.world.end_effectors.poses(q)
         return {side: X[:, :3, 3] for side, X in zip(SIDES, poses, strict=True)}
 
     def _calc_plan(self, context, output):

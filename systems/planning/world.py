@@ -1,0 +1,147 @@
+"""The world that planning works in: the robot and the fixed scene, read once from a RobotScene.
+
+The scene (RobotScene) is a built Diagram holding a MultibodyPlant of the robot, its hands and the table, and
+optionally an object welded where it stands; diagrams/planning_scene.py builds it from the same files as the
+station. A PlanningWorld holds what the IK (systems/planning/ik.py) and STOMP (systems/planning/stomp.py) are
+built from: the arms' batched kinematics, their sphere model and grasp frames, the joints' position, velocity
+and effort limits, the fixed scene's boxes (table, floor, a box on the table) and a welded object's surface,
+and Drake's plant for exact checks. None of it changes after construction. Obstacles that change from plan to
+plan (a perceived object) are arguments (planning_obstacles(points_W)), never kept.
+
+Drake's queries (in_collision, clearance, grasp_frame_poses, and the IK's solves) write the arm positions into
+the world's one plant context before they read it: scratch, not state. The numpy models (kinematics, boxes) are
+read from it once, at construction, with every joint at its default.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+from pydrake.geometry import Box, SceneGraph
+from pydrake.math import RigidTransform
+from pydrake.multibody.plant import MultibodyPlant
+from pydrake.multibody.tree import BodyIndex, ModelInstanceIndex
+from pydrake.systems.framework import Diagram
+
+from systems.planning.kinematics import EndEffectors, centauro_kinematics
+from systems.planning.obstacles import Obstacles
+
+SIDES = ("left", "right")
+# Clearance added around a perceived (reconstructed) object for reach planning, m. The reconstructions
+# are 2.8-4.1 mm off (Chamfer, single views); 1.5 cm around the accurate drills left STOMP's reach without a
+# path to the pre-grasp in its 2 s (unseen drills 17/24 picks; 1 cm: see the README's evaluation).
+PERCEIVED_SHAPE_MARGIN = 0.01
+
+
+@dataclass
+class RobotScene:
+    """The model planning works in (built by diagrams/planning_scene.py)."""
+
+    diagram: Diagram  # holds `plant` and `scene_graph`; the hands' fingers at their planning opening
+    plant: MultibodyPlant
+    scene_graph: SceneGraph
+    robot: ModelInstanceIndex
+    hands: dict[str, ModelInstanceIndex]  # "left", "right"
+    arm_joints: list[str]  # the 14 arm joints, left arm then right
+    # Identifies the model files, placements and seed: the IK seed table is cached under it.
+    cache_key: str
+    seed: int = 0
+    # A welded object's surface points in W (N x 3) and their spacing (m), or None: also an obstacle
+    # for the sphere model, since the plant's exact geometry only serves Drake's queries.
+    object_surface_W: np.ndarray | None = None
+    object_surface_spacing: float = 0.0
+
+
+class PlanningWorld:
+    """The robot and the fixed scene of a RobotScene, for the IK, STOMP and the collision checks.
+
+    Attributes:
+        scene: the RobotScene it was read from.
+        plant, plant_context: Drake's model for exact checks and the IK (the context is the queries' scratch).
+        q_default: the plant's default positions (the fingers at their planning opening).
+        arm_indices: the 14 arm joints' indices in the plant's positions.
+        lower, upper, velocity_limits, effort_limits: the 14 arm joints' limits (rad, rad/s, N m).
+        grasp_frames: each hand's grasp frame G, by side.
+        kinematics, spheres, end_effectors: the arms' batched kinematics, sphere model and grasp frames (numpy).
+        inspector: the SceneGraph's model inspector (its collision filters say which sphere pairs count).
+        table_boxes: the fixed scene's boxes for the sphere model, as Obstacles.boxes holds them.
+    """
+
+    def __init__(self, scene: RobotScene):
+        self.scene = scene
+        self.plant, self.scene_graph, self.diagram = scene.plant, scene.scene_graph, scene.diagram
+        self.context = self.diagram.CreateDefaultContext()
+        self.plant_context = self.plant.GetMyMutableContextFromRoot(self.context)
+        self.q_default = self.plant.GetPositions(self.plant_context)
+        self.grasp_frames = {side: self.plant.GetFrameByName("grasp_frame", scene.hands[side]) for side in SIDES}
+        joints = [self.plant.GetJointByName(n, scene.robot) for n in scene.arm_joints]
+        self.arm_indices = np.array([j.position_start() for j in joints])
+        self.lower = np.array([j.position_lower_limits()[0] for j in joints])
+        self.upper = np.array([j.position_upper_limits()[0] for j in joints])
+        self.velocity_limits = np.array([j.velocity_upper_limits()[0] for j in joints])
+        actuators = [self.plant.get_joint_actuator(i) for i in self.plant.GetJointActuatorIndices()]
+        effort = {actuator.joint().index(): actuator.effort_limit() for actuator in actuators}
+        self.effort_limits = np.array([effort[j.index()] for j in joints])
+        # Read with the context at q_default: the kinematics keeps the fixed joints (fingers, welds) as they are here.
+        self.kinematics, self.spheres = centauro_kinematics(
+            self.plant, self.scene_graph, self.plant_context, scene.arm_joints, scene.hands
+        )
+        self.end_effectors = EndEffectors(self.kinematics, [self.grasp_frames[side] for side in SIDES])
+        self.inspector = self.scene_graph.model_inspector()
+        self.table_boxes = tuple(self._fixed_boxes().boxes)
+
+    def _fixed_boxes(self) -> Obstacles:
+        """Every box that is not the robot's (table, floor, a box on the table), welded in the world."""
+        obstacles = Obstacles()
+        robot = {self.scene.robot, *self.scene.hands.values()}
+        for index in range(self.plant.num_bodies()):
+            body = self.plant.get_body(BodyIndex(index))
+            if body.model_instance() in robot:
+                continue
+            X_WB = self.plant.EvalBodyPoseInWorld(self.plant_context, body)
+            for geometry in self.plant.GetCollisionGeometriesForBody(body):
+                shape = self.inspector.GetShape(geometry)
+                if isinstance(shape, Box):
+                    X_WG = (X_WB @ self.inspector.GetPoseInFrame(geometry)).GetAsMatrix4()
+                    obstacles.add_box(X_WG, [shape.width(), shape.depth(), shape.height()])
+        return obstacles
+
+    def table_obstacles(self) -> Obstacles:
+        """The fixed scene's boxes for the sphere model (a new Obstacles each call: add to it freely)."""
+        obstacles = Obstacles()
+        obstacles.boxes = list(self.table_boxes)
+        return obstacles
+
+    def planning_obstacles(self, points_W: np.ndarray | None = None) -> Obstacles:
+        """The scene for a reach: the table's boxes, the object as seen (points_W, N x 3 in W, e.g. a perceived
+        cloud: Drake's model has no geometry for it) and a welded object's surface."""
+        obstacles = self.table_obstacles()
+        if points_W is not None:
+            # A perceived shape is off by up to a centimetre or two where the camera did not see it.
+            obstacles.add_points(points_W, inflation=PERCEIVED_SHAPE_MARGIN)
+        if self.scene.object_surface_W is not None:
+            # Between surface samples the nearest sample is up to about half their spacing too far.
+            obstacles.add_points(self.scene.object_surface_W, inflation=0.5 * self.scene.object_surface_spacing)
+        return obstacles
+
+    def full_positions(self, q_arms: np.ndarray) -> np.ndarray:
+        """The plant's positions: q_default with the arm joints at q_arms."""
+        q = self.q_default.copy()
+        q[self.arm_indices] = q_arms
+        return q
+
+    def in_collision(self, q_arms: np.ndarray) -> bool:
+        """Whether the robot touches itself or the table at arm configuration q_arms (Drake's exact geometry)."""
+        self.plant.SetPositions(self.plant_context, self.full_positions(q_arms))
+        return self.plant.get_geometry_query_input_port().Eval(self.plant_context).HasCollisions()
+
+    def clearance(self, q_arms: np.ndarray, max_distance: float = 0.5) -> float:
+        """Smallest signed distance (m) between robot, table and object geometries at q_arms (Drake's exact query)."""
+        self.plant.SetPositions(self.plant_context, self.full_positions(q_arms))
+        query = self.plant.get_geometry_query_input_port().Eval(self.plant_context)
+        pairs = query.ComputeSignedDistancePairwiseClosestPoints(max_distance)
+        return min((pair.distance for pair in pairs), default=max_distance)
+
+    def grasp_frame_poses(self, q_arms: np.ndarray) -> dict[str, RigidTransform]:
+        """X_WG of both hands at arm configuration q_arms."""
+        self.plant.SetPositions(self.plant_context, self.full_positions(q_arms))
+        return {side: frame.CalcPoseInWorld(self.plant_context) for side, frame in self.grasp_frames.items()}
