@@ -30,6 +30,7 @@ from diagrams.scenario import Scenario
 from diagrams.station import HAND_INSTANCES, MakeStation, place_target
 from systems.messages import PERCEPTION_STAGES, Mode, PickStatus
 from systems.perception.camera_latch import CameraLatch
+from systems.perception.grasp_offset import GraspOffset
 from systems.perception.robot_spheres import RobotSpheres
 from systems.pick_supervisor import PickSupervisor, lift_task, place_task
 from systems.pick_visualiser import PickVisualiser
@@ -93,9 +94,10 @@ def MakePickDiagram(
     from_camera = perception == "camera"
     looks = from_camera and scenario.place.looks and scenario.task == "place"
     if scenario.task == "place":
-        supervisor = PickSupervisor(place_task(), PERCEIVE_AT_S, place_target(scenario), from_camera, looks)
+        task, place_target_W = place_task(), place_target(scenario)
     else:
-        supervisor = PickSupervisor(lift_task(), PERCEIVE_AT_S, from_camera=from_camera)
+        task, place_target_W = lift_task(), None
+    supervisor = PickSupervisor(task, PERCEIVE_AT_S, place_target_W, from_camera, looks, scenario.max_attempts)
     builder.AddNamedSystem("pick_supervisor", supervisor)
     telemetry = builder.AddNamedSystem("plan_telemetry", PlanTelemetryRecorder())
 
@@ -112,7 +114,16 @@ def MakePickDiagram(
             raise PlanningError(str(error)) from error
     builder.Connect(seen.GetOutputPort("frame_id"), supervisor.GetInputPort("frame_id"))
     builder.Connect(seen.GetOutputPort("result"), supervisor.GetInputPort("perception"))
-    builder.Connect(seen.GetOutputPort("grasp_poses"), planner.GetInputPort("grasp_poses"))
+    grasps = seen.GetOutputPort("grasp_poses")
+    if any(scenario.faults.grasp_offset_G):
+        if hardware:
+            raise ValueError("faults are injected in simulation only: faults.grasp_offset_G must be zero on hardware")
+        offset = GraspOffset(scenario.faults.grasp_offset_G, scenario.faults.grasp_offset_attempts)
+        fault = builder.AddNamedSystem("grasp_offset_fault", offset)
+        builder.Connect(grasps, fault.GetInputPort("grasp_poses"))
+        builder.Connect(supervisor.GetOutputPort("attempt"), fault.GetInputPort("attempt"))
+        grasps = fault.GetOutputPort("grasp_poses")
+    builder.Connect(grasps, planner.GetInputPort("grasp_poses"))
     builder.Connect(seen.GetOutputPort("reconstructed_cloud_W"), planner.GetInputPort("obstacle_cloud_W"))
     builder.Connect(supervisor.GetOutputPort("plan_request"), planner.GetInputPort("request"))
     plan = planner.GetOutputPort("plan")
@@ -205,6 +216,11 @@ def pick_report(diagram: Diagram, context) -> PickReport:
     return PickReport(status, stages, plans.closure)
 
 
+def attempt_failures(status: PickStatus) -> list[dict[str, str]]:
+    """Each failed attempt's {"stage", "message"}, in order (the last is the pick's if it failed)."""
+    return [{"stage": stage, "message": message} for stage, message in status.attempt_failures]
+
+
 def _perception_output(diagram: Diagram, context, port: str):
     name = "perception" if diagram.HasSubsystemNamed("perception") else "ground_truth"
     return _subsystem_output(diagram, context, name, port)
@@ -285,6 +301,7 @@ class PickWatcher:
         outcome.closure = report.closure
         if status.belief is not None and outcome.object_rest_W is not None:
             outcome.perception = pose_error(status.belief.seen_W, outcome.object_rest_W)
+        outcome.attempts_made, outcome.attempt_failures = status.attempt, attempt_failures(status)
         if status.mode == Mode.FAILED:
             outcome.success = False
             outcome.failed_stage, outcome.message = status.failed_stage, status.message

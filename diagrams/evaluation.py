@@ -128,6 +128,8 @@ def run_trial(trial: Trial) -> dict:
         "hands_in_contact": outcome.hands_in_contact,
         "failed_stage": failed_stage,
         "message": outcome.message,
+        "attempts_made": outcome.attempts_made,
+        "attempt_failures": outcome.attempt_failures,
         "stages": outcome.stages,
         "closure": outcome.closure,
         "place": outcome.place,

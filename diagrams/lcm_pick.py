@@ -26,7 +26,14 @@ from pydrake.lcm import DrakeLcm, DrakeLcmInterface
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Diagram
 
-from diagrams.autonomous_pick import PERCEIVE_AT_S, MakePickDiagram, PickReport, PickWatcher, pick_report
+from diagrams.autonomous_pick import (
+    PERCEIVE_AT_S,
+    MakePickDiagram,
+    PickReport,
+    PickWatcher,
+    attempt_failures,
+    pick_report,
+)
 from diagrams.hardware_station import command_stream, wait_for_robot
 from diagrams.paths import REPO_ROOT
 from diagrams.pick_simulation import SAMPLE_S, PickOutcome
@@ -148,6 +155,7 @@ def _outcome(report: PickReport, problems: list[str], commands: dict) -> PickOut
         message += "; " + "; ".join(problems)
     outcome = PickOutcome(played and not problems, math.nan, math.nan, message=message)
     outcome.stages, outcome.failed_stage = report.stages, status.failed_stage
+    outcome.attempts_made, outcome.attempt_failures = status.attempt, attempt_failures(status)
     outcome.planning_s = report.stages.get("image_to_trajectory", 0.0)
     outcome.closure = report.closure
     outcome.commands = commands

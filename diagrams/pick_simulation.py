@@ -49,6 +49,9 @@ class PickOutcome:
     # The autonomous pick's stage wall times, s, and the stage that stopped it, if one did.
     stages: dict[str, float] = field(default_factory=dict)
     failed_stage: str = ""
+    # Attempts at the task (a failed check starts another), and each failed one's {"stage", "message"}.
+    attempts_made: int = 1
+    attempt_failures: list[dict[str, str]] = field(default_factory=list)
     # The largest deviations of the hands' relative pose along the played held moves (lift, carry, ...):
     # {"max_translation_dev_m": m, "max_orientation_dev_rad": rad}, NaN without a held move.
     closure: dict[str, float] = field(default_factory=dict)

@@ -131,6 +131,16 @@ class PlanningConfig:
 
 
 @dataclass
+class FaultConfig:
+    """Faults injected to test the pick's checks and retries (simulation only)."""
+
+    # Each registered grasp pose moved by this in its own grasp frame G (x along the handle, z the approach
+    # axis), m, on the first `grasp_offset_attempts` attempts: a hand that closes on nothing.
+    grasp_offset_G: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
+    grasp_offset_attempts: int = 1
+
+
+@dataclass
 class CameraNoiseConfig:
     """The RGB-D sensor model between the camera and everything that reads it (systems/perception/rgbd_noise.py)."""
 
@@ -157,6 +167,11 @@ class Scenario:
     # Misalignment experiment (paper §V-B, which used 0.2): the yaw of the estimated pose handed to
     # the shape registration is turned by an offset uniform in +-this, drawn from random_seed, rad.
     registration_yaw_noise: float = 0.0
+    # Attempts at the task, the first included: a failed check (a hand closed on nothing, the object lost in
+    # the lift) opens the hands, backs off and starts again from a new camera frame.
+    max_attempts: int = 3
+    # Faults injected for tests (simulation only).
+    faults: FaultConfig = field(default_factory=FaultConfig)
     # Height of the robot's pelvis frame above the floor, metres.
     pelvis_height: float = 1.0
     # Table base frame position in the world (the floor under its centre), metres.
@@ -279,6 +294,13 @@ def validate(scenario: Scenario) -> None:
         raise ValueError(f"object.xy must lie within {MAX_TABLE_OFFSET_M} m of the table's centre, got {obj.xy}")
     if not 0 < obj.mass <= MAX_OBJECT_MASS_KG:
         raise ValueError(f"object.mass must lie in (0, {MAX_OBJECT_MASS_KG}] kg, got {obj.mass}")
+    if not 1 <= scenario.max_attempts <= MAX_ATTEMPTS:
+        raise ValueError(f"max_attempts must lie in [1, {MAX_ATTEMPTS}], got {scenario.max_attempts}")
+    faults = scenario.faults
+    if len(faults.grasp_offset_G) != 3 or not all(abs(v) <= MAX_GRASP_OFFSET_M for v in faults.grasp_offset_G):
+        raise ValueError(f"faults.grasp_offset_G must be 3 entries of at most {MAX_GRASP_OFFSET_M} m (x, y, z in G)")
+    if faults.grasp_offset_attempts < 0:
+        raise ValueError(f"faults.grasp_offset_attempts must be >= 0, got {faults.grasp_offset_attempts}")
     if scenario.task not in TASKS:
         raise ValueError(f"task must be one of {TASKS}, got {scenario.task!r}")
     if len(scenario.place.xy) != 2 or not all(abs(v) <= MAX_TABLE_OFFSET_M for v in scenario.place.xy):
@@ -305,6 +327,8 @@ def validate(scenario: Scenario) -> None:
 TASKS = ("lift", "place")
 # Bounds of the scenario's physical fields.
 MAX_TABLE_OFFSET_M = 1.0
+MAX_ATTEMPTS = 10
+MAX_GRASP_OFFSET_M = 0.2  # m: an injected grasp offset larger than this is a unit mistake
 MAX_OBJECT_MASS_KG = 20.0
 
 

@@ -114,6 +114,8 @@ def main(argv=None) -> int:
             "place": outcome.place,
             "perception": outcome.perception,
             "failed_stage": outcome.failed_stage,
+            "attempts_made": outcome.attempts_made,
+            "attempt_failures": outcome.attempt_failures,
             "sim_wall_s": outcome.wall_time_s,
             "message": outcome.message,
         }

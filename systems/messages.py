@@ -33,6 +33,7 @@ class Targets(enum.StrEnum):
     PREGRASP = "pregrasp"  # the grasp poses' <side>_pregrasp
     GRASP = "grasp"  # the grasp poses' <side>_grasp
     RETREAT = "retreat"  # each hand back along its approach axis from where it is
+    HOME = "home"  # (free moves) back to the joint configuration PlanRequest.q_goal, where the pick started
 
 
 class PlaceGoal(enum.StrEnum):
@@ -58,6 +59,10 @@ class Mode(enum.StrEnum):
     SET_DOWN = "set_down"
     RELEASE = "release"
     RETREAT = "retreat"
+    # Recovering from a failed attempt: open the hands, back off, go back to where the pick started.
+    RECOVER_OPEN = "recover_open"
+    RECOVER_RETREAT = "recover_retreat"
+    RECOVER_HOME = "recover_home"
     DONE = "done"
     FAILED = "failed"
 
@@ -146,6 +151,7 @@ class PlanRequest:
     # Held moves: keep the held object (the obstacle cloud moved by this, its motion since it was seen)
     # clear of the scene; None: the robot only.
     carried_motion_W: RigidTransform | None = None
+    q_goal: np.ndarray | None = None  # Targets.HOME: the 14 arm joints to go back to, rad
 
 
 @dataclass
@@ -239,3 +245,7 @@ class PickStatus:
     plan_end_q: np.ndarray | None = None
     belief: ObjectBelief | None = None  # where the object is, once perceived
     looks_read: int = 0  # looks at the held object whose result was read
+    q_home: np.ndarray | None = None  # where the robot stood when the pick began (14 joints, rad)
+    attempt: int = 1  # the attempt under way (a failed check starts the next, up to max_attempts)
+    attempt_failures: tuple[tuple[str, str], ...] = ()  # (stage, message) of each failed attempt, in order
+    recovering: bool = False  # the recovery's phases (open, back off, home) are under way, not the task's

@@ -8,7 +8,13 @@ any point leaves the arms holding where they are (the trajectory source holds th
 trajectory's end) and names the stage.
 
 Modes: waiting -> perceiving -> (the task's phases: reach, approach, close, lift, then hold; or close,
-look, lift, carry, look_again, set_down, release, retreat) -> done, or failed. A place moves the object
+look, lift, carry, look_again, set_down, release, retreat) -> done, or failed.
+
+Checks and retries: after closing, each hand must hold something (its measured opening neither closed to
+nothing nor still open), and after the lift it must still do. A failed check is one failed attempt: the
+hands open, back off along their approach axes, the arms go back to where the pick started, and the pick
+starts again from a new camera frame, up to max_attempts. Failures that another attempt would repeat
+(perception found nothing, no plan) end the pick at once. A place moves the object
 from where it is in the hands, not from where it was seen before the hands touched it (closing turned
 cans by up to 21 degrees, the lift a few more): the object belief and the place goals are
 systems/planning/place_goals.py's.
@@ -74,6 +80,7 @@ class Phase:
     beyond_grasp: bool = False  # hand_width is an opening beyond the widest measured grasp (letting go)
     wait_s: float = 0.0
     look: bool = False  # find the held object again (the object tracker; skipped without looks)
+    check_held: bool = False  # motions: once played, both hands must still hold the object
 
 
 def lift_task(lift_height: float = LIFT_HEIGHT) -> tuple[Phase, ...]:
@@ -87,6 +94,7 @@ def lift_task(lift_height: float = LIFT_HEIGHT) -> tuple[Phase, ...]:
             path=MoveKind.HELD,
             X_motion_W=RigidTransform([0, 0, lift_height]),
             min_fraction=MIN_LIFT_FRACTION,
+            check_held=True,
         ),
         Phase(Mode.HOLD, wait_s=HOLD_S),
     )
@@ -102,6 +110,21 @@ def place_task(lift_height: float = PLACE_LIFT_HEIGHT) -> tuple[Phase, ...]:
         Phase(Mode.RELEASE, hand_width=RELEASE_MARGIN, beyond_grasp=True, wait_s=SETTLE_S),
         Phase(Mode.RETREAT, path=MoveKind.STRAIGHT, targets=Targets.RETREAT),
     )
+
+
+def recovery_task() -> tuple[Phase, ...]:
+    """After a failed attempt: open the hands, back off along the approach axes, go back to the start."""
+    return (
+        Phase(Mode.RECOVER_OPEN, hand_width=OPEN_WIDTH, wait_s=SETTLE_S),
+        Phase(Mode.RECOVER_RETREAT, path=MoveKind.STRAIGHT, targets=Targets.RETREAT),
+        Phase(Mode.RECOVER_HOME, path=MoveKind.FREE, targets=Targets.HOME),
+    )
+
+
+# A failed check that another attempt can put right: a hand closed on nothing, or lost the object.
+RETRIED_STAGES = (Stage.GRASP,)
+# A hand whose measured opening is still this near its full opening after closing did not close, m.
+NOT_CLOSED_MARGIN = 0.01
 
 
 class PickSupervisor(LeafSystem):
@@ -125,14 +148,16 @@ class PickSupervisor(LeafSystem):
         - hand_command
         - look_trigger
         - expected_X_WO
+        - attempt
         - status
 
     ``position_measured`` (14, rad); ``<side>_hand_state`` (2: opening m, rate m/s); ``plan`` (PlanResult);
     ``frame_id`` (1): the frame perception has latched; ``perception`` (PerceptionResult). ``trigger`` (1):
     the camera frame wanted; ``plan_request`` (PlanRequest); ``hand_command`` (HandCommand); ``status``
-    (PickStatus). With looks, a look phase asks for a frame of the held object (``look_trigger`` (1),
-    answered by ``look_frame_id`` (1)) and reads ``look`` (ObjectEstimate: the object tracker's, told
-    where to look by ``expected_X_WO`` (RigidTransform)); without looks it is skipped.
+    (PickStatus); ``attempt`` (1): the attempt under way. With looks, a look phase asks for a frame of the
+    held object (``look_trigger`` (1), answered by ``look_frame_id`` (1)) and reads ``look`` (ObjectEstimate:
+    the object tracker's, told where to look by ``expected_X_WO`` (RigidTransform)); without looks it is
+    skipped.
 
     Args:
         phases: the task (lift_task() or place_task()).
@@ -140,6 +165,7 @@ class PickSupervisor(LeafSystem):
         place_target_W: where a place task leaves the object (X_WO on the table).
         from_camera: perception needs a camera frame (False: a ground-truth source, read at once).
         looks: the look phases ask the object tracker (False: they are skipped).
+        max_attempts: attempts at the task, the first included (a failed check starts the next).
     """
 
     def __init__(
@@ -149,11 +175,15 @@ class PickSupervisor(LeafSystem):
         place_target_W: RigidTransform | None = None,
         from_camera: bool = True,
         looks: bool = False,
+        max_attempts: int = 1,
         period_s: float = 0.01,
     ):
         super().__init__()
         self.phases, self.perceive_at_s, self.place_target_W = phases, perceive_at_s, place_target_W
         self.from_camera, self.looks = from_camera, looks
+        if max_attempts < 1:
+            raise ValueError(f"max_attempts must be at least 1, not {max_attempts}")
+        self.max_attempts, self.recovery = max_attempts, recovery_task()
         if any(phase.goal for phase in phases) and place_target_W is None:
             raise ValueError("a task with carry or set_down phases needs place_target_W")
         self.position_port = self.DeclareVectorInputPort("position_measured", 14)
@@ -191,6 +221,9 @@ class PickSupervisor(LeafSystem):
             lambda: AbstractValue.Make(RigidTransform()),
             lambda c, o: o.set_value(self._look_request(c).expected_X_WO),
             looking,
+        )
+        self.DeclareVectorOutputPort(
+            "attempt", BasicVector(1), lambda c, o: o.SetFromVector([self._status(c).attempt]), status
         )
         self.DeclareAbstractOutputPort(
             "status", lambda: AbstractValue.Make(PickStatus()), lambda c, o: o.set_value(self._status(c)), status
@@ -232,14 +265,18 @@ class PickSupervisor(LeafSystem):
             measured = self.position_port.Eval(context)
             if not np.all(np.isfinite(measured)):  # (the hardware station's NaN before the robot's status)
                 return False
-            status.plan_end_q, changed = measured.copy(), True
+            status.plan_end_q, status.q_home, changed = measured.copy(), measured.copy(), True
         if t < self.perceive_at_s:
             return changed
+        self._look_at_the_table(context, status, t)
+        return True
+
+    def _look_at_the_table(self, context, status: PickStatus, t: float):
+        """Asks perception for a new frame (a ground-truth source needs none: it is read at once)."""
         if self.from_camera:
             status.mode, status.perceive_id = Mode.PERCEIVING, status.perceive_id + 1
-        else:  # a ground-truth source needs no frame
+        else:
             self._perceive(context, status, t)
-        return True
 
     def _perceive(self, context, status: PickStatus, t: float):
         """Reads perception's result; a stage that found nothing ends the pick."""
@@ -254,10 +291,14 @@ class PickSupervisor(LeafSystem):
     def _start_phase(self, context, status: PickStatus, index: int, t: float, look: LookRequest | None = None):
         """Starts phase `index` (done after the last); returns the look request (a new one for a look phase)."""
         status.phase_index, status.phase_start_s = index, t
-        if index >= len(self.phases):
-            status.mode = Mode.DONE
+        if index >= len(self._phases(status)):
+            if status.recovering:  # backed off and home: the next attempt starts from a new frame
+                status.recovering, status.attempt = False, status.attempt + 1
+                self._look_at_the_table(context, status, t)
+            else:
+                status.mode = Mode.DONE
             return look
-        phase = self.phases[index]
+        phase = self._phases(status)[index]
         status.mode = phase.name
         if phase.path is not None:
             X_motion_W, carried = phase.X_motion_W or RigidTransform(), None
@@ -272,6 +313,7 @@ class PickSupervisor(LeafSystem):
                 X_motion_W,
                 phase.min_fraction,
                 carried,
+                q_goal=status.q_home if phase.targets == Targets.HOME else None,
             )
         elif phase.hand_width is not None:
             width = phase.hand_width + (max(status.grasp_widths, default=OPEN_WIDTH) if phase.beyond_grasp else 0.0)
@@ -282,7 +324,7 @@ class PickSupervisor(LeafSystem):
 
     def _follow_phase(self, context, status: PickStatus, look: LookRequest, t: float) -> tuple[bool, LookRequest]:
         """Moves on when the phase is over (or fails it). Returns whether the status changed, and the look request."""
-        phase = self.phases[status.phase_index]
+        phase = self._phases(status)[status.phase_index]
         if phase.path is not None:
             plan = self.plan_port.Eval(context)
             if plan.id != status.request.id:
@@ -298,11 +340,13 @@ class PickSupervisor(LeafSystem):
             if t + 1e-9 < plan.end_s:
                 return applied, look
             status.plan_end_q = plan.trajectory.value(plan.end_s).ravel()
+            if phase.check_held and (problem := self._not_holding(context, status, "after the lift: ")):
+                return True, self._attempt_failed(context, status, Stage.GRASP, problem, look, t)
         elif phase.hand_width is not None:
             if t + 1e-9 < status.hand.end_s + phase.wait_s:
                 return False, look
-            if phase.hand_width == CLOSED_WIDTH and not self._holding(context, status):
-                return True, look
+            if phase.hand_width == CLOSED_WIDTH and (problem := self._not_holding(context, status)):
+                return True, self._attempt_failed(context, status, Stage.GRASP, problem, look, t)
         elif phase.look and self.looks:
             if self.look_frame_id_port.Eval(context)[0] < look.id:
                 return False, look
@@ -322,16 +366,36 @@ class PickSupervisor(LeafSystem):
         else:
             logging.warning("look: %s; going on from where the object was believed to be", found.message)
 
-    def _holding(self, context, status: PickStatus) -> bool:
+    def _phases(self, status: PickStatus) -> tuple[Phase, ...]:
+        return self.recovery if status.recovering else self.phases
+
+    def _not_holding(self, context, status: PickStatus, when: str = "") -> str:
+        """Measures both hands' openings (m); why they do not both hold something, or "" if they do."""
         status.grasp_widths = tuple(self.hand_state_ports[s].Eval(context)[0] for s in ("left", "right"))
         for side, width in zip(("left", "right"), status.grasp_widths, strict=True):
             logging.info("%s hand closed to %.1f mm", side, width * 1000)
             if width < MIN_GRASPED_WIDTH:
-                self._fail(status, Stage.GRASP, f"the {side} hand closed on nothing (opening {width * 1000:.1f} mm)")
-                return False
-        return True
+                return f"{when}the {side} hand closed on nothing (opening {width * 1000:.1f} mm)"
+            if width > OPEN_WIDTH - NOT_CLOSED_MARGIN:
+                return f"{when}the {side} hand did not close (opening {width * 1000:.1f} mm)"
+        return ""
+
+    def _attempt_failed(
+        self, context, status: PickStatus, stage: Stage, message: str, look: LookRequest, t: float
+    ) -> LookRequest:
+        """A failed check: the next attempt begins with the recovery's phases, or, with none left, the pick fails."""
+        if stage not in RETRIED_STAGES or status.attempt >= self.max_attempts:
+            self._fail(status, stage, message)
+            return look
+        status.attempt_failures = (*status.attempt_failures, (str(stage), f"{stage}: {message}"))
+        logging.warning(
+            "attempt %d of %d failed at %s: %s; recovering", status.attempt, self.max_attempts, stage, message
+        )
+        status.recovering = True
+        return self._start_phase(context, status, 0, t, look)
 
     def _fail(self, status: PickStatus, stage: Stage, message: str):
         logging.warning("pick stopped at %s: %s", stage, message)
         status.mode, status.failed_stage = Mode.FAILED, stage
         status.message = message if message.startswith(stage) else f"{stage}: {message}"
+        status.attempt_failures = (*status.attempt_failures, (str(stage), status.message))

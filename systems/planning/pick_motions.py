@@ -128,6 +128,19 @@ class PickMotions:
                 failure = error
         raise failure
 
+    def reach_configuration(
+        self, q_start: np.ndarray, q_goal: np.ndarray, obstacle_points_W: np.ndarray | None = None
+    ) -> np.ndarray:
+        """Keyframes from q_start to the arm configuration q_goal (14 joints, rad), collision-free as reach's.
+
+        Raises:
+            PlanningError: no collision-free path.
+        """
+        obstacles = self.world.planning_obstacles(obstacle_points_W)
+        return self._reach_path(
+            q_start, np.asarray(q_goal, float), obstacles, obstacles if obstacle_points_W is not None else None
+        )
+
     def _reach_path(
         self, q_start: np.ndarray, q_goal: np.ndarray, obstacles: Obstacles, checked: Obstacles | None
     ) -> np.ndarray:

@@ -116,12 +116,15 @@ class StompPlanner(LeafSystem):
                 min_segment = motions.held_segment_durations(keyframes)
                 start, end = (motions.world.grasp_frame_poses(q)["left"] for q in (keyframes[0], keyframes[-1]))
                 result.achieved_motion_W = end @ start.inverse()
+            elif request.targets == Targets.HOME:
+                if request.path != MoveKind.FREE or request.q_goal is None:
+                    raise PlanningError("going home is a free move to a q_goal")
+                keyframes = motions.reach_configuration(request.q_start, request.q_goal, self._obstacle_points(context))
+                min_segment = STOMP_SEGMENT_S if len(keyframes) > 3 else SPARSE_SEGMENT_S
             else:
                 targets = self._targets(request, context)
                 if request.path == MoveKind.FREE:
-                    cloud = self.GetInputPort("obstacle_cloud_W").Eval(context)
-                    points = cloud[:: max(1, len(cloud) // OBSTACLE_POINTS)] if len(cloud) else None
-                    keyframes = motions.reach(request.q_start, targets, points)
+                    keyframes = motions.reach(request.q_start, targets, self._obstacle_points(context))
                     min_segment = STOMP_SEGMENT_S if len(keyframes) > 3 else SPARSE_SEGMENT_S
                 else:
                     keyframes, min_segment = motions.straight(request.q_start, targets), SPARSE_SEGMENT_S
@@ -140,6 +143,11 @@ class StompPlanner(LeafSystem):
             logging.warning("planning failed: %s", result.message)
         result.planning_s = time.perf_counter() - started
         return result
+
+    def _obstacle_points(self, context) -> np.ndarray | None:
+        """The obstacle cloud thinned to about OBSTACLE_POINTS (N x 3 in W), or None when it is empty."""
+        cloud = self.GetInputPort("obstacle_cloud_W").Eval(context)
+        return cloud[:: max(1, len(cloud) // OBSTACLE_POINTS)] if len(cloud) else None
 
     def _targets(self, request: PlanRequest, context) -> dict[str, RigidTransform]:
         if request.targets == Targets.RETREAT:

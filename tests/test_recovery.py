@@ -1,0 +1,147 @@
+"""Checks and retries: the supervisor's recovery from a failed attempt, the injected grasp offset, and a
+pick whose first grasps are off that lifts the object on its second attempt."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+from pydrake.common.value import AbstractValue
+from pydrake.math import RigidTransform
+from pydrake.systems.analysis import Simulator
+from pydrake.trajectories import PiecewisePolynomial
+
+from diagrams.autonomous_pick import run_pick
+from diagrams.scenario import FaultConfig, load_scenario, replace_object
+from systems.messages import OPEN_WIDTH, GraspPoses, PerceptionResult, PlanResult, Targets
+from systems.perception.grasp_offset import GraspOffset
+from systems.pick_supervisor import PickSupervisor, lift_task
+
+Q0 = np.linspace(-0.5, 0.5, 14)
+# The injected fault: every grasp 5 cm back along its approach axis. The hands grip 3 cm off: this drill
+# (test_1, yaw 0.25) was lifted with its grasps 3 cm back, sideways or along the handle.
+GRASP_OFFSET_G = [0.0, 0.0, -0.05]
+
+
+def _supervisor(max_attempts: int):
+    dut = PickSupervisor(lift_task(), perceive_at_s=0.1, max_attempts=max_attempts)
+    context = dut.CreateDefaultContext()
+    dut.GetInputPort("position_measured").FixValue(context, Q0)
+    _hands(dut, context, 0.0)  # they will close on nothing
+    dut.GetInputPort("frame_id").FixValue(context, [1.0])
+    found = PerceptionResult(True, X_WO_seen=RigidTransform([0.7, 0.0, 0.8]))
+    dut.GetInputPort("perception").FixValue(context, AbstractValue.Make(found))
+    dut.GetInputPort("plan").FixValue(context, AbstractValue.Make(PlanResult()))
+    return dut, context, Simulator(dut, context)
+
+
+def _hands(dut, context, width: float):
+    for side in ("left", "right"):
+        dut.GetInputPort(f"{side}_hand_state").FixValue(context, [width, 0.0])
+
+
+def _answer(dut, context, duration=0.1):
+    """Plays the planner: answers the current request with a trajectory that holds at its q_start."""
+    request = dut.GetOutputPort("plan_request").Eval(context)
+    t = context.get_time()
+    trajectory = PiecewisePolynomial.FirstOrderHold([t, t + duration], np.column_stack([request.q_start] * 2))
+    dut.GetInputPort("plan").FixValue(
+        context, AbstractValue.Make(PlanResult(request.id, request.phase, True, trajectory))
+    )
+    return request
+
+
+def _status(dut, context):
+    return dut.GetOutputPort("status").Eval(context)
+
+
+def test_an_empty_hand_starts_the_next_attempt_from_a_new_frame():
+    dut, context, simulator = _supervisor(max_attempts=2)
+    simulator.AdvanceTo(0.15)
+    _answer(dut, context)  # reach
+    simulator.AdvanceTo(0.3)
+    _answer(dut, context)  # approach
+    simulator.AdvanceTo(2.0)  # closed on nothing, checked
+    status = _status(dut, context)
+    assert status.mode == "recover_open" and status.attempt == 1 and status.recovering
+    assert status.attempt_failures == (("grasp", "grasp: the left hand closed on nothing (opening 0.0 mm)"),)
+    assert dut.GetOutputPort("hand_command").Eval(context).width == OPEN_WIDTH
+    _hands(dut, context, OPEN_WIDTH)
+    simulator.AdvanceTo(3.6)
+    request = _answer(dut, context)
+    assert _status(dut, context).mode == "recover_retreat" and request.targets == Targets.RETREAT
+    simulator.AdvanceTo(3.8)
+    request = _answer(dut, context)
+    assert _status(dut, context).mode == "recover_home" and request.targets == Targets.HOME
+    np.testing.assert_array_equal(request.q_goal, Q0)  # where the pick began
+    simulator.AdvanceTo(4.0)
+    status = _status(dut, context)
+    assert status.mode == "perceiving" and status.attempt == 2 and not status.recovering
+    assert dut.GetOutputPort("trigger").Eval(context)[0] == 2  # a new frame
+    assert dut.GetOutputPort("attempt").Eval(context)[0] == 2
+    dut.GetInputPort("frame_id").FixValue(context, [2.0])
+    simulator.AdvanceTo(4.1)
+    assert _status(dut, context).mode == "reach"
+
+
+def test_the_last_attempt_fails_the_pick_and_a_plan_failure_is_not_retried():
+    dut, context, simulator = _supervisor(max_attempts=1)
+    simulator.AdvanceTo(0.15)
+    _answer(dut, context)
+    simulator.AdvanceTo(0.3)
+    _answer(dut, context)
+    simulator.AdvanceTo(2.0)
+    status = _status(dut, context)
+    assert status.mode == "failed" and status.failed_stage == "grasp" and len(status.attempt_failures) == 1
+
+    dut, context, simulator = _supervisor(max_attempts=3)
+    simulator.AdvanceTo(0.15)
+    request = dut.GetOutputPort("plan_request").Eval(context)
+    dut.GetInputPort("plan").FixValue(context, AbstractValue.Make(PlanResult(request.id, "reach", False, None, "no")))
+    simulator.AdvanceTo(0.2)
+    status = _status(dut, context)  # another attempt would plan the same: none is spent
+    assert status.mode == "failed" and status.failed_stage == "planning" and status.attempt == 1
+
+
+def test_a_hand_that_did_not_close_fails_the_check():
+    dut, context, simulator = _supervisor(max_attempts=1)
+    _hands(dut, context, OPEN_WIDTH)
+    simulator.AdvanceTo(0.15)
+    _answer(dut, context)
+    simulator.AdvanceTo(0.3)
+    _answer(dut, context)
+    simulator.AdvanceTo(2.0)
+    assert "did not close" in _status(dut, context).message
+
+
+def test_grasp_offset_moves_each_grasp_in_its_frame_on_the_first_attempts_only():
+    dut = GraspOffset([0.0, 0.0, -0.03], attempts=1)
+    context = dut.CreateDefaultContext()
+    X_WG = RigidTransform([0.5, 0.2, 0.9])
+    dut.GetInputPort("grasp_poses").FixValue(context, AbstractValue.Make(GraspPoses(True, {"left_grasp": X_WG})))
+    dut.GetInputPort("attempt").FixValue(context, [1.0])
+    moved = dut.GetOutputPort("grasp_poses").Eval(context).poses_W["left_grasp"]
+    np.testing.assert_allclose(moved.translation(), [0.5, 0.2, 0.87])
+    dut.GetInputPort("attempt").FixValue(context, [2.0])
+    np.testing.assert_array_equal(dut.GetOutputPort("grasp_poses").Eval(context).poses_W["left_grasp"].translation(),
+                                  X_WG.translation())  # fmt: skip
+
+
+def test_scenario_checks_attempts_and_faults():
+    with pytest.raises(ValueError, match="max_attempts"):
+        load_scenario(scenario_text="{max_attempts: 0}")
+    with pytest.raises(ValueError, match="grasp_offset_G"):
+        load_scenario(scenario_text="{faults: {grasp_offset_G: [0, 0, 3]}}")  # 3 m: centimetres meant
+
+
+def test_grasps_off_by_5_cm_the_empty_hand_is_found_and_the_next_attempt_lifts(scenario):
+    """The first attempt's grasps are moved 5 cm back (injected): a hand closes on nothing, the robot backs
+    off, looks again and lifts the object with the grasps perceived anew."""
+    faulty = dataclasses.replace(
+        replace_object(scenario, category="drill", instance="test_1", yaw=0.25),
+        faults=FaultConfig(grasp_offset_G=GRASP_OFFSET_G),
+    )
+    outcome = run_pick(faulty)
+    assert outcome.success, outcome.message
+    assert outcome.attempts_made == 2
+    assert [failure["stage"] for failure in outcome.attempt_failures] == ["grasp"]
+    assert "closed on nothing" in outcome.attempt_failures[0]["message"]
