@@ -20,6 +20,13 @@ from diagrams.scenario import Scenario, replace_object
 
 PAPER_YAWS = (0.25, 0.0, -0.25)  # rad
 PAPER_YAW_NOISE = 0.2  # rad
+# Random placements over the table region around the default spot (object.xy, table_top frame): x within
+# +-PLACEMENT_HALF_SIZE_M[0], y within +-[1], yaw within +-PLACEMENT_MAX_YAW (m, m, rad), placement k with the
+# unseen generated instance extra_<PLACEMENT_FIRST_INSTANCE + k> (a range nobody tunes on).
+PLACEMENT_HALF_SIZE_M = (0.10, 0.20)
+PLACEMENT_MAX_YAW = 0.6
+PLACEMENT_FIRST_INSTANCE = 1000
+PLACEMENT_SEED = 34
 # The pipeline's stages in order, then the motion itself ("execution": the plan was played but
 # the object was not lifted and held by both hands).
 COMPONENTS = ("segmentation", "pose", "registration", "planning", "grasp", "execution")
@@ -34,6 +41,9 @@ class Trial:
     yaw: float  # rad
     index: int  # 0..K-1 at this object and yaw
     scenario: Scenario  # pickles (as its YAML) for worker processes and Ray
+    # Also run the ground-truth pick on the same scenario (whether the robot can do it at all), recorded as
+    # the record's "oracle".
+    with_oracle: bool = False
 
 
 def generated_objects(category: str, split: str = "test") -> dict[str, dict]:
@@ -79,6 +89,26 @@ def make_trials(
     return out
 
 
+def random_placements(base: Scenario, category: str, count: int, yaw_noise: float = PAPER_YAW_NOISE) -> list[Trial]:
+    """`count` placements drawn uniformly over the table region around base's object.xy (PLACEMENT_HALF_SIZE_M,
+    PLACEMENT_MAX_YAW), placement k from its own seed [PLACEMENT_SEED, k] alone, with the unseen instance
+    extra_<PLACEMENT_FIRST_INSTANCE + k>; each runs the autonomous pick and the ground-truth one."""
+    if count < 1:
+        raise ValueError(f"placements must be >= 1, got {count}")
+    catalog.category_module(category)  # a clear error for a taught or unknown category: it has no extra instances
+    out = []
+    for k in range(count):
+        rng = np.random.default_rng([PLACEMENT_SEED, k])
+        dx, dy = rng.uniform(-1.0, 1.0, size=2) * PLACEMENT_HALF_SIZE_M
+        yaw = float(rng.uniform(-PLACEMENT_MAX_YAW, PLACEMENT_MAX_YAW))
+        xy = [base.object.xy[0] + float(dx), base.object.xy[1] + float(dy)]
+        name = f"extra_{PLACEMENT_FIRST_INSTANCE + k}"
+        scenario = replace_object(base, category=category, instance=name, file="", xy=xy, yaw=yaw)
+        scenario = dataclasses.replace(scenario, random_seed=base.random_seed + k, registration_yaw_noise=yaw_noise)
+        out.append(Trial(name, yaw, 0, scenario, with_oracle=True))
+    return out
+
+
 def trial_key(trial: Trial) -> tuple:
     """What names a trial in a campaign: (object, yaw, index, seed); its record's record_key is the same."""
     return trial.name, trial.yaw, trial.index, trial.scenario.random_seed
@@ -116,6 +146,9 @@ def run_trial(trial: Trial) -> dict:
         "seed": scenario.random_seed,
         "registration_yaw_offset_rad": draw_yaw_offset(scenario.registration_yaw_noise, scenario.random_seed),
     }
+    if trial.with_oracle:
+        record["xy"] = list(scenario.object.xy)
+        record["oracle"] = _oracle_record(scenario)
     try:
         outcome = run_pick(scenario)
     except (PlanningError, ValueError, FileNotFoundError) as error:  # e.g. a model that cannot be loaded
@@ -136,6 +169,20 @@ def run_trial(trial: Trial) -> dict:
         "perception": outcome.perception,
         "sim_wall_s": outcome.wall_time_s,
     }
+
+
+def _oracle_record(scenario: Scenario) -> dict:
+    """Whether the ground-truth pick (the same diagram, perception replaced by the truth) does this scenario."""
+    from diagrams.autonomous_pick import run_pick
+    from systems.planning.pick_motions import PlanningError
+
+    try:
+        outcome = run_pick(scenario, perception="ground_truth")
+    except (PlanningError, ValueError, FileNotFoundError) as error:
+        return {"success": False, "failed_stage": "setup", "message": str(error)}
+    failed_stage = outcome.failed_stage or ("" if outcome.success else "execution")
+    return {"success": bool(outcome.success), "failed_stage": failed_stage, "message": outcome.message,
+            "attempts_made": outcome.attempts_made}  # fmt: skip
 
 
 def wilson_interval(successes: int, attempts: int) -> tuple[float, float]:
@@ -185,7 +232,19 @@ def summarize(records: list[dict]) -> dict:
     closure = [r["closure"] for r in records if r.get("closure") and np.isfinite(r["closure"]["max_translation_dev_m"])]
     placed = [r["place"]["error_m"] for r in records if r.get("place")]
     successes = sum(r["success"] for r in records)
+    oracle = [r for r in records if "oracle" in r]
+    doable = [r for r in oracle if r["oracle"]["success"]]
     return {
+        # Random placements (records with an "oracle"): the share the ground-truth pick does, and the share of
+        # those the autonomous pick does.
+        **(
+            {
+                "oracle_success_rate": _rate(len(doable), len(oracle)),
+                "success_rate_given_oracle": _rate(sum(r["success"] for r in doable), len(doable)),
+            }
+            if oracle
+            else {}
+        ),
         "success_rate": _rate(successes, len(records)),
         "success_rate_ci95": wilson_interval(successes, len(records)),
         # Over the picks that lifted (a held move was played), m and rad.

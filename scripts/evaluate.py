@@ -13,6 +13,8 @@ python scripts/evaluate.py --trials 3 --ray --jobs 2           # as Ray tasks on
 python scripts/evaluate.py --trials 20 --ray auto --json big.json   # on the Ray cluster this machine is part of
 python scripts/evaluate.py --trials 20 --ray auto --json big.json --resume  # go on where it was stopped
 python scripts/evaluate.py --summarize big.jsonl --json big.json   # tables and figure from a records file
+python scripts/evaluate.py --placement random --trials 40 --jobs 2 --json map.json   # 40 random placements
+    (unseen extra_1000.., x +-10 cm, y +-20 cm, yaw +-0.6 rad), each also picked with ground truth; a map
 
 Every finished pick is appended to a JSON-lines records file (--records, by default --json's name with
 .jsonl) as soon as it ends, so a stopped campaign keeps what it finished and --resume runs only the rest.
@@ -38,6 +40,7 @@ from diagrams.evaluation import (
     file_objects,
     generated_objects,
     make_trials,
+    random_placements,
     summarize,
 )
 from diagrams.scenario import DEFAULT_SCENARIO, load_scenario, overlay_scenario, place_over_box_scenario
@@ -69,7 +72,14 @@ def parse_args(argv=None):
         "--object-files", dest="object_files", type=Path, nargs="+", help="your own models instead of the test set"
     )
     parser.add_argument("--instances", nargs="+", help="generated instances instead of the test set (e.g. test_1)")
-    parser.add_argument("--yaws", type=float, nargs="+", default=list(PAPER_YAWS), help="object yaws, rad")
+    parser.add_argument("--yaws", type=float, nargs="+", help=f"object yaws, rad (default {list(PAPER_YAWS)})")
+    parser.add_argument(
+        "--placement",
+        choices=("paper", "random"),
+        default="paper",
+        help="paper: each object at each yaw (--trials per yaw); random: --trials random placements over the table "
+        "region with unseen instances, each also picked with ground truth (--yaws does not apply)",
+    )
     parser.add_argument(
         "--yaw-noise", dest="yaw_noise", type=float, default=PAPER_YAW_NOISE, help="registration yaw noise, +-rad"
     )
@@ -105,6 +115,9 @@ def parse_args(argv=None):
     args = parser.parse_args(argv)
     if args.jobs < 1:
         parser.error("--jobs must be >= 1")
+    if args.placement == "random" and (args.yaws or args.instances or args.object_files):
+        parser.error("--placement random draws its own yaws and unseen instances: no --yaws, --instances or files")
+    args.yaws = args.yaws or list(PAPER_YAWS)
     if args.records is None and args.json is not None:
         args.records = args.json.with_suffix(".jsonl")
     if args.resume and args.records is None:
@@ -230,7 +243,11 @@ def main(argv=None) -> int:
             objects = {n: {"instance": n, "file": ""} for n in args.instances}
         else:
             objects = generated_objects(args.category)
-        trials = make_trials(base, args.category, objects, args.trials, args.yaws, args.yaw_noise)
+        if args.placement == "random":
+            trials = random_placements(base, args.category, args.trials, args.yaw_noise)
+            objects = {trial.name: {} for trial in trials}
+        else:
+            trials = make_trials(base, args.category, objects, args.trials, args.yaws, args.yaw_noise)
     except (ValueError, FileNotFoundError) as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
@@ -238,10 +255,13 @@ def main(argv=None) -> int:
     where = f"{args.jobs} at a time"
     if args.ray is not None:
         where = f"as Ray tasks ({'at ' + args.ray if args.ray else f'a local Ray with {args.jobs} CPUs'})"
+    if args.placement == "random":
+        shape = f"{len(trials)} random placements of unseen {args.category} instances, each also with ground truth"
+    else:
+        shape = f"{len(objects)} {args.category} object(s) x {len(args.yaws)} yaw(s) x {args.trials} trial(s)"
     print(
-        f"{len(trials)} autonomous picks ({what}): {len(objects)} {args.category} object(s) x {len(args.yaws)} "
-        f"yaw(s) x {args.trials} trial(s), registration yaw noise +-{args.yaw_noise:.2f} rad, sensor {args.sensor}, "
-        f"{where}"
+        f"{len(trials)} autonomous picks ({what}): {shape}, registration yaw noise +-{args.yaw_noise:.2f} rad, "
+        f"sensor {args.sensor}, {where}"
     )
     try:
         records = run_campaign(trials, args.jobs, args.ray, args.records, args.resume, describe)
@@ -269,10 +289,85 @@ def summarize_records(args) -> int:
     return 0
 
 
+def _short_reason(record: dict) -> str:
+    """A failure's stage and the message's gist, for tables and the map."""
+    message = record["message"].split(": ", 1)[-1]
+    return f"{record['failed_stage']}: {message[:70]}"
+
+
+def print_placements(summary: dict, records: list[dict], category: str):
+    """The random placements: where each was, whether ground truth and the autonomous pick did it."""
+    print(f"\nRandom placements ({category}): table_top frame x, y (m), yaw (rad); ground truth, then autonomous")
+    print(f"{'instance':<12}{'x':>7}{'y':>7}{'yaw':>7}  {'ground truth':<14}{'autonomous':<12}attempts  failure")
+    for r in records:
+        oracle = r["oracle"]
+        failure = _short_reason(r) if not r["success"] else ""
+        if not oracle["success"]:
+            failure = "ground truth " + _short_reason(oracle)
+        print(f"{r['name']:<12}{r['xy'][0]:>7.3f}{r['xy'][1]:>7.3f}{r['yaw']:>7.2f}  "
+              f"{'lifted' if oracle['success'] else 'FAILED':<14}{'lifted' if r['success'] else 'FAILED':<12}"
+              f"{r.get('attempts_made', 1):>8}  {failure}")  # fmt: skip
+    doable = sum(r["oracle"]["success"] for r in records)
+    print(f"ground truth lifted {doable} of {len(records)} ({100 * summary['oracle_success_rate']:.0f} %); "
+          f"the autonomous pick lifted {100 * summary['success_rate_given_oracle']:.0f} % of those, "
+          f"{100 * summary['success_rate']:.0f} % of all")  # fmt: skip
+
+
+def draw_map(path: Path, records: list[dict], category: str):
+    """The table region seen from above: each placement's object origin and heading, coloured by outcome."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    figure, axes = plt.subplots(figsize=(7, 8))
+    styles = {
+        "lifted (ground truth and autonomous)": ("tab:green", "o"),
+        "ground truth lifted, autonomous failed": ("tab:orange", "s"),
+        "ground truth failed": ("tab:red", "X"),
+    }
+    for label, (colour, marker) in styles.items():
+        chosen = [
+            r for r in records
+            if (label.startswith("lifted") and r["oracle"]["success"] and r["success"])
+            or (label.startswith("ground truth lifted") and r["oracle"]["success"] and not r["success"])
+            or (label.startswith("ground truth failed") and not r["oracle"]["success"])
+        ]  # fmt: skip
+        if not chosen:
+            continue
+        x, y = np.array([r["xy"][0] for r in chosen]), np.array([r["xy"][1] for r in chosen])
+        yaw = np.array([r["yaw"] for r in chosen])
+        # The robot looks along +x of the table_top frame: drawn upwards, its left to the left.
+        axes.scatter(-y, x, c=colour, marker=marker, s=70, label=f"{label} ({len(chosen)})", zorder=3)
+        axes.quiver(-y, x, -np.sin(yaw), np.cos(yaw), color=colour, scale=25, width=0.004, zorder=2)
+        for r in chosen:
+            failed = r["oracle"] if not r["oracle"]["success"] else (r if not r["success"] else None)
+            if failed is not None:
+                stage = failed["failed_stage"]
+                phase = failed["message"].split(": ")[1] if failed["message"].count(": ") >= 1 else ""
+                axes.annotate(f"{stage}: {phase}"[:24], (-r["xy"][1], r["xy"][0]), fontsize=7,
+                              xytext=(5, 4), textcoords="offset points")  # fmt: skip
+    axes.set_xlabel("-y of the table top (m): the robot's left is to the left")
+    axes.set_ylabel("x of the table top (m): away from the robot")
+    axes.set_aspect("equal")
+    axes.grid(alpha=0.3)
+    axes.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.1))
+    axes.set_title(f"{category}: {len(records)} random placements (arrows: the object's heading)")
+    figure.tight_layout()
+    figure.savefig(path, dpi=110)
+    plt.close(figure)
+    print(f"wrote {path}")
+
+
 def report(args, records: list[dict], first_seed: int):
     """Prints the tables; writes the JSON (with every record) and the figure."""
     summary = summarize(records)
-    print_tables(summary, args.category, args.trials, args.yaw_noise)
+    placements = all("oracle" in r for r in records)
+    if placements:
+        print_placements(summary, records, args.category)
+    else:
+        print_tables(summary, args.category, args.trials, args.yaw_noise)
     t_dev, o_dev = summary["closure_translation_dev_m_max"], summary["closure_orientation_dev_rad_max"]
     print(f"\nclosure along the played held moves (picks that lifted): largest {1000 * t_dev:.1f} mm, {o_dev:.4f} rad")
     if args.task == "place":
@@ -282,6 +377,7 @@ def report(args, records: list[dict], first_seed: int):
         "category": args.category,
         "task": args.task,
         "obstacle": args.obstacle,
+        "placement": "random" if placements else "paper",
         "trials_per_yaw": args.trials,
         "yaws": args.yaws,
         "yaw_noise_rad": args.yaw_noise,
@@ -296,7 +392,10 @@ def report(args, records: list[dict], first_seed: int):
     if args.json:
         write_json(args.json, report)
     figure = args.figure or (args.json.with_suffix(".png") if args.json else Path(f"evaluation_{args.category}.png"))
-    draw_figure(figure, summary, records, args.category)
+    if placements:
+        draw_map(figure, records, args.category)
+    else:
+        draw_figure(figure, summary, records, args.category)
 
 
 if __name__ == "__main__":
