@@ -12,7 +12,17 @@ from pydrake.common.value import AbstractValue
 from pydrake.math import RigidTransform, RollPitchYaw
 
 from diagrams.autonomous_pick import MakePickDiagram
-from diagrams.evaluation import COMPONENTS, Trial, file_objects, generated_objects, make_trials, summarize
+from diagrams.evaluation import (
+    COMPONENTS,
+    PLACEMENT_HALF_SIZE_M,
+    PLACEMENT_MAX_YAW,
+    Trial,
+    file_objects,
+    generated_objects,
+    make_trials,
+    random_placements,
+    summarize,
+)
 from systems.messages import ObjectEstimate
 from systems.perception.pose_noise import PoseYawOffset, draw_yaw_offset
 
@@ -106,6 +116,35 @@ def test_summary_counts_success_per_object_yaw_and_component():
     assert stages["segmentation_s_mean"] == pytest.approx(0.1)
 
 
+def test_random_placements_are_seeded_unseen_and_within_the_region(scenario):
+    trials = random_placements(scenario, "drill", 200)
+    assert [t.name for t in trials[:2]] == ["extra_1000", "extra_1001"] and all(t.with_oracle for t in trials)
+    offsets = np.array([np.subtract(t.scenario.object.xy, scenario.object.xy) for t in trials])
+    assert np.all(np.abs(offsets) <= PLACEMENT_HALF_SIZE_M) and np.all(
+        np.abs(offsets).max(axis=0) > 0.9 * np.array(PLACEMENT_HALF_SIZE_M)
+    )
+    yaws = np.array([t.scenario.object.yaw for t in trials])
+    assert np.all(np.abs(yaws) <= PLACEMENT_MAX_YAW) and np.abs(yaws).max() > 0.9 * PLACEMENT_MAX_YAW
+    assert len({t.scenario.random_seed for t in trials}) == 200 and all(
+        t.scenario.object.category == "drill" for t in trials
+    )
+    # Placement k comes from its own seed alone: a shorter campaign is the longer one's beginning.
+    first = random_placements(scenario, "drill", 3)
+    assert [t.scenario.object.xy for t in first] == [t.scenario.object.xy for t in trials[:3]]
+    with pytest.raises(ValueError, match="taught category|unknown"):
+        random_placements(scenario, "teapot", 3)
+
+
+def test_summary_of_random_placements_says_what_ground_truth_could_do():
+    records = [_record("a", 0.1, True), _record("b", 0.2, False, "grasp"), _record("c", 0.3, False, "planning")]
+    for record, oracle in zip(records, (True, True, False), strict=True):
+        record["oracle"] = {"success": oracle, "failed_stage": "" if oracle else "planning", "message": ""}
+    summary = summarize(records)
+    assert summary["oracle_success_rate"] == pytest.approx(2 / 3)
+    assert summary["success_rate_given_oracle"] == pytest.approx(1 / 2)
+    assert "oracle_success_rate" not in summarize([_record("a", 0.1, True)])  # the paper's placements
+
+
 def test_evaluate_script_end_to_end(tmp_path, capsys):
     """One pick of one unseen can at one yaw, with the registration's yaw noise: tables, JSON and figure."""
     report = tmp_path / "evaluation.json"
@@ -128,3 +167,9 @@ def test_evaluate_script_end_to_end(tmp_path, capsys):
 def test_evaluate_refuses_a_box_without_the_place_task(capsys):
     assert evaluate.main(["--obstacle", "--trials", "1"]) == 2
     assert "--obstacle needs --task place" in capsys.readouterr().err
+
+
+def test_random_placements_refuse_given_yaws(capsys):
+    with pytest.raises(SystemExit):
+        evaluate.main(["--placement", "random", "--yaws", "0"])
+    assert "--placement random draws its own yaws" in capsys.readouterr().err
