@@ -264,13 +264,19 @@ def run_pick(
     else:
         raise ValueError(f"unknown backend {backend!r}: sim or lcm-memq")
     watch = PickWatcher(pick)
+
+    def mode_of(context):
+        return watch.status(context).mode
+
     make_judge = None
     if scenario.task == "place":
 
         def make_judge(plant, context):
-            return PlaceJudge(plant, context, place_target(scenario), lambda c: watch.status(c).mode)
+            return PlaceJudge(plant, context, place_target(scenario), mode_of)
 
-    outcome = simulate_pick(diagram, scenario, watch.end_time, meshcat, record, plant=plant, make_judge=make_judge)
+    outcome = simulate_pick(
+        diagram, scenario, watch.end_time, meshcat, record, plant=plant, make_judge=make_judge, mode_of=mode_of
+    )
     return watch.finish(outcome)
 
 

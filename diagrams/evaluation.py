@@ -165,6 +165,7 @@ def run_trial(trial: Trial) -> dict:
         "attempt_failures": outcome.attempt_failures,
         "stages": outcome.stages,
         "closure": outcome.closure,
+        "closure_executed": outcome.closure_executed,
         "place": outcome.place,
         "perception": outcome.perception,
         "sim_wall_s": outcome.wall_time_s,

@@ -16,10 +16,11 @@ from pydrake.geometry import Meshcat
 from pydrake.math import RollPitchYaw
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
-from pydrake.systems.framework import Context, Diagram
+from pydrake.systems.framework import Context, Diagram, EventStatus
 
 from diagrams.scenario import Scenario
 from diagrams.station import HAND_INSTANCES, OBJECT_INSTANCE
+from systems.planning.closure import relative_deviations
 
 LIFT_SUCCESS_M = 0.10
 # The place task: the object rests within these of the target (m; rad for its yaw and its tilt), and never
@@ -29,6 +30,9 @@ PLACE_TOLERANCE_RAD = np.radians(5.0)
 DROP_SLIP_M = 0.03
 HOLD_CHECK_S = 2.0
 SAMPLE_S = 0.05
+# The executed closure: sampled this often during the held moves (the supervisor's modes HELD_MOVES), s.
+CLOSURE_SAMPLE_S = 0.01
+HELD_MOVES = ("lift", "carry", "set_down")
 
 
 @dataclass
@@ -55,6 +59,9 @@ class PickOutcome:
     # The largest deviations of the hands' relative pose along the played held moves (lift, carry, ...):
     # {"max_translation_dev_m": m, "max_orientation_dev_rad": rad}, NaN without a held move.
     closure: dict[str, float] = field(default_factory=dict)
+    # The same as executed, measured on the simulated plant every CLOSURE_SAMPLE_S (ExecutedClosure), with
+    # "samples": how many were taken.
+    closure_executed: dict[str, float] = field(default_factory=dict)
     # On a real LCM bus: the arm commands sent ("sent"), the largest wall-time gap between two ("max_gap_s"),
     # and how many came more than two control periods after the one before ("late").
     commands: dict = field(default_factory=dict)
@@ -104,6 +111,48 @@ def hands_touching_object(plant: MultibodyPlant, plant_context) -> list[str]:
                 if pair & bodies:
                     touching.add(side)
     return sorted(touching)
+
+
+class ExecutedClosure:
+    """The closure as executed: during each held move (the modes HELD_MOVES, told by mode_of(context)), the
+    relative pose X_G1G2 of the two grasp frames on the simulated plant every CLOSURE_SAMPLE_S, against its
+    value when that move began. Deviations as the planner's (closure.relative_deviations): the largest
+    translation component (m) and the rotation angle (rad). sample() runs after every simulator step."""
+
+    def __init__(self, plant: MultibodyPlant, mode_of: Callable):
+        self.plant, self.mode_of = plant, mode_of
+        self.frames = [
+            plant.GetFrameByName("grasp_frame", plant.GetModelInstanceByName(n)) for n in HAND_INSTANCES.values()
+        ]
+        self.next_s, self.mode, self.X_start = 0.0, "", None
+        self.t_dev, self.o_dev, self.samples = [], [], 0
+
+    def sample(self, context) -> None:
+        t = context.get_time()
+        if t + 1e-9 < self.next_s:
+            return
+        self.next_s = (np.floor(t / CLOSURE_SAMPLE_S + 1e-6) + 1) * CLOSURE_SAMPLE_S
+        mode = str(self.mode_of(context))
+        if mode not in HELD_MOVES:
+            self.mode = mode
+            return
+        plant_context = self.plant.GetMyContextFromRoot(context)
+        left, right = (frame.CalcPoseInWorld(plant_context) for frame in self.frames)
+        X_G1G2 = (left.inverse() @ right).GetAsMatrix4()
+        if mode != self.mode:  # a held move begins: its relative pose is the reference
+            self.mode, self.X_start = mode, X_G1G2
+        t_dev, o_dev = relative_deviations(X_G1G2[None], self.X_start)
+        self.t_dev.append(float(t_dev[0]))
+        self.o_dev.append(float(o_dev[0]))
+        self.samples += 1
+
+    def report(self) -> dict[str, float]:
+        """{"max_translation_dev_m", "max_orientation_dev_rad", "samples"} (NaN without a held move)."""
+        return {
+            "max_translation_dev_m": max(self.t_dev, default=float("nan")),
+            "max_orientation_dev_rad": max(self.o_dev, default=float("nan")),
+            "samples": self.samples,
+        }
 
 
 class LiftJudge:
@@ -219,15 +268,26 @@ def simulate_pick(
     record: Path | None = None,
     plant: MultibodyPlant | None = None,
     make_judge: Callable | None = None,
+    mode_of: Callable | None = None,
 ) -> PickOutcome:
     """Simulates until `duration` (s, or a function of the context giving the end time) and judges
     the pick on ground truth: `plant`'s (default: the plant of the diagram's "station"), with
-    make_judge(plant, context) (default: a LiftJudge)."""
+    make_judge(plant, context) (default: a LiftJudge). With mode_of(context) (the pick's mode), the
+    closure as executed too (ExecutedClosure: it only reads the plant, after every step)."""
     end_time = duration if callable(duration) else (lambda context: duration)
     simulator = Simulator(diagram)
     ApplySimulatorConfig(scenario.simulator_config, simulator)
     context = simulator.get_mutable_context()
-    judge = (make_judge or LiftJudge)(plant or station_plant(diagram), context)
+    plant = plant or station_plant(diagram)
+    judge = (make_judge or LiftJudge)(plant, context)
+    closure = ExecutedClosure(plant, mode_of) if mode_of is not None else None
+    if closure is not None:
+
+        def monitor(root_context):
+            closure.sample(root_context)
+            return EventStatus.Succeeded()
+
+        simulator.set_monitor(monitor)
     if meshcat is not None and record is not None:
         meshcat.StartRecording(set_visualizations_while_recording=False)
     start = time.perf_counter()
@@ -247,4 +307,6 @@ def simulate_pick(
         logging.info("wrote %s", record)
     outcome = judge.outcome()
     outcome.wall_time_s, outcome.context = wall, context
+    if closure is not None:
+        outcome.closure_executed = closure.report()
     return outcome

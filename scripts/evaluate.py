@@ -321,7 +321,7 @@ def draw_map(path: Path, records: list[dict], category: str):
     import matplotlib.pyplot as plt
     import numpy as np
 
-    figure, axes = plt.subplots(figsize=(7, 8))
+    figure, axes = plt.subplots(figsize=(9, 5.5))
     styles = {
         "lifted (ground truth and autonomous)": ("tab:green", "o"),
         "ground truth lifted, autonomous failed": ("tab:orange", "s"),
@@ -343,16 +343,15 @@ def draw_map(path: Path, records: list[dict], category: str):
         axes.quiver(-y, x, -np.sin(yaw), np.cos(yaw), color=colour, scale=25, width=0.004, zorder=2)
         for r in chosen:
             failed = r["oracle"] if not r["oracle"]["success"] else (r if not r["success"] else None)
-            if failed is not None:
-                stage = failed["failed_stage"]
-                phase = failed["message"].split(": ")[1] if failed["message"].count(": ") >= 1 else ""
-                axes.annotate(f"{stage}: {phase}"[:24], (-r["xy"][1], r["xy"][0]), fontsize=7,
-                              xytext=(5, 4), textcoords="offset points")  # fmt: skip
+            if failed is not None:  # a planning failure by its phase (reach, approach, lift), else by its stage
+                parts = failed["message"].split(": ")
+                label = parts[1] if failed["failed_stage"] == "planning" and len(parts) > 1 else failed["failed_stage"]
+                axes.annotate(label, (-r["xy"][1], r["xy"][0]), fontsize=6, xytext=(4, -8), textcoords="offset points")
     axes.set_xlabel("-y of the table top (m): the robot's left is to the left")
     axes.set_ylabel("x of the table top (m): away from the robot")
     axes.set_aspect("equal")
     axes.grid(alpha=0.3)
-    axes.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.1))
+    axes.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=3)
     axes.set_title(f"{category}: {len(records)} random placements (arrows: the object's heading)")
     figure.tight_layout()
     figure.savefig(path, dpi=110)

@@ -109,6 +109,7 @@ def main(argv=None) -> int:
             "planning_s": outcome.planning_s,
             "stages": outcome.stages,
             "closure": outcome.closure,
+            "closure_executed": outcome.closure_executed,
             "commands": outcome.commands,
             "task": scenario.task,
             "place": outcome.place,

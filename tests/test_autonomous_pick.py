@@ -284,6 +284,11 @@ def test_ground_truth_place_sets_the_object_down_upright_on_the_target(scenario)
     assert (
         0 <= outcome.closure["max_translation_dev_m"] < 0.01 and 0 <= outcome.closure["max_orientation_dev_rad"] < 0.05
     )
+    # The closure as executed on the simulated plant (every 10 ms of the lift, carry and set-down), within the
+    # planner's t_max and o_max too.
+    executed = outcome.closure_executed
+    assert executed["samples"] > 300, executed  # (the held moves take several seconds)
+    assert 0 <= executed["max_translation_dev_m"] < 0.01 and 0 <= executed["max_orientation_dev_rad"] < 0.05
 
 
 def test_ground_truth_place_carries_a_drill_over_the_box_between(scenario):
@@ -333,6 +338,8 @@ def test_object_out_of_reach_stops_at_planning(scenario):
     far = replace_object(scenario, category="drill", instance="test_0", xy=[0.3, 0.0])
     outcome = run_pick(far)
     assert not outcome.success and outcome.failed_stage == "planning", outcome.message
+    # Named at once: no attempt is spent on what another attempt would only repeat.
+    assert outcome.sim_time_s < 10 and outcome.attempts_made == 1
 
 
 def _pick_json(tmp_path, name: str) -> dict:
