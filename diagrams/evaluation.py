@@ -232,6 +232,7 @@ def summarize(records: list[dict]) -> dict:
             stages[f"{stage}_s_{statistic}"] = float(value(seconds)) if len(seconds) else float("nan")
     closure = [r["closure"] for r in records if r.get("closure") and np.isfinite(r["closure"]["max_translation_dev_m"])]
     placed = [r["place"]["error_m"] for r in records if r.get("place")]
+    released = [r["place"]["release_turn_rad"] for r in records if "release_turn_rad" in r.get("place", {})]
     successes = sum(r["success"] for r in records)
     oracle = [r for r in records if "oracle" in r]
     doable = [r for r in oracle if r["oracle"]["success"]]
@@ -253,6 +254,9 @@ def summarize(records: list[dict]) -> dict:
         "closure_orientation_dev_rad_max": max((c["max_orientation_dev_rad"] for c in closure), default=float("nan")),
         # The place task: the object's distance from the target at the end, over the picks that got that far.
         "place_error_m_median": float(np.median(placed)) if placed else float("nan"),
+        # How far letting go and backing off turned the set-down object about the vertical, rad (median, max).
+        "release_turn_rad_median": float(np.median(released)) if released else float("nan"),
+        "release_turn_rad_max": max(released, default=float("nan")),
         "trials": len(records),
         "per_instance": per_instance,
         "components": components,

@@ -67,7 +67,8 @@ class PickOutcome:
     commands: dict = field(default_factory=dict)
     # The place task's judgement: {"error_m": xy distance to the target, "yaw_error_rad", "tilt_rad": of the
     # object's z axis from vertical, "max_slip_m": how far it moved in the hands while held, "dropped", and
-    # "set_down_error_m", "set_down_yaw_error_rad": the same when the hands began to let go}.
+    # "set_down_error_m", "set_down_yaw_error_rad": the same when the hands began to let go; "release_turn_rad",
+    # "release_shift_m": how far letting go and backing off turned it about the vertical and moved it}.
     place: dict = field(default_factory=dict)
     # How far the perceived object pose was from the true one when the camera saw it: {"position_error_m": xy
     # distance, "yaw_error_rad"} (empty when the pick did not perceive).
@@ -246,6 +247,9 @@ class PlaceJudge(LiftJudge):
             set_down = pose_error(self.X_set_down, self.X_W_target)
             outcome.place["set_down_error_m"] = set_down["position_error_m"]
             outcome.place["set_down_yaw_error_rad"] = set_down["yaw_error_rad"]
+            released = pose_error(X_WO, self.X_set_down)
+            outcome.place["release_turn_rad"] = released["yaw_error_rad"]
+            outcome.place["release_shift_m"] = released["position_error_m"]
         checks = {
             f"{error * 100:.1f} cm from the target": error <= PLACE_TOLERANCE_M,
             f"turned {np.degrees(yaw_error):.1f} deg from it": yaw_error <= PLACE_TOLERANCE_RAD,

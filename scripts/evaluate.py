@@ -372,6 +372,9 @@ def report(args, records: list[dict], first_seed: int):
     if args.task == "place":
         error = summary["place_error_m_median"]
         print(f"place error, median over the picks that set the object down: {100 * error:.1f} cm")
+        turn, most = summary["release_turn_rad_median"], summary["release_turn_rad_max"]
+        turned = f"median {math.degrees(turn):.1f} deg, largest {math.degrees(most):.1f} deg"
+        print(f"turned by letting go and backing off: {turned}")
     report = {
         "category": args.category,
         "task": args.task,
