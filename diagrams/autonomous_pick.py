@@ -92,11 +92,13 @@ def MakePickDiagram(
     source = builder.AddNamedSystem("trajectory_source", JointTrajectorySource())
     hands = builder.AddNamedSystem("hand_command", HandCommandSource())
     from_camera = perception == "camera"
-    looks = from_camera and scenario.place.looks and scenario.task == "place"
+    held_looks = scenario.place.looks and scenario.task == "place"
+    looks = from_camera and (held_looks or scenario.look_before_approach)
     if scenario.task == "place":
-        task, place_target_W = place_task(), place_target(scenario)
+        task = place_task(check=scenario.look_before_approach, held_looks=scenario.place.looks)
+        place_target_W = place_target(scenario)
     else:
-        task, place_target_W = lift_task(), None
+        task, place_target_W = lift_task(check=scenario.look_before_approach), None
     supervisor = PickSupervisor(task, PERCEIVE_AT_S, place_target_W, from_camera, looks, scenario.max_attempts)
     builder.AddNamedSystem("pick_supervisor", supervisor)
     telemetry = builder.AddNamedSystem("plan_telemetry", PlanTelemetryRecorder())

@@ -13,7 +13,8 @@ from pathlib import Path
 
 import numpy as np
 from pydrake.geometry import Meshcat
-from pydrake.math import RollPitchYaw
+from pydrake.math import RigidTransform, RollPitchYaw
+from pydrake.multibody.math import SpatialVelocity
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 from pydrake.systems.framework import Context, Diagram, EventStatus
@@ -156,6 +157,25 @@ class ExecutedClosure:
         }
 
 
+class _Nudge:
+    """The injected fault faults.nudge_xy: the object moved on the table (simulation only)."""
+
+    def __init__(self, plant: MultibodyPlant, context, scenario: Scenario):
+        self.plant, self.plant_context = plant, plant.GetMyMutableContextFromRoot(context)
+        self.xy, self.at_s, self.done = scenario.faults.nudge_xy, scenario.faults.nudge_at_s, False
+
+    def at(self, t: float):
+        if self.done or t + 1e-9 < self.at_s:
+            return
+        body = object_body(self.plant)
+        X_WO = body.EvalPoseInWorld(self.plant_context)
+        moved = RigidTransform(X_WO.rotation(), X_WO.translation() + [*self.xy, 0.0])
+        self.plant.SetFreeBodyPose(self.plant_context, body, moved)
+        self.plant.SetFreeBodySpatialVelocity(self.plant_context, body, SpatialVelocity.Zero())
+        logging.info("fault: the object nudged by %s m at t = %.2f s", self.xy, t)
+        self.done = True
+
+
 class LiftJudge:
     """Judges a pick on the simulator's ground truth: sample() every SAMPLE_S, then outcome()."""
 
@@ -296,10 +316,13 @@ def simulate_pick(
         meshcat.StartRecording(set_visualizations_while_recording=False)
     start = time.perf_counter()
     simulator.Initialize()
+    nudge = _Nudge(plant, context, scenario) if any(scenario.faults.nudge_xy) else None
     step = 0
     while (t := (step + 1) * SAMPLE_S) <= end_time(context) + 1e-9:
         step += 1
         simulator.AdvanceTo(t)
+        if nudge is not None:
+            nudge.at(t)
         z = judge.sample(t)
         if step % 40 == 0:
             logging.info("t = %4.1f s  object z = %.3f m", t, z)

@@ -138,6 +138,10 @@ class FaultConfig:
     # axis), m, on the first `grasp_offset_attempts` attempts: a hand that closes on nothing.
     grasp_offset_G: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
     grasp_offset_attempts: int = 1
+    # The object moved by this on the table (x, y in W, m) at context time nudge_at_s: pushed while the arms
+    # reach for it.
+    nudge_xy: list[float] = field(default_factory=lambda: [0.0, 0.0])
+    nudge_at_s: float = 1.0
 
 
 @dataclass
@@ -170,6 +174,9 @@ class Scenario:
     # Attempts at the task, the first included: a failed check (a hand closed on nothing, the object lost in
     # the lift) opens the hands, backs off and starts again from a new camera frame.
     max_attempts: int = 3
+    # Before the approach, look at the object again (the object tracker) and, where it moved since it was seen,
+    # reach for it where it is now.
+    look_before_approach: bool = True
     # Faults injected for tests (simulation only).
     faults: FaultConfig = field(default_factory=FaultConfig)
     # Height of the robot's pelvis frame above the floor, metres.
@@ -299,6 +306,8 @@ def validate(scenario: Scenario) -> None:
     faults = scenario.faults
     if len(faults.grasp_offset_G) != 3 or not all(abs(v) <= MAX_GRASP_OFFSET_M for v in faults.grasp_offset_G):
         raise ValueError(f"faults.grasp_offset_G must be 3 entries of at most {MAX_GRASP_OFFSET_M} m (x, y, z in G)")
+    if len(faults.nudge_xy) != 2 or not all(abs(v) <= MAX_GRASP_OFFSET_M for v in faults.nudge_xy):
+        raise ValueError(f"faults.nudge_xy must be 2 entries of at most {MAX_GRASP_OFFSET_M} m")
     if faults.grasp_offset_attempts < 0:
         raise ValueError(f"faults.grasp_offset_attempts must be >= 0, got {faults.grasp_offset_attempts}")
     if scenario.task not in TASKS:

@@ -49,6 +49,8 @@ class Mode(enum.StrEnum):
     WAITING = "waiting"
     PERCEIVING = "perceiving"
     REACH = "reach"
+    CHECK = "check"  # a look at the object on the table before the approach: did it move?
+    BACK_OFF = "back_off"  # it moved: the hands back off before they reach for it again
     APPROACH = "approach"
     CLOSE = "close"
     LOOK = "look"
@@ -152,6 +154,9 @@ class PlanRequest:
     # clear of the scene; None: the robot only.
     carried_motion_W: RigidTransform | None = None
     q_goal: np.ndarray | None = None  # Targets.HOME: the 14 arm joints to go back to, rad
+    # Pre-grasp and grasp targets (and the obstacle cloud): the object's motion in W since perception saw it,
+    # as a look before the approach found it (None: it has not moved).
+    object_motion_W: RigidTransform | None = None
 
 
 @dataclass
@@ -249,3 +254,5 @@ class PickStatus:
     attempt: int = 1  # the attempt under way (a failed check starts the next, up to max_attempts)
     attempt_failures: tuple[tuple[str, str], ...] = ()  # (stage, message) of each failed attempt, in order
     recovering: bool = False  # the recovery's phases (open, back off, home) are under way, not the task's
+    corrections: int = 0  # reaches planned again this attempt because a look found the object moved
+    correcting: bool = False  # backing off to reach again (the object moved), not the task's phases

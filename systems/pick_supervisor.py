@@ -81,12 +81,18 @@ class Phase:
     wait_s: float = 0.0
     look: bool = False  # find the held object again (the object tracker; skipped without looks)
     check_held: bool = False  # motions: once played, both hands must still hold the object
+    # Looks: the object stands on the table; where it moved more than MOVED_M / MOVED_RAD since it was seen,
+    # the belief takes the look and the attempt goes back to its reach (at most MAX_CORRECTIONS times).
+    recheck: bool = False
 
 
-def lift_task(lift_height: float = LIFT_HEIGHT) -> tuple[Phase, ...]:
-    """The paper's task: reach the pre-grasps, approach, close both hands, lift the object, hold it."""
+def lift_task(lift_height: float = LIFT_HEIGHT, check: bool = True) -> tuple[Phase, ...]:
+    """The paper's task: reach the pre-grasps, [look whether the object moved,] approach, close both hands, lift
+    the object, hold it."""
+    checking = (Phase(Mode.CHECK, look=True, recheck=True),) if check else ()
     return (
         Phase(Mode.REACH, path=MoveKind.FREE, targets=Targets.PREGRASP),
+        *checking,
         Phase(Mode.APPROACH, path=MoveKind.STRAIGHT, targets=Targets.GRASP),
         Phase(Mode.CLOSE, hand_width=CLOSED_WIDTH, wait_s=SETTLE_S),
         Phase(
@@ -100,12 +106,15 @@ def lift_task(lift_height: float = LIFT_HEIGHT) -> tuple[Phase, ...]:
     )
 
 
-def place_task(lift_height: float = PLACE_LIFT_HEIGHT) -> tuple[Phase, ...]:
-    """Beyond the paper: lift the object, carry it to the place target, set it down upright, let go, back off."""
-    reach, approach, close, lift = lift_task(lift_height)[:4]
-    return (reach, approach, close, Phase(Mode.LOOK, look=True), lift) + (
+def place_task(
+    lift_height: float = PLACE_LIFT_HEIGHT, check: bool = True, held_looks: bool = True
+) -> tuple[Phase, ...]:
+    """Beyond the paper: lift the object, carry it to the place target, set it down upright, let go, back off.
+    held_looks: look at the held object before the carry and before the set-down (else those phases pass)."""
+    *grasping, lift = lift_task(lift_height, check)[:-1]
+    return (*grasping, Phase(Mode.LOOK, look=held_looks), lift) + (
         Phase(Mode.CARRY, path=MoveKind.HELD, goal=PlaceGoal.CARRY),
-        Phase(Mode.LOOK_AGAIN, look=True),  # the object turns a few degrees in the hands as they move it
+        Phase(Mode.LOOK_AGAIN, look=held_looks),  # the object turns a few degrees in the hands as they move it
         Phase(Mode.SET_DOWN, path=MoveKind.HELD, goal=PlaceGoal.SET_DOWN),
         Phase(Mode.RELEASE, hand_width=RELEASE_MARGIN, beyond_grasp=True, wait_s=SETTLE_S),
         Phase(Mode.RETREAT, path=MoveKind.STRAIGHT, targets=Targets.RETREAT),
@@ -121,6 +130,11 @@ def recovery_task() -> tuple[Phase, ...]:
     )
 
 
+# A look before the approach corrects the grasps when the object moved more than this since it was seen (a
+# look's own error is a few millimetres and a degree or two), m and rad, at most this often per attempt.
+MOVED_M = 0.01
+MOVED_RAD = np.radians(4.0)
+MAX_CORRECTIONS = 2
 # A failed check that another attempt can put right: a hand closed on nothing, or lost the object.
 RETRIED_STAGES = (Stage.GRASP,)
 # A hand whose measured opening is still this near its full opening after closing did not close, m.
@@ -184,6 +198,8 @@ class PickSupervisor(LeafSystem):
         if max_attempts < 1:
             raise ValueError(f"max_attempts must be at least 1, not {max_attempts}")
         self.max_attempts, self.recovery = max_attempts, recovery_task()
+        # The object moved before the approach: back off (a reach from beside it would start in collision).
+        self.correction = (Phase(Mode.BACK_OFF, path=MoveKind.STRAIGHT, targets=Targets.RETREAT),)
         if any(phase.goal for phase in phases) and place_target_W is None:
             raise ValueError("a task with carry or set_down phases needs place_target_W")
         self.position_port = self.DeclareVectorInputPort("position_measured", 14)
@@ -293,8 +309,11 @@ class PickSupervisor(LeafSystem):
         status.phase_index, status.phase_start_s = index, t
         if index >= len(self._phases(status)):
             if status.recovering:  # backed off and home: the next attempt starts from a new frame
-                status.recovering, status.attempt = False, status.attempt + 1
+                status.recovering, status.attempt, status.corrections = False, status.attempt + 1, 0
                 self._look_at_the_table(context, status, t)
+            elif status.correcting:  # backed off: reach for the object where the look found it
+                status.correcting = False
+                return self._start_phase(context, status, self._index(Mode.REACH), t, look)
             else:
                 status.mode = Mode.DONE
             return look
@@ -314,6 +333,7 @@ class PickSupervisor(LeafSystem):
                 phase.min_fraction,
                 carried,
                 q_goal=status.q_home if phase.targets == Targets.HOME else None,
+                object_motion_W=self._object_motion(status, phase),
             )
         elif phase.hand_width is not None:
             width = phase.hand_width + (max(status.grasp_widths, default=OPEN_WIDTH) if phase.beyond_grasp else 0.0)
@@ -350,24 +370,53 @@ class PickSupervisor(LeafSystem):
         elif phase.look and self.looks:
             if self.look_frame_id_port.Eval(context)[0] < look.id:
                 return False, look
-            self._read_look(context, status)
+            moved = self._read_look(context, status, phase.recheck)
+            if moved and phase.recheck and status.corrections < MAX_CORRECTIONS:
+                status.corrections += 1  # it moved: back off, then reach for it where it is now
+                status.correcting = True
+                return True, self._start_phase(context, status, 0, t, look)
         elif t + 1e-9 < status.phase_start_s + phase.wait_s:
             return False, look
         return True, self._start_phase(context, status, status.phase_index + 1, t, look)
 
-    def _read_look(self, context, status: PickStatus):
-        """Where the tracker found the object in the hands: the held moves start from there. If it did not,
-        the pick goes on from where the object was believed to be."""
+    def _read_look(self, context, status: PickStatus, recheck: bool = False) -> bool:
+        """Where the tracker found the object: the moves that follow start from there (a recheck: only where it
+        moved more than MOVED_M or MOVED_RAD). If it did not find it, the pick goes on from where the object was
+        believed to be. Whether the belief changed."""
         found = self.look_port.Eval(context)
         status.looks_read += 1
         logging.info("look: %s (%.3f s)", found.message, found.compute_s)
-        if found.found:
-            status.belief = status.belief.looked(found.X_WO)
-        else:
+        if not found.found:
             logging.warning("look: %s; going on from where the object was believed to be", found.message)
+            return False
+        if recheck:
+            before = status.belief.now_W
+            shift = np.linalg.norm(found.X_WO.translation() - before.translation())  # of the object's origin
+            turn = (found.X_WO.rotation() @ before.rotation().inverse()).ToAngleAxis().angle()
+            if shift <= MOVED_M and turn <= MOVED_RAD:
+                return False
+            logging.warning(
+                "look: the object moved %.1f cm and %.1f deg since it was seen", 100 * shift, np.degrees(turn)
+            )
+        status.belief = status.belief.looked(found.X_WO)
+        return True
+
+    @staticmethod
+    def _object_motion(status: PickStatus, phase: Phase) -> RigidTransform | None:
+        """A reach's or approach's correction: the object's motion since it was seen, if a look found one."""
+        belief = status.belief
+        if phase.targets not in (Targets.PREGRASP, Targets.GRASP) or belief.now_W.IsExactlyEqualTo(belief.seen_W):
+            return None
+        return belief.now_W @ belief.seen_W.inverse()
 
     def _phases(self, status: PickStatus) -> tuple[Phase, ...]:
-        return self.recovery if status.recovering else self.phases
+        if status.recovering:
+            return self.recovery
+        return self.correction if status.correcting else self.phases
+
+    def _index(self, mode: Mode) -> int:
+        """The task's phase of that name."""
+        return [phase.name for phase in self.phases].index(mode)
 
     def _not_holding(self, context, status: PickStatus, when: str = "") -> str:
         """Measures both hands' openings (m); why they do not both hold something, or "" if they do."""

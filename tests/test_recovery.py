@@ -1,5 +1,6 @@
 """Checks and retries: the supervisor's recovery from a failed attempt, the injected grasp offset, and a
-pick whose first grasps are off that lifts the object on its second attempt."""
+pick whose first grasps are off that lifts the object on its second attempt; the look before the approach,
+and a pick whose object is nudged while the arms reach for it."""
 
 import dataclasses
 
@@ -12,7 +13,7 @@ from pydrake.trajectories import PiecewisePolynomial
 
 from diagrams.autonomous_pick import run_pick
 from diagrams.scenario import FaultConfig, load_scenario, replace_object
-from systems.messages import OPEN_WIDTH, GraspPoses, PerceptionResult, PlanResult, Targets
+from systems.messages import OPEN_WIDTH, GraspPoses, ObjectEstimate, PerceptionResult, PlanResult, Targets
 from systems.perception.grasp_offset import GraspOffset
 from systems.pick_supervisor import PickSupervisor, lift_task
 
@@ -22,8 +23,8 @@ Q0 = np.linspace(-0.5, 0.5, 14)
 GRASP_OFFSET_G = [0.0, 0.0, -0.05]
 
 
-def _supervisor(max_attempts: int):
-    dut = PickSupervisor(lift_task(), perceive_at_s=0.1, max_attempts=max_attempts)
+def _supervisor(max_attempts: int, looks: bool = False):
+    dut = PickSupervisor(lift_task(), perceive_at_s=0.1, max_attempts=max_attempts, looks=looks)
     context = dut.CreateDefaultContext()
     dut.GetInputPort("position_measured").FixValue(context, Q0)
     _hands(dut, context, 0.0)  # they will close on nothing
@@ -31,6 +32,7 @@ def _supervisor(max_attempts: int):
     found = PerceptionResult(True, X_WO_seen=RigidTransform([0.7, 0.0, 0.8]))
     dut.GetInputPort("perception").FixValue(context, AbstractValue.Make(found))
     dut.GetInputPort("plan").FixValue(context, AbstractValue.Make(PlanResult()))
+    dut.GetInputPort("look_frame_id").FixValue(context, [0.0])
     return dut, context, Simulator(dut, context)
 
 
@@ -131,6 +133,8 @@ def test_scenario_checks_attempts_and_faults():
         load_scenario(scenario_text="{max_attempts: 0}")
     with pytest.raises(ValueError, match="grasp_offset_G"):
         load_scenario(scenario_text="{faults: {grasp_offset_G: [0, 0, 3]}}")  # 3 m: centimetres meant
+    with pytest.raises(ValueError, match="nudge_xy"):
+        load_scenario(scenario_text="{faults: {nudge_xy: [0.03]}}")
 
 
 def test_grasps_off_by_5_cm_the_empty_hand_is_found_and_the_next_attempt_lifts(scenario):
@@ -145,3 +149,57 @@ def test_grasps_off_by_5_cm_the_empty_hand_is_found_and_the_next_attempt_lifts(s
     assert outcome.attempts_made == 2
     assert [failure["stage"] for failure in outcome.attempt_failures] == ["grasp"]
     assert "closed on nothing" in outcome.attempt_failures[0]["message"]
+
+
+def test_a_look_before_the_approach_finds_the_moved_object_and_reaches_for_it_again():
+    dut, context, simulator = _supervisor(max_attempts=1, looks=True)
+    seen = RigidTransform([0.7, 0.0, 0.8])
+    simulator.AdvanceTo(0.15)
+    _answer(dut, context)  # reach
+    simulator.AdvanceTo(0.3)
+    assert _status(dut, context).mode == "check" and dut.GetOutputPort("look_trigger").Eval(context)[0] == 1
+    np.testing.assert_array_equal(dut.GetOutputPort("expected_X_WO").Eval(context).translation(), seen.translation())
+    nudged = RigidTransform([0.7, 0.03, 0.8])
+    dut.GetInputPort("look").FixValue(context, AbstractValue.Make(ObjectEstimate(True, "drill", nudged)))
+    dut.GetInputPort("look_frame_id").FixValue(context, [1.0])
+    simulator.AdvanceTo(0.35)
+    request = dut.GetOutputPort("plan_request").Eval(context)
+    assert _status(dut, context).mode == "back_off" and request.targets == Targets.RETREAT
+    assert request.object_motion_W is None  # backing off moves the hands, not to the object
+    _answer(dut, context)
+    simulator.AdvanceTo(0.5)
+    request = dut.GetOutputPort("plan_request").Eval(context)
+    assert _status(dut, context).mode == "reach" and request.targets == Targets.PREGRASP
+    np.testing.assert_allclose(request.object_motion_W.translation(), [0.0, 0.03, 0.0], atol=1e-12)
+    _answer(dut, context)
+    simulator.AdvanceTo(0.65)  # looked again: where the belief has it now
+    dut.GetInputPort("look_frame_id").FixValue(context, [2.0])
+    simulator.AdvanceTo(0.7)
+    request = dut.GetOutputPort("plan_request").Eval(context)
+    assert _status(dut, context).mode == "approach" and _status(dut, context).corrections == 1
+    np.testing.assert_allclose(request.object_motion_W.translation(), [0.0, 0.03, 0.0], atol=1e-12)
+
+
+def test_a_look_that_finds_the_object_where_it_was_changes_nothing():
+    dut, context, simulator = _supervisor(max_attempts=1, looks=True)
+    simulator.AdvanceTo(0.15)
+    _answer(dut, context)
+    nearly = RigidTransform([0.705, 0.0, 0.8])  # 5 mm: within what one look tells
+    dut.GetInputPort("look").FixValue(context, AbstractValue.Make(ObjectEstimate(True, "drill", nearly)))
+    dut.GetInputPort("look_frame_id").FixValue(context, [1.0])
+    simulator.AdvanceTo(0.4)
+    request = dut.GetOutputPort("plan_request").Eval(context)
+    assert _status(dut, context).mode == "approach" and request.object_motion_W is None
+
+
+def test_an_object_nudged_3_cm_while_the_arms_reach_is_found_and_lifted(scenario):
+    """The drill is moved 3 cm sideways at 1 s (injected), while the arms reach for where it was seen. The look
+    before the approach finds it moved; the hands back off and reach for it where it is. (Without the look,
+    a hand closes on nothing.)"""
+    nudged = dataclasses.replace(
+        replace_object(scenario, category="drill", instance="test_1", yaw=0.25),
+        faults=FaultConfig(nudge_xy=[0.0, 0.03], nudge_at_s=1.0),
+    )
+    outcome = run_pick(nudged)
+    assert outcome.success, outcome.message
+    assert outcome.attempts_made == 1 and "look" in outcome.stages

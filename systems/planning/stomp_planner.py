@@ -124,7 +124,10 @@ class StompPlanner(LeafSystem):
             else:
                 targets = self._targets(request, context)
                 if request.path == MoveKind.FREE:
-                    keyframes = motions.reach(request.q_start, targets, self._obstacle_points(context))
+                    points = self._obstacle_points(context)
+                    if points is not None and request.object_motion_W is not None:  # where a look found it
+                        points = request.object_motion_W.multiply(points.T).T
+                    keyframes = motions.reach(request.q_start, targets, points)
                     min_segment = STOMP_SEGMENT_S if len(keyframes) > 3 else SPARSE_SEGMENT_S
                 else:
                     keyframes, min_segment = motions.straight(request.q_start, targets), SPARSE_SEGMENT_S
@@ -159,7 +162,10 @@ class StompPlanner(LeafSystem):
         if request.targets not in (Targets.PREGRASP, Targets.GRASP):
             raise PlanningError(f"unknown targets {request.targets!r} (pregrasp, grasp or retreat)")
         deeper = self.deeper if request.targets == Targets.GRASP else RigidTransform()
-        return {side: grasps.poses_W[f"{side}_{request.targets}"] @ deeper for side in SIDES}
+        targets = {side: grasps.poses_W[f"{side}_{request.targets}"] @ deeper for side in SIDES}
+        if request.object_motion_W is not None:  # the object moved since it was seen: the grasps moved with it
+            targets = {side: request.object_motion_W @ X for side, X in targets.items()}
+        return targets
 
     def _grasp_paths(self, trajectory: PiecewisePolynomial, samples: int = 60) -> dict[str, np.ndarray]:
         times = np.linspace(trajectory.start_time(), trajectory.end_time(), samples)
