@@ -232,7 +232,7 @@ def summarize(records: list[dict]) -> dict:
             stages[f"{stage}_s_{statistic}"] = float(value(seconds)) if len(seconds) else float("nan")
     closure = [r["closure"] for r in records if r.get("closure") and np.isfinite(r["closure"]["max_translation_dev_m"])]
     placed = [r["place"]["error_m"] for r in records if r.get("place")]
-    released = [r["place"]["release_turn_rad"] for r in records if "release_turn_rad" in r.get("place", {})]
+    released = [r["place"]["release_turn_rad"] for r in records if "release_turn_rad" in (r.get("place") or {})]
     successes = sum(r["success"] for r in records)
     oracle = [r for r in records if "oracle" in r]
     doable = [r for r in oracle if r["oracle"]["success"]]
