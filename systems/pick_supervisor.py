@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from pydrake.common.value import AbstractValue
-from pydrake.math import RigidTransform
+from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 from pydrake.systems.framework import BasicVector, EventStatus, LeafSystem
 
 from systems.messages import (
@@ -130,8 +130,9 @@ def recovery_task() -> tuple[Phase, ...]:
     )
 
 
-# A look before the approach corrects the grasps when the object moved more than this since it was seen (a
-# look's own error is a few millimetres and a degree or two), m and rad, at most this often per attempt.
+# A look before the approach corrects the grasps when the object moved on the table (its origin in x, y; its yaw)
+# more than this since it was seen (a look's own error is a few millimetres and a degree or two), m and rad, at
+# most this often per attempt.
 MOVED_M = 0.01
 MOVED_RAD = np.radians(4.0)
 MAX_CORRECTIONS = 2
@@ -389,16 +390,17 @@ class PickSupervisor(LeafSystem):
         if not found.found:
             logging.warning("look: %s; going on from where the object was believed to be", found.message)
             return False
-        if recheck:
+        X_WO = found.X_WO
+        if recheck:  # it stands on the table: a move is planar (the tracker's tilt is for objects in the hands)
             before = status.belief.now_W
-            shift = np.linalg.norm(found.X_WO.translation() - before.translation())  # of the object's origin
-            turn = (found.X_WO.rotation() @ before.rotation().inverse()).ToAngleAxis().angle()
-            if shift <= MOVED_M and turn <= MOVED_RAD:
+            shift = np.linalg.norm(X_WO.translation()[:2] - before.translation()[:2])  # of the object's origin
+            turn = RollPitchYaw(X_WO.rotation() @ before.rotation().inverse()).yaw_angle()
+            if shift <= MOVED_M and abs(turn) <= MOVED_RAD:
                 return False
-            logging.warning(
-                "look: the object moved %.1f cm and %.1f deg since it was seen", 100 * shift, np.degrees(turn)
-            )
-        status.belief = status.belief.looked(found.X_WO)
+            logging.warning("look: the object moved %.1f cm and %.1f deg", 100 * shift, np.degrees(turn))
+            at = [*X_WO.translation()[:2], before.translation()[2]]
+            X_WO = RigidTransform(RotationMatrix.MakeZRotation(turn) @ before.rotation(), at)
+        status.belief = status.belief.looked(X_WO)
         return True
 
     @staticmethod
