@@ -206,7 +206,9 @@ def pick_report(diagram: Diagram, context) -> PickReport:
     status = pick_status(diagram, context)
     stages = {}
     if status.perceived:  # (perception's result is cached: reading it again computes nothing)
-        stages.update(_perception_output(diagram, context, "result").stage_seconds)
+        supervisor = diagram.GetSubsystemByName("pick_supervisor")
+        result = supervisor.GetInputPort("perception").Eval(supervisor.GetMyContextFromRoot(context))
+        stages.update(result.stage_seconds)
     plans = _subsystem_output(diagram, context, "plan_telemetry", "telemetry")
     if plans.plans:
         stages["planning"] = plans.first_planning_s
@@ -221,11 +223,6 @@ def pick_report(diagram: Diagram, context) -> PickReport:
 def attempt_failures(status: PickStatus) -> list[dict[str, str]]:
     """Each failed attempt's {"stage", "message"}, in order (the last is the pick's if it failed)."""
     return [{"stage": stage, "message": message} for stage, message in status.attempt_failures]
-
-
-def _perception_output(diagram: Diagram, context, port: str):
-    name = "perception" if diagram.HasSubsystemNamed("perception") else "ground_truth"
-    return _subsystem_output(diagram, context, name, port)
 
 
 def MakeLcmPickWorld(scenario: Scenario, lcm: DrakeLcmInterface, meshcat: Meshcat | None = None) -> Diagram:

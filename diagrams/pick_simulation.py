@@ -115,6 +115,11 @@ def hands_touching_object(plant: MultibodyPlant, plant_context) -> list[str]:
     return sorted(touching)
 
 
+def grasp_frames(plant: MultibodyPlant) -> list:
+    """The left and right hands' grasp frames G on the station's plant."""
+    return [plant.GetFrameByName("grasp_frame", plant.GetModelInstanceByName(n)) for n in HAND_INSTANCES.values()]
+
+
 class ExecutedClosure:
     """The closure as executed: during each held move (the modes HELD_MOVES, told by mode_of(context)), the
     relative pose X_G1G2 of the two grasp frames on the simulated plant every CLOSURE_SAMPLE_S, against its
@@ -123,11 +128,9 @@ class ExecutedClosure:
 
     def __init__(self, plant: MultibodyPlant, mode_of: Callable):
         self.plant, self.mode_of = plant, mode_of
-        self.frames = [
-            plant.GetFrameByName("grasp_frame", plant.GetModelInstanceByName(n)) for n in HAND_INSTANCES.values()
-        ]
+        self.frames = grasp_frames(plant)
         self.next_s, self.mode, self.X_start = 0.0, "", None
-        self.t_dev, self.o_dev, self.samples = [], [], 0
+        self.t_dev, self.o_dev = [], []
 
     def sample(self, context) -> None:
         t = context.get_time()
@@ -146,14 +149,13 @@ class ExecutedClosure:
         t_dev, o_dev = relative_deviations(X_G1G2[None], self.X_start)
         self.t_dev.append(float(t_dev[0]))
         self.o_dev.append(float(o_dev[0]))
-        self.samples += 1
 
     def report(self) -> dict[str, float]:
         """{"max_translation_dev_m", "max_orientation_dev_rad", "samples"} (NaN without a held move)."""
         return {
             "max_translation_dev_m": max(self.t_dev, default=float("nan")),
             "max_orientation_dev_rad": max(self.o_dev, default=float("nan")),
-            "samples": self.samples,
+            "samples": len(self.t_dev),
         }
 
 
@@ -228,9 +230,7 @@ class PlaceJudge(LiftJudge):
     ):
         super().__init__(plant, context)
         self.context, self.X_W_target, self.mode_of, self.held_modes = context, X_W_target, mode_of, held_modes
-        self.frames = [
-            plant.GetFrameByName("grasp_frame", plant.GetModelInstanceByName(n)) for n in HAND_INSTANCES.values()
-        ]
+        self.frames = grasp_frames(plant)
         self.held_offset, self.max_slip = None, 0.0
         self.X_set_down = None  # the object's pose when the hands began to let go
 

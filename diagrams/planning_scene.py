@@ -17,7 +17,6 @@ from diagrams.paths import SDF_DIR
 from diagrams.scenario import Scenario
 from diagrams.station import AddBoxObstacle, AddCentauro, AddTable, make_parser, object_pose_on_table
 from systems.messages import OPEN_WIDTH
-from systems.planning.ik import DualArmIk
 from systems.planning.pick_motions import PickMotions, PlannerConfig
 from systems.planning.world import SIDES, PlanningWorld, RobotScene
 
@@ -97,11 +96,6 @@ def object_surface_W(model: ObjectModel, X_WO: RigidTransform, count: int) -> tu
 def make_planning_world(scenario: Scenario, **scene_options) -> PlanningWorld:
     """The PlanningWorld of MakeRobotScene(scenario, **scene_options)."""
     return PlanningWorld(MakeRobotScene(scenario, **scene_options))
-
-
-def make_dual_arm_ik(scenario: Scenario, **scene_options) -> DualArmIk:
-    """DualArmIk in make_planning_world(scenario, **scene_options) (its world is `.world`)."""
-    return DualArmIk(make_planning_world(scenario, **scene_options))
 
 
 def make_pick_motions(scenario: Scenario, config: PlannerConfig | None = None, **scene_options) -> PickMotions:

@@ -322,18 +322,13 @@ def draw_map(path: Path, records: list[dict], category: str):
     import numpy as np
 
     figure, axes = plt.subplots(figsize=(9, 5.5))
-    styles = {
-        "lifted (ground truth and autonomous)": ("tab:green", "o"),
-        "ground truth lifted, autonomous failed": ("tab:orange", "s"),
-        "ground truth failed": ("tab:red", "X"),
+    styles = {  # by (ground truth lifted, autonomous lifted)
+        "lifted (ground truth and autonomous)": ("tab:green", "o", lambda truth, auto: truth and auto),
+        "ground truth lifted, autonomous failed": ("tab:orange", "s", lambda truth, auto: truth and not auto),
+        "ground truth failed": ("tab:red", "X", lambda truth, auto: not truth),
     }
-    for label, (colour, marker) in styles.items():
-        chosen = [
-            r for r in records
-            if (label.startswith("lifted") and r["oracle"]["success"] and r["success"])
-            or (label.startswith("ground truth lifted") and r["oracle"]["success"] and not r["success"])
-            or (label.startswith("ground truth failed") and not r["oracle"]["success"])
-        ]  # fmt: skip
+    for label, (colour, marker, belongs) in styles.items():
+        chosen = [r for r in records if belongs(r["oracle"]["success"], r["success"])]
         if not chosen:
             continue
         x, y = np.array([r["xy"][0] for r in chosen]), np.array([r["xy"][1] for r in chosen])

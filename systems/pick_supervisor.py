@@ -32,6 +32,7 @@ from pydrake.systems.framework import BasicVector, EventStatus, LeafSystem
 from systems.messages import (
     CLOSED_WIDTH,
     OPEN_WIDTH,
+    SIDES,
     HandCommand,
     LookRequest,
     Mode,
@@ -204,9 +205,7 @@ class PickSupervisor(LeafSystem):
         if any(phase.goal for phase in phases) and place_target_W is None:
             raise ValueError("a task with carry or set_down phases needs place_target_W")
         self.position_port = self.DeclareVectorInputPort("position_measured", 14)
-        self.hand_state_ports = {
-            side: self.DeclareVectorInputPort(f"{side}_hand_state", 2) for side in ("left", "right")
-        }
+        self.hand_state_ports = {side: self.DeclareVectorInputPort(f"{side}_hand_state", 2) for side in SIDES}
         self.plan_port = self.DeclareAbstractInputPort("plan", AbstractValue.Make(PlanResult()))
         self.frame_id_port = self.DeclareVectorInputPort("frame_id", 1)
         self.perception_port = self.DeclareAbstractInputPort("perception", AbstractValue.Make(PerceptionResult()))
@@ -422,8 +421,8 @@ class PickSupervisor(LeafSystem):
 
     def _not_holding(self, context, status: PickStatus, when: str = "") -> str:
         """Measures both hands' openings (m); why they do not both hold something, or "" if they do."""
-        status.grasp_widths = tuple(self.hand_state_ports[s].Eval(context)[0] for s in ("left", "right"))
-        for side, width in zip(("left", "right"), status.grasp_widths, strict=True):
+        status.grasp_widths = tuple(self.hand_state_ports[side].Eval(context)[0] for side in SIDES)
+        for side, width in zip(SIDES, status.grasp_widths, strict=True):
             logging.info("%s hand closed to %.1f mm", side, width * 1000)
             if width < MIN_GRASPED_WIDTH:
                 return f"{when}the {side} hand closed on nothing (opening {width * 1000:.1f} mm)"
@@ -438,7 +437,7 @@ class PickSupervisor(LeafSystem):
         if stage not in RETRIED_STAGES or status.attempt >= self.max_attempts:
             self._fail(status, stage, message)
             return look
-        status.attempt_failures = (*status.attempt_failures, (str(stage), f"{stage}: {message}"))
+        status.attempt_failures = (*status.attempt_failures, (str(stage), _stage_message(stage, message)))
         logging.warning(
             "attempt %d of %d failed at %s: %s; recovering", status.attempt, self.max_attempts, stage, message
         )
@@ -447,6 +446,10 @@ class PickSupervisor(LeafSystem):
 
     def _fail(self, status: PickStatus, stage: Stage, message: str):
         logging.warning("pick stopped at %s: %s", stage, message)
-        status.mode, status.failed_stage = Mode.FAILED, stage
-        status.message = message if message.startswith(stage) else f"{stage}: {message}"
+        status.mode, status.failed_stage, status.message = Mode.FAILED, stage, _stage_message(stage, message)
         status.attempt_failures = (*status.attempt_failures, (str(stage), status.message))
+
+
+def _stage_message(stage: Stage, message: str) -> str:
+    """A failure's message, led by its stage."""
+    return message if message.startswith(stage) else f"{stage}: {message}"

@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 
 from diagrams.generation.objects.library import resolve_object
-from diagrams.planning_scene import make_dual_arm_ik, make_pick_motions, make_planning_world, true_grasp_poses
+from diagrams.planning_scene import make_pick_motions, make_planning_world, true_grasp_poses
 from diagrams.station import object_pose_on_table
+from systems.planning.ik import DualArmIk
 from systems.planning.kinematics import Payload, joint_torques
 from systems.planning.obstacles import Obstacles
 from systems.planning.stomp import TERMS, Stomp
@@ -154,8 +155,8 @@ def test_a_cold_cache_leaves_the_planner_as_a_warm_one(scenario, tmp_path, monke
     pick's outcome cannot depend on whether the machine ran one before (left at the table's last sample, a
     cold one lifted its can 1.3e-12 m lower and Ray's records differed from one process's)."""
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
-    cold = make_dual_arm_ik(scenario)
-    warm = make_dual_arm_ik(scenario)
+    cold = DualArmIk(make_planning_world(scenario))
+    warm = DualArmIk(make_planning_world(scenario))
     assert list((tmp_path / "dualarm" / "ik_seeds").iterdir())  # the second one loaded what the first built
     np.testing.assert_array_equal(cold.world.plant.GetPositions(cold.world.plant_context), warm.world.q_default)
     np.testing.assert_array_equal(cold.world.q_default, warm.world.q_default)

@@ -22,10 +22,10 @@ from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import BodyIndex, ModelInstanceIndex
 from pydrake.systems.framework import Diagram
 
+from systems.messages import SIDES
 from systems.planning.kinematics import EndEffectors, centauro_kinematics
 from systems.planning.obstacles import Obstacles
 
-SIDES = ("left", "right")
 # Clearance added around a perceived (reconstructed) object for reach planning, m. The reconstructions
 # are 2.8-4.1 mm off (Chamfer, single views); 1.5 cm around the accurate drills left STOMP's reach without a
 # path to the pre-grasp in its 2 s (unseen drills 17/24 picks; 1 cm: see the README's evaluation).
