@@ -87,9 +87,10 @@ def MakePickDiagram(
         time_limit_s, latency_s = np.inf, scenario.planning.latency_s
     config = PlannerConfig(stomp=StompConfig(time_limit_s=time_limit_s, seed=scenario.random_seed))
     motions = PickMotions(make_planning_world(scenario), config)
+    n = motions.world.kinematics.dof  # the planned joints: the arms, and the torso if it is free
     margin = GRASP_DEPTH_MARGIN if perception == "camera" else 0.0
     planner = builder.AddNamedSystem("stomp_planner", StompPlanner(motions, latency_s, margin))
-    source = builder.AddNamedSystem("trajectory_source", JointTrajectorySource())
+    source = builder.AddNamedSystem("trajectory_source", JointTrajectorySource(n))
     hands = builder.AddNamedSystem("hand_command", HandCommandSource())
     from_camera = perception == "camera"
     held_looks = scenario.place.looks and scenario.task == "place"
@@ -99,7 +100,9 @@ def MakePickDiagram(
         place_target_W = place_target(scenario)
     else:
         task, place_target_W = lift_task(check=scenario.look_before_approach), None
-    supervisor = PickSupervisor(task, PERCEIVE_AT_S, place_target_W, from_camera, looks, scenario.max_attempts)
+    supervisor = PickSupervisor(
+        task, PERCEIVE_AT_S, place_target_W, from_camera, looks, scenario.max_attempts, num_joints=n
+    )
     builder.AddNamedSystem("pick_supervisor", supervisor)
     telemetry = builder.AddNamedSystem("plan_telemetry", PlanTelemetryRecorder())
 
@@ -161,7 +164,7 @@ def _AddLooks(builder, station, supervisor, perception, scenario, robot_spheres)
     """The supervisor's looks at the held object: look_latch (the frame and the arms' joints then) ->
     robot_spheres -> object_tracker, which fits perception's reconstruction (seen at its X_WO) near the
     supervisor's expected_X_WO."""
-    look = builder.AddNamedSystem("look_latch", CameraLatch())
+    look = builder.AddNamedSystem("look_latch", CameraLatch(robot_positions=robot_spheres.kinematics.dof))
     _ConnectCamera(builder, station, scenario, look, supervisor.GetOutputPort("look_trigger"))
     builder.Connect(look.GetOutputPort("frame_id"), supervisor.GetInputPort("look_frame_id"))
     builder.Connect(station.GetOutputPort("centauro.position_measured"), look.GetInputPort("robot_position"))

@@ -11,7 +11,7 @@ bus is scenario.lcm.
   <side>_hand.position   -> CommandGuard -> SchunkWsgCommandSender -> <side>_hand_command_channel
   <side>_hand_status_channel -> MessageMonitor -> <side>_hand.state_measured (width m, rate m/s)
   camera_channel         -> ImageMonitor -> camera0.rgb_image, camera0.depth_image (lcmt_image_array)
-  camera0.pose           <- the robot model: the camera is fixed on the torso
+  camera0.pose           <- the robot model at the measured joints: the camera rides on the torso
 
 Received messages are decoded with checks (malformed ones are counted and dropped); commands
 leave only after a status has arrived, within the position and velocity limits, and hold when
@@ -25,18 +25,16 @@ import time
 
 import numpy as np
 from drake import lcmt_iiwa_command, lcmt_schunk_wsg_command
-from pydrake.common.value import AbstractValue
 from pydrake.lcm import DrakeLcm, DrakeLcmInterface
 from pydrake.manipulation import IiwaCommandSender, IiwaControlMode, SchunkWsgCommandSender
-from pydrake.math import RigidTransform
 from pydrake.multibody.plant import AddMultibodyPlantSceneGraph
 from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.systems.lcm import LcmInterfaceSystem, LcmPublisherSystem, LcmSubscriberSystem
-from pydrake.systems.primitives import ConstantValueSource, Demultiplexer, Multiplexer
+from pydrake.systems.primitives import Demultiplexer, Multiplexer
 
-from diagrams.generation.centauro_description import joint_names
-from diagrams.scenario import Scenario
+from diagrams.scenario import Scenario, planned_joints
 from diagrams.station import HAND_INSTANCES, AddCentauro
+from systems.robot_io.camera_pose import CameraPoseFromJoints
 from systems.robot_io.command_stream import CommandStream, CommandStreamSender
 from systems.robot_io.lcm_messages import (
     MalformedMessage,
@@ -56,15 +54,18 @@ class RobotNotResponding(RuntimeError):
 
 
 class RobotModel:
-    """What the hardware station needs from the robot's model: limits and the camera's pose."""
+    """What the hardware station needs from the robot's model: the planned joints (n), their limits, and where
+    the camera is mounted."""
 
     def __init__(self, scenario: Scenario):
         builder = DiagramBuilder()
         plant, scene_graph = AddMultibodyPlantSceneGraph(builder, time_step=0.0)
         robot, hands = AddCentauro(plant, scene_graph, scenario)
         plant.Finalize()
-        context = plant.CreateDefaultContext()
-        joints = [plant.GetJointByName(n, robot) for n in joint_names(1) + joint_names(2)]
+        self.plant = plant
+        self.joints = [plant.GetJointByName(n, robot) for n in planned_joints(scenario)]
+        self.n = len(self.joints)
+        joints = self.joints
         self.lower = np.array([j.position_lower_limits()[0] for j in joints])
         self.upper = np.array([j.position_upper_limits()[0] for j in joints])
         self.velocity_limits = np.array([j.velocity_upper_limits()[0] for j in joints])
@@ -72,9 +73,11 @@ class RobotModel:
         # Opening width = both fingers' travel.
         self.hand_upper = 2 * finger.position_upper_limits()[0]
         self.hand_velocity = 2 * finger.velocity_upper_limits()[0]
-        mount = plant.GetFrameByName("camera_mount")
-        X_WP = plant.EvalBodyPoseInWorld(context, mount.body())
-        self.X_WCameraBody = X_WP @ mount.GetFixedPoseInBodyFrame() @ scenario.camera.X_PB.GetDeterministicValue()
+        self.camera_mount = plant.GetFrameByName("camera_mount")
+        self.X_MountCameraBody = scenario.camera.X_PB.GetDeterministicValue()
+
+    def camera_pose_system(self) -> CameraPoseFromJoints:
+        return CameraPoseFromJoints(self.plant, self.joints, self.camera_mount, self.X_MountCameraBody)
 
 
 def MakeHardwareStation(scenario: Scenario, lcm: DrakeLcmInterface | None = None) -> Diagram:
@@ -92,12 +95,14 @@ def MakeHardwareStation(scenario: Scenario, lcm: DrakeLcmInterface | None = None
     period = config.control_period_s
 
     # Arms.
-    status = _AddMonitor(builder, lcm, "centauro.status", config.arm_status_channel, decode_arm_status, 56, config)
-    fields = builder.AddNamedSystem("centauro.status_fields", Demultiplexer([14, 14, 14, 14]))
+    n = model.n
+    decode_status = functools.partial(decode_arm_status, joints=n)
+    status = _AddMonitor(builder, lcm, "centauro.status", config.arm_status_channel, decode_status, 4 * n, config)
+    fields = builder.AddNamedSystem("centauro.status_fields", Demultiplexer([n] * 4))
     builder.Connect(status.GetOutputPort("values"), fields.get_input_port())
     for index, name in enumerate(("position_commanded", "position_measured", "velocity_estimated", "torque_commanded")):
         builder.ExportOutput(fields.get_output_port(index), f"centauro.{name}")
-    state = builder.AddNamedSystem("centauro.state", Multiplexer([14, 14]))
+    state = builder.AddNamedSystem("centauro.state", Multiplexer([n, n]))
     builder.Connect(fields.get_output_port(1), state.get_input_port(0))
     builder.Connect(fields.get_output_port(2), state.get_input_port(1))
     builder.ExportOutput(state.get_output_port(), "centauro.state_estimated")
@@ -109,11 +114,11 @@ def MakeHardwareStation(scenario: Scenario, lcm: DrakeLcmInterface | None = None
     builder.ExportInput(guard.GetInputPort("desired"), "centauro.position")
     if lcm.get_lcm_url().startswith("memq://"):
         # In-process bus: the robot driver steps in lockstep with this diagram, so nothing can stall it.
-        sender = builder.AddNamedSystem("centauro.command_sender", IiwaCommandSender(14, IiwaControlMode.kPositionOnly))
+        sender = builder.AddNamedSystem("centauro.command_sender", IiwaCommandSender(n, IiwaControlMode.kPositionOnly))
         builder.Connect(guard.GetOutputPort("command"), sender.GetInputPort("position"))
         _AddPublisher(builder, lcm, sender, config.arm_command_channel, lcmt_iiwa_command, period)
     else:  # a real bus: the commands leave from a process of their own, never stalled by perceiving or planning
-        stream = CommandStream(lcm.get_lcm_url(), config.arm_command_channel, 14, period)
+        stream = CommandStream(lcm.get_lcm_url(), config.arm_command_channel, n, period)
         streamer = builder.AddNamedSystem(
             "centauro.command_stream", CommandStreamSender(stream, period, COMMAND_OFFSET_PERIODS * period)
         )
@@ -149,10 +154,9 @@ def MakeHardwareStation(scenario: Scenario, lcm: DrakeLcmInterface | None = None
     builder.Connect(subscriber.get_output_port(), images.GetInputPort("raw"))
     builder.ExportOutput(images.GetOutputPort("color_image"), f"{camera}.rgb_image")
     builder.ExportOutput(images.GetOutputPort("depth_image"), f"{camera}.depth_image")
-    pose = builder.AddNamedSystem(
-        f"{camera}.pose_source", ConstantValueSource(AbstractValue.Make(RigidTransform(model.X_WCameraBody)))
-    )
-    builder.ExportOutput(pose.get_output_port(), f"{camera}.pose")
+    pose = builder.AddNamedSystem(f"{camera}.pose_from_joints", model.camera_pose_system())
+    builder.Connect(fields.get_output_port(1), pose.get_input_port())
+    builder.ExportOutput(pose.GetOutputPort("camera_pose"), f"{camera}.pose")
     diagram = builder.Build()
     diagram.set_name("hardware_station")
     return diagram
@@ -203,7 +207,7 @@ def wait_for_robot(scenario: Scenario, lcm: DrakeLcmInterface, robot_time_s: flo
     """
     config = scenario.hardware
     decoders = {
-        config.arm_status_channel: decode_arm_status,
+        config.arm_status_channel: functools.partial(decode_arm_status, joints=len(planned_joints(scenario))),
         config.left_hand_status_channel: decode_hand_status,
         config.right_hand_status_channel: decode_hand_status,
         config.camera_channel: decode_images,

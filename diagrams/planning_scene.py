@@ -11,10 +11,10 @@ from pydrake.math import RigidTransform
 from pydrake.multibody.plant import AddMultibodyPlantSceneGraph
 from pydrake.systems.framework import DiagramBuilder
 
-from diagrams.generation.centauro_description import joint_names
+from diagrams.generation.centauro_description import TORSO_JOINT, sdf_name
 from diagrams.generation.objects.library import ObjectModel, resolve_object
 from diagrams.paths import SDF_DIR
-from diagrams.scenario import Scenario
+from diagrams.scenario import Scenario, initial_positions, planned_joints, torso_free
 from diagrams.station import AddBoxObstacle, AddCentauro, AddTable, make_parser, object_pose_on_table
 from systems.messages import OPEN_WIDTH
 from systems.planning.pick_motions import PickMotions, PlannerConfig
@@ -77,11 +77,12 @@ def MakeRobotScene(
         scene_graph,
         robot,
         hands,
-        joint_names(1) + joint_names(2),
+        planned_joints(scenario),
         _cache_key(scenario, open_width, obstacle, X_WO),
         0,  # the IK seed table is a property of the model, not of a run: one seed for all
         surface,
         spacing,
+        TORSO_JOINT if torso_free(scenario) else None,
     )
 
 
@@ -107,7 +108,8 @@ def make_pick_motions(scenario: Scenario, config: PlannerConfig | None = None, *
 def _cache_key(scenario, open_width, obstacle, X_WO) -> str:
     """A hash of everything the IK seed table depends on: the model files, placements and object."""
     digest = hashlib.sha256()
-    for path in ("centauro/centauro.sdf", "centauro/hand.sdf", "scene/table.sdf", "scene/floor.sdf"):
+    robot = f"centauro/{sdf_name(torso_free(scenario))}"
+    for path in (robot, "centauro/hand.sdf", "scene/table.sdf", "scene/floor.sdf"):
         digest.update((SDF_DIR / path).read_bytes())
     box = scenario.obstacle
     placement = (scenario.pelvis_height, list(scenario.table_xyz), open_width)
@@ -135,7 +137,7 @@ def true_grasp_poses(scenario: Scenario) -> dict[str, RigidTransform]:
 
 
 def grasp_configuration(scenario: Scenario, motions: PickMotions) -> np.ndarray:
-    """Ground truth: the 14 arm joints holding the scenario's object at its true grasps, reached as the
+    """Ground truth: the planned joints holding the scenario's object at its true grasps, reached as the
     pick reaches them (pre-grasp, then straight in) with `motions` (e.g. make_pick_motions(scenario, obstacle=...,
     X_WO=...): the object welded where it stands). For tests and benchmarks.
 
@@ -143,6 +145,6 @@ def grasp_configuration(scenario: Scenario, motions: PickMotions) -> np.ndarray:
         PlanningError: no such configuration.
     """
     poses = true_grasp_poses(scenario)
-    q = np.array(scenario.initial_arm_positions)
+    q = initial_positions(scenario)
     pregrasp = motions.reach(q, {side: poses[f"{side}_pregrasp"] for side in SIDES})[-1]
     return motions.straight(pregrasp, {side: poses[f"{side}_grasp"] for side in SIDES})[-1]

@@ -8,6 +8,8 @@ is held), every command is saturated to the joint limits, and before the first c
 when commands stop, it holds its last command (at first the scenario's initial pose).
 """
 
+import functools
+
 import numpy as np
 from drake import lcmt_iiwa_status, lcmt_image_array, lcmt_schunk_wsg_status
 from pydrake.geometry import Meshcat
@@ -19,7 +21,7 @@ from pydrake.systems.primitives import ConstantVectorSource, Saturation
 from pydrake.systems.sensors import ImageToLcmImageArrayT, PixelType
 
 from diagrams.hardware_station import RobotModel
-from diagrams.scenario import Scenario
+from diagrams.scenario import Scenario, initial_positions
 from diagrams.station import HAND_INSTANCES, MakeStation
 from systems.robot_io.lcm_messages import RawMessage, decode_arm_command, decode_hand_command
 from systems.robot_io.lcm_safety import MessageMonitor
@@ -50,12 +52,11 @@ def MakeRobotDriver(scenario: Scenario, lcm: DrakeLcmInterface, meshcat: Meshcat
         builder.Connect(limits.get_output_port(), station.GetInputPort(station_input))
 
     # Arms.
-    q0 = np.array(scenario.initial_arm_positions)
     receive(
-        "centauro.command", config.arm_command_channel, decode_arm_command, q0, model.lower, model.upper,
-        "centauro.position",
+        "centauro.command", config.arm_command_channel, functools.partial(decode_arm_command, joints=model.n),
+        initial_positions(scenario), model.lower, model.upper, "centauro.position",
     )  # fmt: skip
-    status = builder.AddNamedSystem("centauro.status_sender", IiwaStatusSender(14))
+    status = builder.AddNamedSystem("centauro.status_sender", IiwaStatusSender(model.n))
     for port in ("position_commanded", "position_measured", "velocity_estimated", "torque_commanded"):
         builder.Connect(station.GetOutputPort(f"centauro.{port}"), status.GetInputPort(port))
     publish(status.get_output_port(), config.arm_status_channel, lcmt_iiwa_status, period)

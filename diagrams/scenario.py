@@ -9,6 +9,7 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
 from pydrake.common.yaml import yaml_dump_typed, yaml_load_typed
 from pydrake.lcm import DrakeLcmParams
 from pydrake.multibody.plant import MultibodyPlantConfig
@@ -16,6 +17,7 @@ from pydrake.systems.analysis import SimulatorConfig
 from pydrake.systems.sensors import CameraConfig
 from pydrake.visualization import VisualizationConfig
 
+from diagrams.generation.centauro_description import robot_joint_names
 from systems.perception.rgbd_noise import noise_parameters
 
 SCENARIO_DIR = Path(__file__).resolve().parent
@@ -56,6 +58,18 @@ class ArmControllerConfig:
     kp: list[float] = field(default_factory=lambda: [1500, 1500, 1000, 1000, 400, 400, 150])
     # Derivative gain per joint 1..7, N m s/rad.
     kd: list[float] = field(default_factory=lambda: [80, 80, 50, 50, 15, 15, 5])
+
+
+@dataclass
+class RobotConfig:
+    """Which of the robot's joints are planned."""
+
+    # "free": the torso yaw is planned with the arms (15 joints: the left arm, the right arm, the torso);
+    # "locked": the torso stands straight and only the arms move (14 joints, the model of the first rounds).
+    torso: str = "free"
+    # PD gains of the torso yaw joint (N m/rad, N m s/rad): it carries the whole upper body.
+    torso_kp: float = 3000.0
+    torso_kd: float = 300.0
 
 
 @dataclass
@@ -184,13 +198,15 @@ class Scenario:
     # Table base frame position in the world (the floor under its centre), metres.
     table_xyz: list[float] = field(default_factory=lambda: [0.85, 0.0, 0.0])
     # Initial joint positions j_arm1_1..7 then j_arm2_1..7, rad: the "ready" pose, elbows bent,
-    # hands 0.22 m above the table top beside the object, the right arm the mirror of the left.
+    # hands 0.22 m above the table top beside the object, the right arm the mirror of the left (a free
+    # torso starts straight, at 0).
     initial_arm_positions: list[float] = field(
         default_factory=lambda: [0.9, 0.2, 0.5, -2.2, 0.0, 0.5, 0.0] + [0.9, -0.2, -0.5, -2.2, 0.0, 0.5, 0.0]
     )
     # Initial hand opening width, metres (0 closed, 0.12 fully open).
     initial_hand_width: float = 0.1
     planning: PlanningConfig = field(default_factory=PlanningConfig)
+    robot: RobotConfig = field(default_factory=RobotConfig)
     arm_controller: ArmControllerConfig = field(default_factory=ArmControllerConfig)
     hand_controller: HandControllerConfig = field(default_factory=HandControllerConfig)
     # Multibody plant: discrete SAP at 1 ms.
@@ -310,6 +326,8 @@ def validate(scenario: Scenario) -> None:
         raise ValueError(f"faults.nudge_xy must be 2 entries of at most {MAX_GRASP_OFFSET_M} m")
     if faults.grasp_offset_attempts < 0:
         raise ValueError(f"faults.grasp_offset_attempts must be >= 0, got {faults.grasp_offset_attempts}")
+    if scenario.robot.torso not in TORSO_MODES:
+        raise ValueError(f"robot.torso must be one of {TORSO_MODES}, got {scenario.robot.torso!r}")
     if scenario.task not in TASKS:
         raise ValueError(f"task must be one of {TASKS}, got {scenario.task!r}")
     if len(scenario.place.xy) != 2 or not all(abs(v) <= MAX_TABLE_OFFSET_M for v in scenario.place.xy):
@@ -334,6 +352,7 @@ def validate(scenario: Scenario) -> None:
 
 
 TASKS = ("lift", "place")
+TORSO_MODES = ("free", "locked")
 # Bounds of the scenario's physical fields.
 MAX_TABLE_OFFSET_M = 1.0
 MAX_ATTEMPTS = 10
@@ -357,6 +376,21 @@ def _check_finite(path: str, value) -> None:
     elif dataclasses.is_dataclass(value) and not isinstance(value, type):
         for item in dataclasses.fields(value):
             _check_finite(f"{path}.{item.name}" if path else item.name, getattr(value, item.name))
+
+
+def torso_free(scenario: Scenario) -> bool:
+    """Whether the torso yaw is a planned joint (else it is welded straight)."""
+    return scenario.robot.torso == "free"
+
+
+def planned_joints(scenario: Scenario) -> list[str]:
+    """The robot's planned joints in the order of every configuration vector (14 or 15)."""
+    return robot_joint_names(torso_free(scenario))
+
+
+def initial_positions(scenario: Scenario) -> np.ndarray:
+    """The planned joints' initial positions (rad): the arms' ready pose, and the torso straight if free."""
+    return np.array(list(scenario.initial_arm_positions) + [0.0] * torso_free(scenario))
 
 
 def replace_object(scenario: Scenario, **changes) -> Scenario:

@@ -3,17 +3,19 @@
 MakeStation(scenario) returns a Diagram with these exported ports (the hardware
 station of the LCM backend exposes the same names):
 
-  inputs:  centauro.position (14, rad), left_hand.position, right_hand.position
+  inputs:  centauro.position (n, rad), left_hand.position, right_hand.position
            (1 each: opening width, m)
   outputs: centauro.position_commanded, centauro.position_measured,
-           centauro.velocity_estimated (14 each), centauro.state_estimated (28),
-           centauro.torque_commanded (14, N m),
+           centauro.velocity_estimated (n each), centauro.state_estimated (2n),
+           centauro.torque_commanded (n, N m),
            left_hand.state_measured, right_hand.state_measured (2 each: width m, m/s),
            camera0.rgb_image, camera0.depth_image (32F, m), camera0.pose (X_WB of the camera body)
 
 The plant is named "plant" inside the diagram, the camera "camera0.sensor"; the
 simulator's ground truth (poses, contacts, the label image) is read from them, never
-through an exported port.
+through an exported port. n is the number of planned joints (diagrams/scenario.py:
+planned_joints): 15, the left arm, the right arm and the torso yaw, or 14 with the torso
+locked. The camera rides on the torso: its pose follows the torso's yaw.
 """
 
 import numpy as np
@@ -39,11 +41,11 @@ from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.systems.primitives import Demultiplexer, MatrixGain, PassThrough, StateInterpolatorWithDiscreteDerivative
 from pydrake.systems.sensors import RgbdSensor
 
-from diagrams.generation.centauro_description import joint_names
+from diagrams.generation.centauro_description import TORSO_JOINT, sdf_name
 from diagrams.generation.objects import catalog
 from diagrams.generation.objects.library import ObjectModel, resolve_object
 from diagrams.paths import PACKAGE_XML
-from diagrams.scenario import Scenario
+from diagrams.scenario import Scenario, initial_positions, planned_joints, torso_free
 from systems.perception.rgbd_noise import RgbdNoise, sensor_model
 from systems.robot_io.gravity_compensation import GravityCompensation
 
@@ -72,7 +74,7 @@ def AddCentauro(plant: MultibodyPlant, scene_graph: SceneGraph, scenario: Scenar
         (arm model instance, {"left": hand instance, "right": hand instance})
     """
     parser = make_parser(plant)
-    (robot,) = parser.AddModels(url="package://dualarm/centauro/centauro.sdf")
+    (robot,) = parser.AddModels(url=f"package://dualarm/centauro/{sdf_name(torso_free(scenario))}")
     plant.WeldFrames(
         plant.world_frame(),
         plant.GetFrameByName("pelvis", robot),
@@ -180,7 +182,7 @@ def MakeStation(scenario: Scenario, meshcat: Meshcat | None = None) -> Diagram:
         AddObject(plant, scene_graph, scenario)
     plant.Finalize()
 
-    _set_pd_gains(plant, robot, scenario.arm_controller.kp * 2, scenario.arm_controller.kd * 2)
+    _set_arm_pd_gains(plant, robot, scenario)
     for hand in hands.values():
         _set_pd_gains(plant, hand, [scenario.hand_controller.kp] * 2, [scenario.hand_controller.kd] * 2)
     _set_default_positions(plant, robot, hands, scenario)
@@ -217,9 +219,29 @@ def _set_pd_gains(plant, instance, kp, kd):
         plant.get_joint_actuator(index).set_controller_gains(PdControllerGains(p=p, d=d))
 
 
+def _set_arm_pd_gains(plant, robot, scenario):
+    """Each planned joint's actuator gains: the arms' per joint (both arms alike), the torso's own."""
+    arm, torso = scenario.arm_controller, scenario.robot
+    gains = dict(zip(planned_joints(scenario), zip(arm.kp * 2, arm.kd * 2, strict=True), strict=False))
+    gains[TORSO_JOINT] = (torso.torso_kp, torso.torso_kd)
+    for index in plant.GetJointActuatorIndices(robot):
+        actuator = plant.get_joint_actuator(index)
+        kp, kd = gains[actuator.joint().name()]
+        actuator.set_controller_gains(PdControllerGains(p=kp, d=kd))
+
+
+def planned_from_instance(plant, robot, scenario) -> np.ndarray:
+    """P (n x n) with q_planned = P q_instance: the robot instance's own order of positions (and of actuators:
+    the torso first, then the arms) into the planned joints' order (the arms, then the torso)."""
+    names = planned_joints(scenario)
+    instance_rank = np.argsort(np.argsort([plant.GetJointByName(name, robot).position_start() for name in names]))
+    P = np.zeros((len(names), len(names)))
+    P[np.arange(len(names)), instance_rank] = 1.0
+    return P
+
+
 def _set_default_positions(plant, robot, hands, scenario):
-    q0 = np.array(scenario.initial_arm_positions)
-    for name, q in zip(joint_names(1) + joint_names(2), q0, strict=True):
+    for name, q in zip(planned_joints(scenario), initial_positions(scenario), strict=True):
         plant.GetJointByName(name, robot).set_default_angle(q)
     for hand in hands.values():
         for joint in ("finger_1_joint", "finger_2_joint"):
@@ -227,14 +249,19 @@ def _set_default_positions(plant, robot, hands, scenario):
 
 
 def _AddArmController(builder, plant, robot, scenario):
-    """Position command -> desired state of the plant's PD actuators, plus gravity feed-forward."""
-    command = builder.AddSystem(PassThrough(14))
+    """Position command -> desired state of the plant's PD actuators, plus gravity feed-forward; the robot's
+    state in the planned joints' order."""
+    n = plant.num_positions(robot)
+    P = planned_from_instance(plant, robot, scenario)
+    command = builder.AddSystem(PassThrough(n))
     command.set_name("centauro.command")
+    to_instance = builder.AddNamedSystem("centauro.command_to_actuators", MatrixGain(P.T))
     interpolator = builder.AddSystem(
-        StateInterpolatorWithDiscreteDerivative(14, scenario.plant_config.time_step, suppress_initial_transient=True)
+        StateInterpolatorWithDiscreteDerivative(n, scenario.plant_config.time_step, suppress_initial_transient=True)
     )
     interpolator.set_name("centauro.desired_state")
-    builder.Connect(command.get_output_port(), interpolator.get_input_port())
+    builder.Connect(command.get_output_port(), to_instance.get_input_port())
+    builder.Connect(to_instance.get_output_port(), interpolator.get_input_port())
     builder.Connect(interpolator.get_output_port(), plant.get_desired_state_input_port(robot))
     gravity = builder.AddSystem(GravityCompensation(plant, robot))
     gravity.set_name("centauro.gravity_compensation")
@@ -243,14 +270,17 @@ def _AddArmController(builder, plant, robot, scenario):
 
     builder.ExportInput(command.get_input_port(), "centauro.position")
     builder.ExportOutput(command.get_output_port(), "centauro.position_commanded")
-    state = plant.get_state_output_port(robot)
-    builder.ExportOutput(state, "centauro.state_estimated")
-    demux = builder.AddSystem(Demultiplexer([14, 14]))
+    state = builder.AddNamedSystem("centauro.state", MatrixGain(np.kron(np.eye(2), P)))
+    builder.Connect(plant.get_state_output_port(robot), state.get_input_port())
+    builder.ExportOutput(state.get_output_port(), "centauro.state_estimated")
+    demux = builder.AddSystem(Demultiplexer([n, n]))
     demux.set_name("centauro.state_demux")
-    builder.Connect(state, demux.get_input_port())
+    builder.Connect(state.get_output_port(), demux.get_input_port())
     builder.ExportOutput(demux.get_output_port(0), "centauro.position_measured")
     builder.ExportOutput(demux.get_output_port(1), "centauro.velocity_estimated")
-    builder.ExportOutput(plant.get_net_actuation_output_port(robot), "centauro.torque_commanded")
+    torque = builder.AddNamedSystem("centauro.torque", MatrixGain(P))
+    builder.Connect(plant.get_net_actuation_output_port(robot), torque.get_input_port())
+    builder.ExportOutput(torque.get_output_port(), "centauro.torque_commanded")
 
 
 def _AddHandController(builder, plant, hand, name):

@@ -153,7 +153,7 @@ class PlanRequest:
     # Held moves: keep the held object (the obstacle cloud moved by this, its motion since it was seen)
     # clear of the scene; None: the robot only.
     carried_motion_W: RigidTransform | None = None
-    q_goal: np.ndarray | None = None  # Targets.HOME: the 14 arm joints to go back to, rad
+    q_goal: np.ndarray | None = None  # Targets.HOME: the planned joints to go back to, rad
     # Pre-grasp and grasp targets (and the obstacle cloud): the object's motion in W since perception saw it,
     # as a look before the approach found it (None: it has not moved).
     object_motion_W: RigidTransform | None = None
@@ -166,7 +166,7 @@ class PlanResult:
     id: int = -1
     phase: str = ""
     success: bool = False
-    trajectory: PiecewisePolynomial | None = None  # 14 arm joints over context time
+    trajectory: PiecewisePolynomial | None = None  # the planned joints over context time
     message: str = "no plan requested"
     planning_s: float = 0.0  # wall time the planning took (reported, never simulated)
     # Held moves: the largest deviation of the hands' relative pose along the played trajectory
@@ -246,11 +246,11 @@ class PickStatus:
     applied_plan_id: int = -1  # the last plan whose achieved motion the belief has taken
     hand: HandCommand = field(default_factory=HandCommand)
     grasp_widths: tuple[float, ...] = ()  # each hand's measured opening once closed, m
-    # Where the robot stands still: first measured, then where each played trajectory ends (14 joints, rad).
+    # Where the robot stands still: first measured, then where each played trajectory ends (the planned joints, rad).
     plan_end_q: np.ndarray | None = None
     belief: ObjectBelief | None = None  # where the object is, once perceived
     looks_read: int = 0  # looks at the held object whose result was read
-    q_home: np.ndarray | None = None  # where the robot stood when the pick began (14 joints, rad)
+    q_home: np.ndarray | None = None  # where the robot stood when the pick began (planned joints, rad)
     attempt: int = 1  # the attempt under way (a failed check starts the next, up to max_attempts)
     attempt_failures: tuple[tuple[str, str], ...] = ()  # (stage, message) of each failed attempt, in order
     recovering: bool = False  # the recovery's phases (open, back off, home) are under way, not the task's

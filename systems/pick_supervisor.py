@@ -167,7 +167,7 @@ class PickSupervisor(LeafSystem):
         - attempt
         - status
 
-    ``position_measured`` (14, rad); ``<side>_hand_state`` (2: opening m, rate m/s); ``plan`` (PlanResult);
+    ``position_measured`` (num_joints, rad); ``<side>_hand_state`` (2: opening m, rate m/s); ``plan`` (PlanResult);
     ``frame_id`` (1): the frame perception has latched; ``perception`` (PerceptionResult). ``trigger`` (1):
     the camera frame wanted; ``plan_request`` (PlanRequest); ``hand_command`` (HandCommand); ``status``
     (PickStatus); ``attempt`` (1): the attempt under way. With looks, a look phase asks for a frame of the
@@ -182,6 +182,7 @@ class PickSupervisor(LeafSystem):
         from_camera: perception needs a camera frame (False: a ground-truth source, read at once).
         looks: the look phases ask the object tracker (False: they are skipped).
         max_attempts: attempts at the task, the first included (a failed check starts the next).
+        num_joints: the planned joints (14: the arms; 15: with the torso).
     """
 
     def __init__(
@@ -193,6 +194,7 @@ class PickSupervisor(LeafSystem):
         looks: bool = False,
         max_attempts: int = 1,
         period_s: float = 0.01,
+        num_joints: int = 14,
     ):
         super().__init__()
         self.phases, self.perceive_at_s, self.place_target_W = phases, perceive_at_s, place_target_W
@@ -204,7 +206,7 @@ class PickSupervisor(LeafSystem):
         self.correction = (Phase(Mode.BACK_OFF, path=MoveKind.STRAIGHT, targets=Targets.RETREAT),)
         if any(phase.goal for phase in phases) and place_target_W is None:
             raise ValueError("a task with carry or set_down phases needs place_target_W")
-        self.position_port = self.DeclareVectorInputPort("position_measured", 14)
+        self.position_port = self.DeclareVectorInputPort("position_measured", num_joints)
         self.hand_state_ports = {side: self.DeclareVectorInputPort(f"{side}_hand_state", 2) for side in SIDES}
         self.plan_port = self.DeclareAbstractInputPort("plan", AbstractValue.Make(PlanResult()))
         self.frame_id_port = self.DeclareVectorInputPort("frame_id", 1)

@@ -5,7 +5,7 @@ import pytest
 from pydrake.math import RigidTransform, RollPitchYaw
 from pydrake.multibody.plant import MultibodyPlant
 
-from diagrams.generation.centauro_description import centauro_sdf
+from diagrams.generation.centauro_description import centauro_sdf, sdf_name
 from diagrams.paths import SDF_DIR
 from diagrams.station import make_parser
 
@@ -51,13 +51,43 @@ def plant():
     return plant
 
 
-def test_sdf_file_is_up_to_date():
-    assert (SDF_DIR / "centauro" / "centauro.sdf").read_text() == centauro_sdf(), "run scripts/generate_centauro_sdf.py"
+@pytest.mark.parametrize("torso", [True, False])
+def test_sdf_files_are_up_to_date(torso):
+    path = SDF_DIR / "centauro" / sdf_name(torso)
+    assert path.read_text() == centauro_sdf(torso), "run scripts/generate_centauro_sdf.py"
+
+
+def test_torso_yaw_is_planned_or_locked(plant):
+    """The spec's torso: a revolute joint about z at pelvis + (0.2, 0, 0.256), +-2.618 rad, turning both arms
+    and the camera; welded in the locked model."""
+    joint = plant.GetJointByName("torso_yaw")
+    np.testing.assert_allclose(joint.revolute_axis(), [0, 0, 1])
+    assert joint.position_lower_limits()[0] == pytest.approx(-2.618)
+    assert joint.position_upper_limits()[0] == pytest.approx(2.618)
+    context = plant.CreateDefaultContext()
+    mount = plant.GetFrameByName("camera_mount")
+    before = [plant.GetBodyByName(f"arm{a}_1").EvalPoseInWorld(context) for a in (1, 2)]
+    camera_before = mount.CalcPoseInWorld(context)
+    joint.set_angle(context, 0.5)
+    turn = (
+        RigidTransform([0.2, 0, 0.256])
+        @ RigidTransform(RollPitchYaw(0, 0, 0.5).ToRotationMatrix())
+        @ RigidTransform([-0.2, 0, -0.256])
+    )
+    for arm, X_before in zip((1, 2), before, strict=True):
+        X_after = plant.GetBodyByName(f"arm{arm}_1").EvalPoseInWorld(context)
+        assert X_after.IsNearlyEqualTo(turn @ X_before, 1e-9)
+    assert mount.CalcPoseInWorld(context).IsNearlyEqualTo(turn @ camera_before, 1e-9)
+    locked = MultibodyPlant(0.0)
+    make_parser(locked).AddModels(url=f"package://dualarm/centauro/{sdf_name(False)}")
+    locked.WeldFrames(locked.world_frame(), locked.GetFrameByName("pelvis"))
+    locked.Finalize()
+    assert locked.num_positions() == 14
 
 
 @pytest.mark.parametrize("arm,limits", [(1, LEFT_LIMITS), (2, RIGHT_LIMITS)])
 def test_joint_limits_velocities_efforts_masses(plant, arm, limits):
-    assert plant.num_positions() == 14
+    assert plant.num_positions() == 15  # the arms and the torso yaw
     for i in range(7):
         joint = plant.GetJointByName(f"j_arm{arm}_{i + 1}")
         assert joint.position_lower_limits()[0] == pytest.approx(limits[i][0])

@@ -21,7 +21,7 @@ from diagrams.autonomous_pick import run_pick
 from diagrams.hardware_station import MakeHardwareStation, RobotModel, RobotNotResponding, wait_for_robot
 from diagrams.paths import REPO_ROOT
 from diagrams.robot_driver import MakeRobotDriver
-from diagrams.scenario import load_scenario, replace_object
+from diagrams.scenario import initial_positions, load_scenario, replace_object
 from diagrams.station import MakeStation
 from systems.robot_io.lcm_messages import MalformedMessage, RawMessage, decode_arm_status, decode_images
 from systems.robot_io.lcm_safety import CommandGuard, LinkHealth
@@ -45,7 +45,7 @@ def test_hardware_camera_pose_equals_the_simulated_one(scenario):
     np.testing.assert_allclose(X_hw.GetAsMatrix4(), X_sim.GetAsMatrix4(), atol=1e-12)
 
 
-def status_message(q, utime=1000, joints=14):
+def status_message(q, utime=1000, joints=15):
     message = lcmt_iiwa_status()
     message.utime, message.num_joints = utime, joints
     for name in lcmt_iiwa_status.__slots__[2:]:
@@ -54,15 +54,15 @@ def status_message(q, utime=1000, joints=14):
 
 
 def test_decoding_rejects_garbage_wrong_sizes_and_nan():
-    q = np.linspace(-1, 1, 14)
-    _, values = decode_arm_status(RawMessage(status_message(q).encode(), 1))
-    np.testing.assert_array_equal(values[14:28], q)
+    q = np.linspace(-1, 1, 15)
+    _, values = decode_arm_status(RawMessage(status_message(q).encode(), 1), joints=15)
+    np.testing.assert_array_equal(values[15:30], q)
     with pytest.raises(MalformedMessage, match="not a valid lcmt_iiwa_status"):
-        decode_arm_status(RawMessage(b"\x00garbage", 2))
+        decode_arm_status(RawMessage(b"\x00garbage", 2), joints=15)
     with pytest.raises(MalformedMessage, match="7 joints"):
-        decode_arm_status(RawMessage(status_message(q[:7], joints=7).encode(), 3))
+        decode_arm_status(RawMessage(status_message(q[:7], joints=7).encode(), 3), joints=15)
     with pytest.raises(MalformedMessage, match="NaN"):
-        decode_arm_status(RawMessage(status_message(np.full(14, np.nan)).encode(), 4))
+        decode_arm_status(RawMessage(status_message(np.full(15, np.nan)).encode(), 4), joints=15)
     with pytest.raises(MalformedMessage):
         decode_images(RawMessage(b"not an image array", 5))
 
@@ -133,7 +133,7 @@ def test_waiting_for_the_robot_counts_only_valid_messages(scenario):
     config = dataclasses.replace(scenario.hardware, status_timeout_s=0.1)
     quick = dataclasses.replace(scenario, hardware=config)
     garbage = {c: b"garbage" for c in (config.left_hand_status_channel, config.right_hand_status_channel)}
-    bus = ScriptedBus({config.arm_status_channel: status_message(np.zeros(14)).encode(), **garbage})
+    bus = ScriptedBus({config.arm_status_channel: status_message(np.zeros(15)).encode(), **garbage})
     with pytest.raises(RobotNotResponding, match="no valid message on CAMERA0_IMAGES, LEFT_HAND_STATUS, RIGHT_HAND"):
         wait_for_robot(quick, bus)
 
@@ -162,7 +162,7 @@ def received_commands(lcm, channel):
 def test_hardware_station_faults_end_in_a_safe_reported_state(scenario):
     lcm = DrakeLcm("memq://")
     station = MakeHardwareStation(scenario, lcm)
-    q0 = np.array(scenario.initial_arm_positions)
+    q0 = initial_positions(scenario)
     robot = FakeRobot(scenario, lcm, q0)
     commands = received_commands(lcm, scenario.hardware.arm_command_channel)
     simulator = Simulator(station)
@@ -188,7 +188,7 @@ def test_hardware_station_faults_end_in_a_safe_reported_state(scenario):
     health = monitor.GetOutputPort("health").Eval(monitor.GetMyContextFromRoot(context))
     assert health.rejected >= 1 and not health.stale
     # A NaN command: rejected, the last good command is sent instead.
-    station.GetInputPort("centauro.position").FixValue(context, np.full(14, np.nan))
+    station.GetInputPort("centauro.position").FixValue(context, np.full(15, np.nan))
     step(0.35)
     report = guard.GetOutputPort("report").Eval(guard.GetMyContextFromRoot(context))
     assert report.rejected_commands >= 1 and np.all(np.isfinite(commands[-1].joint_position))
@@ -215,7 +215,7 @@ def test_driver_rejects_bad_commands_and_holds(scenario):
     simulator.AdvanceTo(0.05)
     assert statuses, "the driver publishes its status from the start"
     bad = lcmt_iiwa_command()
-    bad.num_joints, bad.joint_position = 14, [float("nan")] * 14
+    bad.num_joints, bad.joint_position = 15, [float("nan")] * 15
     lcm.Publish(scenario.hardware.arm_command_channel, bad.encode())
     simulator.AdvanceTo(0.1)
     lcm.Publish(scenario.hardware.arm_command_channel, b"garbage")
@@ -223,8 +223,8 @@ def test_driver_rejects_bad_commands_and_holds(scenario):
     monitor = driver.GetSubsystemByName("centauro.command")
     health = monitor.GetOutputPort("health").Eval(monitor.GetMyContextFromRoot(context))
     assert health.rejected == 2 and health.received == 0
-    np.testing.assert_allclose(statuses[-1].joint_position_commanded, scenario.initial_arm_positions)
-    np.testing.assert_allclose(statuses[-1].joint_position_measured, scenario.initial_arm_positions, atol=0.01)
+    np.testing.assert_allclose(statuses[-1].joint_position_commanded, initial_positions(scenario))
+    np.testing.assert_allclose(statuses[-1].joint_position_measured, initial_positions(scenario), atol=0.01)
 
 
 def test_autonomous_pick_through_lcm_in_process(scenario):

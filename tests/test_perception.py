@@ -12,7 +12,7 @@ from diagrams.generation import segmentation_data
 from diagrams.generation.objects.library import resolve_object
 from diagrams.generation.synthetic_scenes import CLASSES, SyntheticScene
 from diagrams.perception import MakePerception, MakePoseEstimator
-from diagrams.scenario import load_scenario, replace_object
+from diagrams.scenario import initial_positions, load_scenario, replace_object
 from diagrams.station import MakeStation, object_pose_on_table, true_label_image
 from systems.messages import Segmentation
 from systems.perception import segmentation_network
@@ -159,7 +159,7 @@ def test_perception_subsystem_wired_to_station_localises_the_object():
     diagram = builder.Build()
     simulator = Simulator(diagram)
     station_context = station.GetMyMutableContextFromRoot(simulator.get_mutable_context())
-    station.GetInputPort("centauro.position").FixValue(station_context, np.array(scenario.initial_arm_positions))
+    station.GetInputPort("centauro.position").FixValue(station_context, initial_positions(scenario))
     for hand in ("left_hand", "right_hand"):
         station.GetInputPort(f"{hand}.position").FixValue(station_context, [scenario.initial_hand_width])
     simulator.AdvanceTo(0.02)  # the latch takes frame 1

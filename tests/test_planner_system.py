@@ -9,6 +9,7 @@ from pydrake.systems.sensors import ImageRgba8U
 from pydrake.trajectories import PiecewisePolynomial
 
 from diagrams.planning_scene import make_pick_motions, true_grasp_poses
+from diagrams.scenario import initial_positions
 from systems.messages import GraspPoses, HandCommand, PlanRequest, PlanResult
 from systems.perception.camera_latch import CameraLatch
 from systems.planning.stomp_planner import StompPlanner
@@ -33,7 +34,7 @@ def _planner_context(planner, request, grasps):
 
 
 def test_planner_plans_a_request_once_and_releases_it_after_its_latency(planner, scenario):
-    q_start = np.array(scenario.initial_arm_positions)
+    q_start = initial_positions(scenario)
     poses = true_grasp_poses(scenario)
     request = PlanRequest(id=1, phase="reach", q_start=q_start, path="free", targets="pregrasp")
     context = _planner_context(planner, request, GraspPoses(True, poses))
@@ -77,7 +78,7 @@ def test_planner_plans_a_request_once_and_releases_it_after_its_latency(planner,
     ],
 )
 def test_planner_names_what_it_could_not_plan(planner, scenario, request_, grasps, reason):
-    request_.q_start = np.array(scenario.initial_arm_positions)
+    request_.q_start = initial_positions(scenario)
     context = _planner_context(planner, request_, grasps)
     Simulator(planner, context).AdvanceTo(LATENCY_S + 0.02)
     plan = planner.GetOutputPort("plan").Eval(context)
@@ -87,7 +88,7 @@ def test_planner_names_what_it_could_not_plan(planner, scenario, request_, grasp
 
 def test_planner_reports_an_unreachable_goal(planner, scenario):
     far = {name: RigidTransform([2.0, 0.0, 1.0]) @ X for name, X in true_grasp_poses(scenario).items()}
-    request = PlanRequest(id=5, phase="reach", q_start=np.array(scenario.initial_arm_positions))
+    request = PlanRequest(id=5, phase="reach", q_start=initial_positions(scenario))
     context = _planner_context(planner, request, GraspPoses(True, far))
     Simulator(planner, context).AdvanceTo(LATENCY_S + 0.02)
     plan = planner.GetOutputPort("plan").Eval(context)

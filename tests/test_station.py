@@ -8,7 +8,7 @@ from pydrake.math import RollPitchYaw
 from pydrake.multibody.math import SpatialVelocity
 from pydrake.systems.analysis import Simulator
 
-from diagrams.scenario import CameraNoiseConfig, load_scenario
+from diagrams.scenario import CameraNoiseConfig, initial_positions, load_scenario
 from diagrams.station import MakeStation, true_label_image
 from systems.robot_io.gravity_compensation import GravityCompensation
 
@@ -33,7 +33,7 @@ def station(scenario):
 
 
 def fix_inputs(station, context, scenario):
-    station.GetInputPort("centauro.position").FixValue(context, np.array(scenario.initial_arm_positions))
+    station.GetInputPort("centauro.position").FixValue(context, initial_positions(scenario))
     for hand in ("left_hand", "right_hand"):
         station.GetInputPort(f"{hand}.position").FixValue(context, [scenario.initial_hand_width])
 
@@ -54,7 +54,7 @@ def test_short_simulation_holds_the_arms_still(station, scenario):
     simulator.AdvanceTo(0.3)
     q = station.GetOutputPort("centauro.position_measured").Eval(context)
     # Gravity feed-forward + PD: the arms stay within 0.01 rad of the command.
-    np.testing.assert_allclose(q, scenario.initial_arm_positions, atol=0.01)
+    np.testing.assert_allclose(q, initial_positions(scenario), atol=0.01)
     width, _ = station.GetOutputPort("left_hand.state_measured").Eval(context)
     assert width == pytest.approx(scenario.initial_hand_width, abs=0.005)
     torque = station.GetOutputPort("centauro.torque_commanded").Eval(context)
@@ -108,8 +108,9 @@ def test_gravity_compensation_alone_cancels_gravity(station):
     dut.GetInputPort("state").FixValue(context, x)
     tau = dut.GetOutputPort("actuation").Eval(context)
     tau_g = plant.CalcGravityGeneralizedForces(plant_context)
-    arm_dofs = [plant.GetJointByName(f"j_arm{a}_{i}").velocity_start() for a in (1, 2) for i in range(1, 8)]
-    np.testing.assert_allclose(tau, -tau_g[arm_dofs], atol=1e-9)
+    actuated = [plant.get_joint_actuator(i).joint().velocity_start() for i in plant.GetJointActuatorIndices(robot)]
+    assert len(actuated) == 15  # the torso's actuator too
+    np.testing.assert_allclose(tau, -tau_g[actuated], atol=1e-9)
     assert np.linalg.norm(tau) > 1.0
 
 

@@ -7,6 +7,7 @@ import pytest
 
 from diagrams.generation.objects.library import resolve_object
 from diagrams.planning_scene import make_pick_motions, make_planning_world, true_grasp_poses
+from diagrams.scenario import initial_positions
 from diagrams.station import object_pose_on_table
 from systems.planning.ik import DualArmIk
 from systems.planning.kinematics import Payload, joint_torques
@@ -24,7 +25,7 @@ def planning(scenario):
     motions = make_pick_motions(scenario, obstacle=model, X_WO=X_WO)
     poses = true_grasp_poses(scenario)
     pregrasp = motions.ik.solve(
-        {s: poses[f"{s}_pregrasp"] for s in ("left", "right")}, np.array(scenario.initial_arm_positions)
+        {s: poses[f"{s}_pregrasp"] for s in ("left", "right")}, initial_positions(scenario)
     )
     assert pregrasp.success
     return motions, pregrasp.q

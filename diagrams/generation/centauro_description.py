@@ -1,7 +1,8 @@
 """The Centauro upper body's kinematics and inertias (public numbers), and its SDF.
 
 Frames: the pelvis is welded to the world by the station; the torso sits at
-pelvis + (0.2, 0, 0.256) with its yaw joint locked. Arm 1 is the left arm, arm 2
+pelvis + (0.2, 0, 0.256) on its yaw joint (axis z), a planned joint, or welded where
+a scenario locks it (`robot: {torso: locked}`, the 14-DOF model of the first rounds). Arm 1 is the left arm, arm 2
 the right arm; the right arm mirrors the left's y offsets and roll/yaw signs.
 Each arm ends in a flange frame `arm{1,2}_flange` whose z axis points out of the
 wrist (the approach direction); the hands are welded there.
@@ -12,6 +13,10 @@ from dataclasses import dataclass
 import numpy as np
 
 TORSO_IN_PELVIS = (0.2, 0.0, 0.256)
+TORSO_JOINT = "torso_yaw"
+TORSO_LIMITS = (-2.618, 2.618)  # rad
+TORSO_VELOCITY = 1.0  # rad/s: the whole upper body turns, kept slow
+TORSO_EFFORT = 147.0  # N m
 # Left arm mount in the torso frame: xyz (m), rpy (rad).
 LEFT_MOUNT_XYZ = (0.0457, 0.1691, 0.1166)
 LEFT_MOUNT_RPY = (0.1745, 0.0, -0.5236)
@@ -59,6 +64,17 @@ def mirrored(xyz, rpy, arm: int):
 
 def joint_names(arm: int) -> list[str]:
     return [f"j_arm{arm}_{i}" for i in range(1, 8)]
+
+
+def robot_joint_names(torso: bool) -> list[str]:
+    """The planned joints in the order of every configuration vector: the left arm's 7, the right arm's 7,
+    then the torso yaw when it is free (15), or the arms alone when it is locked (14)."""
+    return joint_names(1) + joint_names(2) + ([TORSO_JOINT] if torso else [])
+
+
+def sdf_name(torso: bool) -> str:
+    """The generated SDF's file name under sdf/centauro/."""
+    return "centauro.sdf" if torso else "centauro_torso_locked.sdf"
 
 
 def _capsule_pose(offset) -> tuple[np.ndarray, np.ndarray, float]:
@@ -140,8 +156,31 @@ def _arm(arm: int) -> str:
     return text
 
 
-def centauro_sdf() -> str:
-    """SDF text of the Centauro upper body: pelvis, torso, head, camera mount, two arms."""
+def _torso_joint(torso: bool) -> str:
+    if not torso:
+        return f"""    <!-- The torso yaw joint is locked: the arms are the 14 degrees of freedom. -->
+    <joint name="{TORSO_JOINT}" type="fixed">
+      <parent>pelvis</parent>
+      <child>torso</child>
+    </joint>
+"""
+    lower, upper = TORSO_LIMITS
+    return f"""    <!-- The torso turns about z: 15 degrees of freedom with the arms. -->
+    <joint name="{TORSO_JOINT}" type="revolute">
+      <parent>pelvis</parent>
+      <child>torso</child>
+      <axis>
+        <xyz>0 0 1</xyz>
+        <limit><lower>{lower}</lower><upper>{upper}</upper><velocity>{TORSO_VELOCITY}</velocity><effort>{TORSO_EFFORT}</effort></limit>
+        <dynamics><damping>2.0</damping></dynamics>
+      </axis>
+    </joint>
+"""
+
+
+def centauro_sdf(torso: bool = True) -> str:
+    """SDF text of the Centauro upper body: pelvis, torso (on its yaw joint, or welded where `torso` is
+    False), head, camera mount, two arms."""
     arms = _arm(1) + _arm(2)
     shoulders = "".join(f"      <drake:member>arm{a}_{i}</drake:member>\n" for a in (1, 2) for i in (1, 2, 3))
     return f"""<?xml version="1.0"?>
@@ -154,7 +193,6 @@ def centauro_sdf() -> str:
         <material><diffuse>0.2 0.2 0.22 1</diffuse></material></visual>
       <collision name="collision"><geometry><box><size>0.3 0.35 0.15</size></box></geometry></collision>
     </link>
-    <!-- The torso yaw joint is locked: the arms are the 14 degrees of freedom. -->
     <link name="torso">
       <pose relative_to="pelvis">{_fmt(TORSO_IN_PELVIS)} 0 0 0</pose>
       <inertial><pose>-0.05 0 0.1 0 0 0</pose><mass>12</mass><inertia><ixx>0.3</ixx><iyy>0.3</iyy><izz>0.2</izz><ixy>0</ixy><ixz>0</ixz><iyz>0</iyz></inertia></inertial>
@@ -167,11 +205,7 @@ def centauro_sdf() -> str:
       <visual name="rgbd_sensor"><pose>0.06 0 0.22 0 0 0</pose><geometry><box><size>0.06 0.25 0.07</size></box></geometry>
         <material><diffuse>0.05 0.05 0.05 1</diffuse></material></visual>
     </link>
-    <joint name="torso_yaw_locked" type="fixed">
-      <parent>pelvis</parent>
-      <child>torso</child>
-    </joint>
-    <!-- RGB-D sensor on the upper chest (the paper's Kinect v2); z along the optical axis. -->
+{_torso_joint(torso)}    <!-- RGB-D sensor on the upper chest (the paper's Kinect v2); z along the optical axis. -->
     <frame name="camera_mount" attached_to="torso">
       <pose relative_to="torso">0.095 0 0.22 -2.30 0 -1.5707963267949</pose>
     </frame>

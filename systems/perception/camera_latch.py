@@ -31,8 +31,8 @@ class CameraLatch(LeafSystem):
 
     ``trigger`` (1): the id of the frame wanted (a counter). ``frame_id`` (1): the id of the frame held
     (0 before the first). The image and pose outputs hold that frame (empty images before the first).
-    ``robot_position`` (14, rad): the arms' measured joint positions when the frame was taken (the robot
-    in view of the camera; zeros before the first, or where the input is not connected).
+    ``robot_position`` (robot_positions, rad): the planned joints' measured positions when the frame was
+    taken (the robot in view of the camera; zeros before the first, or where the input is not connected).
     """
 
     def __init__(self, period_s: float = 0.01, robot_positions: int = 14):

@@ -18,7 +18,7 @@ class RobotSpheres(LeafSystem):
         output_ports:
         - spheres_W
 
-    ``position`` (14, rad: the arms' joints, e.g. the camera latch's ``robot_position``); ``spheres_W``
+    ``position`` (n, rad: the planned joints, e.g. the camera latch's ``robot_position``); ``spheres_W``
     (S x 4: each sphere's centre in W and its radius, m; no rows where a position is not finite).
     """
 
@@ -28,11 +28,11 @@ class RobotSpheres(LeafSystem):
         """
         super().__init__()
         self.kinematics, self.spheres = kinematics, spheres
-        self.DeclareVectorInputPort("position", 14)
+        self.DeclareVectorInputPort("position", kinematics.dof)
         self.DeclareAbstractOutputPort("spheres_W", lambda: AbstractValue.Make(np.zeros((0, 4))), self._calc)
 
     def spheres_W(self, q: np.ndarray) -> np.ndarray:
-        """S x 4 spheres (centre in W, radius; m) of the robot at q (14, rad)."""
+        """S x 4 spheres (centre in W, radius; m) of the robot at q (n, rad)."""
         if not np.all(np.isfinite(q)):
             return np.zeros((0, 4))
         centres = self.spheres.centres_W(self.kinematics.body_poses(np.asarray(q)[None]))[0]

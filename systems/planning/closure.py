@@ -48,7 +48,7 @@ def rotation_angle(R: np.ndarray, R_desired: np.ndarray) -> np.ndarray:
 
 
 def deviations(end_effectors: EndEffectors, q: np.ndarray, X_E1E2_desired: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(t_dev, o_dev) of each configuration (B x 14): the largest translation component deviation (m) and
+    """(t_dev, o_dev) of each configuration (B x n): the largest translation component deviation (m) and
     the relative orientation's deviation angle (rad)."""
     return relative_deviations(end_effectors.relative(q), X_E1E2_desired)
 

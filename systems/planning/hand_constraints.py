@@ -38,14 +38,14 @@ class HandConstraints:
     """The constraints of one plan: the closure (X_E1E2, 4 x 4) and/or the hands' orientations (R_WE, two 3 x 3)."""
 
     end_effectors: EndEffectors
-    lower: np.ndarray  # the 14 joints' limits, rad: projected configurations stay within them
+    lower: np.ndarray  # the planned joints' limits, rad: projected configurations stay within them
     upper: np.ndarray
     X_E1E2: np.ndarray | None = None
     R_WE: list | None = None
     upright_only: bool = False
 
     def error_and_jacobian(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """e (B x E) and de/dq (B x E x 14) at configurations q (B x 14)."""
+        """e (B x E) and de/dq (B x E x n) at configurations q (B x n)."""
         return self._error_and_jacobian(*self.end_effectors.jacobians(q))
 
     def _error_and_jacobian(self, poses, jacobians) -> tuple[np.ndarray, np.ndarray]:
@@ -73,14 +73,14 @@ class HandConstraints:
         return np.concatenate(errors, axis=1), np.concatenate(jacobians, axis=1)
 
     def project(self, q: np.ndarray, steps: int) -> np.ndarray:
-        """Configurations (B x 14) moved towards e = 0 by `steps` damped Gauss-Newton steps, within the limits."""
+        """Configurations (B x n) moved towards e = 0 by `steps` damped Gauss-Newton steps, within the limits."""
         q = np.atleast_2d(q).copy()
         for _ in range(steps):
             q = bounded_step(q, *self.error_and_jacobian(q), self.lower, self.upper)
         return q
 
     def moved(self, q: np.ndarray, offsets_W: np.ndarray, steps: int = 10) -> np.ndarray:
-        """Configurations (B x 14) with the left grasp frame (and the object held) moved by offsets_W (B x 3, m, in
+        """Configurations (B x n) with the left grasp frame (and the object held) moved by offsets_W (B x 3, m, in
         W) from q where the constraints allow it: damped Gauss-Newton steps of the constraints' error stacked with
         the offset's (weighted OFFSET_WEIGHT: the constraints come first), each joint change at most MAX_STEP,
         then `steps` // 2 plain projection steps."""
@@ -96,7 +96,7 @@ class HandConstraints:
         return self.project(q, steps // 2)
 
     def tangent(self, q: np.ndarray, displacements: np.ndarray) -> np.ndarray:
-        """Displacements (R x B x 14, R sets of one per configuration of q, B x 14) with their components that
+        """Displacements (R x B x n, R sets of one per configuration of q, B x n) with their components that
         change e removed: dq - J^T (J J^T)^-1 J dq at each configuration."""
         _, jacobian = self.error_and_jacobian(q)
         JT = np.swapaxes(jacobian, 1, 2)
@@ -109,7 +109,7 @@ class HandConstraints:
 def bounded_step(
     q: np.ndarray, error: np.ndarray, jacobian: np.ndarray, lower, upper, max_step: float | None = None
 ) -> np.ndarray:
-    """One damped Gauss-Newton step towards error = 0 (B x E, Jacobian B x E x 14), scaled to at most max_step
+    """One damped Gauss-Newton step towards error = 0 (B x E, Jacobian B x E x n), scaled to at most max_step
     (rad) per joint if given, within the joints' limits: a joint the step would push beyond its limit is pinned
     at the limit and the rest of the error solved by the other joints (up to 3 times; clipped after). Clipping
     alone stalls where every step pushes a joint beyond its limit again."""

@@ -1,5 +1,9 @@
 """Dual-arm inverse kinematics for the hands' grasp frames (Drake InverseKinematics) in a PlanningWorld
-(systems/planning/world.py), started from a table of collision-free seeds cached on disk."""
+(systems/planning/world.py), started from a table of collision-free seeds cached on disk.
+
+With the torso planned, the arms share its yaw: each arm is solved alone with the torso held at a
+candidate yaw (where it stands, then turned to face the targets), and both arms together with the
+torso free from the first candidate where each arm reaches."""
 
 import itertools
 from dataclasses import dataclass
@@ -13,6 +17,8 @@ from systems.paths import cache_dir, save_npz_atomically
 from systems.planning.world import SIDES, PlanningWorld
 
 SEED_SAMPLES = 3000
+# Torso yaws tried besides where it stands: facing the targets' midpoint, and this much either side of it (rad).
+TORSO_SPREAD = 0.35
 # A hand is symmetric under a half turn about its approach axis z_G.
 HALF_TURN = RigidTransform(RotationMatrix.MakeZRotation(np.pi))
 
@@ -20,12 +26,12 @@ HALF_TURN = RigidTransform(RotationMatrix.MakeZRotation(np.pi))
 @dataclass
 class IkResult:
     success: bool
-    q: np.ndarray  # 14 arm joint positions, rad (arm 1 then arm 2)
+    q: np.ndarray  # the planned joints, rad (arm 1, arm 2, then the torso if planned)
     message: str = ""
 
 
 class DualArmIk:
-    """Solves for the 14 arm joints that put both grasp frames at given world poses.
+    """Solves for the planned joints that put both grasp frames at given world poses.
 
     Its SNOPT solves write into the world's plant context (world.plant_context), as its other queries do.
     """
@@ -53,7 +59,8 @@ class DualArmIk:
         return seed_q, seed_poses
 
     def _build_seed_table(self, seed: int, samples: int = SEED_SAMPLES) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-        """Random collision-free arm configurations and the grasp frame poses (3 x 4, per side) they reach.
+        """Random collision-free arm configurations (the torso straight) and the grasp frame poses (3 x 4, per
+        side) they reach.
 
         They are IK starting points: SNOPT from a nearby, feasible start converges far more
         often than from the current configuration.
@@ -61,6 +68,8 @@ class DualArmIk:
         world = self.world
         rng = np.random.default_rng(seed)
         candidates = rng.uniform(world.lower, world.upper, size=(3 * samples, len(world.lower)))
+        if world.torso is not None:
+            candidates[:, world.torso] = 0.0
         free = [q for q in candidates if not world.in_collision(q)]
         seed_q = np.array(free[:samples])
         samples = len(seed_q)
@@ -70,10 +79,13 @@ class DualArmIk:
                 seed_poses[side][i] = X.GetAsMatrix34()
         return seed_q, seed_poses
 
-    def _seeds(self, targets: dict[str, RigidTransform], count: int) -> list[np.ndarray]:
-        """Seed-table configurations whose hands lie nearest the targets, per arm."""
+    def _seeds(self, targets: dict[str, RigidTransform], count: int, torso: float = 0.0) -> list[np.ndarray]:
+        """Seed-table configurations whose hands lie nearest the targets, per arm, with the torso at `torso`
+        (rad; the table's hands are where they are with the torso straight: the targets are turned back)."""
         best = {}
+        unturn = self._about_torso(-torso)
         for side, X in targets.items():
+            X = unturn @ X
             poses = self._seed_poses[side]
             position_error = np.linalg.norm(poses[:, :, 3] - X.translation(), axis=1)
             # Approach axes must agree; the handle axis only up to sign (the hand is symmetric).
@@ -84,9 +96,31 @@ class DualArmIk:
         seeds = []
         for left, right in zip(best["left"], best["right"], strict=True):
             q = self._seed_q[left].copy()
-            q[7:] = self._seed_q[right][7:]
+            q[7:14] = self._seed_q[right][7:14]
+            if self.world.torso is not None:
+                q[self.world.torso] = torso
             seeds.append(q)
         return seeds
+
+    def _about_torso(self, yaw: float) -> RigidTransform:
+        """The turn of the world by `yaw` (rad) about the torso's vertical axis."""
+        axis = np.append(self.world.torso_axis_W, 0.0)
+        return RigidTransform(axis) @ RigidTransform(RotationMatrix.MakeZRotation(yaw)) @ RigidTransform(-axis)
+
+    def torso_candidates(self, X_WG: dict[str, RigidTransform], q_guess: np.ndarray) -> list[float]:
+        """Torso yaws to hold while each arm is solved (rad): where it stands, then facing the targets' midpoint
+        and TORSO_SPREAD either side of it, within the limits. One value, the guess's, with the torso locked."""
+        world = self.world
+        if world.torso is None:
+            return [0.0]
+        middle = np.mean([X.translation()[:2] for X in X_WG.values()], axis=0) - world.torso_axis_W
+        facing = float(np.arctan2(middle[1], middle[0]))
+        candidates = [q_guess[world.torso], facing, facing + TORSO_SPREAD, facing - TORSO_SPREAD]
+        chosen = []
+        for yaw in np.clip(candidates, world.lower[world.torso], world.upper[world.torso]):
+            if all(abs(yaw - other) > 0.05 for other in chosen):
+                chosen.append(float(yaw))
+        return chosen
 
     def solve(
         self,
@@ -98,12 +132,13 @@ class DualArmIk:
         allow_half_turn: bool = True,
         restarts: int = 4,
         limit_margin: float = 0.0,
+        torso_yaws: list[float] | None = None,
     ) -> IkResult:
         """Arm joints putting each side's grasp frame at X_WG[side], nearest to q_guess.
 
         Args:
             X_WG: target pose per side ("left", "right") in the world.
-            q_guess: 14 arm joints, the initial guess and the configuration to stay near.
+            q_guess: the planned joints, the initial guess and the configuration to stay near.
             position_tolerance: metres. angle_tolerance: radians.
             min_distance: if not None, every robot/table geometry pair stays this far apart (m).
             allow_half_turn: also try each target turned by pi about z_G (the hands are symmetric).
@@ -111,18 +146,41 @@ class DualArmIk:
                 solved (the collision stage needs alternatives); without, only when q_guess fails.
             limit_margin: keep every joint this far inside its limits (rad), e.g. to leave room for a
                 motion that follows.
+            torso_yaws: the torso yaws (rad) to hold while each arm is solved, in turn (default
+                torso_candidates()); ignored with the torso locked.
         """
         q_guess = np.asarray(q_guess, dtype=float)
+        options = (position_tolerance, angle_tolerance, min_distance, allow_half_turn, restarts, limit_margin)
+        failures = []
+        if torso_yaws is None or self.world.torso is None:
+            torso_yaws = self.torso_candidates(X_WG, q_guess)
+        for torso in torso_yaws:
+            result = self._solve_at_torso(X_WG, q_guess, torso, *options)
+            if result.success:
+                return result
+            failures.append(result.message)
+        # The message of the candidate that came nearest: both hands reached (a collision) over one out of reach.
+        return IkResult(False, q_guess, min(failures, key=lambda message: "out of reach" in message))
+
+    def _solve_at_torso(
+        self, X_WG, q_guess, torso, position_tolerance, angle_tolerance, min_distance, allow_half_turn, restarts,
+        limit_margin,
+    ) -> IkResult:  # fmt: skip
+        """solve()'s answer with each arm solved alone at the torso yaw `torso` (rad), then both together with
+        the torso free (when it is planned)."""
         flips = (False, True) if allow_half_turn else (False,)
-        seeds = self._seeds(X_WG, restarts) if restarts else []
-        # The arms are kinematically independent: solve each alone (7 joints, many starts),
-        # then both together with the collision constraint, from the per-arm answers.
+        guess = q_guess.copy()
+        if self.world.torso is not None:
+            guess[self.world.torso] = torso
+        seeds = self._seeds(X_WG, restarts, torso) if restarts else []
+        # The arms are kinematically independent at a given torso yaw: solve each alone (7 joints, many
+        # starts), then both together with the collision constraint, from the per-arm answers.
         per_arm = {}
         for side in SIDES:
             per_arm[side] = []
-            for start, flip in itertools.product([q_guess, *seeds], flips):
-                if min_distance is None and per_arm[side] and start is not q_guess:
-                    break  # solved from q_guess: the seeds would only add answers farther from it
+            for start, flip in itertools.product([guess, *seeds], flips):
+                if min_distance is None and per_arm[side] and start is not guess:
+                    break  # solved from the guess: the seeds would only add answers farther from it
                 target = {side: X_WG[side] @ HALF_TURN if flip else X_WG[side]}
                 result = self._solve_once(
                     target, start, q_guess, position_tolerance, angle_tolerance, None, limit_margin
@@ -135,7 +193,8 @@ class DualArmIk:
         for (left_flip, left_q), (right_flip, right_q) in itertools.islice(
             itertools.product(per_arm["left"][:4], per_arm["right"][:4]), 8
         ):
-            start = np.concatenate([left_q[:7], right_q[7:]])
+            start = left_q.copy()
+            start[7:14] = right_q[7:14]
             targets = {
                 "left": X_WG["left"] @ HALF_TURN if left_flip else X_WG["left"],
                 "right": X_WG["right"] @ HALF_TURN if right_flip else X_WG["right"],
@@ -143,7 +202,7 @@ class DualArmIk:
             if min_distance is None:
                 return IkResult(True, start, "solved per arm")
             result = self._solve_once(
-                targets, start, start, position_tolerance, angle_tolerance, min_distance, limit_margin
+                targets, start, start, position_tolerance, angle_tolerance, min_distance, limit_margin, torso=True
             )
             if result.success:
                 return result
@@ -185,9 +244,10 @@ class DualArmIk:
         return IkResult(False, q_near, f"both hands cannot hold the object there ({result.get_solution_result()})")
 
     def _solve_once(
-        self, targets, start, q_nominal, position_tolerance, angle_tolerance, min_distance, limit_margin=0.0
-    ) -> IkResult:
-        """One SNOPT solve; the joints of an arm without a target stay at `start`."""
+        self, targets, start, q_nominal, position_tolerance, angle_tolerance, min_distance, limit_margin=0.0,
+        torso=False,
+    ) -> IkResult:  # fmt: skip
+        """One SNOPT solve; the joints of an arm without a target, and the torso unless `torso`, stay at `start`."""
         world, plant = self.world, self.world.plant
         ik = InverseKinematics(plant, world.plant_context, with_joint_limits=True)
         q = ik.q()
@@ -201,9 +261,17 @@ class DualArmIk:
             ik.AddOrientationConstraint(frame, RotationMatrix(), plant.world_frame(), X.rotation(), angle_tolerance)
         if min_distance is not None:
             ik.AddMinimumDistanceLowerBoundConstraint(min_distance)
+        # A measured start may lie a hair beyond a limit (the PD holds it there): held joints must be feasible.
+        start = np.clip(start, world.lower, world.upper)
         fixed_q = world.full_positions(start)
         arm = world.arm_indices
-        free = np.concatenate([arm[:7] if "left" in targets else [], arm[7:] if "right" in targets else []])
+        free = np.concatenate(
+            [
+                arm[:7] if "left" in targets else [],
+                arm[7:14] if "right" in targets else [],
+                arm[world.torso :] if torso and world.torso is not None else [],
+            ]
+        )
         fixed = np.setdiff1d(np.arange(plant.num_positions()), free.astype(int))
         prog.AddBoundingBoxConstraint(fixed_q[fixed], fixed_q[fixed], q[fixed])
         if limit_margin > 0:

@@ -2,9 +2,10 @@
 
 STOMP evaluates thousands of configurations per iteration; one Drake call per
 configuration is far too slow, so the kinematic tree is read once from the
-MultibodyPlant and evaluated here in numpy for a whole batch (B x 14) at once.
+MultibodyPlant and evaluated here in numpy for a whole batch (B x n) at once.
+n is the number of planned joints: 14 for the arms, 15 with the torso yaw (last).
 
-Every body of interest is reached from the world through the arm's revolute joints;
+Every body of interest is reached from the world through the planned revolute joints;
 all other joints (welds, the hands' fingers) keep the pose they have in the plant
 context given at construction. Poses are 4 x 4 homogeneous matrices X_WB.
 """
@@ -20,21 +21,22 @@ from pydrake.multibody.plant import MultibodyPlant
 class _Link:
     body_index: int
     parent: int  # position of the parent in the link list, -1 for the fixed root
-    arm_dof: int  # which of the 14 arm coordinates drives it, -1 if fixed relative to its parent
+    arm_dof: int  # which planned coordinate drives it, -1 if fixed relative to its parent
     X_PF: np.ndarray  # parent body -> joint frame on parent (4 x 4)
     axis: np.ndarray  # revolute axis in F
     X_MB: np.ndarray  # joint frame on child -> child body (4 x 4)
 
 
 class BatchedKinematics:
-    """World poses of chosen bodies for a batch of 14-joint arm configurations."""
+    """World poses of chosen bodies for a batch of configurations of the planned joints."""
 
     def __init__(self, plant: MultibodyPlant, plant_context, arm_joints, bodies):
         """Args:
         plant, plant_context: the robot; joints other than `arm_joints` stay as in this context.
-        arm_joints: the 14 revolute joints, in the order of the configuration vector.
+        arm_joints: the n planned revolute joints, in the order of the configuration vector.
         bodies: the bodies whose poses are wanted (each must hang from the world through them).
         """
+        self.dof = len(arm_joints)
         self.arm_joint_of_body = {joint.child_body().index(): i for i, joint in enumerate(arm_joints)}
         self.inboard_joint = {}
         for joint_index in plant.GetJointIndices():
@@ -143,16 +145,16 @@ def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def joint_axes(kinematics: "BatchedKinematics", poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Each arm joint's position p_j on its axis and unit axis a_j in W (each B x 14 x 3), from the bodies' poses."""
+    """Each arm joint's position p_j on its axis and unit axis a_j in W (each B x n x 3), from the bodies' poses."""
     parents = np.array([kinematics.links[i].parent for i in kinematics.dof_link])
-    X_PF = np.array([kinematics.links[i].X_PF for i in kinematics.dof_link])  # 14 x 4 x 4
-    axes_F = np.array([kinematics.links[i].axis for i in kinematics.dof_link])  # 14 x 3
+    X_PF = np.array([kinematics.links[i].X_PF for i in kinematics.dof_link])  # n x 4 x 4
+    axes_F = np.array([kinematics.links[i].axis for i in kinematics.dof_link])  # n x 3
     X_WF = poses[:, parents] @ X_PF  # every arm joint's parent is a tracked body
     return X_WF[:, :, :3, 3], np.einsum("bjik,jk->bji", X_WF[:, :, :3, :3], axes_F)
 
 
 def gravity_torques(kinematics: "BatchedKinematics", q: np.ndarray, poses: np.ndarray | None = None) -> np.ndarray:
-    """Generalized gravity forces on the arm joints (B x 14, N m), as Drake's CalcGravityGeneralizedForces: the
+    """Generalized gravity forces on the arm joints (B x n, N m), as Drake's CalcGravityGeneralizedForces: the
     negated inverse dynamics at rest. `poses`: the bodies' poses at q if already computed."""
     if poses is None:
         poses = kinematics.body_poses(np.atleast_2d(q))
@@ -176,8 +178,8 @@ def joint_torques(
     qdd: np.ndarray,
     payload: Payload | None = None,
 ) -> np.ndarray:
-    """Inverse dynamics of the arms (B x 14, N m): the joint torques that give accelerations qdd at velocities qd
-    (each B x 14, rad/s and rad/s^2) against gravity, with the payload's masses, as Drake's CalcInverseDynamics
+    """Inverse dynamics of the arms (B x n, N m): the joint torques that give accelerations qdd at velocities qd
+    (each B x n, rad/s and rad/s^2) against gravity, with the payload's masses, as Drake's CalcInverseDynamics
     with every other joint still (the arm joints' damping included).
 
     Newton-Euler: velocities and accelerations outward along the links (gravity as an upward acceleration of the
@@ -219,7 +221,7 @@ def joint_torques(
         omega_B, (kinematics.inertias_B @ omega_B[..., None])[..., 0]
     )
     moment = (R @ moment_B[..., None])[..., 0] + _cross(com, force)  # about W's origin
-    carried = kinematics.carried.astype(float)  # 14 x L
+    carried = kinematics.carried.astype(float)  # n x L
     total_force, total_moment = carried @ force, carried @ moment
     if payload is not None:
         s = payload.slots
@@ -322,7 +324,8 @@ def centauro_kinematics(plant: MultibodyPlant, scene_graph, plant_context, arm_j
     """Batched kinematics of both arms with the hands, and their sphere model.
 
     Args:
-        arm_joints: the 14 arm joint names, left arm (arm1_*) then right (arm2_*).
+        arm_joints: the planned joints' names: the left arm (arm1_*), the right (arm2_*), and the torso yaw if
+            it is planned.
         hands: {"left": model instance, "right": model instance} of the hands.
 
     Groups: 0 pelvis/torso/head, 1 left arm + left hand, 2 right arm + right hand.
@@ -364,7 +367,7 @@ class EndEffectors:
         return tuple(body[..., p, :, :] @ X for p, X in zip(self.positions, self.X_BE, strict=True))
 
     def jacobians(self, q: np.ndarray) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]:
-        """((X_WE1, X_WE2), (J_E1, J_E2)): the poses (B x 4 x 4) and geometric Jacobians (B x 6 x 14, rows angular
+        """((X_WE1, X_WE2), (J_E1, J_E2)): the poses (B x 4 x 4) and geometric Jacobians (B x 6 x n, rows angular
         then translational velocity in W) of both end-effectors. Joint j at p_j with axis a_j moves E by
         J_w = a_j, J_v = a_j x (p_E - p_j) if it carries E, else not at all."""
         body = self.kinematics.body_poses(q)
@@ -372,7 +375,7 @@ class EndEffectors:
         poses, jacobians = [], []
         for slot, X_BE in zip(self.positions, self.X_BE, strict=True):
             X = body[:, slot] @ X_BE
-            carries = self.kinematics.carried[:, slot].astype(float)[None, :, None]  # 1 x 14 x 1
+            carries = self.kinematics.carried[:, slot].astype(float)[None, :, None]  # 1 x n x 1
             J_w = axes * carries
             J_v = np.cross(J_w, X[:, None, :3, 3] - positions)
             poses.append(X)

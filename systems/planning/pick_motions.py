@@ -10,7 +10,7 @@
              orientation constraint. The table (and a box on it) are the obstacles, and the object itself
              when its points are given (a carry).
 
-Each returns joint-space keyframes (K x 14, the start first); time parameterisation and the dense
+Each returns joint-space keyframes (K x n, the start first); time parameterisation and the dense
 check of the played trajectory are time_parameterise() and closure_deviations() below.
 
 PickMotions is built once from a PlanningWorld (systems/planning/world.py) and a PlannerConfig; it keeps
@@ -82,7 +82,7 @@ class PlanningError(RuntimeError):
 class HeldMove:
     """A held move's keyframes and what the constraints are measured against."""
 
-    keyframes: np.ndarray  # K x 14
+    keyframes: np.ndarray  # K x n
     X_E1E2: np.ndarray  # 4 x 4: the right grasp frame in the left one's, as at the start
 
 
@@ -114,11 +114,13 @@ class PickMotions:
         obstacles = self.world.planning_obstacles(obstacle_points_W)
         # Straight segments are checked with Drake's geometry, and with the sphere model where the object is points.
         checked = obstacles if obstacle_points_W is not None else None
-        # Joints well inside their limits first: a pre-grasp at a limit leaves no room for the approach. Where
+        # The torso where it stands first, turned only where the arms cannot reach from there. At each torso yaw,
+        # joints well inside their limits first: a pre-grasp at a limit leaves no room for the approach. Where
         # that goal cannot be had, or reached, the goal without the margin.
         failure = None
-        for margin in (REACH_LIMIT_MARGIN, 0.0):
-            goal = self.ik.solve(targets_W, q_start, restarts=12, limit_margin=margin)
+        tries = itertools.product(self.ik.torso_candidates(targets_W, q_start), (REACH_LIMIT_MARGIN, 0.0))
+        for torso, margin in tries:
+            goal = self.ik.solve(targets_W, q_start, restarts=12, limit_margin=margin, torso_yaws=[torso])
             if not goal.success:
                 failure = failure or PlanningError(f"no collision-free IK solution at the goal ({goal.message})")
                 continue
@@ -131,7 +133,7 @@ class PickMotions:
     def reach_configuration(
         self, q_start: np.ndarray, q_goal: np.ndarray, obstacle_points_W: np.ndarray | None = None
     ) -> np.ndarray:
-        """Keyframes from q_start to the arm configuration q_goal (14 joints, rad), collision-free as reach's.
+        """Keyframes from q_start to the arm configuration q_goal (the planned joints, rad), collision-free as reach's.
 
         Raises:
             PlanningError: no collision-free path.

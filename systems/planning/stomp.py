@@ -1,4 +1,5 @@
-"""STOMP (Kalakrishnan et al. 2011) for both arms: 14-DOF joint-space keyframes, start and goal fixed.
+"""STOMP (Kalakrishnan et al. 2011) for both arms and the torso: joint-space keyframes of the
+planned joints (14, or 15 with the torso yaw), start and goal fixed.
 
 Each iteration draws noisy rollouts around the current trajectory (noise shaped by the
 inverse of the finite-difference acceleration metric R, so it is smooth), evaluates each
@@ -94,7 +95,7 @@ class StompConfig:
 @dataclass
 class StompResult:
     success: bool
-    trajectory: np.ndarray  # keyframes x 14
+    trajectory: np.ndarray  # keyframes x n
     iterations: int
     seconds: float
     min_clearance_m: float  # smallest sphere-model clearance along the keyframes
@@ -102,13 +103,13 @@ class StompResult:
 
 
 def interpolate_segments(keyframes: np.ndarray, steps: int) -> np.ndarray:
-    """States along each segment between consecutive keyframes, `steps` per segment (both ends included), S x 14."""
+    """States along each segment between consecutive keyframes, `steps` per segment (both ends included), S x n."""
     s = np.linspace(0, 1, steps + 1)[:, None, None]
     return ((1 - s) * keyframes[None, :-1] + s * keyframes[None, 1:]).reshape(-1, keyframes.shape[1])
 
 
 def _resample(path: np.ndarray, n: int) -> np.ndarray:
-    """n configurations evenly spaced by joint-space length along the piecewise-linear `path` (K x 14)."""
+    """n configurations evenly spaced by joint-space length along the piecewise-linear `path` (K x n)."""
     length = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(path, axis=0), axis=1))])
     if length[-1] <= 0:
         return np.repeat(path[:1], n, axis=0)
@@ -117,8 +118,8 @@ def _resample(path: np.ndarray, n: int) -> np.ndarray:
 
 
 def _through(start: np.ndarray, vias: np.ndarray, goal: np.ndarray, n: int) -> np.ndarray:
-    """For each via point (V x 14), n configurations evenly spaced by joint-space length along start -> via -> goal
-    (V x n x 14)."""
+    """For each via point (V x n), n configurations evenly spaced by joint-space length along start -> via -> goal
+    (V x n x n)."""
     first, second = vias - start, goal - vias
     length_1 = np.linalg.norm(first, axis=1, keepdims=True)
     length_2 = np.linalg.norm(second, axis=1, keepdims=True)
@@ -153,6 +154,7 @@ class Stomp:
         self.velocity_limits, self.effort_limits = world.velocity_limits, world.effort_limits
         self.kinematics, self.spheres = world.kinematics, world.spheres
         self.lower, self.upper = np.asarray(world.lower), np.asarray(world.upper)
+        self.dof = len(self.lower)  # the planned joints: 14 arm joints, and the torso yaw when it is free
         self.config = config or StompConfig()
         self.noise_covariance, self.smoothing = _smoothing_matrices(self.config.keyframes - 2)
         self.noise_factor = np.linalg.cholesky(self.noise_covariance + 1e-12 * np.eye(len(self.noise_covariance)))
@@ -183,14 +185,14 @@ class Stomp:
         self.pair_group = pair_group.ravel()
 
     def clearance(self, q: np.ndarray, obstacles: Obstacles) -> np.ndarray:
-        """Smallest clearance (m) of the sphere model at each configuration (... x 14)."""
+        """Smallest clearance (m) of the sphere model at each configuration (... x n)."""
         return self._clearances(q, obstacles)[0]
 
     def _clearances(self, q: np.ndarray, obstacles: Obstacles, poses=None) -> tuple[np.ndarray, np.ndarray]:
         """(smallest clearance, summed shortfall below the margin over all spheres and pairs) per configuration."""
         shape = q.shape[:-1]
         if poses is None:
-            poses = self.kinematics.body_poses(q.reshape(-1, 14))
+            poses = self.kinematics.body_poses(q.reshape(-1, self.dof))
         centres = self.spheres.centres_W(poses)
         radius = self.spheres.radius
         gaps = [obstacles.distance(centres) - radius]
@@ -228,19 +230,21 @@ class Stomp:
         K, N = trajectories.shape[:2]
         config = self.config
         terms = np.zeros((K, N, len(TERMS)))
-        poses = self.kinematics.body_poses(trajectories.reshape(-1, 14))
+        poses = self.kinematics.body_poses(trajectories.reshape(-1, self.dof))
         terms[..., 0] = self._clearances(trajectories, obstacles, poses)[1]
         if closure is not None or orientation is not None:
             # Held moves: between keyframes too (a carry stalled with its keyframes clear and a segment just short
             # of clear). Not for reaches: there it solved fewer unseen problems (42/47 against 46/47).
             middles = 0.5 * (trajectories[:, :-1] + trajectories[:, 1:])
-            middle_poses = self.kinematics.body_poses(middles.reshape(-1, 14))
+            middle_poses = self.kinematics.body_poses(middles.reshape(-1, self.dof))
             terms[:, 1:, 0] += self._clearances(middles, obstacles, middle_poses)[1]
         to_limit = np.minimum(trajectories - self.lower, self.upper - trajectories)
         terms[..., 1] = (np.maximum(1.0 - to_limit / config.limit_margin, 0.0) ** 2).sum(axis=-1)
         if self.effort_limits is not None:
             qd, qdd = self._rates(trajectories)
-            torques = joint_torques(self.kinematics, poses, qd.reshape(-1, 14), qdd.reshape(-1, 14), payload)
+            torques = joint_torques(
+                self.kinematics, poses, qd.reshape(-1, self.dof), qdd.reshape(-1, self.dof), payload
+            )
             load = np.abs(torques.reshape(trajectories.shape)) / self.effort_limits
             terms[..., 2] = (load**2).sum(axis=-1) + config.torque_limit_penalty * np.maximum(load - 1.0, 0.0).sum(-1)
         if self.velocity_limits is not None:
@@ -259,7 +263,7 @@ class Stomp:
         return terms
 
     def _rates(self, trajectories: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Joint velocities and accelerations (each K x N x 14) at the keyframes, each transition taking
+        """Joint velocities and accelerations (each K x N x n) at the keyframes, each transition taking
         segment_s or longer at full joint speed, the ends at rest."""
         steps = np.diff(trajectories, axis=1)
         seconds = np.maximum(self.config.segment_s, (np.abs(steps) / self.velocity_limits).max(axis=-1))[..., None]
@@ -304,7 +308,7 @@ class Stomp:
         steps: int | None = None,
         upright_only: bool = False,
     ) -> np.ndarray:
-        """Configurations (B x 14) moved back towards the desired relative hand pose X_E1E2 (X_desired)
+        """Configurations (B x n) moved back towards the desired relative hand pose X_E1E2 (X_desired)
         and/or the hands' desired world orientations (R_desired; with upright_only their tilt only): `steps`
         (default config.projection_steps) damped Gauss-Newton steps, each the smallest joint change."""
         steps = self.config.projection_steps if steps is None else steps
@@ -337,7 +341,7 @@ class Stomp:
         """Plans from q_start to q_goal (both fixed).
 
         Args:
-            initial_path: configurations (K x 14, from q_start to q_goal) the first trajectory follows,
+            initial_path: configurations (K x n, from q_start to q_goal) the first trajectory follows,
                 resampled to the keyframes by path length; default the straight joint-space line.
             closure_constraint: keep the hands' relative pose as at q_start (both hands hold an object).
             orientation_constraint: keep both hands' world orientations (or with upright_only their tilt) as at
@@ -349,7 +353,7 @@ class Stomp:
         start = time.perf_counter()
         n, free = config.keyframes, config.keyframes - 2
         s = np.linspace(0.0, 1.0, n)[:, None]
-        theta = (1 - s) * q_start + s * q_goal  # N x 14
+        theta = (1 - s) * q_start + s * q_goal  # N x n
         if initial_path is not None:
             theta = _resample(np.asarray(initial_path, float), n)
         for q, name in ((q_start, "start"), (q_goal, "goal")):
@@ -385,20 +389,23 @@ class Stomp:
             elapsed = time.perf_counter() - start
             return StompResult(True, theta, 0, elapsed, float(clearance.min()), "collision-free as first drawn")
         std = config.noise_std if constraints is None else config.constrained_noise_std
-        kept = np.empty((0, n, 14))
+        kept = np.empty((0, n, self.dof))
         kept_terms = np.empty((0, n, len(TERMS)))
         iteration = 0
         while True:
             iteration += 1
-            noise = np.einsum("ij,kjd->kid", self.noise_factor, rng.standard_normal((config.rollouts, free, 14))) * std
+            noise = (
+                np.einsum("ij,kjd->kid", self.noise_factor, rng.standard_normal((config.rollouts, free, self.dof)))
+                * std
+            )
             rollouts = np.repeat(theta[None], config.rollouts, axis=0)
             if constraints is not None:
                 noise = constraints.tangent(theta[1:-1], noise)
             rollouts[:, 1:-1] += noise
             np.clip(rollouts, self.lower, self.upper, out=rollouts)
             if constraints is not None and config.rollout_projection_steps:
-                interior = constraints.project(rollouts[:, 1:-1].reshape(-1, 14), config.rollout_projection_steps)
-                rollouts[:, 1:-1] = interior.reshape(config.rollouts, free, 14)
+                interior = constraints.project(rollouts[:, 1:-1].reshape(-1, self.dof), config.rollout_projection_steps)
+                rollouts[:, 1:-1] = interior.reshape(config.rollouts, free, self.dof)
             terms = self._cost_terms(rollouts, obstacles, closure, orientation, payload)
             all_rollouts = np.concatenate([rollouts, kept])
             all_terms = np.concatenate([terms, kept_terms])
@@ -429,14 +436,14 @@ class Stomp:
                 )
 
     def _initial_trajectories(self, straight: np.ndarray, obstacles: Obstacles, rng) -> list[np.ndarray]:
-        """First trajectories (each N x 14), least in collision first: the straight joint-space line and paths
+        """First trajectories (each N x n), least in collision first: the straight joint-space line and paths
         through via_candidates random configurations around its middle (joint-space std via_std). STOMP is local:
         from under the table the straight line can lead it into a minimum it does not leave."""
         config = self.config
         start, goal = straight[0], straight[-1]
         middle = 0.5 * (start + goal)
         vias = np.clip(
-            middle + config.via_std * rng.standard_normal((config.via_candidates, 14)), self.lower, self.upper
+            middle + config.via_std * rng.standard_normal((config.via_candidates, self.dof)), self.lower, self.upper
         )
         candidates = np.concatenate([straight[None], _through(start, vias, goal, len(straight))])
         # Scored in small groups: a sphere pair counts where it comes near in any path of the group.
@@ -465,7 +472,7 @@ class Stomp:
             ]
         )
 
-        def cost(trajectories):  # STOMP's total cost of each trajectory (K x N x 14)
+        def cost(trajectories):  # STOMP's total cost of each trajectory (K x N x n)
             return self._total(self._cost_terms(trajectories, obstacles, closure, orientation, payload)).sum(axis=1)
 
         best, best_cost = theta, cost(theta[None])[0]
@@ -474,7 +481,7 @@ class Stomp:
             targets = profile[None, :, None] * offsets[:, None, :]  # detours x interior keyframes x 3
             interior = constraints.moved(np.tile(theta[1:-1], (len(offsets), 1)), targets.reshape(-1, 3))
             candidates = np.repeat(theta[None], len(offsets), axis=0)
-            candidates[:, 1:-1] = interior.reshape(len(offsets), n - 2, 14)
+            candidates[:, 1:-1] = interior.reshape(len(offsets), n - 2, self.dof)
             costs = cost(candidates)
             if costs.min() < best_cost:
                 best, best_cost = candidates[np.argmin(costs)], costs.min()

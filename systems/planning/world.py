@@ -41,7 +41,7 @@ class RobotScene:
     scene_graph: SceneGraph
     robot: ModelInstanceIndex
     hands: dict[str, ModelInstanceIndex]  # "left", "right"
-    arm_joints: list[str]  # the 14 arm joints, left arm then right
+    arm_joints: list[str]  # the planned joints: the left arm's 7, the right arm's 7, then the torso yaw if planned
     # Identifies the model files, placements and seed: the IK seed table is cached under it.
     cache_key: str
     seed: int = 0
@@ -49,6 +49,7 @@ class RobotScene:
     # for the sphere model, since the plant's exact geometry only serves Drake's queries.
     object_surface_W: np.ndarray | None = None
     object_surface_spacing: float = 0.0
+    torso_joint: str | None = None  # the torso yaw's name when it is planned (the last of arm_joints)
 
 
 class PlanningWorld:
@@ -58,8 +59,10 @@ class PlanningWorld:
         scene: the RobotScene it was read from.
         plant, plant_context: Drake's model for exact checks and the IK (the context is the queries' scratch).
         q_default: the plant's default positions (the fingers at their planning opening).
-        arm_indices: the 14 arm joints' indices in the plant's positions.
-        lower, upper, velocity_limits, effort_limits: the 14 arm joints' limits (rad, rad/s, N m).
+        arm_indices: the planned joints' indices in the plant's positions (n: 14 arm joints, 15 with the torso).
+        lower, upper, velocity_limits, effort_limits: the planned joints' limits (rad, rad/s, N m).
+        torso: the torso yaw's position in a configuration (14), or None when the torso is locked.
+        torso_axis_W: where the torso's vertical axis meets the floor plane (x, y in W, m).
         grasp_frames: each hand's grasp frame G, by side.
         kinematics, spheres, end_effectors: the arms' batched kinematics, sphere model and grasp frames (numpy).
         inspector: the SceneGraph's model inspector (its collision filters say which sphere pairs count).
@@ -75,6 +78,9 @@ class PlanningWorld:
         self.grasp_frames = {side: self.plant.GetFrameByName("grasp_frame", scene.hands[side]) for side in SIDES}
         joints = [self.plant.GetJointByName(n, scene.robot) for n in scene.arm_joints]
         self.arm_indices = np.array([j.position_start() for j in joints])
+        self.torso = scene.arm_joints.index(scene.torso_joint) if scene.torso_joint else None
+        torso_body = self.plant.GetBodyByName("torso", scene.robot)
+        self.torso_axis_W = self.plant.EvalBodyPoseInWorld(self.plant_context, torso_body).translation()[:2]
         self.lower = np.array([j.position_lower_limits()[0] for j in joints])
         self.upper = np.array([j.position_upper_limits()[0] for j in joints])
         self.velocity_limits = np.array([j.velocity_upper_limits()[0] for j in joints])

@@ -57,7 +57,7 @@ def _finite(name: str, values, size: int) -> np.ndarray:
     return array
 
 
-def decode_arm_status(raw: RawMessage, joints: int = 14) -> tuple[int, np.ndarray]:
+def decode_arm_status(raw: RawMessage, joints: int) -> tuple[int, np.ndarray]:
     """(utime, [position_commanded, position_measured, velocity_estimated, torque_commanded]) concatenated."""
     message = _decode(lcmt_iiwa_status, raw)
     if message.num_joints != joints:
@@ -71,7 +71,7 @@ def decode_arm_status(raw: RawMessage, joints: int = 14) -> tuple[int, np.ndarra
     return message.utime, np.concatenate([_finite(name, getattr(message, name), joints) for name in fields])
 
 
-def decode_arm_command(raw: RawMessage, joints: int = 14) -> tuple[int, np.ndarray]:
+def decode_arm_command(raw: RawMessage, joints: int) -> tuple[int, np.ndarray]:
     """(utime, joint positions in rad)."""
     message = _decode(lcmt_iiwa_command, raw)
     if message.num_joints != joints:

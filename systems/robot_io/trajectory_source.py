@@ -30,9 +30,9 @@ class JointTrajectorySource(LeafSystem):
         - position
 
     ``plan`` (PlanResult): its trajectory is taken up once it succeeds, and played at context time,
-    held at its end afterwards. ``position_measured`` (14, rad): latched once finite (the hardware
+    held at its end afterwards. ``position_measured`` (num_joints, rad): latched once finite (the hardware
     station's status is NaN until the robot has answered) and held until a plan arrives.
-    ``position`` (14, rad): the command.
+    ``position`` (num_joints, rad): the command.
     """
 
     def __init__(self, num_joints: int = 14, period_s: float = 0.01):
