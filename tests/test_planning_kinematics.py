@@ -6,7 +6,7 @@ from pydrake.multibody.plant import AddMultibodyPlantSceneGraph
 from pydrake.multibody.tree import MultibodyForces
 from pydrake.systems.framework import DiagramBuilder
 
-from diagrams.generation.centauro_description import joint_names
+from diagrams.scenario import planned_joints
 from diagrams.station import AddCentauro
 from systems.planning.kinematics import centauro_kinematics, gravity_torques, joint_torques
 
@@ -20,8 +20,9 @@ def robot(scenario):
     diagram = builder.Build()
     context = diagram.CreateDefaultContext()
     plant_context = plant.GetMyMutableContextFromRoot(context)
-    kinematics, spheres = centauro_kinematics(plant, scene_graph, plant_context, joint_names(1) + joint_names(2), hands)
-    joints = [plant.GetJointByName(n) for n in joint_names(1) + joint_names(2)]
+    # The planned joints: both arms and the torso yaw, which turns them both.
+    kinematics, spheres = centauro_kinematics(plant, scene_graph, plant_context, planned_joints(scenario), hands)
+    joints = [plant.GetJointByName(n) for n in planned_joints(scenario)]
     return plant, scene_graph, plant_context, kinematics, spheres, joints
 
 
