@@ -24,9 +24,7 @@ def planning(scenario):
     X_WO = object_pose_on_table(scenario, model)
     motions = make_pick_motions(scenario, obstacle=model, X_WO=X_WO)
     poses = true_grasp_poses(scenario)
-    pregrasp = motions.ik.solve(
-        {s: poses[f"{s}_pregrasp"] for s in ("left", "right")}, initial_positions(scenario)
-    )
+    pregrasp = motions.ik.solve({s: poses[f"{s}_pregrasp"] for s in ("left", "right")}, initial_positions(scenario))
     assert pregrasp.success
     return motions, pregrasp.q
 
