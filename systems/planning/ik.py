@@ -6,6 +6,7 @@ candidate yaw (where it stands, then turned to face the targets), and both arms 
 torso free from the first candidate where each arm reaches."""
 
 import itertools
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -94,6 +95,8 @@ class DualArmIk:
             handle_error = 1.0 - np.abs(poses[:, :, 0] @ R[:, 0])
             best[side] = np.argsort(position_error + 0.3 * approach_error + 0.1 * handle_error)[:count]
         seeds = []
+        for side in SIDES:  # an arm without a target: the same samples as the other's
+            best.setdefault(side, next(iter(best.values())))
         for left, right in zip(best["left"], best["right"], strict=True):
             q = self._seed_q[left].copy()
             q[7:14] = self._seed_q[right][7:14]
@@ -107,20 +110,48 @@ class DualArmIk:
         axis = np.append(self.world.torso_axis_W, 0.0)
         return RigidTransform(axis) @ RigidTransform(RotationMatrix.MakeZRotation(yaw)) @ RigidTransform(-axis)
 
-    def torso_candidates(self, X_WG: dict[str, RigidTransform], q_guess: np.ndarray) -> list[float]:
-        """Torso yaws to hold while each arm is solved (rad): where it stands, then facing the targets' midpoint
-        and TORSO_SPREAD either side of it, within the limits. One value, the guess's, with the torso locked."""
+    def torso_candidates(self, X_WG: dict[str, RigidTransform], q_guess: np.ndarray) -> Iterator[float]:
+        """Torso yaws to hold while each arm is solved (rad), lazily: where it stands; facing the targets' midpoint
+        and TORSO_SPREAD either side of it; then, only if those were not enough, the yaw each arm takes when
+        solved alone with the torso free (a turned object wants the torso turned with it), and their mean. All
+        within the limits, each once. One value, 0, with the torso locked."""
         world = self.world
         if world.torso is None:
-            return [0.0]
+            yield 0.0
+            return
+        tried = []
+
+        def untried(yaw: float) -> bool:
+            if any(abs(yaw - other) < 0.05 for other in tried):
+                return False
+            tried.append(yaw)
+            return True
+
+        lower, upper = world.lower[world.torso], world.upper[world.torso]
         middle = np.mean([X.translation()[:2] for X in X_WG.values()], axis=0) - world.torso_axis_W
         facing = float(np.arctan2(middle[1], middle[0]))
-        candidates = [q_guess[world.torso], facing, facing + TORSO_SPREAD, facing - TORSO_SPREAD]
-        chosen = []
-        for yaw in np.clip(candidates, world.lower[world.torso], world.upper[world.torso]):
-            if all(abs(yaw - other) > 0.05 for other in chosen):
-                chosen.append(float(yaw))
-        return chosen
+        for yaw in (q_guess[world.torso], facing, facing + TORSO_SPREAD, facing - TORSO_SPREAD):
+            if untried(yaw := float(np.clip(yaw, lower, upper))):
+                yield yaw
+        preferred = [self._arm_torso_yaw(side, X_WG[side], q_guess, facing) for side in SIDES]
+        preferred = [yaw for yaw in preferred if yaw is not None]
+        if len(preferred) == 2:
+            preferred.append(float(np.mean(preferred)))
+        for yaw in preferred:
+            if untried(yaw):
+                yield yaw
+
+    def _arm_torso_yaw(self, side: str, X_WG: RigidTransform, q_guess: np.ndarray, facing: float) -> float | None:
+        """The torso yaw (rad) at which one arm reaches X_WG when solved with the torso free, from the torso
+        facing the targets (and nearby seeds, either half turn of the hand); None if it reaches from none."""
+        guess = q_guess.copy()
+        guess[self.world.torso] = facing
+        for start, flip in itertools.product([guess, *self._seeds({side: X_WG}, 4, facing)], (False, True)):
+            target = {side: X_WG @ HALF_TURN if flip else X_WG}
+            result = self._solve_once(target, start, start, 0.002, 0.03, None, torso=True)
+            if result.success:
+                return float(result.q[self.world.torso])
+        return None
 
     def solve(
         self,
@@ -132,7 +163,7 @@ class DualArmIk:
         allow_half_turn: bool = True,
         restarts: int = 4,
         limit_margin: float = 0.0,
-        torso_yaws: list[float] | None = None,
+        torso_yaws: Iterable[float] | None = None,
     ) -> IkResult:
         """Arm joints putting each side's grasp frame at X_WG[side], nearest to q_guess.
 

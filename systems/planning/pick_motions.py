@@ -118,16 +118,16 @@ class PickMotions:
         # joints well inside their limits first: a pre-grasp at a limit leaves no room for the approach. Where
         # that goal cannot be had, or reached, the goal without the margin.
         failure = None
-        tries = itertools.product(self.ik.torso_candidates(targets_W, q_start), (REACH_LIMIT_MARGIN, 0.0))
-        for torso, margin in tries:
-            goal = self.ik.solve(targets_W, q_start, restarts=12, limit_margin=margin, torso_yaws=[torso])
-            if not goal.success:
-                failure = failure or PlanningError(f"no collision-free IK solution at the goal ({goal.message})")
-                continue
-            try:
-                return self._reach_path(q_start, goal.q, obstacles, checked)
-            except PlanningError as error:
-                failure = error
+        for torso in self.ik.torso_candidates(targets_W, q_start):  # lazily: later ones cost solves of their own
+            for margin in (REACH_LIMIT_MARGIN, 0.0):
+                goal = self.ik.solve(targets_W, q_start, restarts=12, limit_margin=margin, torso_yaws=[torso])
+                if not goal.success:
+                    failure = failure or PlanningError(f"no collision-free IK solution at the goal ({goal.message})")
+                    continue
+                try:
+                    return self._reach_path(q_start, goal.q, obstacles, checked)
+                except PlanningError as error:
+                    failure = error
         raise failure
 
     def reach_configuration(

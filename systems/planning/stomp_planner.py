@@ -7,6 +7,7 @@ simulation that is the planning latency the scenario asks for (sim time, never w
 busy machine plans the same), and the trajectory starts then, from the request's q_start.
 """
 
+import dataclasses
 import logging
 import math
 import time
@@ -32,6 +33,9 @@ from systems.planning.world import SIDES
 # (world.PERCEIVED_SHAPE_MARGIN) was set for a cloud this dense, and planning cost grows with it.
 OBSTACLE_POINTS = 2000
 RETREAT_M = 0.1  # m: how far the hands back off an object they let go of
+# Where a pre-grasp is out of reach, pre-grasps this share of the way out from the grasp are tried in turn: the
+# approach is then shorter (its straight line still ends at the grasp).
+PREGRASP_STANDOFFS = (1.0, 0.5)
 
 
 @dataclass
@@ -127,7 +131,7 @@ class StompPlanner(LeafSystem):
                     points = self._obstacle_points(context)
                     if points is not None and request.object_motion_W is not None:  # where a look found it
                         points = request.object_motion_W.multiply(points.T).T
-                    keyframes = motions.reach(request.q_start, targets, points)
+                    keyframes = self._reach(request, context, targets, points)
                     min_segment = STOMP_SEGMENT_S if len(keyframes) > 3 else SPARSE_SEGMENT_S
                 else:
                     keyframes, min_segment = motions.straight(request.q_start, targets), SPARSE_SEGMENT_S
@@ -147,12 +151,34 @@ class StompPlanner(LeafSystem):
         result.planning_s = time.perf_counter() - started
         return result
 
+    def _reach(self, request: PlanRequest, context, targets, points) -> np.ndarray:
+        """The reach's keyframes to `targets`; for the pre-grasps, where they are out of reach, to pre-grasps
+        nearer the grasps (PREGRASP_STANDOFFS: the approach then starts nearer the object)."""
+        if request.targets != Targets.PREGRASP:
+            return self.motions.reach(request.q_start, targets, points)
+        grasps = self._targets(dataclasses.replace(request, targets=Targets.GRASP), context, deeper=False)
+        failure = None
+        for standoff in PREGRASP_STANDOFFS:
+            nearer = {
+                side: RigidTransform(
+                    X.rotation(), standoff * X.translation() + (1 - standoff) * grasps[side].translation()
+                )
+                for side, X in targets.items()
+            }
+            try:
+                return self.motions.reach(request.q_start, nearer, points)
+            except PlanningError as error:
+                failure = failure or error
+                if "no collision-free IK solution" not in str(error):
+                    break  # reachable but not by a free path: nearer the object will not help
+        raise failure
+
     def _obstacle_points(self, context) -> np.ndarray | None:
         """The obstacle cloud thinned to about OBSTACLE_POINTS (N x 3 in W), or None when it is empty."""
         cloud = self.GetInputPort("obstacle_cloud_W").Eval(context)
         return cloud[:: max(1, len(cloud) // OBSTACLE_POINTS)] if len(cloud) else None
 
-    def _targets(self, request: PlanRequest, context) -> dict[str, RigidTransform]:
+    def _targets(self, request: PlanRequest, context, deeper: bool = True) -> dict[str, RigidTransform]:
         if request.targets == Targets.RETREAT:
             back = RigidTransform([0.0, 0.0, -RETREAT_M])
             return {side: X @ back for side, X in self.motions.world.grasp_frame_poses(request.q_start).items()}
@@ -161,7 +187,7 @@ class StompPlanner(LeafSystem):
             raise PlanningError(f"no grasp poses ({grasps.message})")
         if request.targets not in (Targets.PREGRASP, Targets.GRASP):
             raise PlanningError(f"unknown targets {request.targets!r} (pregrasp, grasp or retreat)")
-        deeper = self.deeper if request.targets == Targets.GRASP else RigidTransform()
+        deeper = self.deeper if request.targets == Targets.GRASP and deeper else RigidTransform()
         targets = {side: grasps.poses_W[f"{side}_{request.targets}"] @ deeper for side in SIDES}
         if request.object_motion_W is not None:  # the object moved since it was seen: the grasps moved with it
             targets = {side: request.object_motion_W @ X for side, X in targets.items()}
