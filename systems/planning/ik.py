@@ -164,6 +164,7 @@ class DualArmIk:
         restarts: int = 4,
         limit_margin: float = 0.0,
         torso_yaws: Iterable[float] | None = None,
+        alternatives: dict[str, list[RigidTransform]] | None = None,
     ) -> IkResult:
         """Arm joints putting each side's grasp frame at X_WG[side], nearest to q_guess.
 
@@ -179,9 +180,19 @@ class DualArmIk:
                 motion that follows.
             torso_yaws: the torso yaws (rad) to hold while each arm is solved, in turn (default
                 torso_candidates()); ignored with the torso locked.
+            alternatives: per side, other grasps of the same object part, as transforms of X_WG[side] on the
+                right, tried in turn where the ones before leave that hand out of reach (default: none).
         """
         q_guess = np.asarray(q_guess, dtype=float)
-        options = (position_tolerance, angle_tolerance, min_distance, allow_half_turn, restarts, limit_margin)
+        options = (
+            position_tolerance,
+            angle_tolerance,
+            min_distance,
+            allow_half_turn,
+            restarts,
+            limit_margin,
+            alternatives,
+        )
         failures = []
         if torso_yaws is None or self.world.torso is None:
             torso_yaws = self.torso_candidates(X_WG, q_guess)
@@ -195,11 +206,11 @@ class DualArmIk:
 
     def _solve_at_torso(
         self, X_WG, q_guess, torso, position_tolerance, angle_tolerance, min_distance, allow_half_turn, restarts,
-        limit_margin,
+        limit_margin, alternatives,
     ) -> IkResult:  # fmt: skip
         """solve()'s answer with each arm solved alone at the torso yaw `torso` (rad), then both together with
         the torso free (when it is planned)."""
-        flips = (False, True) if allow_half_turn else (False,)
+        turns = (RigidTransform(), HALF_TURN) if allow_half_turn else (RigidTransform(),)
         guess = q_guess.copy()
         if self.world.torso is not None:
             guess[self.world.torso] = torso
@@ -209,32 +220,32 @@ class DualArmIk:
         per_arm = {}
         for side in SIDES:
             per_arm[side] = []
-            for start, flip in itertools.product([guess, *seeds], flips):
-                if min_distance is None and per_arm[side] and start is not guess:
-                    break  # solved from the guess: the seeds would only add answers farther from it
-                target = {side: X_WG[side] @ HALF_TURN if flip else X_WG[side]}
-                result = self._solve_once(
-                    target, start, q_guess, position_tolerance, angle_tolerance, None, limit_margin
-                )
-                if result.success:
-                    per_arm[side].append((flip, result.q))
+            for alternative in (alternatives or {}).get(side, [RigidTransform()]):
+                for start, turn in itertools.product([guess, *seeds], turns):
+                    if min_distance is None and per_arm[side] and start is not guess:
+                        break  # solved from the guess: the seeds would only add answers farther from it
+                    target = X_WG[side] @ alternative @ turn
+                    result = self._solve_once(
+                        {side: target}, start, q_guess, position_tolerance, angle_tolerance, None, limit_margin
+                    )
+                    if result.success:
+                        per_arm[side].append((target, result.q))
+                if per_arm[side]:
+                    break  # the alternatives after the first that reaches are not tried
             if not per_arm[side]:
                 return IkResult(False, q_guess, f"{side} hand: target out of reach")
             per_arm[side].sort(key=lambda item: np.sum((item[1] - q_guess) ** 2))
-        for (left_flip, left_q), (right_flip, right_q) in itertools.islice(
+        for (left_X, left_q), (right_X, right_q) in itertools.islice(
             itertools.product(per_arm["left"][:4], per_arm["right"][:4]), 8
         ):
             start = left_q.copy()
             start[7:14] = right_q[7:14]
-            targets = {
-                "left": X_WG["left"] @ HALF_TURN if left_flip else X_WG["left"],
-                "right": X_WG["right"] @ HALF_TURN if right_flip else X_WG["right"],
-            }
             if min_distance is None:
                 return IkResult(True, start, "solved per arm")
             result = self._solve_once(
-                targets, start, start, position_tolerance, angle_tolerance, min_distance, limit_margin, torso=True
-            )
+                {"left": left_X, "right": right_X}, start, start, position_tolerance, angle_tolerance, min_distance,
+                limit_margin, torso=True,
+            )  # fmt: skip
             if result.success:
                 return result
         return IkResult(False, q_guess, "each hand reaches its target, but not without a collision")

@@ -102,11 +102,16 @@ class PickMotions:
         self.orientation = OrientationConstraint()
 
     def reach(
-        self, q_start: np.ndarray, targets_W: dict[str, RigidTransform], obstacle_points_W: np.ndarray | None = None
+        self,
+        q_start: np.ndarray,
+        targets_W: dict[str, RigidTransform],
+        obstacle_points_W: np.ndarray | None = None,
+        alternatives: dict[str, list[RigidTransform]] | None = None,
     ) -> np.ndarray:
         """Keyframes from q_start to both hands at targets_W, collision-free: Drake's geometry, and the sphere model
         against the world's fixed scene and obstacle_points_W (the object as seen, N x 3 in W, e.g. a perceived
-        cloud: Drake's model has no geometry for it).
+        cloud: Drake's model has no geometry for it). alternatives: per side, other targets as transforms of
+        targets_W[side] on the right, tried where the ones before are out of that hand's reach (DualArmIk.solve).
 
         Raises:
             PlanningError: no collision-free IK solution, or no collision-free path to it.
@@ -114,20 +119,26 @@ class PickMotions:
         obstacles = self.world.planning_obstacles(obstacle_points_W)
         # Straight segments are checked with Drake's geometry, and with the sphere model where the object is points.
         checked = obstacles if obstacle_points_W is not None else None
-        # The torso where it stands first, turned only where the arms cannot reach from there. At each torso yaw,
-        # joints well inside their limits first: a pre-grasp at a limit leaves no room for the approach. Where
-        # that goal cannot be had, or reached, the goal without the margin.
+        # The targets as given before their alternatives; the torso where it stands first, turned only where the
+        # arms cannot reach from there. At each torso yaw, joints well inside their limits first: a pre-grasp at
+        # a limit leaves no room for the approach. Where that goal cannot be had, or reached, the goal without
+        # the margin.
         failure = None
-        for torso in self.ik.torso_candidates(targets_W, q_start):  # lazily: later ones cost solves of their own
-            for margin in (REACH_LIMIT_MARGIN, 0.0):
-                goal = self.ik.solve(targets_W, q_start, restarts=12, limit_margin=margin, torso_yaws=[torso])
-                if not goal.success:
-                    failure = failure or PlanningError(f"no collision-free IK solution at the goal ({goal.message})")
-                    continue
-                try:
-                    return self._reach_path(q_start, goal.q, obstacles, checked)
-                except PlanningError as error:
-                    failure = error
+        for choices in (None, alternatives) if alternatives else (None,):
+            for torso in self.ik.torso_candidates(targets_W, q_start):  # lazily: later ones cost solves of their own
+                for margin in (REACH_LIMIT_MARGIN, 0.0):
+                    goal = self.ik.solve(
+                        targets_W, q_start, restarts=12, limit_margin=margin, torso_yaws=[torso], alternatives=choices
+                    )
+                    if not goal.success:
+                        failure = failure or PlanningError(
+                            f"no collision-free IK solution at the goal ({goal.message})"
+                        )
+                        continue
+                    try:
+                        return self._reach_path(q_start, goal.q, obstacles, checked)
+                    except PlanningError as error:
+                        failure = error
         raise failure
 
     def reach_configuration(

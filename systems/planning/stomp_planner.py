@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from pydrake.common.value import AbstractValue
-from pydrake.math import RigidTransform
+from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.systems.framework import EventStatus, LeafSystem
 from pydrake.trajectories import PiecewisePolynomial
 
@@ -36,6 +36,16 @@ RETREAT_M = 0.1  # m: how far the hands back off an object they let go of
 # Where a pre-grasp is out of reach, pre-grasps this share of the way out from the grasp are tried in turn: the
 # approach is then shorter (its straight line still ends at the grasp).
 PREGRASP_STANDOFFS = (1.0, 0.5)
+# A hand holds a handle (along x_G) from around it as well: grasps rolled by these angles about the handle
+# axis through the grasp (rad) are tried where the grasp as perceived is out of that hand's reach.
+GRASP_ROLLS = (0.35, -0.35, 0.7, -0.7)
+
+
+def grasp_rolls(X_GP: RigidTransform) -> list[RigidTransform]:
+    """For a pre-grasp P at X_GP from its grasp G: P itself, then P as it is when the grasp is rolled by each
+    of GRASP_ROLLS about G's x axis (the handle) through G, each as a transform of P on the right (P -> P')."""
+    rolls = [RigidTransform(RotationMatrix.MakeXRotation(angle)) for angle in GRASP_ROLLS]
+    return [RigidTransform()] + [X_GP.inverse() @ roll @ X_GP for roll in rolls]
 
 
 @dataclass
@@ -152,8 +162,9 @@ class StompPlanner(LeafSystem):
         return result
 
     def _reach(self, request: PlanRequest, context, targets, points) -> np.ndarray:
-        """The reach's keyframes to `targets`; for the pre-grasps, where they are out of reach, to pre-grasps
-        nearer the grasps (PREGRASP_STANDOFFS: the approach then starts nearer the object)."""
+        """The reach's keyframes to `targets`. For the pre-grasps, where a hand cannot reach its pre-grasp, the
+        same grasp rolled about the handle (grasp_rolls), and where no roll reaches, pre-grasps nearer the grasps
+        (PREGRASP_STANDOFFS)."""
         if request.targets != Targets.PREGRASP:
             return self.motions.reach(request.q_start, targets, points)
         grasps = self._targets(dataclasses.replace(request, targets=Targets.GRASP), context, deeper=False)
@@ -165,8 +176,9 @@ class StompPlanner(LeafSystem):
                 )
                 for side, X in targets.items()
             }
+            rolls = {side: grasp_rolls(grasps[side].inverse() @ nearer[side]) for side in SIDES}
             try:
-                return self.motions.reach(request.q_start, nearer, points)
+                return self.motions.reach(request.q_start, nearer, points, rolls)
             except PlanningError as error:
                 failure = failure or error
                 if "no collision-free IK solution" not in str(error):
