@@ -23,7 +23,7 @@ from json_report import write_json
 from systems.robot_io.command_stream import CommandStream
 
 PERIOD_S = 0.005  # the scenario's hardware.control_period_s
-JOINTS = 14
+JOINTS = 15  # the arms and the torso
 
 
 def parse_args(argv=None):

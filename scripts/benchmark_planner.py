@@ -47,7 +47,7 @@ from diagrams.planning_scene import (
     object_surface_W,
     true_grasp_poses,
 )
-from diagrams.scenario import Scenario, load_scenario, replace_object
+from diagrams.scenario import Scenario, initial_positions, load_scenario, replace_object
 from diagrams.station import object_pose_on_table
 from systems.planning.closure import ClosureConstraint, OrientationConstraint, deviations, orientation_deviations
 from systems.planning.kinematics import Payload
@@ -56,7 +56,7 @@ from systems.planning.pick_motions import PickMotions, PlannerConfig
 from systems.planning.stomp import Stomp, StompConfig, interpolate_segments
 from systems.planning.world import PlanningWorld
 
-BELOW_TABLE = np.array([0, 0.15, 0, -0.1, 0, 0, 0, 0, -0.15, 0, -0.1, 0, 0, 0.0])
+BELOW_TABLE = np.array([0, 0.15, 0, -0.1, 0, 0, 0, 0, -0.15, 0, -0.1, 0, 0, 0.0, 0.0])  # the torso straight
 TIME_LIMIT_S = 10.0
 DENSE_STEPS = 20  # states checked per segment between keyframes
 LIFT_M = 0.15
@@ -271,7 +271,7 @@ def reach_problems(runs: int, seed: int):
         scenario = replace_object(
             base, category=category, instance=f"test_{rng.integers(3)}", yaw=float(rng.uniform(-0.45, 0.45))
         )
-        motions, goal = reach_goal(scenario, np.array(scenario.initial_arm_positions))
+        motions, goal = reach_goal(scenario, initial_positions(scenario))
         if goal.success:
             problems.append((motions, BELOW_TABLE, goal.q))
     return problems
@@ -314,7 +314,7 @@ def reach_stomp(problems) -> list[dict]:
 def kto_program(world: PlanningWorld, plant, q_start, q_goal, guess_path: np.ndarray, control_points: int):
     """KinematicTrajectoryOptimization over `plant`'s positions (the fingers held as they are) from q_start to
     q_goal: joint position and velocity limits, 0.5-10 s, duration and path-length costs, control points started
-    evenly along `guess_path` (K x 14 arm configurations)."""
+    evenly along `guess_path` (K x n configurations of the planned joints)."""
     trajopt = KinematicTrajectoryOptimization(plant.num_positions(), control_points)
     full_start, full_goal = world.full_positions(q_start), world.full_positions(q_goal)
     lower, upper = full_start.copy(), full_start.copy()
@@ -336,7 +336,7 @@ def kto_program(world: PlanningWorld, plant, q_start, q_goal, guess_path: np.nda
 
 
 def kto_keyframes(world: PlanningWorld, trajopt, result, count: int = 16) -> np.ndarray:
-    """The solved B-spline's arm configurations at `count` evenly spaced times (count x 14)."""
+    """The solved B-spline's arm configurations at `count` evenly spaced times (count x n)."""
     path = trajopt.ReconstructTrajectory(result)
     times = np.linspace(path.start_time(), path.end_time(), count)
     return np.array([path.value(t).ravel()[world.arm_indices] for t in times])
