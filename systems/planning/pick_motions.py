@@ -30,6 +30,7 @@ from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.trajectories import PiecewisePolynomial
 
 from systems.planning.closure import ClosureConstraint, OrientationConstraint, deviations, orientation_deviations
+from systems.planning.hand_constraints import MAX_STEP, bounded_step, rotation_error
 from systems.planning.ik import DualArmIk, IkResult
 from systems.planning.kinematics import Payload
 from systems.planning.obstacles import CarriedPoints, Obstacles
@@ -40,6 +41,10 @@ from systems.robot_io.joint_plan import move_duration
 APPROACH_STEPS = 3
 REACH_LIMIT_MARGIN = 0.15  # rad: a reach's goal keeps its joints this far inside their limits where it can
 MAX_STRAIGHT_STEP = 0.6  # rad: the most a joint may turn between two keyframes of a straight motion
+# Tracking a straight motion's next keyframe: at most this many Gauss-Newton steps, to within these position (m)
+# and orientation (rad, about sin of the angle) errors per hand.
+TRACK_ITERATIONS = 40
+TRACK_TOLERANCES = (0.001, 0.005)
 # Shortest duration of one move between sparse (IK) keyframes, and between STOMP's dense ones, s.
 SPARSE_SEGMENT_S = 0.8
 STOMP_SEGMENT_S = 0.1
@@ -203,8 +208,14 @@ class PickMotions:
                 )
                 for side in SIDES
             }
-            # From q first; SNOPT can stall there near a joint limit, then from the nearest seeds, as long as
-            # the arms stay on their branch (a jump would leave the line between keyframes).
+            # Tracked from q (the arms and the torso together, on q's branch by construction); where that stalls,
+            # SNOPT from q, then from the nearest seeds, as long as the arms stay on their branch (a jump would
+            # leave the line between keyframes).
+            tracked = self.track(q, targets)
+            if tracked is not None:
+                keyframes.append(tracked)
+                q = tracked
+                continue
             result = self.ik.solve(targets, q, min_distance=None, allow_half_turn=False, restarts=4)
             if not result.success:
                 raise PlanningError(f"step {step} of {steps}: IK failed ({result.message})")
@@ -213,6 +224,25 @@ class PickMotions:
             keyframes.append(result.q)
             q = result.q
         return np.stack(keyframes)
+
+    def track(self, q: np.ndarray, targets_W: dict[str, RigidTransform]) -> np.ndarray | None:
+        """The planned joints moved from q until both grasp frames are at targets_W (within TRACK_TOLERANCES), by
+        damped Gauss-Newton steps of every joint at once within the limits, each joint at most MAX_STEP a step: a
+        nearby target is reached on q's branch. None where the steps stall (a limit, a singularity, too far)."""
+        world = self.world
+        q = np.atleast_2d(np.asarray(q, float)).copy()
+        for _ in range(TRACK_ITERATIONS):
+            poses, jacobians = world.end_effectors.jacobians(q)
+            errors, rows = [], []
+            for X, J, side in zip(poses, jacobians, SIDES, strict=True):
+                R = targets_W[side].rotation().matrix()
+                errors += [X[:, :3, 3] - targets_W[side].translation(), rotation_error(R, X[:, :3, :3])]
+                rows += [J[:, 3:], R.T @ J[:, :3]]
+            error = np.concatenate(errors, axis=1)[0]
+            if all(np.abs(error[i : i + 3]).max() < TRACK_TOLERANCES[(i // 3) % 2] for i in range(0, 12, 3)):
+                return q[0]
+            q = bounded_step(q, error[None], np.concatenate(rows, axis=1), world.lower, world.upper, MAX_STEP)
+        return None
 
     def held_move(
         self,
