@@ -2,8 +2,8 @@
 (systems/planning/world.py), started from a table of collision-free seeds cached on disk.
 
 With the torso planned, the arms share its yaw: each arm is solved alone with the torso held at a
-candidate yaw (where it stands, then turned to face the targets), and both arms together with the
-torso free from the first candidate where each arm reaches."""
+candidate yaw (where it stands, then turned to face the targets, then as each arm alone would turn it),
+and both arms together with the torso free from the first candidate where each arm reaches."""
 
 import itertools
 from collections.abc import Iterable, Iterator
