@@ -112,11 +112,14 @@ class PickMotions:
         targets_W: dict[str, RigidTransform],
         obstacle_points_W: np.ndarray | None = None,
         alternatives: dict[str, list[RigidTransform]] | None = None,
+        approach_to: dict[str, RigidTransform] | None = None,
     ) -> np.ndarray:
         """Keyframes from q_start to both hands at targets_W, collision-free: Drake's geometry, and the sphere model
         against the world's fixed scene and obstacle_points_W (the object as seen, N x 3 in W, e.g. a perceived
         cloud: Drake's model has no geometry for it). alternatives: per side, other targets as transforms of
         targets_W[side] on the right, tried where the ones before are out of that hand's reach (DualArmIk.solve).
+        approach_to: where the hands go straight on from the goal (the grasps, from pre-grasps): a goal from which
+        that straight motion fails is passed over for the next.
 
         Raises:
             PlanningError: no collision-free IK solution, or no collision-free path to it.
@@ -141,6 +144,11 @@ class PickMotions:
                         )
                         continue
                     try:
+                        if approach_to is not None:
+                            try:
+                                self.straight(goal.q, approach_to)
+                            except PlanningError as error:
+                                raise PlanningError(f"the approach from the goal fails ({error})") from None
                         return self._reach_path(q_start, goal.q, obstacles, checked)
                     except PlanningError as error:
                         failure = error
@@ -216,7 +224,8 @@ class PickMotions:
                 keyframes.append(tracked)
                 q = tracked
                 continue
-            result = self.ik.solve(targets, q, min_distance=None, allow_half_turn=False, restarts=4)
+            torso = [q[self.world.torso]] if self.world.torso is not None else None  # where it stands: no jump
+            result = self.ik.solve(targets, q, min_distance=None, allow_half_turn=False, restarts=4, torso_yaws=torso)
             if not result.success:
                 raise PlanningError(f"step {step} of {steps}: IK failed ({result.message})")
             if np.abs(result.q - q).max() > MAX_STRAIGHT_STEP:

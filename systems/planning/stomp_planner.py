@@ -162,12 +162,14 @@ class StompPlanner(LeafSystem):
         return result
 
     def _reach(self, request: PlanRequest, context, targets, points) -> np.ndarray:
-        """The reach's keyframes to `targets`. For the pre-grasps, where a hand cannot reach its pre-grasp, the
-        same grasp rolled about the handle (grasp_rolls), and where no roll reaches, pre-grasps nearer the grasps
+        """The reach's keyframes to `targets`. For the pre-grasps, only a pre-grasp configuration from which the
+        straight approach reaches the grasps will do; where a hand cannot reach its pre-grasp so, the same grasp
+        rolled about the handle (grasp_rolls), and where no roll does, pre-grasps nearer the grasps
         (PREGRASP_STANDOFFS)."""
         if request.targets != Targets.PREGRASP:
             return self.motions.reach(request.q_start, targets, points)
         grasps = self._targets(dataclasses.replace(request, targets=Targets.GRASP), context, deeper=False)
+        deeper = self._targets(dataclasses.replace(request, targets=Targets.GRASP), context)
         failure = None
         for standoff in PREGRASP_STANDOFFS:
             nearer = {
@@ -178,10 +180,10 @@ class StompPlanner(LeafSystem):
             }
             rolls = {side: grasp_rolls(grasps[side].inverse() @ nearer[side]) for side in SIDES}
             try:
-                return self.motions.reach(request.q_start, nearer, points, rolls)
+                return self.motions.reach(request.q_start, nearer, points, rolls, approach_to=deeper)
             except PlanningError as error:
                 failure = failure or error
-                if "no collision-free IK solution" not in str(error):
+                if "no collision-free IK solution" not in str(error) and "approach" not in str(error):
                     break  # reachable but not by a free path: nearer the object will not help
         raise failure
 
