@@ -237,20 +237,27 @@ class PickMotions:
     def track(self, q: np.ndarray, targets_W: dict[str, RigidTransform]) -> np.ndarray | None:
         """The planned joints moved from q until both grasp frames are at targets_W (within TRACK_TOLERANCES), by
         damped Gauss-Newton steps of every joint at once within the limits, each joint at most MAX_STEP a step: a
-        nearby target is reached on q's branch. None where the steps stall (a limit, a singularity, too far)."""
+        nearby target is reached on q's branch. The arms alone first, the torso held (it would sweep both hands
+        along arcs between keyframes), then with the torso. None where the steps stall (a limit, a singularity,
+        too far)."""
         world = self.world
-        q = np.atleast_2d(np.asarray(q, float)).copy()
-        for _ in range(TRACK_ITERATIONS):
-            poses, jacobians = world.end_effectors.jacobians(q)
-            errors, rows = [], []
-            for X, J, side in zip(poses, jacobians, SIDES, strict=True):
-                R = targets_W[side].rotation().matrix()
-                errors += [X[:, :3, 3] - targets_W[side].translation(), rotation_error(R, X[:, :3, :3])]
-                rows += [J[:, 3:], R.T @ J[:, :3]]
-            error = np.concatenate(errors, axis=1)[0]
-            if all(np.abs(error[i : i + 3]).max() < TRACK_TOLERANCES[(i // 3) % 2] for i in range(0, 12, 3)):
-                return q[0]
-            q = bounded_step(q, error[None], np.concatenate(rows, axis=1), world.lower, world.upper, MAX_STEP)
+        torso_options = (False, True) if world.torso is not None else (False,)
+        for with_torso in torso_options:
+            q_now = np.atleast_2d(np.asarray(q, float)).copy()
+            for _ in range(TRACK_ITERATIONS):
+                poses, jacobians = world.end_effectors.jacobians(q_now)
+                errors, rows = [], []
+                for X, J, side in zip(poses, jacobians, SIDES, strict=True):
+                    R = targets_W[side].rotation().matrix()
+                    errors += [X[:, :3, 3] - targets_W[side].translation(), rotation_error(R, X[:, :3, :3])]
+                    rows += [J[:, 3:], R.T @ J[:, :3]]
+                error = np.concatenate(errors, axis=1)[0]
+                if all(np.abs(error[i : i + 3]).max() < TRACK_TOLERANCES[(i // 3) % 2] for i in range(0, 12, 3)):
+                    return q_now[0]
+                jacobian = np.concatenate(rows, axis=1)
+                if world.torso is not None and not with_torso:
+                    jacobian[:, :, world.torso] = 0.0  # a joint without effect on the error is not moved
+                q_now = bounded_step(q_now, error[None], jacobian, world.lower, world.upper, MAX_STEP)
         return None
 
     def held_move(
