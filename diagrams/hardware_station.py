@@ -65,10 +65,9 @@ class RobotModel:
         self.plant = plant
         self.joints = [plant.GetJointByName(n, robot) for n in planned_joints(scenario)]
         self.n = len(self.joints)
-        joints = self.joints
-        self.lower = np.array([j.position_lower_limits()[0] for j in joints])
-        self.upper = np.array([j.position_upper_limits()[0] for j in joints])
-        self.velocity_limits = np.array([j.velocity_upper_limits()[0] for j in joints])
+        self.lower = np.array([j.position_lower_limits()[0] for j in self.joints])
+        self.upper = np.array([j.position_upper_limits()[0] for j in self.joints])
+        self.velocity_limits = np.array([j.velocity_upper_limits()[0] for j in self.joints])
         finger = plant.GetJointByName("finger_1_joint", hands["left"])
         # Opening width = both fingers' travel.
         self.hand_upper = 2 * finger.position_upper_limits()[0]

@@ -41,7 +41,7 @@ from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.systems.primitives import Demultiplexer, MatrixGain, PassThrough, StateInterpolatorWithDiscreteDerivative
 from pydrake.systems.sensors import RgbdSensor
 
-from diagrams.generation.centauro_description import TORSO_JOINT, sdf_name
+from diagrams.generation.centauro_description import TORSO_JOINT, joint_names, sdf_name
 from diagrams.generation.objects import catalog
 from diagrams.generation.objects.library import ObjectModel, resolve_object
 from diagrams.paths import PACKAGE_XML
@@ -222,7 +222,7 @@ def _set_pd_gains(plant, instance, kp, kd):
 def _set_arm_pd_gains(plant, robot, scenario):
     """Each planned joint's actuator gains: the arms' per joint (both arms alike), the torso's own."""
     arm, torso = scenario.arm_controller, scenario.robot
-    gains = dict(zip(planned_joints(scenario), zip(arm.kp * 2, arm.kd * 2, strict=True), strict=False))
+    gains = dict(zip(joint_names(1) + joint_names(2), zip(arm.kp * 2, arm.kd * 2, strict=True), strict=True))
     gains[TORSO_JOINT] = (torso.torso_kp, torso.torso_kd)
     for index in plant.GetJointActuatorIndices(robot):
         actuator = plant.get_joint_actuator(index)
@@ -235,9 +235,7 @@ def planned_from_instance(plant, robot, scenario) -> np.ndarray:
     the torso first, then the arms) into the planned joints' order (the arms, then the torso)."""
     names = planned_joints(scenario)
     instance_rank = np.argsort(np.argsort([plant.GetJointByName(name, robot).position_start() for name in names]))
-    P = np.zeros((len(names), len(names)))
-    P[np.arange(len(names)), instance_rank] = 1.0
-    return P
+    return np.eye(len(names))[instance_rank]
 
 
 def _set_default_positions(plant, robot, hands, scenario):

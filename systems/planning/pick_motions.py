@@ -21,7 +21,7 @@ carried object) is each motion's argument.
 import dataclasses
 import itertools
 import logging
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -127,32 +127,37 @@ class PickMotions:
         obstacles = self.world.planning_obstacles(obstacle_points_W)
         # Straight segments are checked with Drake's geometry, and with the sphere model where the object is points.
         checked = obstacles if obstacle_points_W is not None else None
-        # The targets as given before their alternatives; the torso where it stands first, turned only where the
-        # arms cannot reach from there. At each torso yaw, joints well inside their limits first: a pre-grasp at
-        # a limit leaves no room for the approach. Where that goal cannot be had, or reached, the goal without
-        # the margin.
         failure = None
+        for goal in self._reach_goals(q_start, targets_W, alternatives):
+            if not goal.success:
+                failure = failure or PlanningError(f"no collision-free IK solution at the goal ({goal.message})")
+                continue
+            try:
+                if approach_to is not None:
+                    self._check_approach(goal.q, approach_to)
+                return self._reach_path(q_start, goal.q, obstacles, checked)
+            except PlanningError as error:
+                failure = error
+        raise failure
+
+    def _reach_goals(self, q_start, targets_W, alternatives) -> Iterator[IkResult]:
+        """The reach's IK goals, solved lazily in the order they are tried: the targets as given before their
+        alternatives; the torso where it stands first, turned only where the arms cannot reach from there; at each
+        torso yaw, joints well inside their limits first (a pre-grasp at a limit leaves no room for the
+        approach), then without the margin."""
         for choices in (None, alternatives) if alternatives else (None,):
             for torso in self.ik.torso_candidates(targets_W, q_start):  # lazily: later ones cost solves of their own
                 for margin in (REACH_LIMIT_MARGIN, 0.0):
-                    goal = self.ik.solve(
+                    yield self.ik.solve(
                         targets_W, q_start, restarts=12, limit_margin=margin, torso_yaws=[torso], alternatives=choices
                     )
-                    if not goal.success:
-                        failure = failure or PlanningError(
-                            f"no collision-free IK solution at the goal ({goal.message})"
-                        )
-                        continue
-                    try:
-                        if approach_to is not None:
-                            try:
-                                self.straight(goal.q, approach_to)
-                            except PlanningError as error:
-                                raise PlanningError(f"the approach from the goal fails ({error})") from None
-                        return self._reach_path(q_start, goal.q, obstacles, checked)
-                    except PlanningError as error:
-                        failure = error
-        raise failure
+
+    def _check_approach(self, q: np.ndarray, approach_to: dict[str, RigidTransform]):
+        """Raises PlanningError where the straight approach from q to approach_to fails."""
+        try:
+            self.straight(q, approach_to)
+        except PlanningError as error:
+            raise PlanningError(f"the approach from the goal fails ({error})") from None
 
     def reach_configuration(
         self, q_start: np.ndarray, q_goal: np.ndarray, obstacle_points_W: np.ndarray | None = None
@@ -202,25 +207,36 @@ class PickMotions:
         """Keyframes moving each hand's origin along a straight line to its target, its orientation kept as
         at q_start (the IK branch kept: no half turns, no restarts).
 
+        The whole line is tracked with the arms alone first, the torso held (a turning torso sweeps both hands
+        along arcs between keyframes). Where that stalls, each keyframe is tracked from the one before with the
+        torso too, and where that stalls, SNOPT solves it from there (then from the nearest seeds), as long as the
+        arms stay on their branch (a jump would leave the line between keyframes).
+
         Raises:
             PlanningError: naming the step whose IK failed.
         """
         start_poses = self.world.grasp_frame_poses(q_start)
-        keyframes, q = [np.asarray(q_start, float)], q_start
-        for step in range(1, steps + 1):
-            s = step / steps
-            targets = {
+        line = [
+            {
                 side: RigidTransform(
                     start_poses[side].rotation(),
-                    (1 - s) * start_poses[side].translation() + s * targets_W[side].translation(),
+                    (1 - step / steps) * start_poses[side].translation() + step / steps * targets_W[side].translation(),
                 )
                 for side in SIDES
             }
-            # Tracked from q (the arms and the torso together, on q's branch by construction); where that stalls,
-            # SNOPT from q, then from the nearest seeds, as long as the arms stay on their branch (a jump would
-            # leave the line between keyframes).
-            tracked = self.track(q, targets)
-            if tracked is not None:
+            for step in range(1, steps + 1)
+        ]
+        keyframes, q = [np.asarray(q_start, float)], np.asarray(q_start, float)
+        if self.world.torso is not None:
+            for targets in line:
+                if (q := self.track(q, targets, with_torso=False)) is None:
+                    break
+                keyframes.append(q)
+            else:
+                return np.stack(keyframes)
+            keyframes, q = [np.asarray(q_start, float)], np.asarray(q_start, float)
+        for step, targets in enumerate(line, start=1):
+            if (tracked := self.track(q, targets)) is not None:
                 keyframes.append(tracked)
                 q = tracked
                 continue
@@ -234,30 +250,27 @@ class PickMotions:
             q = result.q
         return np.stack(keyframes)
 
-    def track(self, q: np.ndarray, targets_W: dict[str, RigidTransform]) -> np.ndarray | None:
+    def track(self, q: np.ndarray, targets_W: dict[str, RigidTransform], with_torso: bool = True) -> np.ndarray | None:
         """The planned joints moved from q until both grasp frames are at targets_W (within TRACK_TOLERANCES), by
-        damped Gauss-Newton steps of every joint at once within the limits, each joint at most MAX_STEP a step: a
-        nearby target is reached on q's branch. The arms alone first, the torso held (it would sweep both hands
-        along arcs between keyframes), then with the torso. None where the steps stall (a limit, a singularity,
-        too far)."""
+        damped Gauss-Newton steps of every joint at once (the torso held unless with_torso) within the limits,
+        each joint at most MAX_STEP a step: a nearby target is reached on q's branch. None where the steps stall
+        (a limit, a singularity, too far)."""
         world = self.world
-        torso_options = (False, True) if world.torso is not None else (False,)
-        for with_torso in torso_options:
-            q_now = np.atleast_2d(np.asarray(q, float)).copy()
-            for _ in range(TRACK_ITERATIONS):
-                poses, jacobians = world.end_effectors.jacobians(q_now)
-                errors, rows = [], []
-                for X, J, side in zip(poses, jacobians, SIDES, strict=True):
-                    R = targets_W[side].rotation().matrix()
-                    errors += [X[:, :3, 3] - targets_W[side].translation(), rotation_error(R, X[:, :3, :3])]
-                    rows += [J[:, 3:], R.T @ J[:, :3]]
-                error = np.concatenate(errors, axis=1)[0]
-                if all(np.abs(error[i : i + 3]).max() < TRACK_TOLERANCES[(i // 3) % 2] for i in range(0, 12, 3)):
-                    return q_now[0]
-                jacobian = np.concatenate(rows, axis=1)
-                if world.torso is not None and not with_torso:
-                    jacobian[:, :, world.torso] = 0.0  # a joint without effect on the error is not moved
-                q_now = bounded_step(q_now, error[None], jacobian, world.lower, world.upper, MAX_STEP)
+        q = np.atleast_2d(np.asarray(q, float)).copy()
+        for _ in range(TRACK_ITERATIONS):
+            poses, jacobians = world.end_effectors.jacobians(q)
+            errors, rows = [], []
+            for X, J, side in zip(poses, jacobians, SIDES, strict=True):
+                R = targets_W[side].rotation().matrix()
+                errors += [X[:, :3, 3] - targets_W[side].translation(), rotation_error(R, X[:, :3, :3])]
+                rows += [J[:, 3:], R.T @ J[:, :3]]
+            error = np.concatenate(errors, axis=1)[0]
+            if all(np.abs(error[i : i + 3]).max() < TRACK_TOLERANCES[(i // 3) % 2] for i in range(0, 12, 3)):
+                return q[0]
+            jacobian = np.concatenate(rows, axis=1)
+            if world.torso is not None and not with_torso:
+                jacobian[:, :, world.torso] = 0.0  # a joint without effect on the error is not moved
+            q = bounded_step(q, error[None], jacobian, world.lower, world.upper, MAX_STEP)
         return None
 
     def held_move(

@@ -154,7 +154,7 @@ class Stomp:
         self.velocity_limits, self.effort_limits = world.velocity_limits, world.effort_limits
         self.kinematics, self.spheres = world.kinematics, world.spheres
         self.lower, self.upper = np.asarray(world.lower), np.asarray(world.upper)
-        self.dof = len(self.lower)  # the planned joints: 14 arm joints, and the torso yaw when it is free
+        self.dof = world.kinematics.dof  # the planned joints: 14 arm joints, and the torso yaw when it is free
         self.config = config or StompConfig()
         self.noise_covariance, self.smoothing = _smoothing_matrices(self.config.keyframes - 2)
         self.noise_factor = np.linalg.cholesky(self.noise_covariance + 1e-12 * np.eye(len(self.noise_covariance)))

@@ -169,7 +169,7 @@ class StompPlanner(LeafSystem):
         if request.targets != Targets.PREGRASP:
             return self.motions.reach(request.q_start, targets, points)
         grasps = self._targets(dataclasses.replace(request, targets=Targets.GRASP), context, deeper=False)
-        deeper = self._targets(dataclasses.replace(request, targets=Targets.GRASP), context)
+        deeper = {side: X @ self.deeper for side, X in grasps.items()}  # where the approach ends
         failure = None
         for standoff in PREGRASP_STANDOFFS:
             nearer = {

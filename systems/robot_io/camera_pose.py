@@ -19,11 +19,11 @@ class CameraPoseFromJoints(LeafSystem):
         output_ports:
         - camera_pose
 
-    ``position_measured`` (n, rad, the planned joints' order); ``camera_pose`` (RigidTransform). Until the first
-    finite measurement (no status yet), the pose at the model's default positions.
+    ``position_measured`` (n, rad, the planned joints' order); ``camera_pose`` (RigidTransform). Where a
+    measurement is not finite (no status yet), the pose at the model's default positions.
 
     Args:
-        plant: a finalized plant of the robot alone (its own context is kept; nothing else uses it).
+        plant: a finalized plant of the robot alone (a context of its own is the scratch of each evaluation).
         joints: the planned joints of `plant`, in the order of position_measured.
         frame: the frame the camera is mounted on (e.g. the robot's camera_mount).
         X_FB: the camera body's pose in that frame.
@@ -33,14 +33,15 @@ class CameraPoseFromJoints(LeafSystem):
         super().__init__()
         self._plant, self._frame, self._X_FB = plant, frame, X_FB
         self._context = plant.CreateDefaultContext()
+        self._default = plant.GetPositions(self._context)
         self._indices = np.array([joint.position_start() for joint in joints])
         self._input = self.DeclareVectorInputPort("position_measured", len(joints))
         self.DeclareAbstractOutputPort("camera_pose", lambda: AbstractValue.Make(RigidTransform()), self._calc_pose)
 
     def _calc_pose(self, context, output):
         q = self._input.Eval(context)
+        positions = self._default.copy()
         if np.all(np.isfinite(q)):
-            positions = self._plant.GetPositions(self._context)
             positions[self._indices] = q
-            self._plant.SetPositions(self._context, positions)
+        self._plant.SetPositions(self._context, positions)
         output.set_value(self._frame.CalcPoseInWorld(self._context) @ self._X_FB)
