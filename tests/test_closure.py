@@ -187,6 +187,36 @@ def test_held_move_is_played_within_the_closure_constraint_densely(lift_problem,
     assert np.all(q >= motions.world.lower - 1e-9) and np.all(q <= motions.world.upper + 1e-9)
 
 
+# Both hands closed on one drill (unseen extra_1013 on the workspace map, as measured after the grasp): the
+# fingers of the two hands overlap 1.4 mm in the sphere model, 0 in Drake's geometry.
+HANDS_ON_ONE_DRILL = (
+    [-1.204, 0.503, -1.58, -0.818, 0.889, 1.025, 0.027]  # left arm, rad
+    + [-0.17, -0.236, -0.11, -0.355, 0.074, -0.939, -0.345]  # right arm
+    + [-0.028]  # torso yaw
+)
+
+
+def test_a_held_move_does_not_count_the_gap_between_the_hands_the_grasp_made(scenario):
+    """Under the closure constraint the hands keep their relative pose, so their spheres' gap cannot change."""
+    motions = make_pick_motions(scenario)
+    q = np.array(HANDS_ON_ONE_DRILL)
+    scene, stomp = motions.world.table_obstacles(), motions.stomp
+    assert not motions.world.in_collision(q)
+    assert stomp.clearance(q, scene) < 0  # a free reach could not start here
+    assert stomp.clearance(q, scene, held=True) > stomp.config.required_clearance
+    held = motions.held_move(q, RigidTransform([0.0, 0.0, 0.12]), min_fraction=0.8)
+    rise = [motions.world.grasp_frame_poses(held.keyframes[-1])[side].translation()[2] for side in ("left", "right")]
+    start = [motions.world.grasp_frame_poses(q)[side].translation()[2] for side in ("left", "right")]
+    assert np.min(np.subtract(rise, start)) > 0.8 * 0.12
+    # The pairs left out are exactly those between a sphere fixed to one hand and one fixed to the other.
+    kinematics, spheres = motions.world.kinematics, stomp.spheres
+    wrists = {6, 13}  # the last joint of each arm moves its hand
+    moved_by = np.array([kinematics.driving_dof(position) for position in spheres.body])
+    expected = [{moved_by[a], moved_by[b]} == wrists for a, b in zip(stomp.pair_a, stomp.pair_b, strict=True)]
+    np.testing.assert_array_equal(stomp.hand_to_hand, expected)
+    assert stomp.hand_to_hand.sum() > 100
+
+
 def test_tilt_angle_ignores_turns_about_the_vertical_only():
     R0 = RollPitchYaw(0.3, -0.2, 0.5).ToRotationMatrix()
     turned = RotationMatrix.MakeZRotation(0.7) @ R0

@@ -110,6 +110,13 @@ class BatchedKinematics:
                 return current
         return None
 
+    def driving_dof(self, position: int) -> int:
+        """The planned coordinate that moves the tracked link at `position` last (its own joint or its nearest
+        driven ancestor's): links with the same one move as one rigid body. -1 for links fixed to the world."""
+        while position >= 0 and self.links[position].arm_dof < 0:
+            position = self.links[position].parent
+        return self.links[position].arm_dof if position >= 0 else -1
+
     def body_poses(self, q: np.ndarray) -> np.ndarray:
         """X_WB of every tracked body: an array (B x L x 4 x 4), in the order of `links`."""
         q = np.atleast_2d(q)

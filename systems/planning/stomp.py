@@ -183,13 +183,25 @@ class Stomp:
         )
         self.body_pairs, pair_group = np.unique(body_pairs, axis=0, return_inverse=True)
         self.pair_group = pair_group.ravel()
+        # Pairs of a sphere fixed to one hand and one fixed to the other: while both hands hold an object (the
+        # closure constraint) their gap stays as the grasp made it, so a held move does not count them (the
+        # sphere model can find two hands on one handle overlapping where Drake's geometry does not).
+        moved_by = np.array([world.kinematics.driving_dof(position) for position in spheres.body])
+        hands = {world.kinematics.driving_dof(position) for position in world.end_effectors.positions}
+        self.hand_to_hand = np.array(
+            [{moved_by[a], moved_by[b]} == hands for a, b in zip(self.pair_a, self.pair_b, strict=True)], bool
+        )
 
-    def clearance(self, q: np.ndarray, obstacles: Obstacles) -> np.ndarray:
-        """Smallest clearance (m) of the sphere model at each configuration (... x n)."""
-        return self._clearances(q, obstacles)[0]
+    def clearance(self, q: np.ndarray, obstacles: Obstacles, held: bool = False) -> np.ndarray:
+        """Smallest clearance (m) of the sphere model at each configuration (... x n); with `held` (both hands
+        hold one object), without the hand-to-hand pairs."""
+        return self._clearances(q, obstacles, held=held)[0]
 
-    def _clearances(self, q: np.ndarray, obstacles: Obstacles, poses=None) -> tuple[np.ndarray, np.ndarray]:
-        """(smallest clearance, summed shortfall below the margin over all spheres and pairs) per configuration."""
+    def _clearances(
+        self, q: np.ndarray, obstacles: Obstacles, poses=None, held: bool = False
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """(smallest clearance, summed shortfall below the margin over all spheres and pairs) per configuration;
+        with `held`, the hand-to-hand pairs left out."""
         shape = q.shape[:-1]
         if poses is None:
             poses = self.kinematics.body_poses(q.reshape(-1, self.dof))
@@ -202,6 +214,8 @@ class Stomp:
             points = carried.points_B @ np.swapaxes(X[:, :3, :3], 1, 2) + X[:, None, :3, 3]
             gaps.append(obstacles.distance(points) - carried.radius)
         near = self._near_sphere_pairs(poses)
+        if held:
+            near = near[~self.hand_to_hand[near]]
         if len(near):
             a, b = self.pair_a[near], self.pair_b[near]
             centres32 = centres.astype(np.float32)
@@ -231,13 +245,14 @@ class Stomp:
         config = self.config
         terms = np.zeros((K, N, len(TERMS)))
         poses = self.kinematics.body_poses(trajectories.reshape(-1, self.dof))
-        terms[..., 0] = self._clearances(trajectories, obstacles, poses)[1]
+        held = closure is not None
+        terms[..., 0] = self._clearances(trajectories, obstacles, poses, held)[1]
         if closure is not None or orientation is not None:
             # Held moves: between keyframes too (a carry stalled with its keyframes clear and a segment just short
             # of clear). Not for reaches: there it solved fewer unseen problems (42/47 against 46/47).
             middles = 0.5 * (trajectories[:, :-1] + trajectories[:, 1:])
             middle_poses = self.kinematics.body_poses(middles.reshape(-1, self.dof))
-            terms[:, 1:, 0] += self._clearances(middles, obstacles, middle_poses)[1]
+            terms[:, 1:, 0] += self._clearances(middles, obstacles, middle_poses, held)[1]
         to_limit = np.minimum(trajectories - self.lower, self.upper - trajectories)
         terms[..., 1] = (np.maximum(1.0 - to_limit / config.limit_margin, 0.0) ** 2).sum(axis=-1)
         if self.effort_limits is not None:
@@ -361,7 +376,7 @@ class Stomp:
                 return StompResult(
                     False, theta, 0, 0.0, np.nan, f"the {name} configuration is outside the joint limits"
                 )
-        end_clearance = self.clearance(np.stack([q_start, q_goal]), obstacles)
+        end_clearance = self.clearance(np.stack([q_start, q_goal]), obstacles, held=closure_constraint is not None)
         if np.any(end_clearance < 0):
             which = "start" if end_clearance[0] < 0 else "goal"
             return StompResult(False, theta, 0, 0.0, float(end_clearance.min()), f"the {which} configuration collides")
@@ -492,14 +507,14 @@ class Stomp:
     def _feasible(self, theta, obstacles, closure, orientation) -> tuple[bool, np.ndarray]:
         """Whether the trajectory is a solution (clear of collision at and between its keyframes, within the
         hand constraints densely), and its keyframes' clearances."""
-        clearance = self.clearance(theta, obstacles)
+        held = closure is not None
+        clearance = self.clearance(theta, obstacles, held)
         ok = clearance.min() > self.config.required_clearance
         ok = ok and (closure is None or self.closure_within_limits(theta, closure)[0])
         ok = ok and (orientation is None or self.orientation_within_limits(theta, orientation)[0])
-        return bool(ok and self._segments_clear(theta, obstacles)), clearance
+        return bool(ok and self._segments_clear(theta, obstacles, held)), clearance
 
-    def _segments_clear(self, theta: np.ndarray, obstacles: Obstacles, steps: int = 4) -> bool:
+    def _segments_clear(self, theta: np.ndarray, obstacles: Obstacles, held: bool, steps: int = 4) -> bool:
         """The sphere model stays clear between keyframes too (checked `steps` times per segment)."""
-        return bool(
-            self.clearance(interpolate_segments(theta, steps), obstacles).min() > self.config.required_clearance
-        )
+        clearance = self.clearance(interpolate_segments(theta, steps), obstacles, held)
+        return bool(clearance.min() > self.config.required_clearance)
