@@ -146,5 +146,5 @@ def grasp_configuration(scenario: Scenario, motions: PickMotions) -> np.ndarray:
     """
     poses = true_grasp_poses(scenario)
     q = initial_positions(scenario)
-    pregrasp = motions.reach(q, {side: poses[f"{side}_pregrasp"] for side in SIDES})[-1]
+    pregrasp = motions.reach(q, {side: poses[f"{side}_pregrasp"] for side in SIDES}).keyframes[-1]
     return motions.straight(pregrasp, {side: poses[f"{side}_grasp"] for side in SIDES})[-1]

@@ -157,6 +157,9 @@ class PlanRequest:
     # Pre-grasp and grasp targets (and the obstacle cloud): the object's motion in W since perception saw it,
     # as a look before the approach found it (None: it has not moved).
     object_motion_W: RigidTransform | None = None
+    # Grasp targets: per side, the grasp the hand goes to as a transform of the perceived one on the right (X_GG':
+    # rolled about or slid along the handle), as the reach to the pre-grasps chose it (None: as perceived).
+    grasp_offsets_G: dict[str, RigidTransform] | None = None
 
 
 @dataclass
@@ -177,6 +180,9 @@ class PlanResult:
     achieved_motion_W: RigidTransform | None = None
     # Each hand's grasp frame origin along the trajectory, samples x 3 in W (for the viewer).
     grasp_paths_W: dict[str, np.ndarray] = field(default_factory=dict)
+    # Reaches to the pre-grasps: per side, the grasp the pre-grasp leads to, X_GG' of the perceived grasp G (the
+    # identity, or another grasp of the same handle where the perceived one was out of that hand's reach).
+    grasp_offsets_G: dict[str, RigidTransform] | None = None
 
     @property
     def end_s(self) -> float:
@@ -249,6 +255,8 @@ class PickStatus:
     # Where the robot stands still: first measured, then where each played trajectory ends (the planned joints, rad).
     plan_end_q: np.ndarray | None = None
     belief: ObjectBelief | None = None  # where the object is, once perceived
+    # The grasps the last reach to the pre-grasps chose, X_GG' per side (PlanResult.grasp_offsets_G).
+    grasp_offsets_G: dict | None = None
     looks_read: int = 0  # looks at the held object whose result was read
     q_home: np.ndarray | None = None  # where the robot stood when the pick began (planned joints, rad)
     attempt: int = 1  # the attempt under way (a failed check starts the next, up to max_attempts)

@@ -336,6 +336,7 @@ class PickSupervisor(LeafSystem):
                 carried,
                 q_goal=status.q_home if phase.targets == Targets.HOME else None,
                 object_motion_W=self._object_motion(status, phase),
+                grasp_offsets_G=status.grasp_offsets_G if phase.targets == Targets.GRASP else None,
             )
         elif phase.hand_width is not None:
             width = phase.hand_width + (max(status.grasp_widths, default=OPEN_WIDTH) if phase.beyond_grasp else 0.0)
@@ -355,10 +356,12 @@ class PickSupervisor(LeafSystem):
                 self._fail(status, Stage.PLANNING, plan.message)
                 return True, look
             applied = status.applied_plan_id != plan.id
-            if applied:  # the object moved with the hands
+            if applied:  # the object moved with the hands; a reach chose the grasps
                 status.applied_plan_id = plan.id
                 if plan.achieved_motion_W is not None:
                     status.belief = status.belief.moved(plan.achieved_motion_W)
+                if phase.targets == Targets.PREGRASP:
+                    status.grasp_offsets_G = plan.grasp_offsets_G
             if t + 1e-9 < plan.end_s:
                 return applied, look
             status.plan_end_q = plan.trajectory.value(plan.end_s).ravel()

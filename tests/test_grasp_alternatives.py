@@ -1,5 +1,5 @@
-"""Grasp alternatives: a grasp rolled about its handle, and the reach that tries them where the grasp as given
-is out of a hand's reach."""
+"""Grasp alternatives: a grasp rolled about its handle or slid along it, and the reach that tries them where the
+grasp as given is out of a hand's reach."""
 
 import numpy as np
 import pytest
@@ -7,8 +7,14 @@ from pydrake.math import RigidTransform, RollPitchYaw
 
 from diagrams.planning_scene import make_pick_motions, true_grasp_poses
 from diagrams.scenario import initial_positions, replace_object
+from systems.planning.grasp_alternatives import (
+    GRASP_ROLLS,
+    HANDLE_SLIDES,
+    grasp_alternatives,
+    handle_slides,
+    pregrasp_alternatives,
+)
 from systems.planning.pick_motions import PlanningError
-from systems.planning.stomp_planner import GRASP_ROLLS, grasp_rolls
 
 SIDES = ("left", "right")
 
@@ -17,7 +23,7 @@ def test_a_rolled_pre_grasp_pivots_about_the_handle_through_the_grasp():
     X_WG = RigidTransform(RollPitchYaw(0.3, -0.2, 1.0), [0.7, 0.1, 0.9])
     X_GP = RigidTransform([0.0, 0.0, -0.1])  # the pre-grasp 10 cm back along the approach axis
     X_WP = X_WG @ X_GP
-    alternatives = grasp_rolls(X_GP)
+    alternatives = pregrasp_alternatives(X_GP, grasp_alternatives(X_WG, None))  # no points: no slides
     assert len(alternatives) == 1 + len(GRASP_ROLLS)
     assert alternatives[0].IsExactlyIdentity()
     for A, angle in zip(alternatives[1:], GRASP_ROLLS, strict=True):
@@ -40,13 +46,42 @@ def test_the_reach_rolls_a_grasp_the_hand_cannot_reach_as_given(scenario):
     q0 = initial_positions(drill)
     with pytest.raises(PlanningError, match="right hand: target out of reach"):
         motions.reach(q0, pregrasps)
-    rolls = {side: grasp_rolls(poses[f"{side}_grasp"].inverse() @ pregrasps[side]) for side in SIDES}
-    keyframes = motions.reach(q0, pregrasps, alternatives=rolls)
-    reached = motions.world.grasp_frame_poses(keyframes[-1])
-    used = {}
-    for side in SIDES:  # each hand at one of its pre-grasps (the grasp kept, the approach turned)
-        candidates = [pregrasps[side] @ A for A in rolls[side]]
-        gaps = [np.linalg.norm(reached[side].translation() - X.translation()) for X in candidates]
-        assert min(gaps) < 0.004  # the IK holds each coordinate within 2 mm
-        used[side] = int(np.argmin(gaps))
-    assert used["right"] > 0  # a rolled one
+    rolls = {
+        side: pregrasp_alternatives(poses[f"{side}_grasp"].inverse() @ pregrasps[side], grasp_alternatives(X, None))
+        for side, X in pregrasps.items()
+    }
+    reach = motions.reach(q0, pregrasps, alternatives=rolls)
+    reached = motions.world.grasp_frame_poses(reach.keyframes[-1])
+    for side in SIDES:  # each hand at the pre-grasp it chose (the grasp kept, the approach turned)
+        chosen = pregrasps[side] @ rolls[side][reach.choice[side]]
+        assert np.linalg.norm(reached[side].translation() - chosen.translation()) < 0.004  # IK: 2 mm a coordinate
+    assert reach.choice["right"] > 0  # a rolled one
+
+
+def _handle_and_housing(handle_end: float, housing: bool) -> np.ndarray:
+    """Points (N x 3, in the grasp frame G) of a handle of radius 17 mm along x from -5 cm to handle_end, and, with
+    `housing`, of a disc of radius 5 cm across its axis just past its end (where a drill's housing sits)."""
+    rng = np.random.default_rng(0)
+    x = rng.uniform(-0.05, handle_end, 3000)
+    angle = rng.uniform(0, 2 * np.pi, 3000)
+    points = [np.stack([x, 0.017 * np.cos(angle), 0.017 * np.sin(angle)], axis=1)]
+    if housing:
+        radius, angle = 0.05 * np.sqrt(rng.uniform(0, 1, 2000)), rng.uniform(0, 2 * np.pi, 2000)
+        points.append(np.stack([np.full(2000, handle_end), radius * np.cos(angle), radius * np.sin(angle)], axis=1))
+    return np.concatenate(points)
+
+
+def test_a_grasp_slides_along_its_handle_only_as_far_as_the_fingers_stay_on_it():
+    X_WG = RigidTransform(RollPitchYaw(0.3, -0.2, 1.0), [0.7, 0.1, 0.9])
+    free = X_WG.multiply(_handle_and_housing(0.05, housing=False).T).T
+    assert handle_slides(free, X_WG) == list(HANDLE_SLIDES)  # the fingers may overhang an end by 1 cm or less
+    # A housing 5 cm up the handle: the fingers (6 cm wide) may slide 1.5 cm up, not 3.
+    blocked = X_WG.multiply(_handle_and_housing(0.05, housing=True).T).T
+    assert handle_slides(blocked, X_WG) == [0.015, -0.015, -0.03]
+    short = X_WG.multiply(_handle_and_housing(0.025, housing=True).T).T  # 5 mm past the fingers at the grasp
+    assert handle_slides(short, X_WG) == [-0.015, -0.03]
+    assert handle_slides(np.zeros((0, 3)), X_WG) == []
+    assert handle_slides(free + [0.0, 0.0, 1.0], X_WG) == []  # no handle at the grasp
+    family = grasp_alternatives(X_WG, blocked)
+    assert len(family) == 1 + len(GRASP_ROLLS) + 3
+    np.testing.assert_allclose(family[-1].translation(), [-0.03, 0.0, 0.0])

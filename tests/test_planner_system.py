@@ -51,6 +51,7 @@ def test_planner_plans_a_request_once_and_releases_it_after_its_latency(planner,
     reached = world.grasp_frame_poses(trajectory.value(trajectory.end_time()).ravel())
     for side in ("left", "right"):
         assert np.linalg.norm(reached[side].translation() - poses[f"{side}_pregrasp"].translation()) < 0.004
+        assert plan.grasp_offsets_G[side].IsExactlyIdentity()  # reached as perceived: no other grasp chosen
     times = np.linspace(trajectory.start_time(), trajectory.end_time(), 300)
     q = np.array([trajectory.value(t).ravel() for t in times])
     v = np.array([trajectory.EvalDerivative(t).ravel() for t in times])
@@ -67,6 +68,19 @@ def test_planner_plans_a_request_once_and_releases_it_after_its_latency(planner,
     reached = world.grasp_frame_poses(plan.trajectory.value(plan.trajectory.end_time()).ravel())
     for side in ("left", "right"):
         X_GR = poses[f"{side}_grasp"].InvertAndCompose(reached[side])
+        assert np.linalg.norm(X_GR.translation() - [0, 0, 0.01]) < 0.002 * np.sqrt(3) + 1e-4
+
+    # An approach to the grasps a reach chose (the left one slid 1.5 cm along its handle) ends there.
+    offsets = {"left": RigidTransform([0.015, 0.0, 0.0]), "right": RigidTransform()}
+    approach = PlanRequest(id=3, phase="approach", q_start=approach.q_start, path="straight", targets="grasp",
+                           grasp_offsets_G=offsets)  # fmt: skip
+    planner.GetInputPort("request").FixValue(context, AbstractValue.Make(approach))
+    simulator.AdvanceTo(context.get_time() + LATENCY_S + 0.02)
+    plan = planner.GetOutputPort("plan").Eval(context)
+    assert plan.id == 3 and plan.success, plan.message
+    reached = world.grasp_frame_poses(plan.trajectory.value(plan.trajectory.end_time()).ravel())
+    for side in ("left", "right"):
+        X_GR = (poses[f"{side}_grasp"] @ offsets[side]).InvertAndCompose(reached[side])
         assert np.linalg.norm(X_GR.translation() - [0, 0, 0.01]) < 0.002 * np.sqrt(3) + 1e-4
 
 

@@ -7,7 +7,7 @@ and both arms together with the torso free from the first candidate where each a
 
 import itertools
 from collections.abc import Iterable, Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from pydrake.math import RigidTransform, RotationMatrix
@@ -29,6 +29,8 @@ class IkResult:
     success: bool
     q: np.ndarray  # the planned joints, rad (arm 1, arm 2, then the torso if planned)
     message: str = ""
+    # Per side, which target each hand was solved for: 0 as given, k the k-th of solve()'s alternatives.
+    choice: dict[str, int] = field(default_factory=dict)
 
 
 class DualArmIk:
@@ -180,8 +182,10 @@ class DualArmIk:
                 motion that follows.
             torso_yaws: the torso yaws (rad) to hold while each arm is solved, in turn (default
                 torso_candidates()); ignored with the torso locked.
-            alternatives: per side, other grasps of the same object part, as transforms of X_WG[side] on the
-                right, tried in turn where the ones before leave that hand out of reach (default: none).
+            alternatives: per side, the targets to try in turn (the first usually the identity), as transforms of
+                X_WG[side] on the right (e.g. other grasps of the same handle): the next is tried only where the
+                ones before leave that hand out of reach; IkResult.choice says which one each hand was solved for
+                (default: X_WG alone).
         """
         q_guess = np.asarray(q_guess, dtype=float)
         options = (
@@ -217,10 +221,10 @@ class DualArmIk:
         seeds = self._seeds(X_WG, restarts, torso) if restarts else []
         # The arms are kinematically independent at a given torso yaw: solve each alone (7 joints, many
         # starts), then both together with the collision constraint, from the per-arm answers.
-        per_arm = {}
+        per_arm, choice = {}, {}
         for side in SIDES:
             per_arm[side] = []
-            for alternative in (alternatives or {}).get(side, [RigidTransform()]):
+            for index, alternative in enumerate((alternatives or {}).get(side, [RigidTransform()])):
                 for start, turn in itertools.product([guess, *seeds], turns):
                     if min_distance is None and per_arm[side] and start is not guess:
                         break  # solved from the guess: the seeds would only add answers farther from it
@@ -231,6 +235,7 @@ class DualArmIk:
                     if result.success:
                         per_arm[side].append((target, result.q))
                 if per_arm[side]:
+                    choice[side] = index
                     break  # the alternatives after the first that reaches are not tried
             if not per_arm[side]:
                 return IkResult(False, q_guess, f"{side} hand: target out of reach")
@@ -241,13 +246,13 @@ class DualArmIk:
             start = left_q.copy()
             start[7:14] = right_q[7:14]
             if min_distance is None:
-                return IkResult(True, start, "solved per arm")
+                return IkResult(True, start, "solved per arm", choice)
             result = self._solve_once(
                 {"left": left_X, "right": right_X}, start, start, position_tolerance, angle_tolerance, min_distance,
                 limit_margin, torso=True,
             )  # fmt: skip
             if result.success:
-                return result
+                return IkResult(True, result.q, result.message, choice)
         return IkResult(False, q_guess, "each hand reaches its target, but not without a collision")
 
     def solve_held(

@@ -91,6 +91,15 @@ class HeldMove:
     X_E1E2: np.ndarray  # 4 x 4: the right grasp frame in the left one's, as at the start
 
 
+@dataclass
+class Reach:
+    """A reach's keyframes (K x n, rad, q_start first) and, per side, which of its targets the last holds (0: as
+    given, k: the k-th alternative)."""
+
+    keyframes: np.ndarray
+    choice: dict[str, int]
+
+
 class PickMotions:
     """Plans the motions of a pick in a PlanningWorld (robot and table; the object as points when given).
 
@@ -112,14 +121,16 @@ class PickMotions:
         targets_W: dict[str, RigidTransform],
         obstacle_points_W: np.ndarray | None = None,
         alternatives: dict[str, list[RigidTransform]] | None = None,
-        approach_to: dict[str, RigidTransform] | None = None,
-    ) -> np.ndarray:
+        approach_to: dict[str, list[RigidTransform]] | None = None,
+    ) -> "Reach":
         """Keyframes from q_start to both hands at targets_W, collision-free: Drake's geometry, and the sphere model
         against the world's fixed scene and obstacle_points_W (the object as seen, N x 3 in W, e.g. a perceived
-        cloud: Drake's model has no geometry for it). alternatives: per side, other targets as transforms of
-        targets_W[side] on the right, tried where the ones before are out of that hand's reach (DualArmIk.solve).
-        approach_to: where the hands go straight on from the goal (the grasps, from pre-grasps): a goal from which
-        that straight motion fails is passed over for the next.
+        cloud: Drake's model has no geometry for it). alternatives: per side, the targets to try in turn as
+        transforms of targets_W[side] on the right (the first the identity), the next only where the ones before
+        are out of that hand's reach (DualArmIk.solve). approach_to: per side, where the hand goes straight on from
+        each of its targets (the grasps, from pre-grasps; one per alternative): a goal from which that straight
+        motion fails is passed over for the next, and where every goal is, goals are found backwards from the
+        grasps (_goals_from_the_grasps).
 
         Raises:
             PlanningError: no collision-free IK solution, or no collision-free path to it.
@@ -128,14 +139,18 @@ class PickMotions:
         # Straight segments are checked with Drake's geometry, and with the sphere model where the object is points.
         checked = obstacles if obstacle_points_W is not None else None
         failure = None
-        for goal in self._reach_goals(q_start, targets_W, alternatives):
+        goals = self._reach_goals(q_start, targets_W, alternatives)
+        if approach_to is not None:
+            goals = itertools.chain(goals, self._goals_from_the_grasps(q_start, targets_W, alternatives, approach_to))
+        for goal in goals:
             if not goal.success:
                 failure = failure or PlanningError(f"no collision-free IK solution at the goal ({goal.message})")
                 continue
+            choice = {side: goal.choice.get(side, 0) for side in SIDES}
             try:
                 if approach_to is not None:
-                    self._check_approach(goal.q, approach_to)
-                return self._reach_path(q_start, goal.q, obstacles, checked)
+                    self._check_approach(goal.q, {side: approach_to[side][choice[side]] for side in SIDES})
+                return Reach(self._reach_path(q_start, goal.q, obstacles, checked), choice)
             except PlanningError as error:
                 failure = error
         raise failure
@@ -151,6 +166,26 @@ class PickMotions:
                     yield self.ik.solve(
                         targets_W, q_start, restarts=12, limit_margin=margin, torso_yaws=[torso], alternatives=choices
                     )
+
+    def _goals_from_the_grasps(self, q_start, targets_W, alternatives, approach_to) -> Iterator[IkResult]:
+        """Pre-grasp goals found backwards: both hands at their grasps (IK, the torso and the alternatives tried as
+        _reach_goals tries them), then backed off along the approach to the pre-grasps (straight()). For an arm
+        that reaches its grasp only near full stretch: from a pre-grasp solved first, the approach may not reach."""
+        grasps = {side: approach_to[side][0] for side in SIDES}
+        others = {side: [grasps[side].inverse() @ X for X in approach_to[side]] for side in SIDES}
+        for goal in self._reach_goals(q_start, grasps, others):
+            if not goal.success:
+                yield goal
+                continue
+            choice = {side: goal.choice.get(side, 0) for side in SIDES}
+            pregrasps = {
+                side: targets_W[side] @ (alternatives[side][choice[side]] if alternatives else RigidTransform())
+                for side in SIDES
+            }
+            try:
+                yield IkResult(True, self.straight(goal.q, pregrasps)[-1], "backed off from the grasps", choice)
+            except PlanningError as error:
+                yield IkResult(False, goal.q, f"backing off from the grasps fails ({error})")
 
     def _check_approach(self, q: np.ndarray, approach_to: dict[str, RigidTransform]):
         """Raises PlanningError where the straight approach from q to approach_to fails."""

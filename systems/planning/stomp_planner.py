@@ -15,11 +15,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from pydrake.common.value import AbstractValue
-from pydrake.math import RigidTransform, RotationMatrix
+from pydrake.math import RigidTransform
 from pydrake.systems.framework import EventStatus, LeafSystem
 from pydrake.trajectories import PiecewisePolynomial
 
 from systems.messages import GraspPoses, MoveKind, PlanRequest, PlanResult, Targets
+from systems.planning.grasp_alternatives import grasp_alternatives, pregrasp_alternatives
 from systems.planning.pick_motions import (
     SPARSE_SEGMENT_S,
     STOMP_SEGMENT_S,
@@ -36,16 +37,6 @@ RETREAT_M = 0.1  # m: how far the hands back off an object they let go of
 # Where a pre-grasp is out of reach, pre-grasps this share of the way out from the grasp are tried in turn: the
 # approach is then shorter (its straight line still ends at the grasp).
 PREGRASP_STANDOFFS = (1.0, 0.5)
-# A hand holds a handle (along x_G) from around it as well: grasps rolled by these angles about the handle
-# axis through the grasp (rad) are tried where the grasp as perceived is out of that hand's reach.
-GRASP_ROLLS = (0.35, -0.35, 0.7, -0.7)
-
-
-def grasp_rolls(X_GP: RigidTransform) -> list[RigidTransform]:
-    """For a pre-grasp P at X_GP from its grasp G: P itself, then P as it is when the grasp is rolled by each
-    of GRASP_ROLLS about G's x axis (the handle) through G, each as a transform of P on the right (P -> P')."""
-    rolls = [RigidTransform(RotationMatrix.MakeXRotation(angle)) for angle in GRASP_ROLLS]
-    return [RigidTransform()] + [X_GP.inverse() @ roll @ X_GP for roll in rolls]
 
 
 @dataclass
@@ -141,7 +132,7 @@ class StompPlanner(LeafSystem):
                     points = self._obstacle_points(context)
                     if points is not None and request.object_motion_W is not None:  # where a look found it
                         points = request.object_motion_W.multiply(points.T).T
-                    keyframes = self._reach(request, context, targets, points)
+                    keyframes, result.grasp_offsets_G = self._reach(request, context, targets, points)
                     min_segment = STOMP_SEGMENT_S if len(keyframes) > 3 else SPARSE_SEGMENT_S
                 else:
                     keyframes, min_segment = motions.straight(request.q_start, targets), SPARSE_SEGMENT_S
@@ -161,15 +152,22 @@ class StompPlanner(LeafSystem):
         result.planning_s = time.perf_counter() - started
         return result
 
-    def _reach(self, request: PlanRequest, context, targets, points) -> np.ndarray:
-        """The reach's keyframes to `targets`. For the pre-grasps, only a pre-grasp configuration from which the
-        straight approach reaches the grasps will do; where a hand cannot reach its pre-grasp so, the same grasp
-        rolled about the handle (grasp_rolls), and where no roll does, pre-grasps nearer the grasps
-        (PREGRASP_STANDOFFS)."""
+    def _reach(self, request: PlanRequest, context, targets, points) -> tuple[np.ndarray, dict | None]:
+        """The reach's keyframes to `targets`, and for pre-grasps the grasps they lead to (X_GG' per side).
+
+        For the pre-grasps, only a pre-grasp configuration from which the straight approach reaches the grasps
+        will do; where a hand cannot reach its pre-grasp so, the other grasps of its family (grasp_alternatives:
+        rolled about the handle, slid along it, judged on the object's points), and where none does, pre-grasps
+        nearer the grasps (PREGRASP_STANDOFFS)."""
         if request.targets != Targets.PREGRASP:
-            return self.motions.reach(request.q_start, targets, points)
+            return self.motions.reach(request.q_start, targets, points).keyframes, None
         grasps = self._targets(dataclasses.replace(request, targets=Targets.GRASP), context, deeper=False)
-        deeper = {side: X @ self.deeper for side, X in grasps.items()}  # where the approach ends
+        cloud = self.GetInputPort("obstacle_cloud_W").Eval(context)
+        if len(cloud) and request.object_motion_W is not None:
+            cloud = request.object_motion_W.multiply(cloud.T).T
+        families = {side: grasp_alternatives(grasps[side], cloud) for side in SIDES}
+        # Where each hand's approach ends, for each grasp of its family.
+        approach_to = {side: [grasps[side] @ X_GG @ self.deeper for X_GG in families[side]] for side in SIDES}
         failure = None
         for standoff in PREGRASP_STANDOFFS:
             nearer = {
@@ -178,9 +176,12 @@ class StompPlanner(LeafSystem):
                 )
                 for side, X in targets.items()
             }
-            rolls = {side: grasp_rolls(grasps[side].inverse() @ nearer[side]) for side in SIDES}
+            alternatives = {
+                side: pregrasp_alternatives(grasps[side].inverse() @ nearer[side], families[side]) for side in SIDES
+            }
             try:
-                return self.motions.reach(request.q_start, nearer, points, rolls, approach_to=deeper)
+                reach = self.motions.reach(request.q_start, nearer, points, alternatives, approach_to)
+                return reach.keyframes, {side: families[side][reach.choice[side]] for side in SIDES}
             except PlanningError as error:
                 failure = failure or error
                 if "no collision-free IK solution" not in str(error) and "approach" not in str(error):
@@ -202,7 +203,11 @@ class StompPlanner(LeafSystem):
         if request.targets not in (Targets.PREGRASP, Targets.GRASP):
             raise PlanningError(f"unknown targets {request.targets!r} (pregrasp, grasp or retreat)")
         deeper = self.deeper if request.targets == Targets.GRASP and deeper else RigidTransform()
-        targets = {side: grasps.poses_W[f"{side}_{request.targets}"] @ deeper for side in SIDES}
+        offsets = request.grasp_offsets_G if request.targets == Targets.GRASP and request.grasp_offsets_G else {}
+        targets = {
+            side: grasps.poses_W[f"{side}_{request.targets}"] @ offsets.get(side, RigidTransform()) @ deeper
+            for side in SIDES
+        }
         if request.object_motion_W is not None:  # the object moved since it was seen: the grasps moved with it
             targets = {side: request.object_motion_W @ X for side, X in targets.items()}
         return targets
