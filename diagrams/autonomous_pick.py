@@ -310,6 +310,8 @@ class PickWatcher:
         if status.belief is not None and outcome.object_rest_W is not None:
             outcome.perception = pose_error(status.belief.seen_W, outcome.object_rest_W)
         outcome.attempts_made, outcome.attempt_failures = status.attempt, attempt_failures(status)
+        if outcome.place:
+            outcome.place["corrections"] = status.place_corrections  # set down again after a look found it off
         if status.mode == Mode.FAILED:
             outcome.success = False
             outcome.failed_stage, outcome.message = status.failed_stage, status.message

@@ -69,7 +69,8 @@ class PickOutcome:
     # The place task's judgement: {"error_m": xy distance to the target, "yaw_error_rad", "tilt_rad": of the
     # object's z axis from vertical, "max_slip_m": how far it moved in the hands while held, "dropped", and
     # "set_down_error_m", "set_down_yaw_error_rad": the same when the hands began to let go; "release_turn_rad",
-    # "release_shift_m": how far letting go and backing off turned it about the vertical and moved it}.
+    # "release_shift_m": how far letting go and backing off turned it about the vertical and moved it (the last
+    # time), "corrections": how often the object was taken again and set down again after a look found it off}.
     place: dict = field(default_factory=dict)
     # How far the perceived object pose was from the true one when the camera saw it: {"position_error_m": xy
     # distance, "yaw_error_rad"} (empty when the pick did not perceive).
@@ -218,7 +219,8 @@ class PlaceJudge(LiftJudge):
     """Judges the place task on ground truth: the object ends resting upright within PLACE_TOLERANCE_M and
     PLACE_TOLERANCE_RAD of the target, let go by both hands, and never slipped more than DROP_SLIP_M in the
     hands (its origin against the grasp frames' midpoint, in the left grasp frame) while they held it (the
-    modes `held_modes`, told by mode_of(context))."""
+    modes `held_modes`, told by mode_of(context); each stretch of them is one grasp: a grasp taken again, after
+    a retry or a set-down off the target, is not a slip). The release measured is the last one."""
 
     def __init__(
         self,
@@ -232,13 +234,17 @@ class PlaceJudge(LiftJudge):
         self.context, self.X_W_target, self.mode_of, self.held_modes = context, X_W_target, mode_of, held_modes
         self.frames = grasp_frames(plant)
         self.held_offset, self.max_slip = None, 0.0
-        self.X_set_down = None  # the object's pose when the hands began to let go
+        self.X_set_down = None  # the object's pose when the hands last began to let go
+        self.last_mode = None
 
     def sample(self, t: float) -> float:
         z = super().sample(t)
-        mode = self.mode_of(self.context)
-        if self.body is not None and mode == "release" and self.X_set_down is None:
+        mode, last = self.mode_of(self.context), self.last_mode
+        self.last_mode = mode
+        if self.body is not None and mode == "release" and last != "release":
             self.X_set_down = self.body.EvalPoseInWorld(self.plant_context)
+        if last not in self.held_modes:
+            self.held_offset = None  # a new grasp
         if self.body is not None and mode in self.held_modes:
             X_WG = [f.CalcPoseInWorld(self.plant_context) for f in self.frames]
             between = np.mean([X.translation() for X in X_WG], axis=0)

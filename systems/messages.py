@@ -61,6 +61,7 @@ class Mode(enum.StrEnum):
     SET_DOWN = "set_down"
     RELEASE = "release"
     RETREAT = "retreat"
+    CONFIRM = "confirm"  # a look at the object set down: does it stand where it was to go?
     # Recovering from a failed attempt: open the hands, back off, go back to where the pick started.
     RECOVER_OPEN = "recover_open"
     RECOVER_RETREAT = "recover_retreat"
@@ -264,3 +265,6 @@ class PickStatus:
     recovering: bool = False  # the recovery's phases (open, back off, home) are under way, not the task's
     corrections: int = 0  # reaches planned again this attempt because a look found the object moved
     correcting: bool = False  # backing off to reach again (the object moved), not the task's phases
+    # The object was set down off its target: the hands take it again and set it down again (the re-place phases).
+    replacing: bool = False
+    place_corrections: int = 0  # times the object was taken again after a set-down

@@ -8,13 +8,15 @@ any point leaves the arms holding where they are (the trajectory source holds th
 trajectory's end) and names the stage.
 
 Modes: waiting -> perceiving -> (the task's phases: reach, approach, close, lift, then hold; or close,
-look, lift, carry, look_again, set_down, release, retreat) -> done, or failed.
+look, lift, carry, look_again, set_down, release, retreat, confirm) -> done, or failed.
 
 Checks and retries: after closing, each hand must hold something (its measured opening neither closed to
 nothing nor still open), and after the lift it must still do. A failed check is one failed attempt: the
 hands open, back off along their approach axes, the arms go back to where the pick started, and the pick
 starts again from a new camera frame, up to max_attempts. Failures that another attempt would repeat
-(perception found nothing, no plan) end the pick at once. A place moves the object
+(perception found nothing, no plan) end the pick at once. After a place, a look confirms where the object
+stands; off its target, the hands take it again and set it down again (at most MAX_PLACE_CORRECTIONS times).
+A place moves the object
 from where it is in the hands, not from where it was seen before the hands touched it (closing turned
 cans by up to 21 degrees, the lift a few more): the object belief and the place goals are
 systems/planning/place_goals.py's.
@@ -60,6 +62,10 @@ HOLD_S = 2.5  # s
 # over an 8 cm box STOMP found no upright carry for a can); higher, the arms are near the edge of their reach
 # and cannot move it sideways, m.
 PLACE_LIFT_HEIGHT = 0.10
+# Taken again after a set-down off its target, the object is lifted this high before it is set down again (clear
+# of the table's friction), m; near the edge of reach this share of it will do.
+REPLACE_LIFT_HEIGHT = 0.03
+MIN_REPLACE_LIFT_FRACTION = 0.5
 # Letting go of a set-down object, the hands open this much wider than the widest handle they closed on, m:
 # enough to back off it, no wider. In one can pick, set down within 1.1 deg: + 10 cm (fully open), the
 # fingers turned it by 7.9 deg; + 2.5 cm, hand and retreat by 4.2 deg; + 1.2 cm, by 1.2 deg. (A fixed 5 cm
@@ -85,6 +91,9 @@ class Phase:
     # Looks: the object stands on the table; where it moved more than MOVED_M / MOVED_RAD since it was seen,
     # the belief takes the look and the attempt goes back to its reach (at most MAX_CORRECTIONS times).
     recheck: bool = False
+    # Looks: the object was set down; where it stands farther than PLACED_M / PLACED_RAD from the place target,
+    # the hands take it again and set it down again (replace_task, at most MAX_PLACE_CORRECTIONS times).
+    confirm: bool = False
 
 
 def lift_task(lift_height: float = LIFT_HEIGHT, check: bool = True) -> tuple[Phase, ...]:
@@ -119,7 +128,16 @@ def place_task(
         Phase(Mode.SET_DOWN, path=MoveKind.HELD, goal=PlaceGoal.SET_DOWN),
         Phase(Mode.RELEASE, hand_width=RELEASE_MARGIN, beyond_grasp=True, wait_s=SETTLE_S),
         Phase(Mode.RETREAT, path=MoveKind.STRAIGHT, targets=Targets.RETREAT),
+        Phase(Mode.CONFIRM, look=held_looks, confirm=True),
     )
+
+
+def replace_task(held_looks: bool = True) -> tuple[Phase, ...]:
+    """After a set-down off the target: take the object where it stands, lift it a little, set it down on the
+    target, let go, back off, and look again."""
+    grasping = lift_task(REPLACE_LIFT_HEIGHT, check=False)[:3]  # reach, approach, close
+    lift = dataclasses.replace(lift_task(REPLACE_LIFT_HEIGHT, check=False)[3], min_fraction=MIN_REPLACE_LIFT_FRACTION)
+    return (*grasping, Phase(Mode.LOOK, look=held_looks), lift) + place_task(held_looks=held_looks)[-4:]
 
 
 def recovery_task() -> tuple[Phase, ...]:
@@ -137,6 +155,12 @@ def recovery_task() -> tuple[Phase, ...]:
 MOVED_M = 0.01
 MOVED_RAD = np.radians(4.0)
 MAX_CORRECTIONS = 2
+# A look after the place finds the object off its target by more than this (its origin in x, y; its yaw): the
+# hands take it again (the judge's tolerance is 2 cm and 5 deg; a look's own error is a few millimetres and a
+# degree or two), m and rad, at most this often per attempt.
+PLACED_M = 0.015
+PLACED_RAD = np.radians(4.0)
+MAX_PLACE_CORRECTIONS = 1
 # A failed check that another attempt can put right: a hand closed on nothing, or lost the object.
 RETRIED_STAGES = (Stage.GRASP,)
 # A hand whose measured opening is still this near its full opening after closing did not close, m.
@@ -202,6 +226,7 @@ class PickSupervisor(LeafSystem):
         if max_attempts < 1:
             raise ValueError(f"max_attempts must be at least 1, not {max_attempts}")
         self.max_attempts, self.recovery = max_attempts, recovery_task()
+        self.replacement = replace_task(held_looks=any(phase.name == Mode.LOOK and phase.look for phase in phases))
         # The object moved before the approach: back off (a reach from beside it would start in collision).
         self.correction = (Phase(Mode.BACK_OFF, path=MoveKind.STRAIGHT, targets=Targets.RETREAT),)
         if any(phase.goal for phase in phases) and place_target_W is None:
@@ -312,6 +337,7 @@ class PickSupervisor(LeafSystem):
         if index >= len(self._phases(status)):
             if status.recovering:  # backed off and home: the next attempt starts from a new frame
                 status.recovering, status.attempt, status.corrections = False, status.attempt + 1, 0
+                status.replacing, status.place_corrections = False, 0
                 self._look_at_the_table(context, status, t)
             elif status.correcting:  # backed off: reach for the object where the look found it
                 status.correcting = False
@@ -375,11 +401,16 @@ class PickSupervisor(LeafSystem):
         elif phase.look and self.looks:
             if self.look_frame_id_port.Eval(context)[0] < look.id:
                 return False, look
-            moved = self._read_look(context, status, phase.recheck)
-            if moved and phase.recheck and status.corrections < MAX_CORRECTIONS:
-                status.corrections += 1  # it moved: back off, then reach for it where it is now
-                status.correcting = True
-                return True, self._start_phase(context, status, 0, t, look)
+            if phase.confirm:
+                if self._placed_off_target(context, status):
+                    status.place_corrections += 1  # take it again from where it stands
+                    status.replacing = True
+                    return True, self._start_phase(context, status, 0, t, look)
+            elif self._read_look(context, status, phase.recheck) and phase.recheck:
+                if status.corrections < MAX_CORRECTIONS:
+                    status.corrections += 1  # it moved: back off, then reach for it where it is now
+                    status.correcting = True
+                    return True, self._start_phase(context, status, 0, t, look)
         elif t + 1e-9 < status.phase_start_s + phase.wait_s:
             return False, look
         return True, self._start_phase(context, status, status.phase_index + 1, t, look)
@@ -396,14 +427,27 @@ class PickSupervisor(LeafSystem):
             return False
         X_WO = found.X_WO
         if recheck:  # it stands on the table: a move is planar (the tracker's tilt is for objects in the hands)
-            before = status.belief.now_W
-            shift = np.linalg.norm(X_WO.translation()[:2] - before.translation()[:2])  # of the object's origin
-            turn = RollPitchYaw(X_WO.rotation() @ before.rotation().inverse()).yaw_angle()
+            X_WO, shift, turn = _standing(X_WO, status.belief.now_W)
             if shift <= MOVED_M and abs(turn) <= MOVED_RAD:
                 return False
             logging.warning("look: the object moved %.1f cm and %.1f deg", 100 * shift, np.degrees(turn))
-            at = [*X_WO.translation()[:2], before.translation()[2]]
-            X_WO = RigidTransform(RotationMatrix.MakeZRotation(turn) @ before.rotation(), at)
+        status.belief = status.belief.looked(X_WO)
+        return True
+
+    def _placed_off_target(self, context, status: PickStatus) -> bool:
+        """Reads a look after the place: whether the object stands off the place target (PLACED_M, PLACED_RAD) and
+        may be taken again (MAX_PLACE_CORRECTIONS); the belief then takes the look."""
+        found = self.look_port.Eval(context)
+        status.looks_read += 1
+        if not found.found:
+            logging.warning("look after the place: %s; not confirmed", found.message)
+            return False
+        X_WO, _, _ = _standing(found.X_WO, status.belief.now_W)
+        _, shift, turn = _standing(X_WO, self.place_target_W)
+        logging.info("look after the place: %.1f cm and %.1f deg off the target", 100 * shift, np.degrees(turn))
+        if (shift <= PLACED_M and abs(turn) <= PLACED_RAD) or status.place_corrections >= MAX_PLACE_CORRECTIONS:
+            return False
+        logging.warning("the object stands off the place target: taking it again")
         status.belief = status.belief.looked(X_WO)
         return True
 
@@ -418,7 +462,9 @@ class PickSupervisor(LeafSystem):
     def _phases(self, status: PickStatus) -> tuple[Phase, ...]:
         if status.recovering:
             return self.recovery
-        return self.correction if status.correcting else self.phases
+        if status.correcting:
+            return self.correction
+        return self.replacement if status.replacing else self.phases
 
     def _index(self, mode: Mode) -> int:
         """The task's phase of that name."""
@@ -453,6 +499,16 @@ class PickSupervisor(LeafSystem):
         logging.warning("pick stopped at %s: %s", stage, message)
         status.mode, status.failed_stage, status.message = Mode.FAILED, stage, _stage_message(stage, message)
         status.attempt_failures = (*status.attempt_failures, (str(stage), status.message))
+
+
+def _standing(X_WO: RigidTransform, before_W: RigidTransform) -> tuple[RigidTransform, float, float]:
+    """A look at an object standing on the table, taken as a planar move from before_W (the tracker's tilt is for
+    objects in the hands): the pose (before_W turned about the vertical by the look's yaw, its origin moved in
+    x, y to the look's), and that move's shift of the origin (m) and turn (rad)."""
+    shift = float(np.linalg.norm(X_WO.translation()[:2] - before_W.translation()[:2]))
+    turn = RollPitchYaw(X_WO.rotation() @ before_W.rotation().inverse()).yaw_angle()
+    at = [*X_WO.translation()[:2], before_W.translation()[2]]
+    return RigidTransform(RotationMatrix.MakeZRotation(turn) @ before_W.rotation(), at), shift, turn
 
 
 def _stage_message(stage: Stage, message: str) -> str:

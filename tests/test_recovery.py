@@ -1,6 +1,7 @@
 """Checks and retries: the supervisor's recovery from a failed attempt, the injected grasp offset, and a
 pick whose first grasps are off that lifts the object on its second attempt; the look before the approach,
-and a pick whose object is nudged while the arms reach for it."""
+a pick whose object is nudged while the arms reach for it, and a place whose object is nudged off its target
+once the hands let go of it."""
 
 import dataclasses
 
@@ -203,3 +204,18 @@ def test_an_object_nudged_3_cm_while_the_arms_reach_is_found_and_lifted(scenario
     outcome = run_pick(nudged)
     assert outcome.success, outcome.message
     assert outcome.attempts_made == 1 and "look" in outcome.stages
+
+
+def test_an_object_nudged_off_its_place_target_is_taken_again_and_set_down_on_it(scenario):
+    """The can is set down on the place target, let go, and moved 3 cm sideways (injected at 23.9 s, as the hands
+    finish backing off: the look after the place comes at 24.0 s). The look finds it off the target; the hands
+    take it again and set it down on the target (the judge's tolerance is 2 cm)."""
+    nudged = dataclasses.replace(
+        replace_object(scenario, category="watering_can", instance="test_1", yaw=0.25),
+        task="place",
+        faults=FaultConfig(nudge_xy=[0.0, 0.03], nudge_at_s=23.9),
+    )
+    outcome = run_pick(nudged)
+    assert outcome.success, outcome.message
+    assert outcome.place["corrections"] == 1 and outcome.attempts_made == 1
+    assert outcome.place["error_m"] < 0.01 and not outcome.place["dropped"]  # taken again: not a slip
