@@ -16,7 +16,7 @@ from diagrams.autonomous_pick import run_pick
 from diagrams.scenario import FaultConfig, load_scenario, replace_object
 from systems.messages import OPEN_WIDTH, GraspPoses, ObjectEstimate, PerceptionResult, PlanResult, Targets
 from systems.perception.grasp_offset import GraspOffset
-from systems.pick_supervisor import PickSupervisor, lift_task
+from systems.pick_supervisor import PickSupervisor, lift_task, place_task
 
 Q0 = np.linspace(-0.5, 0.5, 14)
 # The injected fault: every grasp 5 cm back along its approach axis. The hands grip 3 cm off: this drill
@@ -191,6 +191,69 @@ def test_a_look_that_finds_the_object_where_it_was_changes_nothing():
     simulator.AdvanceTo(0.4)
     request = dut.GetOutputPort("plan_request").Eval(context)
     assert _status(dut, context).mode == "approach" and request.object_motion_W is None
+
+
+def _place_supervisor(target: RigidTransform):
+    """The place task's supervisor, the object seen at its place target (the test plans no motion)."""
+    dut = PickSupervisor(place_task(), perceive_at_s=0.1, place_target_W=target, looks=True)
+    context = dut.CreateDefaultContext()
+    for port, value in (("position_measured", Q0), ("frame_id", [1.0]), ("look_frame_id", [0.0])):
+        dut.GetInputPort(port).FixValue(context, value)
+    _hands(dut, context, 0.03)  # holding a 3 cm handle
+    dut.GetInputPort("perception").FixValue(context, AbstractValue.Make(PerceptionResult(True, X_WO_seen=target)))
+    dut.GetInputPort("plan").FixValue(context, AbstractValue.Make(PlanResult()))
+    return dut, context, Simulator(dut, context)
+
+
+def _play_until(dut, context, simulator, mode: str, confirm_look: RigidTransform):
+    """Plays the planner and the tracker (the object where it is expected, except in the confirm look: at
+    confirm_look) until the supervisor is in `mode` (or done or failed): the status, and the modes passed."""
+    answered, looked, modes = -1, 0, []
+    for _ in range(400):
+        status = _status(dut, context)
+        if not modes or modes[-1] != status.mode:
+            modes.append(str(status.mode))
+        if status.mode == mode and len(modes) > 1 or status.mode in ("done", "failed"):
+            return status, modes
+        request = dut.GetOutputPort("plan_request").Eval(context)
+        if request.id > answered:
+            answered = _answer(dut, context).id
+        wanted = int(dut.GetOutputPort("look_trigger").Eval(context)[0])
+        if wanted > looked:
+            X_WO = confirm_look if status.mode == "confirm" else dut.GetOutputPort("expected_X_WO").Eval(context)
+            dut.GetInputPort("look").FixValue(context, AbstractValue.Make(ObjectEstimate(True, "drill", X_WO)))
+            dut.GetInputPort("look_frame_id").FixValue(context, [float(wanted)])
+            looked = wanted
+        simulator.AdvanceTo(context.get_time() + 0.05)
+    raise AssertionError(f"stuck in {_status(dut, context).mode}")
+
+
+def test_a_look_after_the_place_takes_an_object_off_its_target_again_once():
+    target = RigidTransform([0.7, 0.0, 0.8])
+    dut, context, simulator = _place_supervisor(target)
+    off = RigidTransform([0.7, 0.03, 0.8])  # 3 cm off the target
+    status, modes = _play_until(dut, context, simulator, "confirm", off)
+    assert modes[-4:] == ["set_down", "release", "retreat", "confirm"]
+    status, modes = _play_until(dut, context, simulator, "confirm", off)
+    assert status.replacing and status.place_corrections == 1 and status.attempt == 1
+    assert modes == ["confirm", "reach", "approach", "close", "look", "lift", "set_down", "release", "retreat",
+                     "confirm"]  # fmt: skip
+    status, _ = _play_until(dut, context, simulator, "done", off)
+    assert status.mode == "done" and status.place_corrections == 1  # still off after one: it ends as it stands
+
+    dut, context, simulator = _place_supervisor(target)
+    near = RigidTransform([0.705, 0.005, 0.8])  # within 1.5 cm: confirmed at once
+    status, modes = _play_until(dut, context, simulator, "done", near)
+    assert status.mode == "done" and status.place_corrections == 0 and modes[-2:] == ["confirm", "done"]
+
+
+def test_the_retaken_object_is_reached_where_the_look_found_it():
+    dut, context, simulator = _place_supervisor(RigidTransform([0.7, 0.0, 0.8]))
+    _play_until(dut, context, simulator, "confirm", RigidTransform([0.7, 0.03, 0.8]))
+    _play_until(dut, context, simulator, "reach", RigidTransform([0.7, 0.03, 0.8]))
+    request = dut.GetOutputPort("plan_request").Eval(context)
+    assert request.targets == Targets.PREGRASP
+    np.testing.assert_allclose(request.object_motion_W.translation(), [0.0, 0.03, 0.0], atol=1e-12)
 
 
 def test_an_object_nudged_3_cm_while_the_arms_reach_is_found_and_lifted(scenario):
