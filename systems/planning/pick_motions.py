@@ -142,9 +142,11 @@ class PickMotions:
         goals = self._reach_goals(q_start, targets_W, alternatives)
         if approach_to is not None:
             goals = itertools.chain(goals, self._goals_from_the_grasps(q_start, targets_W, alternatives, approach_to))
+        at_the_grasps = ""  # why the goals from the grasps failed, if they did
         for goal in goals:
             if not goal.success:
                 failure = failure or PlanningError(f"no collision-free IK solution at the goal ({goal.message})")
+                at_the_grasps = goal.message if goal.message.startswith("at the grasps") else at_the_grasps
                 continue
             choice = {side: goal.choice.get(side, 0) for side in SIDES}
             try:
@@ -153,7 +155,7 @@ class PickMotions:
                 return Reach(self._reach_path(q_start, goal.q, obstacles, checked), choice)
             except PlanningError as error:
                 failure = error
-        raise failure
+        raise PlanningError(f"{failure}; {at_the_grasps}") if at_the_grasps and failure else failure
 
     def _reach_goals(self, q_start, targets_W, alternatives) -> Iterator[IkResult]:
         """The reach's IK goals, solved lazily in the order they are tried: the targets as given before their
@@ -175,7 +177,7 @@ class PickMotions:
         others = {side: [grasps[side].inverse() @ X for X in approach_to[side]] for side in SIDES}
         for goal in self._reach_goals(q_start, grasps, others):
             if not goal.success:
-                yield goal
+                yield IkResult(False, goal.q, f"at the grasps: {goal.message}")
                 continue
             choice = {side: goal.choice.get(side, 0) for side in SIDES}
             pregrasps = {
