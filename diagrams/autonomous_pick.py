@@ -198,20 +198,24 @@ class PickReport:
     """What the pick diagram tells of a pick once it has ended (no ground truth): the supervisor's final
     status, each stage's wall seconds ("segmentation", "pose", "registration", "planning": the first plan;
     "image_to_trajectory": their sum, the camera excluded; "planning_total": every plan; "look": the last
-    look at the held object) and the held moves' largest closure deviations."""
+    look at the held object) and the held moves' largest closure deviations; the category perception took and,
+    where the user named it, what the segmenter's network made of the object ("" where it did not perceive)."""
 
     status: PickStatus
     stages: dict[str, float]
     closure: dict[str, float]
+    category: str = ""
+    network_category: str = ""
 
 
 def pick_report(diagram: Diagram, context) -> PickReport:
     status = pick_status(diagram, context)
-    stages = {}
+    stages, category, network_category = {}, "", ""
     if status.perceived:  # (perception's result is cached: reading it again computes nothing)
         supervisor = diagram.GetSubsystemByName("pick_supervisor")
         result = supervisor.GetInputPort("perception").Eval(supervisor.GetMyContextFromRoot(context))
         stages.update(result.stage_seconds)
+        category, network_category = result.category, result.network_category
     plans = _subsystem_output(diagram, context, "plan_telemetry", "telemetry")
     if plans.plans:
         stages["planning"] = plans.first_planning_s
@@ -220,7 +224,7 @@ def pick_report(diagram: Diagram, context) -> PickReport:
         stages["planning_total"] = plans.planning_total_s
     if status.looks_read:  # (the tracker's last estimate is cached: its inputs change only with a new look)
         stages["look"] = _subsystem_output(diagram, context, "object_tracker", "estimate").compute_s
-    return PickReport(status, stages, plans.closure)
+    return PickReport(status, stages, plans.closure, category, network_category)
 
 
 def attempt_failures(status: PickStatus) -> list[dict[str, str]]:
@@ -309,6 +313,10 @@ class PickWatcher:
         outcome.closure = report.closure
         if status.belief is not None and outcome.object_rest_W is not None:
             outcome.perception = pose_error(status.belief.seen_W, outcome.object_rest_W)
+        if report.category:
+            outcome.perception["category"] = report.category
+        if report.network_category:
+            outcome.perception["network_category"] = report.network_category
         outcome.attempts_made, outcome.attempt_failures = status.attempt, attempt_failures(status)
         if outcome.place:
             outcome.place["corrections"] = status.place_corrections  # set down again after a look found it off

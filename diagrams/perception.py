@@ -78,7 +78,9 @@ def MakePerception(scenario: Scenario, weights: Path | None = None) -> Diagram:
     """
     builder = DiagramBuilder()
     latch = builder.AddNamedSystem("camera_latch", CameraLatch())
-    segmenter = builder.AddNamedSystem("segmenter", Segmenter(weights or categories.active_segmenter()))
+    segmenter = builder.AddNamedSystem(
+        "segmenter", Segmenter(weights or categories.active_segmenter(), category=scenario.requested_category)
+    )
     pose_estimator = builder.AddNamedSystem("pose_estimator", MakePoseEstimator(scenario))
     registrar = builder.AddNamedSystem("shape_registrar", ShapeRegistrar())
     collector = builder.AddNamedSystem("perception_result", PerceptionResultCollector())

@@ -73,7 +73,8 @@ class PickOutcome:
     # time), "corrections": how often the object was taken again and set down again after a look found it off}.
     place: dict = field(default_factory=dict)
     # How far the perceived object pose was from the true one when the camera saw it: {"position_error_m": xy
-    # distance, "yaw_error_rad"} (empty when the pick did not perceive).
+    # distance, "yaw_error_rad"}, the "category" perception took and, where the user named it, the
+    # "network_category" the segmenter's network gave (empty when the pick did not perceive).
     perception: dict = field(default_factory=dict)
     # The object's true pose once it had settled (t >= 0.4 s), for the above (None without an object).
     object_rest_W: object = None

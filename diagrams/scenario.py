@@ -191,6 +191,9 @@ class Scenario:
     # Before the approach, look at the object again (the object tracker) and, where it moved since it was seen,
     # reach for it where it is now.
     look_before_approach: bool = True
+    # The category the user names for the object to pick (pick.py --object): perception registers the object to
+    # it and reports what the segmenter's network made of it; "": the network's classes decide.
+    requested_category: str = ""
     # Faults injected for tests (simulation only).
     faults: FaultConfig = field(default_factory=FaultConfig)
     # Height of the robot's pelvis frame above the floor, metres.

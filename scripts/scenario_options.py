@@ -46,10 +46,13 @@ def with_sensor(scenario: Scenario, sensor: str | None) -> Scenario:
 
 
 def scenario_from_args(args: argparse.Namespace) -> Scenario:
-    """The scenario file, the --scenario_text overlay, then the object options."""
+    """The scenario file, the --scenario_text overlay, then the object options. --object names the category to
+    perception too (requested_category): the user's word for what stands there wins over the network's class."""
     scenario = load_scenario(args.scenario, args.scenario_text)
     changes = {"category": args.object, "instance": args.instance, "file": args.object_file, "yaw": args.yaw}
     scenario = replace_object(scenario, **{k: v for k, v in changes.items() if v is not None})
+    if args.object is not None:
+        scenario = dataclasses.replace(scenario, requested_category=args.object)
     if args.seed is not None:
         scenario = dataclasses.replace(scenario, random_seed=args.seed)
     return with_sensor(scenario, args.sensor)

@@ -96,6 +96,8 @@ class Segmentation:
     pixel_count: int = 0
     message: str = ""
     compute_s: float = 0.0  # wall time of the segmentation alone
+    # Where the user named the category: the class the network gave most of the region (reported, not obeyed).
+    network_category: str = ""
 
 
 @dataclass
@@ -137,6 +139,8 @@ class PerceptionResult:
     reconstruction_W: np.ndarray | None = None  # the whole inferred shape, N x 3
     # Wall seconds of each stage that ran, by stage name (segmentation, pose, registration).
     stage_seconds: dict[str, float] = field(default_factory=dict)
+    # Where the user named the category: what the segmenter's network made of the object (Segmentation's).
+    network_category: str = ""
 
 
 @dataclass

@@ -371,6 +371,8 @@ def test_same_seed_same_outcome_on_an_idle_and_a_busy_machine(tmp_path):
             process.kill()
     assert idle["success"], idle["message"]
     assert loaded == idle
+    # --object names the category to perception too; the network's own class is reported beside it.
+    assert idle["perception"]["category"] == idle["perception"]["network_category"] == "drill"
 
 
 LOOK = (

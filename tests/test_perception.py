@@ -65,6 +65,25 @@ def test_dominant_object_is_the_largest_region():
     assert result.mask.sum() == 2000 and result.mask[70, 70] and not result.mask[20, 20]
 
 
+def test_a_named_category_takes_the_whole_object_and_reports_the_networks_class():
+    """A can the network labels mostly drill (as one user's can was): named a watering_can, it is one."""
+    labels = np.zeros((100, 120), np.uint8)
+    labels[20:80, 20:60] = 2  # 2400 px labelled drill
+    labels[20:80, 60:80] = 1  # 1200 px of the same object labelled can
+    labels[90:95, 100:105] = 2  # speck
+    named = dominant_object(labels, CLASSES, min_pixels=100, category="watering_can")
+    assert named.found and named.category == "watering_can" and named.pixel_count == 3600
+    assert named.network_category == "drill" and "the network labelled 67% of it drill" in named.message
+    network = dominant_object(labels, CLASSES, min_pixels=100)
+    assert network.category == "drill" and network.pixel_count == 2400 and network.network_category == ""
+    agreed = dominant_object(labels, CLASSES, min_pixels=100, category="drill")
+    assert agreed.category == agreed.network_category == "drill" and "network" not in agreed.message
+    with pytest.raises(ValueError, match="knows no category 'pot'"):
+        dominant_object(labels, CLASSES, min_pixels=100, category="pot")
+    with pytest.raises(ValueError, match="knows no category 'pot'"):
+        Segmenter(category="pot")
+
+
 def test_dominant_object_reports_nothing_found():
     result = dominant_object(np.zeros((50, 50), np.uint8), CLASSES, min_pixels=100)
     assert not result.found and result.mask.shape == (50, 50) and not result.mask.any()
@@ -79,6 +98,19 @@ def test_segmenter_finds_unseen_object_in_station_image(segmenter, station_frame
     truth = station_frame["mask"]
     iou = np.count_nonzero(result.mask & truth) / np.count_nonzero(result.mask | truth)
     assert iou > 0.85, f"IoU {iou:.3f}"
+
+
+def test_the_category_the_user_names_wins_over_the_networks(station_frame):
+    """Told the object is the other category, the segmenter takes it as that one and reports its own class."""
+    other = {"watering_can": "drill", "drill": "watering_can"}[station_frame["category"]]
+    named = Segmenter(category=other)
+    context = named.CreateDefaultContext()
+    named.GetInputPort("color_image").FixValue(context, station_frame["rgb"])
+    result = named.GetOutputPort("segmentation").Eval(context)
+    assert result.found and result.category == other and result.network_category == station_frame["category"]
+    assert f"of it {station_frame['category']}" in result.message
+    truth = station_frame["mask"]
+    assert np.count_nonzero(result.mask & truth) / np.count_nonzero(result.mask | truth) > 0.85
 
 
 def test_segmenter_finds_nothing_object_sized_in_empty_scenes(segmenter):

@@ -49,6 +49,8 @@ class PerceptionResultCollector(LeafSystem):
         ):
             found = port.Eval(context)
             result.stage_seconds[stage.value] = found.compute_s
+            if stage == Stage.SEGMENTATION:
+                result.network_category = found.network_category
             if stage == Stage.POSE:
                 result.category, result.points_W = found.category, found.points_W
             if not found.found:

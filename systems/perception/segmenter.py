@@ -1,5 +1,6 @@
 """The segmenter system: colour image in, per-pixel classes and the dominant object's mask out."""
 
+import logging
 import time
 from pathlib import Path
 
@@ -18,14 +19,28 @@ from systems.perception import segmentation_network
 DEFAULT_WEIGHTS = MODELS_DIR / "segmenter.pt"
 
 
-def dominant_object(labels: np.ndarray, classes, min_pixels: int) -> Segmentation:
+def dominant_object(labels: np.ndarray, classes, min_pixels: int, category: str = "") -> Segmentation:
     """The largest connected object region (outer contour, filled) over all object classes.
 
     Args:
         labels: H x W class ids (0 = background).
         classes: class names by id.
         min_pixels: smaller regions are noise; with none larger, nothing is found.
+        category: the category the user named (one of classes): the region is then the largest of any object
+            class's pixels together, and it is that category; the class the network gave most of it is reported
+            as network_category. "": the class decides.
     """
+    if category:
+        if category not in classes[1:]:
+            raise ValueError(f"the segmenter knows no category {category!r} (it knows {', '.join(classes[1:])})")
+        region = dominant_object((labels > 0).astype(labels.dtype), ("background", category), min_pixels)
+        if region.found:
+            votes = np.bincount(labels[region.mask], minlength=len(classes))[1:]
+            region.network_category = classes[1 + int(np.argmax(votes))]
+            if region.network_category != category:
+                share = votes.max() / max(votes.sum(), 1)
+                region.message += f" as named (the network labelled {share:.0%} of it {region.network_category})"
+        return region
     best = Segmentation(False, mask=np.zeros(labels.shape, bool))
     kernel = np.ones((3, 3), np.uint8)
     for class_id, name in enumerate(classes):
@@ -65,13 +80,24 @@ class Segmenter(LeafSystem):
     Input ``color_image`` (ImageRgba8U from the camera). Outputs ``labels`` (H x W uint8 class ids at the
     camera's resolution: 0 background, then ``classes``) and ``segmentation`` (a Segmentation of the dominant
     object: the largest region by pixel count; its compute_s counts the network too).
+
+    Args:
+        weights: the network's (its classes come with it).
+        min_pixels: smaller object regions are noise.
+        category: the category the user named ("": the network's classes decide): the dominant region of any
+            object class is taken as that category, and the network's own class is reported (dominant_object).
+
+    Raises:
+        ValueError: the weights' network knows no such category.
     """
 
-    def __init__(self, weights: Path = DEFAULT_WEIGHTS, min_pixels: int = 400):
+    def __init__(self, weights: Path = DEFAULT_WEIGHTS, min_pixels: int = 400, category: str = ""):
         super().__init__()
         self.model, metadata = segmentation_network.load(weights)
         self.classes = tuple(metadata["classes"])
-        self.min_pixels = min_pixels
+        self.min_pixels, self.category = min_pixels, category
+        if category and category not in self.classes[1:]:
+            raise ValueError(f"the segmenter ({weights}) knows no category {category!r}: it knows {self.classes[1:]}")
         # One inference now: torch's first call is several times slower than the next ones.
         self.segment(np.zeros((*segmentation_network.INPUT_SIZE[::-1], 3), np.uint8))
         self.color_image_port = self.DeclareAbstractInputPort("color_image", AbstractValue.Make(ImageRgba8U()))
@@ -109,6 +135,8 @@ class Segmenter(LeafSystem):
     def _calc_mask(self, context, output):
         started = time.perf_counter()
         labels = self.labels_port.Eval(context)
-        segmentation = dominant_object(labels, self.classes, self.min_pixels)
+        segmentation = dominant_object(labels, self.classes, self.min_pixels, self.category)
+        if segmentation.network_category and segmentation.network_category != self.category:
+            logging.warning("segmentation: %s", segmentation.message)
         segmentation.compute_s = time.perf_counter() - started
         output.set_value(segmentation)
