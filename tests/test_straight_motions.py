@@ -1,9 +1,12 @@
-"""Straight motions (approach, retreat): each keyframe tracked from the one before, on its branch."""
+"""Straight motions (approach, retreat): each keyframe tracked from the one before, on its branch; a free move
+that rises straight up first where it finds no path from its start."""
 
 import numpy as np
+import pytest
 from pydrake.math import RigidTransform
 
 from diagrams.planning_scene import grasp_configuration, make_pick_motions
+from systems.planning.pick_motions import APPROACH_STEPS, RISE_M, PickMotions, PlanningError
 
 SIDES = ("left", "right")
 
@@ -38,3 +41,34 @@ def test_a_straight_retreat_is_a_line_of_tracked_keyframes(scenario):
             expected = start[side].translation() + k / 3 * (targets[side].translation() - start[side].translation())
             np.testing.assert_allclose(reached[side].translation(), expected, atol=0.002)
             assert (reached[side].rotation().inverse() @ start[side].rotation()).IsNearlyIdentity(0.03)
+
+
+def test_a_free_move_with_no_path_from_where_it_starts_rises_first(scenario, monkeypatch):
+    """Home from beside the object: where no path leaves the start (made so here), both hands go straight up
+    RISE_M and the path starts from there."""
+    motions = make_pick_motions(scenario)
+    q = grasp_configuration(scenario, motions)
+    home = q.copy()
+    home[:7] += 0.2  # somewhere else for the left arm
+    original = PickMotions._reach_path
+
+    def no_path_from_the_grasp(self, q_from, q_to, obstacles, checked):
+        if np.allclose(q_from, q):
+            raise PlanningError("no path from here")
+        return original(self, q_from, q_to, obstacles, checked)
+
+    monkeypatch.setattr(PickMotions, "_reach_path", no_path_from_the_grasp)
+    keyframes = motions.reach_configuration(q, home)
+    np.testing.assert_array_equal(keyframes[0], q)
+    np.testing.assert_allclose(keyframes[-1], home)
+    start = motions.world.grasp_frame_poses(q)
+    risen = motions.world.grasp_frame_poses(keyframes[APPROACH_STEPS])  # the rise's last keyframe
+    for side in SIDES:
+        np.testing.assert_allclose(risen[side].translation(), start[side].translation() + [0, 0, RISE_M], atol=0.002)
+
+    def no_path(*args):
+        raise PlanningError("none")
+
+    monkeypatch.setattr(PickMotions, "_reach_path", no_path)
+    with pytest.raises(PlanningError, match="none; from 0.15 m higher: none"):
+        motions.reach_configuration(q, home)

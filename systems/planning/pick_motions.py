@@ -41,6 +41,7 @@ from systems.robot_io.joint_plan import move_duration
 APPROACH_STEPS = 3
 REACH_LIMIT_MARGIN = 0.15  # rad: a reach's goal keeps its joints this far inside their limits where it can
 MAX_STRAIGHT_STEP = 0.6  # rad: the most a joint may turn between two keyframes of a straight motion
+RISE_M = 0.15  # m: a free move that finds no path from where it starts tries again from this far above it
 # Tracking a straight motion's next keyframe: at most this many Gauss-Newton steps, to within these position (m)
 # and orientation (rad, about sin of the angle) errors per hand.
 TRACK_ITERATIONS = 40
@@ -200,14 +201,29 @@ class PickMotions:
         self, q_start: np.ndarray, q_goal: np.ndarray, obstacle_points_W: np.ndarray | None = None
     ) -> np.ndarray:
         """Keyframes from q_start to the arm configuration q_goal (the planned joints, rad), collision-free as reach's.
+        Where there is no such path from q_start (from beside an object, e.g. backed off an empty grasp), both
+        hands rise RISE_M straight up first and the path starts there.
 
         Raises:
-            PlanningError: no collision-free path.
+            PlanningError: no collision-free path, from q_start or from above it.
         """
         obstacles = self.world.planning_obstacles(obstacle_points_W)
-        return self._reach_path(
-            q_start, np.asarray(q_goal, float), obstacles, obstacles if obstacle_points_W is not None else None
-        )
+        checked = obstacles if obstacle_points_W is not None else None
+        q_goal = np.asarray(q_goal, float)
+        try:
+            return self._reach_path(q_start, q_goal, obstacles, checked)
+        except PlanningError as error:
+            up = RigidTransform([0.0, 0.0, RISE_M])
+            above = {side: up @ X for side, X in self.world.grasp_frame_poses(q_start).items()}
+            try:
+                rise = self.straight(q_start, above)
+                if not all(self.segment_is_free(a, b, obstacles) for a, b in itertools.pairwise(rise)):
+                    raise PlanningError("the rise collides")
+                onwards = self._reach_path(rise[-1], q_goal, obstacles, checked)
+            except PlanningError as after:
+                raise PlanningError(f"{error}; from {RISE_M:.2f} m higher: {after}") from None
+            logging.info("free move: up %.2f m first", RISE_M)
+            return np.concatenate([rise, onwards[1:]])
 
     def _reach_path(
         self, q_start: np.ndarray, q_goal: np.ndarray, obstacles: Obstacles, checked: Obstacles | None
