@@ -319,7 +319,7 @@ class PickWatcher:
             outcome.perception["network_category"] = report.network_category
         outcome.attempts_made, outcome.attempt_failures = status.attempt, attempt_failures(status)
         if outcome.place:
-            outcome.place["corrections"] = status.place_corrections  # set down again after a look found it off
+            outcome.place["corrections"] = status.place_corrections  # in the last attempt: set down again
         if status.mode == Mode.FAILED:
             outcome.success = False
             outcome.failed_stage, outcome.message = status.failed_stage, status.message

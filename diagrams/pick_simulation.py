@@ -221,7 +221,8 @@ class PlaceJudge(LiftJudge):
     PLACE_TOLERANCE_RAD of the target, let go by both hands, and never slipped more than DROP_SLIP_M in the
     hands (its origin against the grasp frames' midpoint, in the left grasp frame) while they held it (the
     modes `held_modes`, told by mode_of(context); each stretch of them is one grasp: a grasp taken again, after
-    a retry or a set-down off the target, is not a slip). The release measured is the last one."""
+    a retry or a set-down off the target, is not a slip, and a failed attempt's slips do not count). The release
+    measured is the last one."""
 
     def __init__(
         self,
@@ -246,6 +247,8 @@ class PlaceJudge(LiftJudge):
             self.X_set_down = self.body.EvalPoseInWorld(self.plant_context)
         if last not in self.held_modes:
             self.held_offset = None  # a new grasp
+        if mode.startswith("recover_"):
+            self.max_slip = 0.0  # a failed attempt's grasp is not the place's (the object may have slipped out)
         if self.body is not None and mode in self.held_modes:
             X_WG = [f.CalcPoseInWorld(self.plant_context) for f in self.frames]
             between = np.mean([X.translation() for X in X_WG], axis=0)

@@ -14,12 +14,12 @@ Checks and retries: after closing, each hand must hold something (its measured o
 nothing nor still open), and after the lift it must still do. A failed check is one failed attempt: the
 hands open, back off along their approach axes, the arms go back to where the pick started, and the pick
 starts again from a new camera frame, up to max_attempts. Failures that another attempt would repeat
-(perception found nothing, no plan) end the pick at once. After a place, a look confirms where the object
-stands; off its target, the hands take it again and set it down again (at most MAX_PLACE_CORRECTIONS times).
-A place moves the object
-from where it is in the hands, not from where it was seen before the hands touched it (closing turned
-cans by up to 21 degrees, the lift a few more): the object belief and the place goals are
-systems/planning/place_goals.py's.
+(perception found nothing, no plan) end the pick at once.
+
+A place moves the object from where it is in the hands, not from where it was seen before the hands touched
+it (closing turned cans by up to 21 degrees, the lift a few more): the object belief and the place goals are
+systems/planning/place_goals.py's. After a place, a look confirms where the object stands; clearly off its
+target, the hands take it again and set it down again (at most MAX_PLACE_CORRECTIONS times per attempt).
 """
 
 import dataclasses
@@ -135,9 +135,10 @@ def place_task(
 def replace_task(held_looks: bool = True) -> tuple[Phase, ...]:
     """After a set-down off the target: take the object where it stands, lift it a little, set it down on the
     target, let go, back off, and look again."""
-    grasping = lift_task(REPLACE_LIFT_HEIGHT, check=False)[:3]  # reach, approach, close
-    lift = dataclasses.replace(lift_task(REPLACE_LIFT_HEIGHT, check=False)[3], min_fraction=MIN_REPLACE_LIFT_FRACTION)
-    return (*grasping, Phase(Mode.LOOK, look=held_looks), lift) + place_task(held_looks=held_looks)[-4:]
+    *grasping, lift, _ = lift_task(REPLACE_LIFT_HEIGHT, check=False)  # reach, approach, close; lift; hold
+    lift = dataclasses.replace(lift, min_fraction=MIN_REPLACE_LIFT_FRACTION)
+    set_down, release, retreat, confirm = place_task(held_looks=held_looks)[-4:]
+    return (*grasping, Phase(Mode.LOOK, look=held_looks), lift, set_down, release, retreat, confirm)
 
 
 def recovery_task() -> tuple[Phase, ...]:

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 from pydrake.common.eigen_geometry import AngleAxis
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
+from pydrake.multibody.tree import BodyIndex
 
 from diagrams.generation.objects.library import resolve_object
 from diagrams.planning_scene import grasp_configuration, make_pick_motions, object_surface_W
@@ -208,13 +209,20 @@ def test_a_held_move_does_not_count_the_gap_between_the_hands_the_grasp_made(sce
     rise = [motions.world.grasp_frame_poses(held.keyframes[-1])[side].translation()[2] for side in ("left", "right")]
     start = [motions.world.grasp_frame_poses(q)[side].translation()[2] for side in ("left", "right")]
     assert np.min(np.subtract(rise, start)) > 0.8 * 0.12
-    # The pairs left out are exactly those between a sphere fixed to one hand and one fixed to the other.
-    kinematics, spheres = motions.world.kinematics, stomp.spheres
-    wrists = {6, 13}  # the last joint of each arm moves its hand
-    moved_by = np.array([kinematics.driving_dof(position) for position in spheres.body])
-    expected = [{moved_by[a], moved_by[b]} == wrists for a, b in zip(stomp.pair_a, stomp.pair_b, strict=True)]
-    np.testing.assert_array_equal(stomp.hand_to_hand, expected)
-    assert stomp.hand_to_hand.sum() > 100
+    # The pairs left out are exactly those between the bodies that move with one hand (the hand, its fingers, the
+    # last arm link) and those that move with the other.
+    plant, kinematics, spheres = motions.world.plant, motions.world.kinematics, stomp.spheres
+
+    def hand_of(sphere: int) -> str:
+        body = plant.get_body(BodyIndex(kinematics.links[spheres.body[sphere]].body_index))
+        owner = plant.GetModelInstanceName(body.model_instance())
+        return {"left_hand": "left", "right_hand": "right"}.get(owner) or {"arm1_7": "left", "arm2_7": "right"}.get(
+            body.name(), ""
+        )
+
+    for a, b, left_out in zip(stomp.pair_a, stomp.pair_b, stomp.hand_to_hand, strict=True):
+        assert left_out == ({hand_of(a), hand_of(b)} == {"left", "right"})
+    assert stomp.hand_to_hand.sum() == 529  # 4 bodies move with each hand: hand base, 2 fingers, last arm link
 
 
 def test_tilt_angle_ignores_turns_about_the_vertical_only():

@@ -47,8 +47,10 @@ def test_the_reach_rolls_a_grasp_the_hand_cannot_reach_as_given(scenario):
     with pytest.raises(PlanningError, match="right hand: target out of reach"):
         motions.reach(q0, pregrasps)
     rolls = {
-        side: pregrasp_alternatives(poses[f"{side}_grasp"].inverse() @ pregrasps[side], grasp_alternatives(X, None))
-        for side, X in pregrasps.items()
+        side: pregrasp_alternatives(
+            poses[f"{side}_grasp"].inverse() @ pregrasps[side], grasp_alternatives(poses[f"{side}_grasp"], None)
+        )
+        for side in SIDES
     }
     reach = motions.reach(q0, pregrasps, alternatives=rolls)
     reached = motions.world.grasp_frame_poses(reach.keyframes[-1])

@@ -8,7 +8,7 @@ import dataclasses
 import numpy as np
 import pytest
 from pydrake.common.value import AbstractValue
-from pydrake.math import RigidTransform
+from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.systems.analysis import Simulator
 from pydrake.trajectories import PiecewisePolynomial
 
@@ -207,7 +207,8 @@ def _place_supervisor(target: RigidTransform):
 
 def _play_until(dut, context, simulator, mode: str, confirm_look: RigidTransform):
     """Plays the planner and the tracker (the object where it is expected, except in the confirm look: at
-    confirm_look) until the supervisor is in `mode` (or done or failed): the status, and the modes passed."""
+    confirm_look; None: it finds nothing) until the supervisor is in `mode` (or done or failed): the status, and
+    the modes passed."""
     answered, looked, modes = -1, 0, []
     for _ in range(400):
         status = _status(dut, context)
@@ -221,7 +222,8 @@ def _play_until(dut, context, simulator, mode: str, confirm_look: RigidTransform
         wanted = int(dut.GetOutputPort("look_trigger").Eval(context)[0])
         if wanted > looked:
             X_WO = confirm_look if status.mode == "confirm" else dut.GetOutputPort("expected_X_WO").Eval(context)
-            dut.GetInputPort("look").FixValue(context, AbstractValue.Make(ObjectEstimate(True, "drill", X_WO)))
+            found = ObjectEstimate(True, "drill", X_WO) if X_WO is not None else ObjectEstimate(False, message="none")
+            dut.GetInputPort("look").FixValue(context, AbstractValue.Make(found))
             dut.GetInputPort("look_frame_id").FixValue(context, [float(wanted)])
             looked = wanted
         simulator.AdvanceTo(context.get_time() + 0.05)
@@ -245,6 +247,16 @@ def test_a_look_after_the_place_takes_an_object_off_its_target_again_once():
     near = RigidTransform([0.712, 0.012, 0.8])  # 1.7 cm off, within 2 cm: confirmed at once
     status, modes = _play_until(dut, context, simulator, "done", near)
     assert status.mode == "done" and status.place_corrections == 0 and modes[-2:] == ["confirm", "done"]
+
+    dut, context, simulator = _place_supervisor(target)
+    turned = RigidTransform(RotationMatrix.MakeZRotation(np.radians(8.0)), [0.7, 0.0, 0.8])  # on it, turned 8 deg
+    _play_until(dut, context, simulator, "confirm", turned)
+    status, _ = _play_until(dut, context, simulator, "reach", turned)
+    assert status.replacing and status.place_corrections == 1
+
+    dut, context, simulator = _place_supervisor(target)
+    status, _ = _play_until(dut, context, simulator, "done", None)  # the look finds nothing: nothing to correct
+    assert status.mode == "done" and status.place_corrections == 0
 
 
 def test_the_retaken_object_is_reached_where_the_look_found_it():

@@ -19,6 +19,12 @@ from systems.perception import segmentation_network
 DEFAULT_WEIGHTS = MODELS_DIR / "segmenter.pt"
 
 
+def check_category(category: str, classes) -> None:
+    """Raises ValueError unless category is one of the object classes (classes[1:]; 0 is the background)."""
+    if category not in classes[1:]:
+        raise ValueError(f"the segmenter knows no category {category!r} (it knows {', '.join(classes[1:])})")
+
+
 def dominant_object(labels: np.ndarray, classes, min_pixels: int, category: str = "") -> Segmentation:
     """The largest connected object region (outer contour, filled) over all object classes.
 
@@ -31,8 +37,7 @@ def dominant_object(labels: np.ndarray, classes, min_pixels: int, category: str 
             as network_category. "": the class decides.
     """
     if category:
-        if category not in classes[1:]:
-            raise ValueError(f"the segmenter knows no category {category!r} (it knows {', '.join(classes[1:])})")
+        check_category(category, classes)
         region = dominant_object((labels > 0).astype(labels.dtype), ("background", category), min_pixels)
         if region.found:
             votes = np.bincount(labels[region.mask], minlength=len(classes))[1:]
@@ -96,8 +101,8 @@ class Segmenter(LeafSystem):
         self.model, metadata = segmentation_network.load(weights)
         self.classes = tuple(metadata["classes"])
         self.min_pixels, self.category = min_pixels, category
-        if category and category not in self.classes[1:]:
-            raise ValueError(f"the segmenter ({weights}) knows no category {category!r}: it knows {self.classes[1:]}")
+        if category:
+            check_category(category, self.classes)
         # One inference now: torch's first call is several times slower than the next ones.
         self.segment(np.zeros((*segmentation_network.INPUT_SIZE[::-1], 3), np.uint8))
         self.color_image_port = self.DeclareAbstractInputPort("color_image", AbstractValue.Make(ImageRgba8U()))

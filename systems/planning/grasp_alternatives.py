@@ -29,7 +29,7 @@ def handle_slides(points_W: np.ndarray, X_WG: RigidTransform, slides=HANDLE_SLID
     """Those of `slides` (m along x_G) at which the fingers close on the handle alone, judged on the object's
     points (N x 3 in W: the registered shape, or the true surface): over the fingers' span about the slid grasp
     the points near the axis are all on the handle's surface (no farther from the axis than it is at G), with no
-    gap. None where the points show no handle at G."""
+    gap. An empty list where the points show no handle at G."""
     if points_W is None or len(points_W) == 0:
         return []
     p_G = X_WG.inverse().multiply(np.asarray(points_W, float).T).T

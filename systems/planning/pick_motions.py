@@ -123,39 +123,45 @@ class PickMotions:
         obstacle_points_W: np.ndarray | None = None,
         alternatives: dict[str, list[RigidTransform]] | None = None,
         approach_to: dict[str, list[RigidTransform]] | None = None,
-    ) -> "Reach":
+    ) -> Reach:
         """Keyframes from q_start to both hands at targets_W, collision-free: Drake's geometry, and the sphere model
         against the world's fixed scene and obstacle_points_W (the object as seen, N x 3 in W, e.g. a perceived
         cloud: Drake's model has no geometry for it). alternatives: per side, the targets to try in turn as
         transforms of targets_W[side] on the right (the first the identity), the next only where the ones before
         are out of that hand's reach (DualArmIk.solve). approach_to: per side, where the hand goes straight on from
-        each of its targets (the grasps, from pre-grasps; one per alternative): a goal from which that straight
-        motion fails is passed over for the next, and where every goal is, goals are found backwards from the
-        grasps (_goals_from_the_grasps).
+        each of its targets (the grasps, from pre-grasps; one per alternative, or one without alternatives): a
+        goal from which that straight motion fails is passed over for the next, and where every goal is, goals are
+        found backwards from the grasps (_goals_from_the_grasps).
 
         Raises:
-            PlanningError: no collision-free IK solution, or no collision-free path to it.
+            PlanningError: no collision-free IK solution, or no collision-free path to it. A path that fails from a
+                goal found backwards does not hide why the goals solved forwards failed (a caller may try targets
+                nearer the grasps on an IK failure, never on a path failure).
+            ValueError: approach_to does not give one grasp per alternative.
         """
+        if approach_to is not None:
+            counts = {side: len((alternatives or {}).get(side, [RigidTransform()])) for side in SIDES}
+            if any(len(approach_to[side]) != counts[side] for side in SIDES):
+                raise ValueError(f"approach_to needs one grasp per alternative per side ({counts})")
         obstacles = self.world.planning_obstacles(obstacle_points_W)
         # Straight segments are checked with Drake's geometry, and with the sphere model where the object is points.
         checked = obstacles if obstacle_points_W is not None else None
-        failure = None
-        goals = self._reach_goals(q_start, targets_W, alternatives)
-        if approach_to is not None:
-            goals = itertools.chain(goals, self._goals_from_the_grasps(q_start, targets_W, alternatives, approach_to))
-        at_the_grasps = ""  # why the goals from the grasps failed, if they did
-        for goal in goals:
-            if not goal.success:
-                failure = failure or PlanningError(f"no collision-free IK solution at the goal ({goal.message})")
-                at_the_grasps = goal.message if goal.message.startswith("at the grasps") else at_the_grasps
-                continue
-            choice = {side: goal.choice.get(side, 0) for side in SIDES}
-            try:
-                if approach_to is not None:
-                    self._check_approach(goal.q, {side: approach_to[side][choice[side]] for side in SIDES})
-                return Reach(self._reach_path(q_start, goal.q, obstacles, checked), choice)
-            except PlanningError as error:
-                failure = error
+        forwards = self._reach_goals(q_start, targets_W, alternatives)
+        backwards = self._goals_from_the_grasps(q_start, targets_W, alternatives, approach_to) if approach_to else ()
+        failure, at_the_grasps = None, ""  # at_the_grasps: why the goals found backwards failed, if they did
+        for goals in (forwards, backwards):
+            for goal in goals:
+                if not goal.success:
+                    failure = failure or PlanningError(f"no collision-free IK solution at the goal ({goal.message})")
+                    at_the_grasps = goal.message if goals is backwards else at_the_grasps
+                    continue
+                choice = {side: goal.choice.get(side, 0) for side in SIDES}
+                try:
+                    if approach_to is not None:
+                        self._check_approach(goal.q, {side: approach_to[side][choice[side]] for side in SIDES})
+                    return Reach(self._reach_path(q_start, goal.q, obstacles, checked), choice)
+                except PlanningError as error:
+                    failure = error if goals is forwards or failure is None else failure
         raise PlanningError(f"{failure}; {at_the_grasps}") if at_the_grasps and failure else failure
 
     def _reach_goals(self, q_start, targets_W, alternatives) -> Iterator[IkResult]:
@@ -188,7 +194,7 @@ class PickMotions:
             try:
                 yield IkResult(True, self.straight(goal.q, pregrasps)[-1], "backed off from the grasps", choice)
             except PlanningError as error:
-                yield IkResult(False, goal.q, f"backing off from the grasps fails ({error})")
+                yield IkResult(False, goal.q, f"at the grasps: backing off to the pre-grasps fails ({error})")
 
     def _check_approach(self, q: np.ndarray, approach_to: dict[str, RigidTransform]):
         """Raises PlanningError where the straight approach from q to approach_to fails."""
@@ -217,7 +223,7 @@ class PickMotions:
             above = {side: up @ X for side, X in self.world.grasp_frame_poses(q_start).items()}
             try:
                 rise = self.straight(q_start, above)
-                if not all(self.segment_is_free(a, b, obstacles) for a, b in itertools.pairwise(rise)):
+                if not all(self.segment_is_free(a, b, checked) for a, b in itertools.pairwise(rise)):
                     raise PlanningError("the rise collides")
                 onwards = self._reach_path(rise[-1], q_goal, obstacles, checked)
             except PlanningError as after:

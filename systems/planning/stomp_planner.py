@@ -124,15 +124,17 @@ class StompPlanner(LeafSystem):
             elif request.targets == Targets.HOME:
                 if request.path != MoveKind.FREE or request.q_goal is None:
                     raise PlanningError("going home is a free move to a q_goal")
-                keyframes = motions.reach_configuration(request.q_start, request.q_goal, self._obstacle_points(context))
+                keyframes = motions.reach_configuration(
+                    request.q_start, request.q_goal, self._thinned(self._object_cloud(request, context))
+                )
                 min_segment = STOMP_SEGMENT_S if len(keyframes) > 3 else SPARSE_SEGMENT_S
             else:
                 targets = self._targets(request, context)
                 if request.path == MoveKind.FREE:
-                    points = self._obstacle_points(context)
-                    if points is not None and request.object_motion_W is not None:  # where a look found it
-                        points = request.object_motion_W.multiply(points.T).T
-                    keyframes, result.grasp_offsets_G = self._reach(request, context, targets, points)
+                    cloud = self._object_cloud(request, context)
+                    keyframes, result.grasp_offsets_G = self._reach(
+                        request, context, targets, cloud, self._thinned(cloud)
+                    )
                     min_segment = STOMP_SEGMENT_S if len(keyframes) > 3 else SPARSE_SEGMENT_S
                 else:
                     keyframes, min_segment = motions.straight(request.q_start, targets), SPARSE_SEGMENT_S
@@ -152,8 +154,9 @@ class StompPlanner(LeafSystem):
         result.planning_s = time.perf_counter() - started
         return result
 
-    def _reach(self, request: PlanRequest, context, targets, points) -> tuple[np.ndarray, dict | None]:
-        """The reach's keyframes to `targets`, and for pre-grasps the grasps they lead to (X_GG' per side).
+    def _reach(self, request: PlanRequest, context, targets, cloud, points) -> tuple[np.ndarray, dict | None]:
+        """The reach's keyframes to `targets`, and for pre-grasps the grasps they lead to (X_GG' per side). cloud:
+        the object's points (N x 3 in W, where it is now), which judge the grasp family; points: the obstacle.
 
         For the pre-grasps, only a pre-grasp configuration from which the straight approach reaches the grasps
         will do; where a hand cannot reach its pre-grasp so, the other grasps of its family (grasp_alternatives:
@@ -162,9 +165,6 @@ class StompPlanner(LeafSystem):
         if request.targets != Targets.PREGRASP:
             return self.motions.reach(request.q_start, targets, points).keyframes, None
         grasps = self._targets(dataclasses.replace(request, targets=Targets.GRASP), context, deeper=False)
-        cloud = self.GetInputPort("obstacle_cloud_W").Eval(context)
-        if len(cloud) and request.object_motion_W is not None:
-            cloud = request.object_motion_W.multiply(cloud.T).T
         families = {side: grasp_alternatives(grasps[side], cloud) for side in SIDES}
         # Where each hand's approach ends, for each grasp of its family.
         approach_to = {side: [grasps[side] @ X_GG @ self.deeper for X_GG in families[side]] for side in SIDES}
@@ -188,9 +188,17 @@ class StompPlanner(LeafSystem):
                     break  # reachable but not by a free path: nearer the object will not help
         raise failure
 
-    def _obstacle_points(self, context) -> np.ndarray | None:
-        """The obstacle cloud thinned to about OBSTACLE_POINTS (N x 3 in W), or None when it is empty."""
+    def _object_cloud(self, request: PlanRequest, context) -> np.ndarray:
+        """The obstacle cloud (N x 3 in W) where the object is now: moved by the request's object_motion_W (where
+        a look found it moved)."""
         cloud = self.GetInputPort("obstacle_cloud_W").Eval(context)
+        if len(cloud) and request.object_motion_W is not None:
+            cloud = request.object_motion_W.multiply(cloud.T).T
+        return cloud
+
+    @staticmethod
+    def _thinned(cloud: np.ndarray) -> np.ndarray | None:
+        """A cloud (N x 3) thinned to about OBSTACLE_POINTS, or None when it is empty."""
         return cloud[:: max(1, len(cloud) // OBSTACLE_POINTS)] if len(cloud) else None
 
     def _targets(self, request: PlanRequest, context, deeper: bool = True) -> dict[str, RigidTransform]:
