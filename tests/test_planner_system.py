@@ -58,30 +58,22 @@ def test_planner_plans_a_request_once_and_releases_it_after_its_latency(planner,
     assert np.all(q >= world.lower - 1e-9) and np.all(q <= world.upper + 1e-9)
     assert np.all(np.abs(v) <= SPEED_FRACTION * world.velocity_limits * 1.01)
 
-    # The straight approach goes grasp_depth_margin deeper along z_G than the grasp it was given.
-    approach = PlanRequest(id=2, phase="approach", q_start=trajectory.value(trajectory.end_time()).ravel(),
-                           path="straight", targets="grasp")  # fmt: skip
-    planner.GetInputPort("request").FixValue(context, AbstractValue.Make(approach))
-    simulator.AdvanceTo(context.get_time() + LATENCY_S + 0.02)
-    plan = planner.GetOutputPort("plan").Eval(context)
-    assert plan.id == 2 and plan.success, plan.message
-    reached = world.grasp_frame_poses(plan.trajectory.value(plan.trajectory.end_time()).ravel())
-    for side in ("left", "right"):
-        X_GR = poses[f"{side}_grasp"].InvertAndCompose(reached[side])
-        assert np.linalg.norm(X_GR.translation() - [0, 0, 0.01]) < 0.002 * np.sqrt(3) + 1e-4
-
-    # An approach to the grasps a reach chose (the left one slid 1.5 cm along its handle) ends there.
-    offsets = {"left": RigidTransform([0.015, 0.0, 0.0]), "right": RigidTransform()}
-    approach = PlanRequest(id=3, phase="approach", q_start=approach.q_start, path="straight", targets="grasp",
-                           grasp_offsets_G=offsets)  # fmt: skip
-    planner.GetInputPort("request").FixValue(context, AbstractValue.Make(approach))
-    simulator.AdvanceTo(context.get_time() + LATENCY_S + 0.02)
-    plan = planner.GetOutputPort("plan").Eval(context)
-    assert plan.id == 3 and plan.success, plan.message
-    reached = world.grasp_frame_poses(plan.trajectory.value(plan.trajectory.end_time()).ravel())
-    for side in ("left", "right"):
-        X_GR = (poses[f"{side}_grasp"] @ offsets[side]).InvertAndCompose(reached[side])
-        assert np.linalg.norm(X_GR.translation() - [0, 0, 0.01]) < 0.002 * np.sqrt(3) + 1e-4
+    # The straight approach goes grasp_depth_margin deeper along z_G than the grasp it was given: the perceived
+    # one, or the one a reach chose (here the left one slid 1.5 cm along its handle).
+    at_pregrasps = trajectory.value(trajectory.end_time()).ravel()
+    slid = {"left": RigidTransform([0.015, 0.0, 0.0]), "right": RigidTransform()}
+    for request_id, offsets in ((2, None), (3, slid)):
+        approach = PlanRequest(id=request_id, phase="approach", q_start=at_pregrasps, path="straight",
+                               targets="grasp", grasp_offsets_G=offsets)  # fmt: skip
+        planner.GetInputPort("request").FixValue(context, AbstractValue.Make(approach))
+        simulator.AdvanceTo(context.get_time() + LATENCY_S + 0.02)
+        plan = planner.GetOutputPort("plan").Eval(context)
+        assert plan.id == request_id and plan.success, plan.message
+        reached = world.grasp_frame_poses(plan.trajectory.value(plan.trajectory.end_time()).ravel())
+        for side in ("left", "right"):
+            X_WG = poses[f"{side}_grasp"] @ (offsets or {}).get(side, RigidTransform())
+            X_GR = X_WG.InvertAndCompose(reached[side])
+            assert np.linalg.norm(X_GR.translation() - [0, 0, 0.01]) < 0.002 * np.sqrt(3) + 1e-4
 
 
 @pytest.mark.parametrize(
