@@ -33,7 +33,7 @@ from scenario_options import add_sensor_option
 from scipy.spatial import cKDTree
 
 from diagrams.generation.objects import catalog
-from diagrams.generation.objects.library import generated_instance_directory, load_info
+from diagrams.generation.objects.library import generated_instance_directory, load_info, mesh_to_sdf
 from diagrams.generation.synthetic_scenes import SyntheticScene
 from diagrams.perception import MakePoseEstimator
 from diagrams.scenario import load_scenario
@@ -55,7 +55,10 @@ METRICS = (
     "chamfer_m",
     "registration_s",
 )
-COUNTS = ("flipped", "poor_fit")
+# grasp_off: a grasp frame more than GRASP_OFF_M from the truth; handed_on_off: so, and not named a poor fit (the
+# pick would go on with it).
+COUNTS = ("flipped", "poor_fit", "grasp_off", "handed_on_off")
+GRASP_OFF_M = 0.02
 
 
 def true_grasps(category: str, instance: str):
@@ -83,21 +86,43 @@ def registration_trials(
     categories=tuple(catalog.CATEGORIES),
     space_dir: Path | None = None,
     sensor: RgbdNoiseParameters | None = None,
+    files: list[Path] | None = None,
 ):
     """One row per trial. sensor: the RGB-D sensor model's parameters (None: 2 mm Gaussian depth noise). Its
-    noise comes from a stream of its own, [seed, trial]: the scenes and poses are those of a run without it."""
+    noise comes from a stream of its own, [seed, trial]: the scenes and poses are those of a run without it.
+    files: a user's meshes of categories[0] (each with <name>.info.yaml beside it: the true grasps) instead of
+    generated instances."""
     scenario = load_scenario()
     intrinsics = scenario.camera.MakeCameras()[1].core().intrinsics()
     rng = np.random.default_rng(seed)
     estimator = MakePoseEstimator(scenario)
     spaces = {c: space_dir / shape_space_file(c).name if space_dir else shape_space_file(c) for c in categories}
     registrars = {c: Registrar(ShapeSpace.load(path)) for c, path in spaces.items()}
+    models, truth = None, {}
+    if files:
+        (category,) = categories
+        models = {category: [(path.stem, mesh_to_sdf(path, 1.0, 1.0, category)) for path in files]}
+        instances = [path.stem for path in files]
+        for path, (_, sdf) in zip(files, models[category], strict=True):
+            truth[(category, path.stem)] = (load_info(path.with_suffix(".info.yaml")).control_poses(), sdf.parent)
+    for category in categories:
+        for instance in instances if not files else ():
+            directory = generated_instance_directory(category, instance)
+            truth[(category, instance)] = (true_grasps(category, instance), directory)
     meshes = {}
     rows = []
     scene = None
     for trial in range(trials):
         if trial % 10 == 0:
-            scene = SyntheticScene(scenario, rng, cameras=1, camera_jitter=False, instances=instances)
+            scene = SyntheticScene(
+                scenario,
+                rng,
+                cameras=1,
+                camera_jitter=False,
+                instances=instances,
+                classes=("background", *categories),
+                models=models,
+            )
         category = categories[trial % len(categories)]
         instance = instances[(trial // len(categories)) % len(instances)]
         yaw = catalog.presentation_yaw(category) + rng.choice([-0.25, 0.0, 0.25]) + rng.uniform(-0.2, 0.2)
@@ -111,23 +136,22 @@ def registration_trials(
             depth = noisy_depth(frame.depth, frame.rgb, intrinsics, sensor, np.random.default_rng([seed, trial]))
         estimate = estimator.estimate(Segmentation(True, category, mask, int(mask.sum())), depth, frame.X_WC)
         start = time.perf_counter()
-        result = registrars[category].register(estimate.points_W, estimate.X_WO, estimate.viewpoint_W)
+        result = registrars[category].register(estimate.points_W, estimate.X_WO, estimate.viewpoint_W, estimate.view)
         seconds = time.perf_counter() - start
 
         if (category, instance) not in meshes:
-            meshes[(category, instance)] = trimesh.load(
-                generated_instance_directory(category, instance) / "visual.obj", force="mesh"
-            )
+            meshes[(category, instance)] = trimesh.load(truth[(category, instance)][1] / "visual.obj", force="mesh")
         rotation_error = pose_errors(result.X_WO, X_WO_true)[1]  # (over 90 deg: registered end for end)
         reconstructed_O = X_WO_true.inverse().multiply(result.reconstructed_W.T).T
         errors = {
             name: pose_errors(result.grasp_poses_W[name], X_WO_true @ X_OG)
-            for name, X_OG in true_grasps(category, instance).items()
+            for name, X_OG in truth[(category, instance)][0].items()
         }
         row = {
             "category": category,
             "instance": instance,
             "yaw": float(yaw),
+            "xyz": X_WO_true.translation().tolist(),  # where the object stood (W, m)
             "registration_s": seconds,
             "initial_translation_error_m": pose_errors(estimate.X_WO, X_WO_true)[0],
             "initial_yaw_error_rad": pose_errors(estimate.X_WO, X_WO_true)[1],
@@ -139,7 +163,10 @@ def registration_trials(
             "flipped": rotation_error > np.pi / 2,
             "poor_fit": bool(result.poor_fit),
             "inlier_share": result.inlier_share,
+            "grasp_support": {name: share for name, share in result.grasp_support.items()},
         }
+        row["grasp_off"] = max(errors[n][0] for n in ("left_grasp", "right_grasp")) > GRASP_OFF_M
+        row["handed_on_off"] = row["grasp_off"] and not row["poor_fit"]
         rows.append(row)
         logging.info(
             "%2d %-12s %s  grasp %.1f mm %.1f deg  chamfer %.1f mm  %.2f s%s",
@@ -151,6 +178,12 @@ def registration_trials(
             1000 * row["chamfer_m"],
             seconds,
             ("  FLIPPED" if row["flipped"] else "") + ("  " + result.poor_fit if result.poor_fit else ""),
+        )
+        logging.info(
+            "   inliers %.0f%%; grasp frames %.1f / %.1f mm",
+            100 * result.inlier_share,
+            1000 * errors["left_grasp"][0],
+            1000 * errors["right_grasp"][0],
         )
     return rows
 
@@ -260,20 +293,41 @@ def main():
         help="build the spaces first, as a user's folder of the 8 training meshes with only the canonical model "
         "(their medoid) annotated, or all 8 (default: the spaces in models/, 48 generated and annotated models)",
     )
+    parser.add_argument(
+        "--object-files",
+        dest="object_files",
+        type=Path,
+        nargs="+",
+        help="your own meshes of --category instead (each with <name>.info.yaml beside it: the true grasps)",
+    )
+    parser.add_argument("--category", choices=tuple(catalog.CATEGORIES), help="the category of --object-files")
     add_sensor_option(parser, default="kinect_v2")
     parser.add_argument("--json", type=Path)
     args = parser.parse_args()
+    if bool(args.object_files) != bool(args.category):
+        parser.error("--object-files and --category go together")
     sensor = sensor_model(args.sensor)
     space_dir, propagation = args.space_dir, {}
     if args.annotation:
         space_dir = Path(tempfile.mkdtemp(prefix="folder_spaces_"))
         propagation = folder_spaces(args.annotation, space_dir)
-    rows = registration_trials(args.trials, args.seed, args.instances, space_dir=space_dir, sensor=sensor)
+    categories = (args.category,) if args.category else tuple(catalog.CATEGORIES)
+    rows = registration_trials(
+        args.trials,
+        args.seed,
+        args.instances,
+        categories,
+        space_dir=space_dir,
+        sensor=sensor,
+        files=args.object_files,
+    )
     cpd_rows = cpd_comparison(args.cpd_sizes)
     results = {"trials": args.trials, "seed": args.seed, "instances": args.instances, "sensor": args.sensor}
     results["annotation"] = args.annotation or "generated (48 models, all annotated)"
     results["propagation"] = propagation
-    for category in catalog.CATEGORIES:
+    if args.object_files:
+        results["instances"] = [str(path) for path in args.object_files]
+    for category in categories:
         subset = [r for r in rows if r["category"] == category]
         for key in METRICS:
             results.setdefault(key + "_median", {})[category] = float(np.median([r[key] for r in subset]))
@@ -287,7 +341,7 @@ def main():
     results["cpd"] = cpd_rows
     results["rows"] = rows
 
-    print(f"\n{'metric (median)':37s} {'watering_can':>13s} {'drill':>10s}  target")
+    print(f"\n{'metric (median)':37s}" + "".join(f" {c:>13s}" for c in categories) + "  target")
     for key, scale, unit, target in (
         ("grasp_translation_error_m", 1000, "mm", "<= 10 mm"),
         ("grasp_frame_translation_error_m", 1000, "mm", ""),
@@ -297,10 +351,15 @@ def main():
     ):
         values = results[key + "_median"]
         label = f"{key} [{unit}]"
-        print(f"{label:37s} {values['watering_can'] * scale:13.2f} {values['drill'] * scale:10.2f}  {target}")
-    for key, target in (("flipped", "0 (end for end)"), ("poor_fit", "(named failures)")):
+        print(f"{label:37s}" + "".join(f" {values[c] * scale:13.2f}" for c in categories) + f"  {target}")
+    for key, target in (
+        ("flipped", "0 (end for end)"),
+        ("poor_fit", "(named failures)"),
+        ("grasp_off", f"(a grasp over {100 * GRASP_OFF_M:.0f} cm off)"),
+        ("handed_on_off", "0 (such a grasp not named)"),
+    ):
         values = results[key]
-        print(f"{key + ' [trials]':37s} {values['watering_can']:13d} {values['drill']:10d}  {target}")
+        print(f"{key + ' [trials]':37s}" + "".join(f" {values[c]:13d}" for c in categories) + f"  {target}")
     print(f"(sensor: {args.sensor}; annotated models: {results['annotation']})")
     header = ("CPD points", "ours s", "pycpd s", "speedup", "ours err mm", "pycpd err mm")
     print("\n" + " ".join(f"{h:>12s}" for h in header))

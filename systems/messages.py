@@ -101,6 +101,30 @@ class Segmentation:
 
 
 @dataclass
+class DepthView:
+    """The depth image a cloud was taken from and its camera: which points a nearer surface hid from it."""
+
+    depth: np.ndarray  # H x W, metres along the optical axis (NaN or inf where nothing was measured)
+    X_WC: RigidTransform  # the depth camera's pose
+    focal: tuple[float, float]  # fx, fy in pixels
+    centre: tuple[float, float]  # cx, cy in pixels
+
+    def hidden(self, points_W: np.ndarray, margin: float) -> np.ndarray:
+        """Which points (N x 3, W) the camera could not have seen: behind a surface it measured more than `margin`
+        (m) nearer, outside the image, or where it measured nothing. A boolean mask."""
+        p = self.X_WC.inverse().multiply(np.asarray(points_W, dtype=float).T)
+        height, width = self.depth.shape
+        with np.errstate(divide="ignore", invalid="ignore"):
+            u = np.round(self.focal[0] * p[0] / p[2] + self.centre[0])
+            v = np.round(self.focal[1] * p[1] / p[2] + self.centre[1])
+        inside = (p[2] > 0) & (u >= 0) & (u < width) & (v >= 0) & (v < height)
+        hidden = np.ones(len(p[0]), dtype=bool)
+        measured = self.depth[v[inside].astype(int), u[inside].astype(int)]
+        hidden[inside] = ~np.isfinite(measured) | (measured < p[2][inside] - margin)
+        return hidden
+
+
+@dataclass
 class ObjectEstimate:
     """The object's point cloud and initial pose, or why there is none."""
 
@@ -111,6 +135,7 @@ class ObjectEstimate:
     message: str = ""
     viewpoint_W: np.ndarray | None = None  # where the points were seen from: the camera's position in W, m
     compute_s: float = 0.0  # wall time of the estimate alone (its inputs' stages excluded)
+    view: DepthView | None = None  # the depth image the points came from (None: unknown)
 
 
 @dataclass

@@ -103,6 +103,7 @@ class SyntheticScene:
         classes=CLASSES,
         camera_jitter: bool = True,
         instances: list[str] | None = None,
+        models: dict[str, list[tuple[str, Path]]] | None = None,
     ):
         """Args:
         scenario: robot, camera and nominal table placement.
@@ -112,6 +113,7 @@ class SyntheticScene:
         classes: the label images' class names by id, background first: the categories placed.
         camera_jitter: perturb the cameras about the chest mount (else all sit at the nominal pose).
         instances: these instances of each category instead of the split's (any generated name, e.g. extra_101).
+        models: {category: [(name, SDF file)]}: these models of the categories named instead (a user's files).
         """
         self.rng = rng
         self.classes = tuple(classes)
@@ -129,7 +131,8 @@ class SyntheticScene:
         self.objects = []  # (category, instance, body)
         parser = make_parser(plant)
         for category in self.classes[1:]:
-            for name, model_file in category_models(category, split, instances):
+            chosen = models[category] if models and category in models else category_models(category, split, instances)
+            for name, model_file in chosen:
                 color = random_color(rng, saturated=rng.uniform() < 0.8)
                 text = recoloured_sdf(model_file, color, f"{category}_{name}")
                 (instance,) = parser.AddModelsFromString(text, "sdf")

@@ -34,7 +34,7 @@ from pydrake.systems.framework import LeafSystem
 from pydrake.systems.sensors import CameraInfo, ImageDepth32F
 from scipy.spatial import cKDTree
 
-from systems.messages import ObjectEstimate, Segmentation
+from systems.messages import DepthView, ObjectEstimate, Segmentation
 from systems.paths import cache_dir, save_npz_atomically
 from systems.perception.depth_cleaning import flying_pixels
 
@@ -299,8 +299,10 @@ class PoseEstimator(LeafSystem):
                 fit_points_W = interior_W
         support = self.support_height(segmentation.mask, depth, X_WC, fit_points_W)
         X_WO = estimate_pose(fit_points_W, prior, support, self._free_space_test(segmentation.mask, depth, X_WC))
+        K = self.intrinsics
+        view = DepthView(depth, X_WC, (K.focal_x(), K.focal_y()), (K.center_x(), K.center_y()))
         return ObjectEstimate(
-            True, segmentation.category, X_WO, points_W, f"{len(points_W)} points", X_WC.translation()
+            True, segmentation.category, X_WO, points_W, f"{len(points_W)} points", X_WC.translation(), view=view
         )
 
     def _object_points_W(self, mask, depth, X_WC) -> np.ndarray:

@@ -65,7 +65,7 @@ class ShapeRegistrar(LeafSystem):
         if registrar is None:
             return _Result(estimate.X_WO, None, f"no shape space for category {estimate.category!r}")
         try:
-            registration = registrar.register(estimate.points_W, estimate.X_WO, estimate.viewpoint_W)
+            registration = registrar.register(estimate.points_W, estimate.X_WO, estimate.viewpoint_W, estimate.view)
         except ValueError as error:
             return _Result(estimate.X_WO, None, str(error))
         if registration.poor_fit:  # named, not passed on: a grasp 30 cm off is worse than no grasp
