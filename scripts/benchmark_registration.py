@@ -39,7 +39,7 @@ from diagrams.perception import MakePoseEstimator
 from diagrams.scenario import load_scenario
 from systems.messages import Segmentation
 from systems.perception.rgbd_noise import RgbdNoiseParameters, noisy_depth, sensor_model
-from systems.perception.shape_registrar import shape_space_file
+from systems.perception.shape_registrar import scale_prior, shape_space_file
 from systems.shape_space.cpd import deformable_cpd, thinned
 from systems.shape_space.registration import Registrar
 from systems.shape_space.space import ShapeSpace, choose_canonical
@@ -97,7 +97,7 @@ def registration_trials(
     rng = np.random.default_rng(seed)
     estimator = MakePoseEstimator(scenario)
     spaces = {c: space_dir / shape_space_file(c).name if space_dir else shape_space_file(c) for c in categories}
-    registrars = {c: Registrar(ShapeSpace.load(path)) for c, path in spaces.items()}
+    registrars = {c: Registrar(ShapeSpace.load(path), scale_prior=scale_prior(c)) for c, path in spaces.items()}
     models, truth = None, {}
     if files:
         (category,) = categories

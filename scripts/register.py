@@ -23,6 +23,7 @@ import open3d as o3d
 from json_report import write_json
 from pydrake.math import RigidTransform, RotationMatrix
 
+from systems.perception.shape_registrar import scale_prior
 from systems.shape_space.registration import Registrar
 from systems.shape_space.space import ShapeSpace
 from systems.shape_space.units import check_metres
@@ -67,7 +68,8 @@ def main(argv=None) -> int:
             (x, y), z, yaw = np.median(finite[:, :2], axis=0), np.min(finite[:, 2]) if len(finite) else 0.0, 0.0
         X_WO_initial = RigidTransform(RotationMatrix.MakeZRotation(yaw), [x, y, z])
         start = time.perf_counter()
-        result = Registrar(space, upright=not args.any_orientation).register(points, X_WO_initial, args.viewpoint)
+        registrar = Registrar(space, upright=not args.any_orientation, scale_prior=scale_prior(space.category))
+        result = registrar.register(points, X_WO_initial, args.viewpoint)
         seconds = time.perf_counter() - start
     except (FileNotFoundError, ValueError) as error:
         print(f"error: {error}", file=sys.stderr)
@@ -76,6 +78,7 @@ def main(argv=None) -> int:
         "category": space.category,
         "X_WO": result.X_WO.GetAsMatrix4().tolist(),
         "latent": result.latent.tolist(),
+        "scale": result.scale.tolist(),
         "grasp_poses_W": {name: X.GetAsMatrix4().tolist() for name, X in result.grasp_poses_W.items()},
         "fit_error_m": result.fit_error_m,
         "registration_s": seconds,

@@ -102,26 +102,31 @@ class Segmentation:
 
 @dataclass
 class DepthView:
-    """The depth image a cloud was taken from and its camera: which points a nearer surface hid from it."""
+    """The depth image a cloud was taken from, its camera and the object's pixels."""
 
     depth: np.ndarray  # H x W, metres along the optical axis (NaN or inf where nothing was measured)
     X_WC: RigidTransform  # the depth camera's pose
     focal: tuple[float, float]  # fx, fy in pixels
     centre: tuple[float, float]  # cx, cy in pixels
+    mask: np.ndarray | None = None  # H x W bool, the object's pixels (None: every pixel may be something else)
 
-    def hidden(self, points_W: np.ndarray, margin: float) -> np.ndarray:
-        """Which points (N x 3, W) the camera could not have seen: behind a surface it measured more than `margin`
-        (m) nearer, outside the image, or where it measured nothing. A boolean mask."""
+    def look_up(self, points_W: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """For points (N x 3, W): their depths along the optical axis (m), the depths measured in their pixels (NaN
+        outside the image or where nothing was measured) and whether those pixels are the object's."""
         p = self.X_WC.inverse().multiply(np.asarray(points_W, dtype=float).T)
         height, width = self.depth.shape
         with np.errstate(divide="ignore", invalid="ignore"):
             u = np.round(self.focal[0] * p[0] / p[2] + self.centre[0])
             v = np.round(self.focal[1] * p[1] / p[2] + self.centre[1])
         inside = (p[2] > 0) & (u >= 0) & (u < width) & (v >= 0) & (v < height)
-        hidden = np.ones(len(p[0]), dtype=bool)
-        measured = self.depth[v[inside].astype(int), u[inside].astype(int)]
-        hidden[inside] = ~np.isfinite(measured) | (measured < p[2][inside] - margin)
-        return hidden
+        rows, columns = v[inside].astype(int), u[inside].astype(int)
+        measured = np.full(len(p[0]), np.nan)
+        measured[inside] = self.depth[rows, columns]
+        measured[~np.isfinite(measured)] = np.nan
+        on_object = np.zeros(len(p[0]), dtype=bool)
+        if self.mask is not None:
+            on_object[inside] = self.mask[rows, columns]
+        return p[2], measured, on_object
 
 
 @dataclass

@@ -300,7 +300,7 @@ class PoseEstimator(LeafSystem):
         support = self.support_height(segmentation.mask, depth, X_WC, fit_points_W)
         X_WO = estimate_pose(fit_points_W, prior, support, self._free_space_test(segmentation.mask, depth, X_WC))
         K = self.intrinsics
-        view = DepthView(depth, X_WC, (K.focal_x(), K.focal_y()), (K.center_x(), K.center_y()))
+        view = DepthView(depth, X_WC, (K.focal_x(), K.focal_y()), (K.center_x(), K.center_y()), segmentation.mask)
         return ObjectEstimate(
             True, segmentation.category, X_WO, points_W, f"{len(points_W)} points", X_WC.translation(), view=view
         )

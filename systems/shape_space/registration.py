@@ -44,6 +44,8 @@ ITERATIONS = 40
 # 2 of 5 unseen generated cans at yaw 0: the registration then put the grasps on the wrong ends).
 YAW_HYPOTHESES = (0.0, -0.35, 0.35, np.pi)
 INITIAL_SIGMA = 0.02  # m
+SCALE_PRIOR = None
+MAX_LOG_SCALE = 0.5
 TRANSLATION_PRIOR = 0.02  # m: standard deviation of the origin about the initial estimate
 CONVERGED = 1e-3  # stop when sigma^2 changes by less than this, relative
 VISIBILITY_EVERY = 5  # iterations between visibility updates
@@ -85,6 +87,7 @@ class Registration:
     # Per grasp frame (GRASP_NAMES), the share of the visible fitted surface about it that was seen (grasp_support),
     # None where too little of it is visible to judge; empty without a viewpoint.
     grasp_support: dict[str, float | None] = field(default_factory=dict)
+    scale: np.ndarray = field(default_factory=lambda: np.ones(3))  # of the latent shape along O's axes
 
     @property
     def poor_fit(self) -> str:
@@ -103,6 +106,18 @@ class Registration:
                     f"{100 * MIN_GRASP_SUPPORT:.0f}% expected)"
                 )
         return ""
+
+
+def scaled_poses(poses_O: dict[str, RigidTransform], scale: np.ndarray) -> dict[str, RigidTransform]:
+    """Control poses (X_OG, O) of a shape scaled by `scale` (3,) along O's axes: each grasp frame's origin scaled,
+    its axes kept; each pre-grasp keeps its pose relative to its grasp."""
+    out = {}
+    for name in GRASP_NAMES:
+        X_OG = poses_O[name]
+        X_GP = X_OG.InvertAndCompose(poses_O[name.replace("grasp", "pregrasp")])
+        out[name] = RigidTransform(X_OG.rotation(), X_OG.translation() * scale)
+        out[name.replace("grasp", "pregrasp")] = out[name] @ X_GP
+    return {name: out[name] for name in poses_O}
 
 
 def _skew_columns(v: np.ndarray) -> np.ndarray:
@@ -156,17 +171,25 @@ def grasp_shift(origin_W: np.ndarray, model_W: np.ndarray, observed_W: np.ndarra
 def grasp_support(
     origin_W: np.ndarray, visible_model_W: np.ndarray, observed_W: np.ndarray, view: DepthView | None = None
 ) -> float | None:
-    """The share of the fitted surface visible from the camera (N x 3, W) within SUPPORT_M of a grasp frame's origin
-    (3, W) that lies within INLIER_M of a seen point (K x 3, W): low where the fit put a handle the camera would
-    have seen but did not. Given the depth image (view), the points a nearer surface hid (an arm) are left out.
-    None (no evidence either way) with fewer than MIN_SUPPORT_POINTS such points: the object's own parts hide a
-    drill's pistol grip under its housing from the chest camera on most held-out drills."""
+    """How much of the fitted surface about a grasp frame the camera confirms: of the fitted surface points visible
+    from the camera (N x 3, W) within SUPPORT_M of the grasp's origin (3, W), the share with a seen point (K x 3, W)
+    within INLIER_M. Given the depth image (view), a point also counts where the camera measured a surface within
+    INLIER_M of its depth (a handle the segmenter missed), and the points something other than the object hid are
+    left out (a nearer surface off the object's pixels by more than HIDDEN_MARGIN: an arm, the gripper).
+    Low where the fit put a handle the camera would have seen but did not. None (no evidence either way) with fewer
+    than MIN_SUPPORT_POINTS such points: the object's own parts hide a drill's pistol grip under its housing from
+    the chest camera on most held-out drills."""
     near = visible_model_W[np.linalg.norm(visible_model_W - origin_W, axis=1) < SUPPORT_M]
     if view is not None and len(near):
-        near = near[~view.hidden(near, HIDDEN_MARGIN)]
+        depth, measured, on_object = view.look_up(near)
+        hidden = np.isnan(measured) | ((measured < depth - HIDDEN_MARGIN) & ~on_object)
+        near, depth, measured = near[~hidden], depth[~hidden], measured[~hidden]
     if len(near) < MIN_SUPPORT_POINTS:
         return None
-    return float(np.mean(cKDTree(observed_W).query(near)[0] < INLIER_M))
+    supported = cKDTree(observed_W).query(near)[0] < INLIER_M
+    if view is not None:
+        supported |= np.abs(measured - depth) < INLIER_M
+    return float(np.mean(supported))
 
 
 def evenly_thinned(points: np.ndarray, count: int) -> np.ndarray:
@@ -197,15 +220,23 @@ class Registrar:
     """Registers observed clouds to one category's ShapeSpace."""
 
     def __init__(
-        self, space: ShapeSpace, upright: bool = True, prior_weight: float = 1.0, half_turn_symmetric: bool = False
+        self,
+        space: ShapeSpace,
+        upright: bool = True,
+        prior_weight: float = 1.0,
+        half_turn_symmetric: bool = False,
+        scale_prior: float | None = SCALE_PRIOR,
     ):
         """Args:
         upright: the object stands upright (rotation about the world z only), else full 3D rotation.
         prior_weight: scales the latent prior against the data term.
         half_turn_symmetric: the category looks the same turned by pi about z_O (a pot): the end-for-end
             hypothesis is not tried, so the pose stays on the initial pose's side (and each grasp on its hand's).
+        scale_prior: the standard deviation of the log of the shape's scale along each of O's axes (fitted
+            beside the latent vector); None: no scaling, the latent space alone.
         """
         self.space = space
+        self.scale_prior = scale_prior
         self.yaw_hypotheses = tuple(h for h in YAW_HYPOTHESES if not (half_turn_symmetric and h == np.pi))
         self.upright = upright
         self.prior_weight = prior_weight
@@ -251,12 +282,12 @@ class Registrar:
             X0 = RigidTransform(RotationMatrix.MakeZRotation(offset)) @ X_WO_initial
             X0 = RigidTransform(X0.rotation(), X_WO_initial.translation())  # turn about the object's origin
             result = self._fit(X, X0, viewpoint_W)
-            if best is None or result[3] < best[3]:
+            if best is None or result[4] < best[4]:
                 best = result
-        R, t, z, error, iterations = best
+        R, t, z, scale, error, iterations = best
         X_WO = RigidTransform(RotationMatrix(R), t)
-        shape_W = X_WO.multiply(self.space.reconstruct(z).T).T
-        poses = {name: X_WO @ X_OG for name, X_OG in self.space.control_poses_at(z).items()}
+        shape_W = X_WO.multiply((self.space.reconstruct(z) * scale).T).T
+        poses = {name: X_WO @ X_OG for name, X_OG in scaled_poses(self.space.control_poses_at(z), scale).items()}
         if viewpoint_W is not None:
             seen_model = shape_W[visible_from(shape_W, viewpoint_W)]
             moves = np.zeros_like(shape_W)
@@ -277,20 +308,23 @@ class Registrar:
             support = {
                 name: grasp_support(poses[name].translation(), seen_model, observed, view) for name in GRASP_NAMES
             }
-        return Registration(X_WO, z, shape_W, poses, error, iterations, inlier_share, support)
+        return Registration(X_WO, z, shape_W, poses, error, iterations, inlier_share, support, scale)
 
     def _fit(self, X, X_WO0, viewpoint_W):
         R, t = X_WO0.rotation().matrix(), X_WO0.translation().copy()
         q = len(self.inverse_variances)
         z = np.zeros(q)
+        log_scale = np.zeros(3)
         sigma2 = INITIAL_SIGMA**2
         # Upright: turn about z only, and the origin stays on the support surface (the initial height).
         rotation_dofs = [2] if self.upright else [0, 1, 2]
         translation_dofs = [0, 1] if self.upright else [0, 1, 2]
         moved = slice(len(rotation_dofs), len(rotation_dofs) + len(translation_dofs))
-        latent = slice(moved.stop, None)
+        latent = slice(moved.stop, moved.stop + q)
+        scaled = slice(latent.stop, latent.stop + (3 if self.scale_prior else 0))
         t0 = t.copy()
-        RS = self.mean_shape @ R.T  # the model in O turned into W's axes, m x 3 (z = 0)
+        shape_O = self.mean_shape  # the model in O at (z, scale), m x 3
+        RS = shape_O @ R.T  # the model in O turned into W's axes, m x 3 (z = 0)
         model = RS + t
         # The mixture's centroids: the model points visible from the viewpoint (all without one). Only
         # their rows of the posteriors are ever non-zero, so only they are computed.
@@ -312,14 +346,15 @@ class Registrar:
                 break
             # Gauss-Newton on sum_m P1_m |s_m - target_m / P1_m|^2 / (2 sigma2) + prior.
             residual = (P @ X32).astype(float) - P1[:, None] * model[rows]  # = P1_m (target_m - s_m)
-            J = np.concatenate(
-                [
-                    _skew_columns(RS[rows])[:, :, rotation_dofs],
-                    np.broadcast_to(np.eye(3)[:, translation_dofs], (len(rows), 3, len(translation_dofs))),
-                    R @ self.B[rows],
-                ],
-                axis=2,
-            ).reshape(3 * len(rows), -1)  # (3 rows) x (rotation + translation + q)
+            scale = np.exp(log_scale)
+            blocks = [
+                _skew_columns(RS[rows])[:, :, rotation_dofs],
+                np.broadcast_to(np.eye(3)[:, translation_dofs], (len(rows), 3, len(translation_dofs))),
+                R @ (scale[:, None] * self.B[rows]),
+            ]
+            if self.scale_prior:  # d(R S y)/d(log s_k) = R[:, k] s_k y_k
+                blocks.append(R[None, :, :] * shape_O[rows][:, None, :])
+            J = np.concatenate(blocks, axis=2).reshape(3 * len(rows), -1)  # (3 rows) x (parameters)
             H = (J * np.repeat(P1, 3)[:, None]).T @ J / sigma2
             g = J.T @ residual.ravel() / sigma2
             # Priors: a plausible shape, and an origin near the initial estimate.
@@ -327,17 +362,23 @@ class Registrar:
             g[latent] -= self.prior_weight * self.inverse_variances * z
             H[moved, moved] += np.eye(len(translation_dofs)) / TRANSLATION_PRIOR**2
             g[moved] -= (t - t0)[translation_dofs] / TRANSLATION_PRIOR**2
+            if self.scale_prior:
+                H[scaled, scaled] += np.eye(3) / self.scale_prior**2
+                g[scaled] -= log_scale / self.scale_prior**2
             step = np.linalg.solve(H + 1e-9 * np.eye(len(g)), g)
             omega = np.zeros(3)
             omega[rotation_dofs] = step[: len(rotation_dofs)]
             R = Rotation.from_rotvec(omega).as_matrix() @ R
             t[translation_dofs] += step[moved]
             z = z + step[latent]
-            RS = (self.mean_shape + self.B @ z) @ R.T
+            if self.scale_prior:
+                log_scale = np.clip(log_scale + step[scaled], -MAX_LOG_SCALE, MAX_LOG_SCALE)
+            shape_O = (self.mean_shape + self.B @ z) * np.exp(log_scale)
+            RS = shape_O @ R.T
             model = RS + t
             squared = cdist(model[rows], X, "sqeuclidean").astype(np.float32)
             previous, sigma2 = sigma2, max(float(np.vdot(P, squared)) / (3 * Np), 1e-8)
             if abs(previous - sigma2) < CONVERGED * previous:
                 break
         error = float(np.sqrt(cdist(model, X, "sqeuclidean").min(0)).mean())
-        return R, t, z, error, iteration
+        return R, t, z, np.exp(log_scale), error, iteration

@@ -1,0 +1,132 @@
+"""Objects outside the generators' families (scripts/make_unfamiliar_objects.py), how the registrar judges a grasp
+against what was seen (grasp_support, DepthView), and a user's mesh that CoACD's default mode cannot take."""
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+from pydrake.math import RigidTransform, RotationMatrix
+
+from diagrams.generation.objects.library import convex_decomposition
+from systems.messages import DepthView
+from systems.perception.shape_registrar import scale_prior, shape_space_file
+from systems.shape_space.registration import MIN_GRASP_SUPPORT, Registrar, Registration, grasp_support, scaled_poses
+from systems.shape_space.space import GRASP_NAMES, ShapeSpace
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO / "scripts"))
+from make_unfamiliar_objects import DESIGNS, instances  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def held_out():
+    return {category: instances(category, "held_out") for category in DESIGNS}
+
+
+def test_every_held_out_grasp_sits_inside_its_handle_and_the_split_is_reproducible(held_out):
+    for category, objects in held_out.items():
+        assert len(objects) >= 6, category
+        again = instances(category, "held_out")
+        for instance, twin in zip(objects, again, strict=True):
+            mesh = instance.visual_mesh()
+            assert mesh.is_watertight, instance.name
+            np.testing.assert_allclose(mesh.vertices, twin.visual_mesh().vertices)
+            assert abs(mesh.bounds[0][2]) < 1e-9, f"{instance.name} does not stand on z = 0"
+            for side, grasp in instance.grasps.items():
+                origin = grasp.grasp.GetDeterministicValue().translation()
+                depth = trimesh.proximity.closest_point(mesh, [origin])[1][0]
+                assert mesh.contains([origin])[0], f"{instance.name} {side} grasp is not inside a handle"
+                assert 0.009 < depth < 0.022, f"{instance.name} {side} grasp is {1000 * depth:.1f} mm from the surface"
+
+
+def test_the_tuning_split_differs_from_the_held_out_one():
+    tuning = instances("watering_can", "tune")
+    assert [i.name for i in tuning] == [f"stretched_{k}" for k in range(len(tuning))]
+    assert all(i.parameters.get("design") is None for i in tuning)
+
+
+def patch(centre, normal, size=0.02, count=400, seed=0):
+    """Points of a flat square patch (m) about centre, facing along normal."""
+    rng = np.random.default_rng(seed)
+    u = np.cross(normal, [0.0, 0.0, 1.0] if abs(normal[2]) < 0.9 else [1.0, 0.0, 0.0])
+    u /= np.linalg.norm(u)
+    v = np.cross(normal, u)
+    a, b = rng.uniform(-size, size, (2, count))
+    return centre + np.outer(a, u) + np.outer(b, v)
+
+
+def camera_view(depth_m, size=200, mask=None):
+    """A depth image of one flat wall at depth_m, seen by a camera at the origin looking along z."""
+    depth = np.full((size, size), depth_m, dtype=np.float32)
+    return DepthView(depth, RigidTransform(), (200.0, 200.0), (size / 2, size / 2), mask)
+
+
+def test_depth_view_looks_up_the_depth_measured_in_each_points_pixel():
+    mask = np.zeros((200, 200), dtype=bool)
+    mask[:100] = True  # the object: the upper half of the image
+    view = camera_view(1.0, mask=mask)
+    points = np.array([[0.0, -0.1, 0.9], [0.0, 0.1, 1.2], [5.0, 0.0, 1.0]])
+    depth, measured, on_object = view.look_up(points)
+    np.testing.assert_allclose(depth, [0.9, 1.2, 1.0])
+    np.testing.assert_allclose(measured[:2], [1.0, 1.0])
+    assert np.isnan(measured[2])  # off the image
+    np.testing.assert_array_equal(on_object, [True, False, False])
+
+
+def test_a_grasp_whose_handle_was_not_seen_where_the_fit_put_it_is_a_poor_fit():
+    handle = patch(np.array([0.0, 0.0, 1.0]), np.array([0.0, 0.0, -1.0]))  # the fitted handle's visible side
+    origin = np.array([0.0, 0.0, 1.012])  # the grasp frame inside it
+    seen_there = handle + np.random.default_rng(1).normal(0, 0.002, handle.shape)
+    seen_elsewhere = handle + [0.05, 0.0, 0.0]  # the real handle stands 5 cm off
+    assert grasp_support(origin, handle, seen_there) > 0.95
+    assert grasp_support(origin, handle, seen_elsewhere) < 0.1
+    # The camera saw through where the fit put the handle (the wall 1 m behind it): still not there.
+    assert grasp_support(origin, handle, seen_elsewhere, camera_view(2.0)) < 0.1
+    # The camera measured a surface there that the segmenter left out of the object's points: it counts.
+    assert grasp_support(origin, handle, seen_elsewhere, camera_view(1.0)) > 0.95
+    # An arm in front of the handle hid it: no evidence either way, not a refusal.
+    assert grasp_support(origin, handle, seen_elsewhere, camera_view(0.6)) is None
+    # ... but the object's own surface in front of where the fit put the handle is evidence against it.
+    in_front = camera_view(0.6, mask=np.ones((200, 200), dtype=bool))
+    assert grasp_support(origin, handle, seen_elsewhere, in_front) < 0.1
+    assert grasp_support(origin, handle[:5], seen_there) is None  # too little visible to judge
+
+    def registration(support):
+        return Registration(RigidTransform(), np.zeros(1), handle, {}, 0.002, 10, 0.95, support)
+
+    assert registration({"left_grasp": 1.0, "right_grasp": None}).poor_fit == ""
+    refused = registration({"left_grasp": 1.0, "right_grasp": MIN_GRASP_SUPPORT / 2}).poor_fit
+    assert "the right grasp is not where its handle was seen" in refused
+
+
+def test_a_mesh_coacds_default_mode_aborts_on_is_still_decomposed(held_out):
+    (slim,) = [i for i in held_out["watering_can"] if i.name == "held_out_slim_can"]
+    mesh = slim.visual_mesh()
+    pieces = convex_decomposition(mesh)  # coacd 1.0.14's default mode aborts the process on this one
+    assert 3 <= len(pieces) <= 24
+    assert all(piece.is_convex for piece in pieces)
+    union_volume = sum(piece.volume for piece in pieces)
+    assert 0.9 * mesh.volume < union_volume < 1.6 * mesh.volume
+
+
+def test_a_can_scaled_past_its_latent_space_is_registered_with_its_scale():
+    space = ShapeSpace.load(shape_space_file("watering_can"))
+    scale = np.array([1.25, 1.25, 0.8])  # wider and lower than any training can
+    X_WO = RigidTransform(RotationMatrix.MakeZRotation(0.3), [0.7, 0.05, 0.75])
+    surface_O = space.reconstruct(np.zeros(space.latent_size)) * scale
+    observed_W = X_WO.multiply(surface_O[::4].T).T
+    truth = {n: X_WO @ X for n, X in scaled_poses(space.control_poses_at(np.zeros(space.latent_size)), scale).items()}
+    X_start = RigidTransform(RotationMatrix.MakeZRotation(0.35), [0.71, 0.04, 0.75])
+
+    def worst_grasp_error(registrar):
+        result = registrar.register(observed_W, X_start)
+        errors = [np.linalg.norm(result.grasp_poses_W[n].translation() - truth[n].translation()) for n in GRASP_NAMES]
+        return result, max(errors)
+
+    scaled, error = worst_grasp_error(Registrar(space, scale_prior=scale_prior("watering_can")))
+    np.testing.assert_allclose(scaled.scale, scale, rtol=0.05)
+    assert error < 0.01, f"grasps {1000 * error:.1f} mm off"
+    _, latent_error = worst_grasp_error(Registrar(space, scale_prior=None))
+    assert latent_error > max(0.015, 2 * error), f"the latent space alone came within {1000 * latent_error:.1f} mm"
