@@ -1,0 +1,98 @@
+"""Draws one single-view registration of an object outside the shape space's family: the seen points, the latent fit
+alone and the fit with the shape's scale, with their grasp frames beside the true ones.
+
+python scripts/make_unfamiliar_objects.py --out held_out
+python scripts/draw_unfamiliar_fit.py held_out/watering_can/held_out_squat_can.obj --out docs/unfamiliar_fit.png
+"""
+
+import argparse
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from diagrams.generation.objects import catalog  # noqa: E402
+from diagrams.generation.objects.library import load_info, mesh_to_sdf  # noqa: E402
+from diagrams.generation.synthetic_scenes import SyntheticScene  # noqa: E402
+from diagrams.perception import MakePoseEstimator  # noqa: E402
+from diagrams.scenario import load_scenario  # noqa: E402
+from systems.messages import Segmentation  # noqa: E402
+from systems.perception.rgbd_noise import noisy_depth, sensor_model  # noqa: E402
+from systems.perception.shape_registrar import scale_prior, shape_space_file  # noqa: E402
+from systems.shape_space.registration import Registrar  # noqa: E402
+from systems.shape_space.space import GRASP_NAMES, ShapeSpace  # noqa: E402
+
+XY = (0.73, 0.0)  # m, where the scenario puts the object
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("mesh", type=Path, help="an OBJ with <name>.info.yaml beside it (its true grasps)")
+    parser.add_argument("--category", default="watering_can")
+    parser.add_argument("--yaw", type=float, default=0.0, help="about the presentation, rad")
+    parser.add_argument("--seed", type=int, default=7)
+    parser.add_argument("--out", type=Path, default=Path("unfamiliar_fit.png"))
+    args = parser.parse_args()
+
+    scenario = load_scenario()
+    rng = np.random.default_rng(args.seed)
+    sdf = mesh_to_sdf(args.mesh, 1.0, 1.0, args.category)
+    scene = SyntheticScene(
+        scenario, rng, cameras=1, camera_jitter=False, classes=("background", args.category),
+        models={args.category: [(args.mesh.stem, sdf)]},
+    )  # fmt: skip
+    yaw = catalog.presentation_yaw(args.category) + args.yaw
+    frame = scene.render(placement=(args.category, args.mesh.stem, yaw, np.array(XY)))
+    X_WO_true = frame.objects[0][2]
+    intrinsics = scenario.camera.MakeCameras()[1].core().intrinsics()
+    depth = noisy_depth(frame.depth, frame.rgb, intrinsics, sensor_model("kinect_v2"), rng)
+    mask = frame.labels > 0
+    estimate = MakePoseEstimator(scenario).estimate(
+        Segmentation(True, args.category, mask, int(mask.sum())), depth, frame.X_WC
+    )
+    space = ShapeSpace.load(shape_space_file(args.category))
+    fits = {
+        "latent fit alone": Registrar(space, scale_prior=None),
+        "latent fit with the shape's scale": Registrar(space, scale_prior=scale_prior(args.category)),
+    }
+    truth = {n: X_WO_true @ X for n, X in load_info(args.mesh.with_suffix(".info.yaml")).control_poses().items()}
+    to_O = X_WO_true.inverse()
+    seen_O = to_O.multiply(estimate.points_W.T).T
+
+    figure, axes = plt.subplots(2, 2, figsize=(11, 8.5))
+    for column, (title, registrar) in enumerate(fits.items()):
+        result = registrar.register(estimate.points_W, estimate.X_WO, estimate.viewpoint_W, estimate.view)
+        shape_O = to_O.multiply(result.reconstructed_W.T).T
+        errors = [np.linalg.norm(result.grasp_poses_W[n].translation() - truth[n].translation()) for n in GRASP_NAMES]
+        verdict = result.poor_fit or "grasps handed on"
+        for row, (i, j, plane) in enumerate(((0, 2, "x-z (side)"), (0, 1, "x-y (top)"))):
+            ax = axes[row, column]
+            ax.scatter(shape_O[::3, i], shape_O[::3, j], s=1, c="0.7", label="fitted shape")
+            ax.scatter(seen_O[::2, i], seen_O[::2, j], s=1, c="tab:blue", label="seen points")
+            for name in GRASP_NAMES:
+                fitted = to_O.multiply(result.grasp_poses_W[name].translation())
+                true = to_O.multiply(truth[name].translation())
+                ax.plot(*fitted[[i, j]], "x", c="tab:red", ms=10, mew=2)
+                ax.plot(*true[[i, j]], "o", c="tab:green", ms=9, mfc="none", mew=2)
+            ax.set_aspect("equal")
+            ax.set_xlabel(f"{plane}, object frame (m)")
+            if row == 0:
+                ax.set_title(
+                    f"{title}\n{100 * result.inlier_share:.0f}% inliers, grasps {1000 * errors[0]:.0f} / "
+                    f"{1000 * errors[1]:.0f} mm off; scale {np.round(result.scale, 2).tolist()}\n{verdict[:70]}",
+                    fontsize=9,
+                )
+    axes[0, 0].plot([], [], "x", c="tab:red", label="fitted grasp")
+    axes[0, 0].plot([], [], "o", c="tab:green", mfc="none", label="true grasp")
+    axes[0, 0].legend(loc="lower left", fontsize=8, markerscale=3)
+    figure.suptitle(f"{args.mesh.stem}, one view (kinect_v2 sensor model), yaw {args.yaw:+.2f} rad", fontsize=11)
+    figure.tight_layout()
+    figure.savefig(args.out, dpi=80)
+    print(f"wrote {args.out}")
+
+
+if __name__ == "__main__":
+    main()
