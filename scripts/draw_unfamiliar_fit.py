@@ -6,6 +6,7 @@ python scripts/draw_unfamiliar_fit.py held_out/watering_can/held_out_squat_can.o
 """
 
 import argparse
+import textwrap
 from pathlib import Path
 
 import matplotlib
@@ -82,7 +83,8 @@ def main():
             if row == 0:
                 ax.set_title(
                     f"{title}\n{100 * result.inlier_share:.0f}% inliers, grasps {1000 * errors[0]:.0f} / "
-                    f"{1000 * errors[1]:.0f} mm off; scale {np.round(result.scale, 2).tolist()}\n{verdict[:70]}",
+                    f"{1000 * errors[1]:.0f} mm off; scale {np.round(result.scale, 2).tolist()}\n"
+                    + "\n".join(textwrap.wrap(verdict, 70)[:3]),
                     fontsize=9,
                 )
     axes[0, 0].plot([], [], "x", c="tab:red", label="fitted grasp")
