@@ -245,8 +245,8 @@ class Registrar:
         prior_weight: scales the latent prior against the data term.
         half_turn_symmetric: the category looks the same turned by pi about z_O (a pot): the end-for-end
             hypothesis is not tried, so the pose stays on the initial pose's side (and each grasp on its hand's).
-        scale_prior: the standard deviation of the log of the shape's scale along each of O's axes (fitted
-            beside the latent vector); None: no scaling, the latent space alone.
+        scale_prior: the standard deviation of the log of the shape's scale along each of O's axes, fitted
+            beside the latent vector where the latent fit alone is poor; None: the latent space alone.
         """
         self.space = space
         self.scale_prior = scale_prior
@@ -290,11 +290,19 @@ class Registrar:
             if viewpoint_W.shape != (3,) or not np.all(np.isfinite(viewpoint_W)):
                 raise ValueError(f"the viewpoint must be 3 finite numbers (m, in W), got {viewpoint_W!r}")
         X = evenly_thinned(observed, OBSERVED_POINTS)
+        registration = self._register(X, observed, X_WO_initial, viewpoint_W, view, None)
+        if registration.poor_fit and self.scale_prior is not None:
+            # Beyond the latent space only where it does not fit: a shape it does fit keeps its latent fit exactly.
+            registration = self._register(X, observed, X_WO_initial, viewpoint_W, view, self.scale_prior)
+        return registration
+
+    def _register(self, X, observed, X_WO_initial, viewpoint_W, view, scale_prior) -> Registration:
+        """The best of the yaw hypotheses' fits to the thinned points X (and the grasps judged on `observed`)."""
         best = None
         for offset in self.yaw_hypotheses:
             X0 = RigidTransform(RotationMatrix.MakeZRotation(offset)) @ X_WO_initial
             X0 = RigidTransform(X0.rotation(), X_WO_initial.translation())  # turn about the object's origin
-            result = self._fit(X, X0, viewpoint_W)
+            result = self._fit(X, X0, viewpoint_W, scale_prior)
             if best is None or result[4] < best[4]:
                 best = result
         R, t, z, scale, error, iterations = best
@@ -323,7 +331,7 @@ class Registrar:
             }
         return Registration(X_WO, z, shape_W, poses, error, iterations, inlier_share, support, scale)
 
-    def _fit(self, X, X_WO0, viewpoint_W):
+    def _fit(self, X, X_WO0, viewpoint_W, scale_prior):
         R, t = X_WO0.rotation().matrix(), X_WO0.translation().copy()
         q = len(self.inverse_variances)
         z = np.zeros(q)
@@ -334,7 +342,7 @@ class Registrar:
         translation_dofs = [0, 1] if self.upright else [0, 1, 2]
         moved = slice(len(rotation_dofs), len(rotation_dofs) + len(translation_dofs))
         latent = slice(moved.stop, moved.stop + q)
-        scaled = slice(latent.stop, latent.stop + (3 if self.scale_prior else 0))
+        scaled = slice(latent.stop, latent.stop + (3 if scale_prior else 0))
         t0 = t.copy()
         shape_O = self.mean_shape  # the model in O at (z, scale), m x 3
         RS = shape_O @ R.T  # the model in O turned into W's axes, m x 3 (z = 0)
@@ -365,7 +373,7 @@ class Registrar:
                 np.broadcast_to(np.eye(3)[:, translation_dofs], (len(rows), 3, len(translation_dofs))),
                 R @ (scale[:, None] * self.B[rows]),
             ]
-            if self.scale_prior:  # d(R S y)/d(log s_k) = R[:, k] s_k y_k
+            if scale_prior:  # d(R S y)/d(log s_k) = R[:, k] s_k y_k
                 blocks.append(R[None, :, :] * shape_O[rows][:, None, :])
             J = np.concatenate(blocks, axis=2).reshape(3 * len(rows), -1)  # (3 rows) x (parameters)
             H = (J * np.repeat(P1, 3)[:, None]).T @ J / sigma2
@@ -375,16 +383,16 @@ class Registrar:
             g[latent] -= self.prior_weight * self.inverse_variances * z
             H[moved, moved] += np.eye(len(translation_dofs)) / TRANSLATION_PRIOR**2
             g[moved] -= (t - t0)[translation_dofs] / TRANSLATION_PRIOR**2
-            if self.scale_prior:
-                H[scaled, scaled] += np.eye(3) / self.scale_prior**2
-                g[scaled] -= log_scale / self.scale_prior**2
+            if scale_prior:
+                H[scaled, scaled] += np.eye(3) / scale_prior**2
+                g[scaled] -= log_scale / scale_prior**2
             step = np.linalg.solve(H + 1e-9 * np.eye(len(g)), g)
             omega = np.zeros(3)
             omega[rotation_dofs] = step[: len(rotation_dofs)]
             R = Rotation.from_rotvec(omega).as_matrix() @ R
             t[translation_dofs] += step[moved]
             z = z + step[latent]
-            if self.scale_prior:
+            if scale_prior:
                 log_scale = np.clip(log_scale + step[scaled], -MAX_LOG_SCALE, MAX_LOG_SCALE)
             shape_O = (self.mean_shape + self.B @ z) * np.exp(log_scale)
             RS = shape_O @ R.T
