@@ -307,8 +307,12 @@ class Registrar:
                 best = result
         R, t, z, scale, error, iterations = best
         X_WO = RigidTransform(RotationMatrix(R), t)
-        shape_W = X_WO.multiply((self.space.reconstruct(z) * scale).T).T
-        poses = {name: X_WO @ X_OG for name, X_OG in scaled_poses(self.space.control_poses_at(z), scale).items()}
+        shape_O = self.space.reconstruct(z)
+        shape_W = X_WO.multiply((shape_O if scale_prior is None else shape_O * scale).T).T
+        poses_O = self.space.control_poses_at(z)
+        if scale_prior is not None:  # (else exactly the latent fit's)
+            poses_O = scaled_poses(poses_O, scale)
+        poses = {name: X_WO @ X_OG for name, X_OG in poses_O.items()}
         if viewpoint_W is not None:
             seen_model = shape_W[visible_from(shape_W, viewpoint_W)]
             moves = np.zeros_like(shape_W)
