@@ -107,6 +107,7 @@ def registration_trials(
     estimator = MakePoseEstimator(scenario)
     spaces = {c: space_dir / shape_space_file(c).name if space_dir else shape_space_file(c) for c in categories}
     registrars = {c: Registrar(ShapeSpace.load(path), scale_prior=scale_prior(c)) for c, path in spaces.items()}
+    # (category, instance) -> (its true control poses, the folder of its visual.obj)
     models, truth = None, {}
     if files:
         (category,) = categories
@@ -114,10 +115,11 @@ def registration_trials(
         instances = [path.stem for path in files]
         for path, (_, sdf) in zip(files, models[category], strict=True):
             truth[(category, path.stem)] = (load_info(path.with_suffix(".info.yaml")).control_poses(), sdf.parent)
-    for category in categories:
-        for instance in instances if not files else ():
-            directory = generated_instance_directory(category, instance)
-            truth[(category, instance)] = (true_grasps(category, instance), directory)
+    else:
+        for category in categories:
+            for instance in instances:
+                directory = generated_instance_directory(category, instance)
+                truth[(category, instance)] = (true_grasps(category, instance), directory)
     meshes = {}
     rows = []
     scene = None

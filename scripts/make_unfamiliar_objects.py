@@ -24,7 +24,9 @@ import argparse
 from pathlib import Path
 
 import numpy as np
+from pydrake.common.schema import Transform
 from pydrake.common.yaml import yaml_dump_typed
+from pydrake.math import RigidTransform
 
 from diagrams.generation.objects import catalog, geometry
 from diagrams.generation.objects import drill as drill_convention
@@ -214,8 +216,7 @@ def _solid(name, mesh, density=1.0):
 
 
 def _box_battery(length, width, height, centre_x=0.0):
-    b = geometry.box([length, width, height], [centre_x, 0, height / 2])
-    return [Part("battery", b, [b], density=2.5)]
+    return [_solid("battery", geometry.box([length, width, height], [centre_x, 0, height / 2]), density=2.5)]
 
 
 def hammer_drill(name):
@@ -272,12 +273,12 @@ def corded_drill(name):
     return _drill(
         name,
         3,
-        [Part("heel", heel, [heel], density=2.0)],
+        [_solid("heel", heel, density=2.0)],
         grip=(grip_bottom, axis, 0.12, 0.018),
         housing=(housing_rear, 0.19, 0.04),
         chuck=(0.06, 0.55),
         side=(0.7, 0.14, 0.017, (0, 1, 0)),
-        extra=[Part("cable", cable, [cable]), Part("bulge", bulge, [bulge], density=1.5)],
+        extra=[_solid("cable", cable), _solid("bulge", bulge, density=1.5)],
     )
 
 
@@ -301,7 +302,7 @@ def round_pack_drill(name):
     return _drill(
         name,
         5,
-        [Part("battery", pack, [pack], density=2.5)],
+        [_solid("battery", pack, density=2.5)],
         grip=(np.array([-0.035, 0, 0.055]), [0.2, 0, 1], 0.11, 0.018),
         housing=(np.array([-0.075, 0, 0.055 + 0.13]), 0.2, 0.037),
         chuck=(0.06, 0.55),
@@ -356,9 +357,8 @@ def instances(category: str, split: str) -> list[ObjectInstance]:
             part.mesh = part.mesh.copy()
             part.mesh.apply_translation(shift)
         for grasp in instance.grasps.values():
-            for kind in ("pregrasp", "grasp"):
-                X = getattr(grasp, kind).GetDeterministicValue()
-                setattr(grasp, kind, type(getattr(grasp, kind))(type(X)(X.rotation(), X.translation() + shift)))
+            grasp.pregrasp = Transform(RigidTransform(shift) @ grasp.pregrasp.GetDeterministicValue())
+            grasp.grasp = Transform(RigidTransform(shift) @ grasp.grasp.GetDeterministicValue())
         out.append(instance)
     return out
 

@@ -104,7 +104,7 @@ class Segmentation:
 class DepthView:
     """The depth image a cloud was taken from, its camera and the object's pixels."""
 
-    depth: np.ndarray  # H x W, metres along the optical axis (NaN or inf where nothing was measured)
+    depth: np.ndarray  # H x W, metres along the optical axis (NaN, inf or 0 where nothing was measured)
     X_WC: RigidTransform  # the depth camera's pose
     focal: tuple[float, float]  # fx, fy in pixels
     centre: tuple[float, float]  # cx, cy in pixels
@@ -122,7 +122,7 @@ class DepthView:
         rows, columns = v[inside].astype(int), u[inside].astype(int)
         measured = np.full(len(p[0]), np.nan)
         measured[inside] = self.depth[rows, columns]
-        measured[~np.isfinite(measured)] = np.nan
+        measured[~np.isfinite(measured) | (measured <= 0)] = np.nan  # (a sensor's 0: no return)
         on_object = np.zeros(len(p[0]), dtype=bool)
         if self.mask is not None:
             on_object[inside] = self.mask[rows, columns]

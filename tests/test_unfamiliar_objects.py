@@ -42,10 +42,13 @@ def test_every_held_out_grasp_sits_inside_its_handle_and_the_split_is_reproducib
                 assert 0.009 < depth < 0.022, f"{instance.name} {side} grasp is {1000 * depth:.1f} mm from the surface"
 
 
-def test_the_tuning_split_differs_from_the_held_out_one():
+def test_every_tuning_can_is_stretched_past_the_generators_ranges():
+    ranges = {"radius": (0.075, 0.1), "height": (0.18, 0.26), "rear_handle_radius": (0.05, 0.075)}  # watering_can.py
     tuning = instances("watering_can", "tune")
     assert [i.name for i in tuning] == [f"stretched_{k}" for k in range(len(tuning))]
-    assert all(i.parameters.get("design") is None for i in tuning)
+    for instance in tuning:
+        outside = [k for k, (low, high) in ranges.items() if not low <= instance.parameters[k] <= high]
+        assert outside, f"{instance.name} lies inside the generator's family"
 
 
 def patch(centre, normal, size=0.02, count=400, seed=0):
@@ -68,11 +71,14 @@ def test_depth_view_looks_up_the_depth_measured_in_each_points_pixel():
     mask = np.zeros((200, 200), dtype=bool)
     mask[:100] = True  # the object: the upper half of the image
     view = camera_view(1.0, mask=mask)
-    points = np.array([[0.0, -0.1, 0.9], [0.0, 0.1, 1.2], [5.0, 0.0, 1.0]])
+    view.depth[100, 120] = 0.0  # the sensor returned nothing there
+    points = np.array([[0.0, -0.1, 0.9], [0.0, 0.1, 1.2], [5.0, 0.0, 1.0], [0.1, 0.0, 1.0]])
     depth, measured, on_object = view.look_up(points)
-    np.testing.assert_allclose(depth, [0.9, 1.2, 1.0])
+    np.testing.assert_allclose(depth, [0.9, 1.2, 1.0, 1.0])
     np.testing.assert_allclose(measured[:2], [1.0, 1.0])
     assert np.isnan(measured[2])  # off the image
+    assert np.isnan(measured[3])  # nothing measured
+    on_object = on_object[:3]
     np.testing.assert_array_equal(on_object, [True, False, False])
 
 

@@ -44,8 +44,7 @@ ITERATIONS = 40
 # 2 of 5 unseen generated cans at yaw 0: the registration then put the grasps on the wrong ends).
 YAW_HYPOTHESES = (0.0, -0.35, 0.35, np.pi)
 INITIAL_SIGMA = 0.02  # m
-SCALE_PRIOR = None
-MAX_LOG_SCALE = 0.5
+MAX_LOG_SCALE = 0.5  # the largest |log| of the shape's scale along an axis
 TRANSLATION_PRIOR = 0.02  # m: standard deviation of the origin about the initial estimate
 CONVERGED = 1e-3  # stop when sigma^2 changes by less than this, relative
 VISIBILITY_EVERY = 5  # iterations between visibility updates
@@ -238,7 +237,7 @@ class Registrar:
         upright: bool = True,
         prior_weight: float = 1.0,
         half_turn_symmetric: bool = False,
-        scale_prior: float | None = SCALE_PRIOR,
+        scale_prior: float | None = None,
     ):
         """Args:
         upright: the object stands upright (rotation about the world z only), else full 3D rotation.

@@ -148,7 +148,7 @@ def convex_decomposition(mesh: trimesh.Trimesh) -> list[trimesh.Trimesh]:
     """Convex pieces of a (possibly non-convex) mesh, via CoACD.
 
     CoACD runs in a child process: on some valid meshes its default mode aborts the whole process (coacd 1.0.14:
-    "unexpected code path was hit", on 3 of 6 watertight cans of scripts/make_held_out_objects.py). Those are
+    "unexpected code path was hit", on 3 of 6 watertight cans of scripts/make_unfamiliar_objects.py). Those are
     decomposed again with its manifold preprocessing on; a mesh that fails both ways is a clear error.
     """
     with tempfile.TemporaryDirectory() as folder:
