@@ -3,12 +3,13 @@ welded where it stands), from the same files and placements as the station, and 
 IK and pick motions in it."""
 
 import hashlib
+from collections.abc import Sequence
 
 import numpy as np
 import trimesh
-from pydrake.geometry import CollisionFilterDeclaration, GeometrySet
+from pydrake.geometry import Box, CollisionFilterDeclaration, GeometrySet
 from pydrake.math import RigidTransform
-from pydrake.multibody.plant import AddMultibodyPlantSceneGraph
+from pydrake.multibody.plant import AddMultibodyPlantSceneGraph, CoulombFriction
 from pydrake.systems.framework import DiagramBuilder
 
 from diagrams.generation.centauro_description import TORSO_JOINT, sdf_name
@@ -30,6 +31,7 @@ def MakeRobotScene(
     X_WO: RigidTransform | None = None,
     held_object: ObjectModel | None = None,
     X_GO: RigidTransform | None = None,
+    boxes: Sequence[tuple[RigidTransform, Sequence[float]]] = (),
 ) -> RobotScene:
     """The planning model of the scenario's robot and table.
 
@@ -37,13 +39,17 @@ def MakeRobotScene(
         open_width: hand opening (m) of the collision model.
         obstacle, X_WO: an object welded at X_WO in the world, as one more obstacle.
         held_object, X_GO: an object held in the left hand, welded to its grasp frame G at X_GO; it moves with the
-            hand and does not collide with either hand (they hold it).
+            hand and does not collide with either hand or the arm link it is welded to (they hold it).
+        boxes: more boxes welded in the world, each (X_WB of its centre, size along x, y, z in m), e.g. the
+            obstacles of a planning benchmark's problem.
     """
     builder = DiagramBuilder()
     plant, scene_graph = AddMultibodyPlantSceneGraph(builder, time_step=0.0)
     robot, hands = AddCentauro(plant, scene_graph, scenario)
     AddTable(plant, scenario)
     AddBoxObstacle(plant, scenario)
+    for i, (X_WB, size) in enumerate(boxes):
+        plant.RegisterCollisionGeometry(plant.world_body(), X_WB, Box(*size), f"box_{i}", CoulombFriction())
     surface, spacing = None, 0.0
     if obstacle is not None:
         (instance,) = make_parser(plant).AddModels(file_name=str(obstacle.model_file))
@@ -56,11 +62,13 @@ def MakeRobotScene(
         plant.WeldFrames(plant.GetFrameByName("grasp_frame", hands["left"]), held.body_frame(), X_GO)
     plant.Finalize()
     if held_object is not None:
+        # The hands and what is welded to them (each arm's last link): their distances to the held object stay as
+        # the grasp made them.
+        bodies = {body for hand in hands.values() for body in plant.GetBodyIndices(hand)}
+        bodies |= {welded.index() for body in list(bodies) for welded in plant.GetBodiesWeldedTo(plant.get_body(body))}
+        bodies.discard(held.index())
         hand_geometries = [
-            geometry
-            for hand in hands.values()
-            for body in plant.GetBodyIndices(hand)
-            for geometry in plant.GetCollisionGeometriesForBody(plant.get_body(body))
+            geometry for body in bodies for geometry in plant.GetCollisionGeometriesForBody(plant.get_body(body))
         ]
         scene_graph.collision_filter_manager().Apply(
             CollisionFilterDeclaration().ExcludeBetween(
@@ -78,7 +86,7 @@ def MakeRobotScene(
         robot,
         hands,
         planned_joints(scenario),
-        _cache_key(scenario, open_width, obstacle, X_WO),
+        _cache_key(scenario, open_width, obstacle, X_WO, boxes),
         0,  # the IK seed table is a property of the model, not of a run: one seed for all
         surface,
         spacing,
@@ -105,7 +113,7 @@ def make_pick_motions(scenario: Scenario, config: PlannerConfig | None = None, *
     return PickMotions(make_planning_world(scenario, **scene_options), config)
 
 
-def _cache_key(scenario, open_width, obstacle, X_WO) -> str:
+def _cache_key(scenario, open_width, obstacle, X_WO, boxes=()) -> str:
     """A hash of everything the IK seed table depends on: the model files, placements and object."""
     digest = hashlib.sha256()
     robot = f"centauro/{sdf_name(torso_free(scenario))}"
@@ -119,6 +127,8 @@ def _cache_key(scenario, open_width, obstacle, X_WO) -> str:
             if piece.suffix in (".sdf", ".obj", ".urdf"):
                 digest.update(piece.read_bytes())
         digest.update(np.round(X_WO.GetAsMatrix4(), 9).tobytes())
+    for X_WB, size in boxes:
+        digest.update(np.round(np.append(X_WB.GetAsMatrix4().ravel(), size), 9).tobytes())
     return digest.hexdigest()[:24]
 
 

@@ -16,6 +16,8 @@ import numpy as np
 from pydrake.geometry import Box, Capsule, Cylinder, Sphere
 from pydrake.multibody.plant import MultibodyPlant
 
+_EYE3 = np.eye(3)
+
 
 @dataclass
 class _Link:
@@ -25,6 +27,10 @@ class _Link:
     X_PF: np.ndarray  # parent body -> joint frame on parent (4 x 4)
     axis: np.ndarray  # revolute axis in F
     X_MB: np.ndarray  # joint frame on child -> child body (4 x 4)
+
+    def __post_init__(self):
+        self.K = skew(self.axis)  # [a]x and [a]x^2 of the axis, for Rodrigues' formula
+        self.K2 = self.K @ self.K
 
 
 class BatchedKinematics:
@@ -127,9 +133,8 @@ class BatchedKinematics:
             if link.arm_dof >= 0:
                 # Rodrigues: the joint's rotation about its unit axis a, I + sin(q) [a]x + (1 - cos(q)) [a]x^2.
                 angle = q[:, link.arm_dof, None, None]
-                K = skew(link.axis)
                 joint = np.zeros((batch, 4, 4))
-                joint[:, :3, :3] = np.eye(3) + np.sin(angle) * K + (1.0 - np.cos(angle)) * (K @ K)
+                joint[:, :3, :3] = _EYE3 + np.sin(angle) * link.K + (1.0 - np.cos(angle)) * link.K2
                 joint[:, 3, 3] = 1.0
                 X_PB = link.X_PF @ joint @ link.X_MB
             poses[:, i] = X_PB if link.parent < 0 else poses[:, link.parent] @ X_PB

@@ -64,7 +64,7 @@ class StompConfig:
     keyframes: int = 16
     rollouts: int = 16
     reused_rollouts: int = 4
-    max_iterations: int = 600
+    max_iterations: int = 600  # 0: the first trajectory (straight line, detours, via points) alone
     time_limit_s: float = 2.0
     noise_std: float = 0.8  # rad, initial; shrinks by noise_decay per iteration
     noise_decay: float = 0.97
@@ -403,6 +403,9 @@ class Stomp:
         if feasible:  # the first trajectory is already a solution: nothing to optimise (0 iterations)
             elapsed = time.perf_counter() - start
             return StompResult(True, theta, 0, elapsed, float(clearance.min()), "collision-free as first drawn")
+        if config.max_iterations == 0:  # the first trajectory alone was asked for
+            elapsed = time.perf_counter() - start
+            return StompResult(False, theta, 0, elapsed, float(clearance.min()), "the first trajectory collides")
         std = config.noise_std if constraints is None else config.constrained_noise_std
         kept = np.empty((0, n, self.dof))
         kept_terms = np.empty((0, n, len(TERMS)))

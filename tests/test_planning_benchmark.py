@@ -1,0 +1,118 @@
+"""The planner benchmark's problem generator, its dense checker and the OMPL peer (scripts/benchmark_planner.py)."""
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from pydrake.math import RigidTransform
+
+from diagrams.generation.planning_problems import (
+    MIN_CLEARANCE_M,
+    PlanningProblem,
+    check_path,
+    held_problem,
+    make_problem,
+)
+from diagrams.planning_scene import make_pick_motions
+from diagrams.scenario import load_scenario, replace_object
+from systems.planning.closure import ClosureConstraint, deviations
+from systems.planning.stomp import Stomp, StompConfig
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
+from planner_peers import OmplConfig, ompl_plan  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def motions():
+    return make_pick_motions(load_scenario())
+
+
+def kept(motions, family: str, count: int) -> list[PlanningProblem]:
+    problems, index = [], 0
+    while len(problems) < count:
+        problem = make_problem(motions, family, "tune", index)
+        index += 1
+        if isinstance(problem, PlanningProblem):
+            problems.append(problem)
+    return problems
+
+
+@pytest.mark.parametrize("family", ["carry", "reach"])
+def test_problems_are_made_from_their_seed_alone(motions, family):
+    first, again = make_problem(motions, family, "tune", 3), make_problem(motions, family, "tune", 3)
+    assert type(first) is type(again)
+    if isinstance(first, PlanningProblem):
+        np.testing.assert_array_equal(first.q_start, again.q_start)
+        np.testing.assert_array_equal(first.q_goal, again.q_goal)
+        assert len(first.boxes) == len(again.boxes)
+        for (X_a, size_a), (X_b, size_b) in zip(first.boxes, again.boxes, strict=True):
+            np.testing.assert_array_equal(X_a.GetAsMatrix4(), X_b.GetAsMatrix4())
+            np.testing.assert_array_equal(size_a, size_b)
+    other = make_problem(motions, family, "report", 3)
+    assert other.split == "report"
+    if isinstance(first, PlanningProblem) and isinstance(other, PlanningProblem):
+        assert not np.allclose(first.q_goal, other.q_goal)
+
+
+def test_held_problems_are_feasible_at_start_and_goal(motions):
+    for problem in kept(motions, "carry", 3):
+        world = problem.check_world
+        for q in (problem.q_start, problem.q_goal):
+            assert world.clearance(q) >= MIN_CLEARANCE_M
+            assert np.all(q >= world.lower) and np.all(q <= world.upper)
+        # Both hands hold the object at its true grasps at the start, and keep it so at the goal.
+        X_WG = world.grasp_frame_poses(problem.q_start)
+        for side in ("left", "right"):
+            X_OG = problem.model.info.control_poses()[f"{side}_grasp"]
+            assert np.linalg.norm(X_WG[side].translation() - (problem.X_WO @ X_OG).translation()) < 0.005
+        X_E1E2 = world.end_effectors.relative(problem.q_start[None])[0]
+        t_dev, o_dev = deviations(world.end_effectors, problem.q_goal[None], X_E1E2)
+        assert t_dev[0] < 0.1 * ClosureConstraint().t_max and o_dev[0] < 0.1 * ClosureConstraint().o_max
+        # The goal holds the object where X_WO_goal says, with the hands as they held it at the start.
+        X_WG_goal = world.grasp_frame_poses(problem.q_goal)["left"]
+        moved = problem.X_WO_goal @ problem.X_WO.inverse() @ X_WG["left"]
+        assert np.linalg.norm(X_WG_goal.translation() - moved.translation()) < 1e-6
+        assert np.linalg.norm(problem.X_WO_goal.translation() - problem.X_WO.translation()) > 0.15  # a carry
+
+
+def test_the_dense_checker_rejects_a_box_in_the_way_and_a_broken_closure(motions):
+    scenario = replace_object(load_scenario(), category="watering_can", instance="train_1", xy=[-0.12, 0.12])
+    free = held_problem(motions, scenario, 0.10, RigidTransform(), [])
+    assert isinstance(free, PlanningProblem), free
+    # Carried to the right by its width and 9 cm more, past a 2 cm box standing in the gap it crosses.
+    points = free.object_points_W
+    carry = RigidTransform([0.0, -(np.ptp(points[:, 1]) + 0.09), 0.0])
+    middle = [np.median(points[:, 0]), points[:, 1].min() - 0.045, points[:, 2].min() + 0.04]
+    blocked = held_problem(motions, scenario, 0.10, carry, [(RigidTransform(middle), [0.02, 0.02, 0.02])])
+    assert isinstance(blocked, PlanningProblem), blocked
+    free = held_problem(motions, scenario, 0.10, carry, [])
+    straight = np.linspace(free.q_start, free.q_goal, 16)
+    X_E1E2 = motions.world.end_effectors.relative(free.q_start[None])[0]
+    straight[1:-1] = motions.stomp.project(straight[1:-1], X_E1E2)
+    assert check_path(free, straight)["valid"]
+    assert check_path(blocked, straight)["min_clearance_m"] < 0
+    assert not check_path(blocked, straight)["valid"]
+    # The straight joint line, not projected, leaves the closure.
+    unprojected = check_path(free, np.linspace(free.q_start, free.q_goal, 16))
+    assert unprojected["closure_translation_dev_m"] > check_path(free, straight)["closure_translation_dev_m"]
+    wrong_goal = straight.copy()
+    wrong_goal[-1] = wrong_goal[-2]
+    assert not check_path(free, wrong_goal)["valid"]
+    # The first-trajectory ablation: the straight line alone (no detours), nothing optimised.
+    config = StompConfig(max_iterations=0, detour_heights=())
+    first = Stomp(motions.world, config).plan(
+        blocked.q_start, blocked.q_goal, blocked.obstacles, ClosureConstraint(), blocked.orientation
+    )
+    assert not first.success and first.iterations == 0, first.message
+
+
+def test_ompl_solves_a_small_carry_that_passes_the_dense_check(motions):
+    scenario = replace_object(load_scenario(), category="watering_can", instance="train_1", xy=[-0.12, 0.1])
+    problem = held_problem(motions, scenario, 0.10, RigidTransform([0.0, -0.10, 0.0]), [])
+    assert isinstance(problem, PlanningProblem), problem
+    result = ompl_plan(problem, motions.stomp, 20.0, OmplConfig())
+    assert result.solved, result.message
+    check = check_path(problem, result.path)
+    assert check["valid"], check
+    assert check["closure_translation_dev_m"] < ClosureConstraint().t_max
