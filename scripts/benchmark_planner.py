@@ -166,7 +166,11 @@ def run_family(args, motions: PickMotions, family: str) -> dict:
     planners = [p for p in (PLANNERS if family in HELD_FAMILIES else REACH_PLANNERS) if p in args.planners]
     rows: dict[str, list[dict]] = {}
     ompl_config = OmplConfig(
-        args.ompl_space, args.ompl_range, args.ompl_delta, args.ompl_tolerance, args.ompl_bounds_margin
+        space=args.ompl_space,
+        range=args.ompl_range,
+        delta=args.ompl_delta,
+        tolerance=args.ompl_tolerance,
+        bounds_margin=args.ompl_bounds_margin,
     )
     for planner in planners:
         subset = problems if planner == "stomp" else problems[: args.peer_problems]
@@ -257,17 +261,22 @@ def draw(family: str, result: dict, path: Path) -> None:
     rates = [result["planners"][p]["success_rate"] for p in planners]
     bars.barh(planners, rates, color=["tab:blue" if p.startswith("stomp") else "tab:gray" for p in planners])
     for y, (planner, rate) in enumerate(zip(planners, rates, strict=True)):
-        bars.text(min(rate, 0.85), y, f" {100 * rate:.0f} % of {result['planners'][planner]['problems']}", va="center")
+        label = f"{100 * rate:.0f} % of {result['planners'][planner]['problems']}"
+        bars.text(0.02, y, label, va="center", color="white" if rate > 0.3 else "black")
     bars.set_xlim(0, 1)
     bars.invert_yaxis()
     bars.set_xlabel("success (dense check)")
     for planner in planners:
-        seconds = np.sort([r["runtime_s"] for r in result["records"][planner]])
-        times.step(seconds, np.arange(1, len(seconds) + 1) / len(seconds), where="post", label=planner)
+        records = result["records"][planner]
+        seconds = np.sort([r["runtime_s"] for r in records if r["success"]])
+        share = np.arange(len(seconds) + 1) / len(records)
+        times.step(np.concatenate([[1e-3], seconds]), share, where="post", label=planner)
     times.axvline(TIME_LIMIT_S, color="k", linestyle=":", linewidth=1)
     times.set_xscale("log")
-    times.set_xlabel("time per problem, s (a failure at the limit)")
-    times.set_ylabel("share of problems solved within")
+    times.set_xlim(1e-3, 2 * TIME_LIMIT_S)
+    times.set_ylim(0, 1.02)
+    times.set_xlabel(f"time, s (limit {TIME_LIMIT_S:.0f} s, dotted)")
+    times.set_ylabel("share of its problems solved within")
     times.legend(fontsize=8)
     figure.suptitle(f"{family}: {result['problems']} problems of the {result['split']} range")
     figure.tight_layout()
