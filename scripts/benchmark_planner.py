@@ -225,7 +225,7 @@ def _reasons(dropped: list) -> dict:
 
 def print_family(family: str, result: dict) -> None:
     print(
-        f"\n{family} ({result['split']} range, problems {result['first_index']}-{result['last_index']}): "
+        f"\n{family} ({result['split']} range, indices {result['first_index']}-{result['last_index']}): "
         f"{result['problems']} problems, {100 * result['dropped_share']:.0f} % dropped {result['dropped_reasons']}, "
         f"straight line collides in {100 * result['straight_line_collides_share']:.0f} %"
     )

@@ -3,7 +3,7 @@ problem k of a family and split is made from (family, split, k) alone, and each 
 
 Held moves (both hands hold an object at its true grasps; the closure and the hands' world orientation kept, a
 turn keeping only their tilt; the object moves with the hands and must stay clear of table and boxes):
-  lift:     from LIFT_START_M above where the object rests, up 10-30 cm and 5-20 cm sideways;
+  lift:     from LIFT_START_M above where the object rests, up 10-30 cm and 10-25 cm sideways;
   carry:    lifted 5-15 cm, carried 20-45 cm across the table (its height changing by up to 5 cm);
   turn:     lifted 5-15 cm, turned 0.4-1.2 rad either way about the vertical between the hands (and moved up to
             8 cm);
@@ -56,6 +56,7 @@ LIFT_START_M = 0.03  # a lift starts, and a set-down ends, with the object this 
 MIN_CLEARANCE_M = 0.02  # start and goal: every pair of robot, held object, table and boxes this far apart at least
 REACH_MIN_CLEARANCE_M = 0.01  # ... in a reach (the open hands come near the object at their pre-grasps)
 OBSTACLE_COUNT_P = (0.1, 0.3, 0.35, 0.25)  # probabilities of 0, 1, 2 and 3 boxes
+LIFT_LEADING_SHARE = 0.2  # a lift's boxes stand where this share of its points, those leading its sideways move, pass
 HANGING_P = 0.35  # the share of boxes that are hanging boards
 BOX_GAP_M = 0.03  # a box stands at least this far from the held object at start and goal
 BOX_DRAWS = 20
@@ -145,7 +146,12 @@ def make_problem(motions: PickMotions, family: str, split: str, index: int) -> P
     raised, motion = _held_motion(rng, family, X_WO_rest, model)
     X_WO = RigidTransform([0, 0, raised]) @ X_WO_rest
     grasps = [X_WO @ model.info.control_poses()[f"{side}_grasp"] for side in SIDES]
-    boxes = _held_boxes(rng, points_rest + [0, 0, raised], _arm_points(grasps), motion)
+    points = points_rest + [0, 0, raised]
+    passing = points
+    if family == "lift":  # its boxes where the side leading the sideways move passes (elsewhere they block no lift)
+        ahead = (points - points.mean(axis=0)) @ motion(1.0).translation()
+        passing = points[ahead >= np.quantile(ahead, 1 - LIFT_LEADING_SHARE)]
+    boxes = _held_boxes(rng, points, _arm_points(grasps), motion, passing)
     problem = held_problem(motions, scenario, raised, motion(1.0), boxes, family == "turn")
     if isinstance(problem, str):
         return Dropped(family, split, index, problem)
@@ -224,7 +230,7 @@ def _held_motion(rng, family: str, X_WO_rest: RigidTransform, model: ObjectModel
 
         return raised, turn
     if family == "lift":
-        raised, move = LIFT_START_M, rng.uniform(0.05, 0.20) * across + [0, 0, rng.uniform(0.10, 0.30)]
+        raised, move = LIFT_START_M, rng.uniform(0.10, 0.25) * across + [0, 0, rng.uniform(0.10, 0.30)]
     elif family == "carry":
         raised = rng.uniform(0.05, 0.15)
         move = np.append(_goal_xy(rng, X_WO_rest, 0.20, 0.45), rng.uniform(-0.05, 0.05))
@@ -253,12 +259,12 @@ def _goal_xy(rng, X_WO: RigidTransform, shortest: float, longest: float) -> np.n
     return move
 
 
-def _held_boxes(rng, points_W: np.ndarray, arm_points_W: np.ndarray, motion) -> list:
+def _held_boxes(rng, points_W: np.ndarray, arm_points_W: np.ndarray, motion, passing_W: np.ndarray) -> list:
     """0-3 boxes where the held object goes (points_W: its surface at the start, N x 3; arm_points_W: its hands' and
     forearms' (_arm_points); motion(s) as _held_motion's): each standing on the table or hanging, where a point of
-    the object passes part way along its straight motion, about as high as the object's bottom (standing) or top
-    (hanging) is there, and at least BOX_GAP_M from the object and ARM_GAP_M from the arms' points at start and
-    goal (redrawn up to BOX_DRAWS times, else left out)."""
+    passing_W (some of points_W) passes part way along the straight motion, about as high as the object's bottom
+    (standing) or top (hanging) is there, and at least BOX_GAP_M from the object and ARM_GAP_M from the arms'
+    points at start and goal (redrawn up to BOX_DRAWS times, else left out)."""
     table_top = TABLE_HEIGHT + load_scenario().table_xyz[2]
     goal = motion(1.0)
     ends = np.concatenate([points_W, goal.multiply(points_W.T).T])
@@ -266,8 +272,9 @@ def _held_boxes(rng, points_W: np.ndarray, arm_points_W: np.ndarray, motion) -> 
     boxes = []
     for _ in range(rng.choice(len(OBSTACLE_COUNT_P), p=OBSTACLE_COUNT_P)):
         for _ in range(BOX_DRAWS):
-            moved = motion(rng.uniform(0.3, 0.7)).multiply(points_W.T).T  # the object part way along its motion
-            centre = moved[rng.integers(len(moved))] + [*rng.normal(0, 0.03, 2), 0]  # where a point of it passes
+            along = motion(rng.uniform(0.3, 0.7))  # the object part way along its motion
+            moved = along.multiply(points_W.T).T
+            centre = along.multiply(passing_W[rng.integers(len(passing_W))]) + [*rng.normal(0, 0.03, 2), 0]
             bottom, top = moved[:, 2].min(), moved[:, 2].max()
             if rng.uniform() < HANGING_P:  # a shelf board whose underside is about where the object's top passes
                 size = np.array([*rng.uniform(0.10, 0.25, 2), 0.02])
