@@ -1,5 +1,7 @@
 """The planner benchmark's problem generator, its dense checker and the OMPL peer (scripts/benchmark_planner.py)."""
 
+import json
+import subprocess
 import sys
 from pathlib import Path
 
@@ -116,3 +118,20 @@ def test_ompl_solves_a_small_carry_that_passes_the_dense_check(motions):
     check = check_path(problem, result.path)
     assert check["valid"], check
     assert check["closure_translation_dev_m"] < ClosureConstraint().t_max
+
+
+def test_the_benchmark_writes_its_rows(tmp_path):
+    script = Path(__file__).resolve().parents[1] / "scripts" / "benchmark_planner.py"
+    out = tmp_path / "planner.json"
+    command = [sys.executable, str(script), "--family", "lift", "--problems", "2", "--split", "tune"]
+    command += ["--planners", "stomp", "stomp_first_trajectory", "ompl", "--peer-problems", "1", "--json", str(out)]
+    subprocess.run(command, check=True, capture_output=True, timeout=600)
+    lift = json.loads(out.read_text())["lift"]
+    assert lift["problems"] == 2 and 0 <= lift["dropped_share"] < 1 and lift["split"] == "tune"
+    assert lift["speedup_vs_ompl"] > 0
+    stomp = lift["planners"]["stomp"]
+    for key in ("success_rate", "runtime_s_median", "runtime_s_p95", "iterations_median", "zero_iteration_share"):
+        assert np.isfinite(stomp[key]), key
+    assert stomp["problems"] == 2 and lift["planners"]["ompl"]["problems"] == 1
+    if stomp["success_rate"] > 0:
+        assert stomp["closure_translation_dev_m_max"] < ClosureConstraint().t_max
