@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 from json_report import write_json
-from planner_peers import KtoConfig, OmplConfig, PeerResult, _projected_straight_line, kto_plan, ompl_plan
+from planner_peers import KtoConfig, OmplConfig, PeerResult, kto_plan, ompl_plan
 from tqdm import tqdm
 
 from diagrams.generation.planning_problems import (
@@ -38,6 +38,7 @@ from diagrams.generation.planning_problems import (
     PlanningProblem,
     check_path,
     make_problem,
+    projected_straight_line,
 )
 from diagrams.planning_scene import make_pick_motions
 from diagrams.scenario import load_scenario
@@ -109,7 +110,7 @@ def judged(problem: PlanningProblem, result: PeerResult, iterations: int | None 
 def straight_line_collides(problem: PlanningProblem, motions: PickMotions) -> bool:
     """Whether the projected straight line (STOMP's first trajectory before any detour) fails the dense clearance
     check: what makes a problem more than a straight move."""
-    return check_path(problem, _projected_straight_line(problem, motions.stomp))["min_clearance_m"] <= 0
+    return check_path(problem, projected_straight_line(problem, motions.stomp))["min_clearance_m"] <= 0
 
 
 def percentile(values, q: float) -> float:
@@ -134,15 +135,8 @@ def summary(rows: list[dict]) -> dict:
         "min_clearance_m": min((r["min_clearance_m"] for r in successes), default=float("nan")),
     }
     if rows and "closure_translation_dev_m" in rows[0]:  # held moves: over the successes (a failure never runs)
-        result["closure_translation_dev_m_max"] = max(
-            (r["closure_translation_dev_m"] for r in successes), default=float("nan")
-        )
-        result["closure_orientation_dev_rad_max"] = max(
-            (r["closure_orientation_dev_rad"] for r in successes), default=float("nan")
-        )
-        result["hand_orientation_dev_rad_max"] = max(
-            (r["hand_orientation_dev_rad"] for r in successes), default=float("nan")
-        )
+        for key in ("closure_translation_dev_m", "closure_orientation_dev_rad", "hand_orientation_dev_rad"):
+            result[f"{key}_max"] = max((r[key] for r in successes), default=float("nan"))
     return result
 
 

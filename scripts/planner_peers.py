@@ -24,7 +24,7 @@ from pydrake.planning import KinematicTrajectoryOptimization
 from pydrake.solvers import SnoptSolver, Solve, SolverOptions
 from pydrake.trajectories import BsplineTrajectory
 
-from diagrams.generation.planning_problems import PlanningProblem
+from diagrams.generation.planning_problems import PlanningProblem, projected_straight_line, start_hands
 from systems.planning.closure import ClosureConstraint
 from systems.planning.hand_constraints import HandConstraints
 from systems.planning.stomp import Stomp
@@ -117,7 +117,7 @@ class HandConstraint(ob.Constraint):
         """(error, Jacobian) at x; OMPL's projection asks for both at each state in turn: computed once."""
         x = np.array(x, float)
         if self._last is None or not np.array_equal(self._last[0], x):
-            error, jacobian = self.constraints._error_and_jacobian(*self.states.hands(x))
+            error, jacobian = self.constraints.error_and_jacobian_from(*self.states.hands(x))
             self._last = (x, self.rows @ error[0, :9], self.rows @ jacobian[0, :9])
         return self._last[1], self._last[2]
 
@@ -146,20 +146,17 @@ def ompl_plan(problem: PlanningProblem, stomp: Stomp, time_limit_s: float, confi
     held = problem.held
     required = stomp.config.required_clearance
 
-    states = SingleStates(stomp)
+    kinematics = SingleStates(stomp)
 
     def valid(state) -> bool:
         q = np.fromiter((state[i] for i in range(dof)), float, dof)
         if np.any(q < stomp.lower) or np.any(q > stomp.upper):  # a projected state may leave the bounds
             return False
-        poses = states.body_poses(q)
-        return bool(stomp._clearances(q[None], problem.obstacles, poses, held)[0][0] > required)
+        return bool(stomp.clearance(q[None], problem.obstacles, held, kinematics.body_poses(q))[0] > required)
 
     if held:
-        end_effectors = stomp.end_effectors
-        X_E1E2 = end_effectors.relative(problem.q_start[None])[0]
-        R_WE = [X[0, :3, :3] for X in end_effectors.poses(problem.q_start[None])]
-        constraint = HandConstraint(stomp.constraints(X_E1E2, R_WE, problem.orientation.upright_only), states)
+        X_E1E2, R_WE = start_hands(stomp.end_effectors, problem.q_start)
+        constraint = HandConstraint(stomp.constraints(X_E1E2, R_WE, problem.orientation.upright_only), kinematics)
         constraint.setTolerance(config.tolerance)
         constraint.setMaxIterations(config.projection_iterations)
         if config.space == "atlas":
@@ -201,8 +198,8 @@ def ompl_plan(problem: PlanningProblem, stomp: Stomp, time_limit_s: float, confi
     path = setup.getSolutionPath()
     if held:
         path.interpolate()  # the manifold's geodesics between the waypoints, as states delta apart
-    states = np.array([[path.getState(k)[i] for i in range(dof)] for k in range(path.getStateCount())])
-    return PeerResult(True, states, time.perf_counter() - start_time, str(status))
+    waypoints = np.array([[path.getState(k)[i] for i in range(dof)] for k in range(path.getStateCount())])
+    return PeerResult(True, waypoints, time.perf_counter() - start_time, str(status))
 
 
 @dataclass(frozen=True)
@@ -222,7 +219,7 @@ def kto_plan(problem: PlanningProblem, stomp: Stomp, time_limit_s: float, config
     world = problem.check_world
     plant = world.plant
     context = plant.GetMyMutableContextFromRoot(world.diagram.CreateDefaultContext())
-    guess = _projected_straight_line(problem, stomp)
+    guess = projected_straight_line(problem, stomp)
     trajopt = KinematicTrajectoryOptimization(plant.num_positions(), config.control_points)
     full_start, full_goal = world.full_positions(problem.q_start), world.full_positions(problem.q_goal)
     lower, upper = full_start.copy(), full_start.copy()
@@ -291,17 +288,3 @@ def _hand_constraints(problem: PlanningProblem, plant, context) -> list:
                 drake_ik.OrientationConstraint(plant, plant.world_frame(), R, frame, RotationMatrix(), half, context)
             )
     return constraints
-
-
-def _projected_straight_line(problem: PlanningProblem, stomp: Stomp) -> np.ndarray:
-    """STOMP's first trajectory before any detour: the straight joint-space line at its keyframes, the interior
-    projected onto the hand constraints (a held move) by its projection steps."""
-    s = np.linspace(0, 1, stomp.config.keyframes)[:, None]
-    theta = (1 - s) * problem.q_start + s * problem.q_goal
-    if problem.held:
-        end_effectors = stomp.end_effectors
-        X_E1E2 = end_effectors.relative(problem.q_start[None])[0]
-        R_WE = [X[0, :3, :3] for X in end_effectors.poses(problem.q_start[None])]
-        constraints = stomp.constraints(X_E1E2, R_WE, problem.orientation.upright_only)
-        theta[1:-1] = constraints.project(theta[1:-1], stomp.config.projection_steps)
-    return theta

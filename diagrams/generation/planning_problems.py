@@ -37,6 +37,7 @@ from diagrams.station import TABLE_HEIGHT, object_pose_on_table
 from systems.planning.closure import ClosureConstraint, OrientationConstraint, deviations, orientation_deviations
 from systems.planning.obstacles import Obstacles
 from systems.planning.pick_motions import PickMotions
+from systems.planning.stomp import Stomp
 from systems.planning.world import SIDES, PlanningWorld
 
 HELD_FAMILIES = ("lift", "carry", "turn", "set_down")
@@ -118,6 +119,12 @@ class Dropped:
     reason: str
 
 
+def start_hands(end_effectors, q_start: np.ndarray) -> tuple[np.ndarray, list[np.ndarray]]:
+    """What a held move keeps from its start: the right grasp frame's pose in the left one's (X_E1E2, 4 x 4) and
+    both hands' world orientations (R_WE, two 3 x 3)."""
+    return end_effectors.relative(q_start[None])[0], [X[0, :3, :3] for X in end_effectors.poses(q_start[None])]
+
+
 def problem_seed(family: str, split: str, index: int) -> np.random.SeedSequence:
     """The random stream of problem `index` of a family and split (nothing else enters it)."""
     first = TUNE_FIRST_SEED if split == "tune" else REPORT_FIRST_SEED
@@ -143,7 +150,8 @@ def make_problem(motions: PickMotions, family: str, split: str, index: int) -> P
     points_rest, _ = object_surface_W(model, X_WO_rest, CHECK_POINTS)
     if family == "reach":
         return _reach(motions, rng, scenario, model, X_WO_rest, points_rest, index, split)
-    raised, motion = _held_motion(rng, family, X_WO_rest, model)
+    table = np.array(scenario.table_xyz) + [0, 0, TABLE_HEIGHT]  # the table top frame's origin in W
+    raised, motion = _held_motion(rng, family, X_WO_rest, model, table[:2])
     X_WO = RigidTransform([0, 0, raised]) @ X_WO_rest
     grasps = [X_WO @ model.info.control_poses()[f"{side}_grasp"] for side in SIDES]
     points = points_rest + [0, 0, raised]
@@ -151,7 +159,7 @@ def make_problem(motions: PickMotions, family: str, split: str, index: int) -> P
     if family == "lift":  # its boxes where the side leading the sideways move passes (elsewhere they block no lift)
         ahead = (points - points.mean(axis=0)) @ motion(1.0).translation()
         passing = points[ahead >= np.quantile(ahead, 1 - LIFT_LEADING_SHARE)]
-    boxes = _held_boxes(rng, points, _arm_points(grasps), motion, passing)
+    boxes = _held_boxes(rng, table[2], points, _arm_points(grasps), motion, passing)
     problem = held_problem(motions, scenario, raised, motion(1.0), boxes, family == "turn")
     if isinstance(problem, str):
         return Dropped(family, split, index, problem)
@@ -182,7 +190,7 @@ def held_problem(
     if not goal.success:
         return f"no IK at the goal: {goal.message}"
     orientation = OrientationConstraint(upright_only=upright_only)
-    q_start, q_goal = _on_constraints(motions, start.q, goal.q, orientation)
+    q_start, q_goal = start.q, _on_constraints(motions, start.q, goal.q, orientation)
     if q_goal is None:
         return "no IK at the goal: off the closure or orientation constraint"
     X_GO = world.grasp_frame_poses(q_start)["left"].InvertAndCompose(X_WO)
@@ -212,9 +220,10 @@ def _placement(rng: np.random.Generator, split: str) -> Scenario:
     return replace_object(load_scenario(), category=category, instance=instance, xy=list(xy), yaw=float(yaw))
 
 
-def _held_motion(rng, family: str, X_WO_rest: RigidTransform, model: ObjectModel):
+def _held_motion(rng, family: str, X_WO_rest: RigidTransform, model: ObjectModel, table_xy):
     """How high the held move starts above where the object rests (m), and its motion: a function of the share s
-    in [0, 1] done, giving the transform X_WO -> motion(s) X_WO (a turn: about the vertical between the grasps)."""
+    in [0, 1] done, giving the transform X_WO -> motion(s) X_WO (a turn: about the vertical between the grasps).
+    table_xy: the table top frame's origin in W (x, y, m)."""
     direction = rng.uniform(0, 2 * np.pi)
     across = np.array([np.cos(direction), np.sin(direction), 0.0])
     if family == "turn":
@@ -233,10 +242,10 @@ def _held_motion(rng, family: str, X_WO_rest: RigidTransform, model: ObjectModel
         raised, move = LIFT_START_M, rng.uniform(0.10, 0.25) * across + [0, 0, rng.uniform(0.10, 0.30)]
     elif family == "carry":
         raised = rng.uniform(0.05, 0.15)
-        move = np.append(_goal_xy(rng, X_WO_rest, 0.20, 0.45), rng.uniform(-0.05, 0.05))
+        move = np.append(_goal_xy(rng, table_xy, X_WO_rest, 0.20, 0.45), rng.uniform(-0.05, 0.05))
     else:  # set_down
         raised = rng.uniform(0.10, 0.25)
-        move = np.append(_goal_xy(rng, X_WO_rest, 0.10, 0.35), LIFT_START_M - raised)
+        move = np.append(_goal_xy(rng, table_xy, X_WO_rest, 0.10, 0.35), LIFT_START_M - raised)
     return raised, lambda s: RigidTransform(s * move)
 
 
@@ -247,10 +256,10 @@ def _arm_points(X_WG: list[RigidTransform]) -> np.ndarray:
     return np.concatenate([X.multiply(backs).T for X in X_WG])
 
 
-def _goal_xy(rng, X_WO: RigidTransform, shortest: float, longest: float) -> np.ndarray:
-    """A move (x, y in W, m) of the object from X_WO to a place of the placement region (widened by 5 cm) between
-    `shortest` and `longest` away (the last of 100 draws if none is)."""
-    table = np.array(load_scenario().table_xyz[:2])
+def _goal_xy(rng, table_xy, X_WO: RigidTransform, shortest: float, longest: float) -> np.ndarray:
+    """A move (x, y in W, m) of the object from X_WO to a place of the placement region (widened by 5 cm; the table
+    top's origin at table_xy in W) between `shortest` and `longest` away (the last of 100 draws if none is)."""
+    table = np.asarray(table_xy)
     half = np.array(PLACEMENT_HALF_SIZE) + 0.05
     for _ in range(100):
         move = table + PLACEMENT_CENTRE + rng.uniform(-1, 1, 2) * half - X_WO.translation()[:2]
@@ -259,13 +268,14 @@ def _goal_xy(rng, X_WO: RigidTransform, shortest: float, longest: float) -> np.n
     return move
 
 
-def _held_boxes(rng, points_W: np.ndarray, arm_points_W: np.ndarray, motion, passing_W: np.ndarray) -> list:
+def _held_boxes(
+    rng, table_top: float, points_W: np.ndarray, arm_points_W: np.ndarray, motion, passing_W: np.ndarray
+) -> list:
     """0-3 boxes where the held object goes (points_W: its surface at the start, N x 3; arm_points_W: its hands' and
     forearms' (_arm_points); motion(s) as _held_motion's): each standing on the table or hanging, where a point of
     passing_W (some of points_W) passes part way along the straight motion, about as high as the object's bottom
     (standing) or top (hanging) is there, and at least BOX_GAP_M from the object and ARM_GAP_M from the arms'
-    points at start and goal (redrawn up to BOX_DRAWS times, else left out)."""
-    table_top = TABLE_HEIGHT + load_scenario().table_xyz[2]
+    points at start and goal (redrawn up to BOX_DRAWS times, else left out). table_top: its height in W (m)."""
     goal = motion(1.0)
     ends = np.concatenate([points_W, goal.multiply(points_W.T).T])
     arms = np.concatenate([arm_points_W, goal.multiply(arm_points_W.T).T])
@@ -333,28 +343,22 @@ def _held_goal(motions: PickMotions, targets: dict, X_E1E2: RigidTransform, q_st
         alone = ik.solve(targets, q_start, restarts=4)
         if alone.success:
             goal = ik.solve_held(targets["left"], X_E1E2, q_start, 0.002, 0.01, start=alone.q)
-    if goal.success and np.abs(goal.q - q_start).max() > MAX_GOAL_JOINT_CHANGE:
-        change = np.abs(goal.q - q_start).max()
+    change = np.abs(goal.q - q_start).max()
+    if goal.success and change > MAX_GOAL_JOINT_CHANGE:
         return dataclasses.replace(
             goal, success=False, message=f"only on another branch (a joint {change:.1f} rad away)"
         )
     return goal
 
 
-def _on_constraints(motions: PickMotions, q_start, q_goal, orientation: OrientationConstraint):
-    """q_start, and q_goal projected onto the closure and orientation constraints of q_start (None if it does not
-    get within a tenth of their limits)."""
-    stomp, end_effectors = motions.stomp, motions.world.end_effectors
-    X_E1E2 = end_effectors.relative(q_start[None])[0]
-    R_WE = [X[0, :3, :3] for X in end_effectors.poses(q_start[None])]
-    if orientation.upright_only:
-        q_goal = stomp.project(q_goal[None], X_E1E2, R_WE, steps=20, upright_only=True)[0]
-    else:
-        q_goal = stomp.project(q_goal[None], X_E1E2, R_WE, steps=20)[0]
-    t_dev, o_dev = deviations(end_effectors, q_goal[None], X_E1E2)
-    if t_dev[0] > 0.1 * 0.01 or o_dev[0] > 0.1 * 0.05:
-        return q_start, None
-    return q_start, q_goal
+def _on_constraints(motions: PickMotions, q_start, q_goal, orientation: OrientationConstraint) -> np.ndarray | None:
+    """q_goal projected onto the closure and orientation constraints of q_start, or None if it does not get within
+    a tenth of the closure's limits."""
+    X_E1E2, R_WE = start_hands(motions.world.end_effectors, q_start)
+    q_goal = motions.stomp.project(q_goal[None], X_E1E2, R_WE, steps=20, upright_only=orientation.upright_only)[0]
+    t_dev, o_dev = deviations(motions.world.end_effectors, q_goal[None], X_E1E2)
+    limits = ClosureConstraint()
+    return q_goal if t_dev[0] <= 0.1 * limits.t_max and o_dev[0] <= 0.1 * limits.o_max else None
 
 
 def _reach(motions, rng, scenario, model, X_WO, points_W, index, split) -> PlanningProblem | Dropped:
@@ -403,6 +407,18 @@ def _reach_boxes(rng, scenario: Scenario, X_WO: RigidTransform, arm_points_W: np
     return boxes
 
 
+def projected_straight_line(problem: PlanningProblem, stomp: Stomp) -> np.ndarray:
+    """STOMP's first trajectory before any detour (keyframes x n): the straight joint-space line at its keyframes,
+    the interior projected onto the hand constraints (a held move) by its projection steps."""
+    s = np.linspace(0, 1, stomp.config.keyframes)[:, None]
+    theta = (1 - s) * problem.q_start + s * problem.q_goal
+    if problem.held:
+        X_E1E2, R_WE = start_hands(stomp.end_effectors, problem.q_start)
+        constraints = stomp.constraints(X_E1E2, R_WE, problem.orientation.upright_only)
+        theta[1:-1] = constraints.project(theta[1:-1], stomp.config.projection_steps)
+    return theta
+
+
 def dense_states(path: np.ndarray, step: float = DENSE_STEP_RAD) -> np.ndarray:
     """The path's configurations (K x n) and, between each two, straight-line states no joint `step` (rad) apart
     (S x n)."""
@@ -429,9 +445,8 @@ def check_path(problem: PlanningProblem, path: np.ndarray) -> dict:
     valid = ends and within and clearance > 0
     if problem.held:
         end_effectors = world.end_effectors
-        X_E1E2 = end_effectors.relative(problem.q_start[None])[0]
+        X_E1E2, R_WE = start_hands(end_effectors, problem.q_start)
         t_dev, o_dev = deviations(end_effectors, states, X_E1E2)
-        R_WE = [X[0, :3, :3] for X in end_effectors.poses(problem.q_start[None])]
         hands = orientation_deviations(end_effectors, states, R_WE, problem.orientation.upright_only)
         closure = ClosureConstraint()
         row.update(

@@ -46,9 +46,9 @@ class HandConstraints:
 
     def error_and_jacobian(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """e (B x E) and de/dq (B x E x n) at configurations q (B x n)."""
-        return self._error_and_jacobian(*self.end_effectors.jacobians(q))
+        return self.error_and_jacobian_from(*self.end_effectors.jacobians(q))
 
-    def _error_and_jacobian(self, poses, jacobians) -> tuple[np.ndarray, np.ndarray]:
+    def error_and_jacobian_from(self, poses, jacobians) -> tuple[np.ndarray, np.ndarray]:
         """error_and_jacobian() from both end-effectors' poses and Jacobians (EndEffectors.jacobians())."""
         (X1, X2), (J1, J2) = poses, jacobians
         errors, jacobians = [], []
@@ -88,7 +88,7 @@ class HandConstraints:
         target = self.end_effectors.poses(q)[0][:, :3, 3] + offsets_W
         for _ in range(steps):
             poses, jacobians = self.end_effectors.jacobians(q)
-            error, jacobian = self._error_and_jacobian(poses, jacobians)
+            error, jacobian = self.error_and_jacobian_from(poses, jacobians)
             X1, J1 = poses[0], jacobians[0]
             error = np.concatenate([error, OFFSET_WEIGHT * (X1[:, :3, 3] - target)], axis=1)
             jacobian = np.concatenate([jacobian, OFFSET_WEIGHT * J1[:, 3:]], axis=1)

@@ -192,10 +192,11 @@ class Stomp:
             [{moved_by[a], moved_by[b]} == hands for a, b in zip(self.pair_a, self.pair_b, strict=True)], bool
         )
 
-    def clearance(self, q: np.ndarray, obstacles: Obstacles, held: bool = False) -> np.ndarray:
+    def clearance(self, q: np.ndarray, obstacles: Obstacles, held: bool = False, poses=None) -> np.ndarray:
         """Smallest clearance (m) of the sphere model at each configuration (... x n); with `held` (both hands
-        hold one object), without the hand-to-hand pairs."""
-        return self._clearances(q, obstacles, held=held)[0]
+        hold one object), without the hand-to-hand pairs. `poses`: the tracked bodies' poses at q if known
+        ((B x L x 4 x 4), as BatchedKinematics.body_poses)."""
+        return self._clearances(q, obstacles, poses, held)[0]
 
     def _clearances(
         self, q: np.ndarray, obstacles: Obstacles, poses=None, held: bool = False
