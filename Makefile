@@ -40,7 +40,8 @@ objects: env
 # Renders the synthetic training frames (data/, not versioned) and retrains models/segmenter.pt (~15 min, 2 cores).
 segmenter: env
 	$(PY) scripts/generate_segmentation_data.py --jobs 2
-	$(PY) scripts/train_segmenter.py
+	$(PY) scripts/generate_segmentation_data.py --jobs 2 --crowded --frames 400 --seed 2 --out data/segmentation/crowded.npz
+	$(PY) scripts/train_segmenter.py --data data/segmentation/train.npz data/segmentation/crowded.npz
 
 benchmark-perception: env
 	$(PY) scripts/benchmark_perception.py --scenes 60 --json perception.json

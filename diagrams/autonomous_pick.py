@@ -86,7 +86,8 @@ def MakePickDiagram(
     else:  # simulated planning takes a fixed time, whatever the machine: iterations, not seconds, limit STOMP
         time_limit_s, latency_s = np.inf, scenario.planning.latency_s
     config = PlannerConfig(stomp=StompConfig(time_limit_s=time_limit_s, seed=scenario.random_seed))
-    motions = PickMotions(make_planning_world(scenario), config)
+    # The camera's pick knows the scenario's box as it knows everything on the table: as the camera sees it.
+    motions = PickMotions(make_planning_world(scenario, known_box=perception != "camera"), config)
     n = motions.world.kinematics.dof  # the planned joints: the arms, and the torso if it is free
     margin = GRASP_DEPTH_MARGIN if perception == "camera" else 0.0
     planner = builder.AddNamedSystem("stomp_planner", StompPlanner(motions, latency_s, margin))
@@ -107,8 +108,12 @@ def MakePickDiagram(
     telemetry = builder.AddNamedSystem("plan_telemetry", PlanTelemetryRecorder())
 
     if from_camera:
-        seen = builder.AddNamedSystem("perception", MakePerception(scenario))
+        robot_at_frame = RobotSpheres(motions.world.kinematics, motions.world.spheres)
+        seen = builder.AddNamedSystem(
+            "perception", MakePerception(scenario, None, robot_at_frame, motions.world.torso_axis_W)
+        )
         _ConnectCamera(builder, station, scenario, seen, supervisor.GetOutputPort("trigger"))
+        builder.Connect(station.GetOutputPort("centauro.position_measured"), seen.GetInputPort("robot_position"))
         if looks:
             robot_spheres = RobotSpheres(motions.world.kinematics, motions.world.spheres)
             _AddLooks(builder, station, supervisor, seen, scenario, robot_spheres)
@@ -130,6 +135,7 @@ def MakePickDiagram(
         grasps = fault.GetOutputPort("grasp_poses")
     builder.Connect(grasps, planner.GetInputPort("grasp_poses"))
     builder.Connect(seen.GetOutputPort("reconstructed_cloud_W"), planner.GetInputPort("obstacle_cloud_W"))
+    builder.Connect(seen.GetOutputPort("scene_cloud_W"), planner.GetInputPort("scene_cloud_W"))
     builder.Connect(supervisor.GetOutputPort("plan_request"), planner.GetInputPort("request"))
     plan = planner.GetOutputPort("plan")
     for system in (source, supervisor, telemetry):

@@ -9,9 +9,9 @@ from pydrake.systems.primitives import ConstantValueSource, ConstantVectorSource
 
 from diagrams.generation.objects import catalog
 from diagrams.generation.objects.library import resolve_object
-from diagrams.planning_scene import object_surface_W, true_grasp_poses
+from diagrams.planning_scene import clutter_surfaces_W, object_surface_W, true_grasp_poses
 from diagrams.scenario import Scenario
-from diagrams.station import object_pose_on_table
+from diagrams.station import TABLE_HEIGHT, object_pose_on_table
 from systems import categories
 from systems.messages import GraspPoses, PerceptionResult
 from systems.perception.camera_latch import CameraLatch
@@ -19,6 +19,8 @@ from systems.perception.object_tracker import ObjectTracker
 from systems.perception.perception_result import PerceptionResultCollector
 from systems.perception.pose_estimator import CategoryPrior, PoseEstimator
 from systems.perception.pose_noise import PoseYawOffset, draw_yaw_offset
+from systems.perception.robot_spheres import RobotSpheres
+from systems.perception.scene_cloud import SceneCloud, voxel_centres
 from systems.perception.segmenter import Segmenter
 from systems.perception.shape_registrar import ShapeRegistrar
 
@@ -65,19 +67,31 @@ def MakeObjectTracker(scenario: Scenario) -> ObjectTracker:
     return ObjectTracker(*_depth_camera(scenario))
 
 
-def MakePerception(scenario: Scenario, weights: Path | None = None) -> Diagram:
+def MakePerception(
+    scenario: Scenario,
+    weights: Path | None = None,
+    robot_spheres: RobotSpheres | None = None,
+    torso_axis_W=(0.0, 0.0),
+) -> Diagram:
     """Perception as one subsystem ("perception"): camera_latch -> segmenter -> pose_estimator ->
-    [registration_yaw_noise] -> shape_registrar, gathered by perception_result.
+    [registration_yaw_noise] -> shape_registrar, gathered by perception_result; with robot_spheres, also
+    scene_cloud: the rest of the scene as seen (systems/perception/scene_cloud.py).
 
-    Input ports: color_image, depth_image, camera_pose (the camera's), trigger (1: the frame wanted).
+    Input ports: color_image, depth_image, camera_pose (the camera's), trigger (1: the frame wanted), and with
+    robot_spheres robot_position (the planned joints, rad: latched with the frame).
     Output ports: frame_id (1: the frame latched), result (PerceptionResult), and the registrar's
-    grasp_poses (GraspPoses), reconstructed_cloud_W (N x 3, m) and X_WO (RigidTransform).
+    grasp_poses (GraspPoses), reconstructed_cloud_W (N x 3, m) and X_WO (RigidTransform); with robot_spheres,
+    scene_cloud_W (N x 3 in W, m: occupied cubes' centres).
 
     Args:
         weights: the segmenter's; None: the one that knows every taught category (categories.active_segmenter).
+        robot_spheres: the robot's sphere model (a RobotSpheres of its own): what the camera sees of the robot is
+            not the scene.
+        torso_axis_W: where the torso's axis meets the floor plane (x, y in W, m): the scene is kept within reach.
     """
     builder = DiagramBuilder()
-    latch = builder.AddNamedSystem("camera_latch", CameraLatch())
+    dof = robot_spheres.kinematics.dof if robot_spheres is not None else 14
+    latch = builder.AddNamedSystem("camera_latch", CameraLatch(robot_positions=dof))
     segmenter = builder.AddNamedSystem(
         "segmenter", Segmenter(weights or categories.active_segmenter(), category=scenario.requested_category)
     )
@@ -87,6 +101,7 @@ def MakePerception(scenario: Scenario, weights: Path | None = None) -> Diagram:
     for port in ("color_image", "depth_image", "camera_pose", "trigger"):
         builder.ExportInput(latch.GetInputPort(port), port)
     builder.Connect(latch.GetOutputPort("color_image"), segmenter.GetInputPort("color_image"))
+    builder.Connect(latch.GetOutputPort("depth_image"), segmenter.GetInputPort("depth_image"))
     builder.Connect(segmenter.GetOutputPort("segmentation"), pose_estimator.GetInputPort("segmentation"))
     builder.Connect(latch.GetOutputPort("depth_image"), pose_estimator.GetInputPort("depth_image"))
     builder.Connect(latch.GetOutputPort("camera_pose"), pose_estimator.GetInputPort("camera_pose"))
@@ -109,6 +124,22 @@ def MakePerception(scenario: Scenario, weights: Path | None = None) -> Diagram:
     builder.ExportOutput(collector.GetOutputPort("result"), "result")
     for port in ("grasp_poses", "reconstructed_cloud_W", "X_WO"):
         builder.ExportOutput(registrar.GetOutputPort(port), port)
+    if robot_spheres is not None:
+        builder.ExportInput(latch.GetInputPort("robot_position"), "robot_position")
+        robot = builder.AddNamedSystem("robot_spheres", robot_spheres)
+        builder.Connect(latch.GetOutputPort("robot_position"), robot.GetInputPort("position"))
+        intrinsics, X_BC = _depth_camera(scenario)
+        table_top_z = scenario.table_xyz[2] + TABLE_HEIGHT
+        scene = builder.AddNamedSystem("scene_cloud", SceneCloud(intrinsics, X_BC, table_top_z, torso_axis_W))
+        for port, source in (
+            ("depth_image", latch.GetOutputPort("depth_image")),
+            ("camera_pose", latch.GetOutputPort("camera_pose")),
+            ("segmentation", segmenter.GetOutputPort("segmentation")),
+            ("robot_spheres_W", robot.GetOutputPort("spheres_W")),
+            ("object_cloud_W", registrar.GetOutputPort("reconstructed_cloud_W")),
+        ):
+            builder.Connect(source, scene.GetInputPort(port))
+        builder.ExportOutput(scene.GetOutputPort("scene_cloud_W"), "scene_cloud_W")
     diagram = builder.Build()
     diagram.set_name("perception")
     return diagram
@@ -116,7 +147,8 @@ def MakePerception(scenario: Scenario, weights: Path | None = None) -> Diagram:
 
 def MakeGroundTruthPerception(scenario: Scenario, surface_points: int = TRUE_SURFACE_POINTS) -> Diagram:
     """The ground-truth source ("ground_truth") with perception's output ports: the object's true grasp
-    frames, surface and pose where the station puts it (the oracle pick; no camera, frame_id 0).
+    frames, surface and pose where the station puts it, and the other objects' surfaces as the scene cloud (the
+    oracle pick; no camera, frame_id 0).
 
     Raises:
         ValueError: the object's model has no grasp frames.
@@ -133,6 +165,7 @@ def MakeGroundTruthPerception(scenario: Scenario, surface_points: int = TRUE_SUR
         ("grasp_poses", grasps),
         ("reconstructed_cloud_W", surface),
         ("X_WO", X_WO),
+        ("scene_cloud_W", voxel_centres(clutter_surfaces_W(scenario))),
     ):
         source = builder.AddNamedSystem(name, ConstantValueSource(AbstractValue.Make(value)))
         builder.ExportOutput(source.get_output_port(), name)

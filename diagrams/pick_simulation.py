@@ -20,7 +20,7 @@ from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 from pydrake.systems.framework import Context, Diagram, EventStatus
 
 from diagrams.scenario import Scenario
-from diagrams.station import HAND_INSTANCES, OBJECT_INSTANCE
+from diagrams.station import CLUTTER_INSTANCE, HAND_INSTANCES, OBJECT_INSTANCE
 from systems.planning.closure import relative_deviations
 
 LIFT_SUCCESS_M = 0.10
@@ -76,6 +76,8 @@ class PickOutcome:
     # distance, "yaw_error_rad"}, the "category" perception took and, where the user named it, the
     # "network_category" the segmenter's network gave (empty when the pick did not perceive).
     perception: dict = field(default_factory=dict)
+    # How far each other object on the table (scenario.clutter, in order) ever was from where it had settled, m.
+    others_moved_m: list[float] = field(default_factory=list)
     # The object's true pose once it had settled (t >= 0.4 s), for the above (None without an object).
     object_rest_W: object = None
     # The simulator's final context (for further inspection).
@@ -180,20 +182,40 @@ class _Nudge:
         self.done = True
 
 
+def clutter_bodies(plant: MultibodyPlant) -> list:
+    """The bodies of the other objects on the table (scenario.clutter), in order."""
+    bodies, index = [], 0
+    while plant.HasModelInstanceNamed(name := CLUTTER_INSTANCE.format(index)):
+        bodies.append(plant.get_body(plant.GetBodyIndices(plant.GetModelInstanceByName(name))[0]))
+        index += 1
+    return bodies
+
+
+SETTLED_S = 0.4  # s: the objects have settled on the table by then
+
+
 class LiftJudge:
-    """Judges a pick on the simulator's ground truth: sample() every SAMPLE_S, then outcome()."""
+    """Judges a pick on the simulator's ground truth: sample() every SAMPLE_S, then outcome(). Also records how far
+    every other object on the table moved from where it had settled."""
 
     def __init__(self, plant: MultibodyPlant, context):
         self.plant, self.plant_context = plant, plant.GetMyContextFromRoot(context)
         self.body = object_body(plant) if plant.HasModelInstanceNamed(OBJECT_INSTANCE) else None
         self.X_rest = None  # the object's pose once it has settled
         self.heights = []
+        self.others = clutter_bodies(plant)
+        self.others_rest, self.others_moved = None, np.zeros(len(self.others))
 
     def sample(self, t: float) -> float:
         """Records and returns the object origin's height at context time t (NaN without an object), m."""
         z = self.body.EvalPoseInWorld(self.plant_context).translation()[2] if self.body is not None else np.nan
-        if self.X_rest is None and self.body is not None and t >= 0.4:
+        if self.X_rest is None and self.body is not None and t >= SETTLED_S:
             self.X_rest = self.body.EvalPoseInWorld(self.plant_context)
+        if self.others and t >= SETTLED_S:
+            where = np.array([body.EvalPoseInWorld(self.plant_context).translation() for body in self.others])
+            if self.others_rest is None:
+                self.others_rest = where
+            self.others_moved = np.maximum(self.others_moved, np.linalg.norm(where - self.others_rest, axis=1))
         self.heights.append((t, z))
         return z
 
@@ -213,6 +235,7 @@ class LiftJudge:
             message = f"lifted but touched only by {touching or 'no hand'}"
         outcome = PickOutcome(success, float(lift[-1]), min_hold, touching, duration, 0.0, message)
         outcome.object_rest_W = self.X_rest
+        outcome.others_moved_m = [float(m) for m in self.others_moved]
         return outcome
 
 

@@ -32,8 +32,9 @@ def MakeRobotScene(
     held_object: ObjectModel | None = None,
     X_GO: RigidTransform | None = None,
     boxes: Sequence[tuple[RigidTransform, Sequence[float]]] = (),
+    known_box: bool = True,
 ) -> RobotScene:
-    """The planning model of the scenario's robot and table.
+    """The planning model of the scenario's robot and table (and the scenario's box on it, where known_box).
 
     Args:
         open_width: hand opening (m) of the collision model.
@@ -42,12 +43,15 @@ def MakeRobotScene(
             hand and does not collide with either hand or the arm link it is welded to (they hold it).
         boxes: more boxes welded in the world, each (X_WB of its centre, size along x, y, z in m), e.g. the
             obstacles of a planning benchmark's problem.
+        known_box: the scenario's box (scenario.obstacle) is in the model; False: the planner learns of it only as
+            the camera sees it (the scene cloud), as of everything else on the table.
     """
     builder = DiagramBuilder()
     plant, scene_graph = AddMultibodyPlantSceneGraph(builder, time_step=0.0)
     robot, hands = AddCentauro(plant, scene_graph, scenario)
     AddTable(plant, scenario)
-    AddBoxObstacle(plant, scenario)
+    if known_box:
+        AddBoxObstacle(plant, scenario)
     for i, (X_WB, size) in enumerate(boxes):
         plant.RegisterCollisionGeometry(plant.world_body(), X_WB, Box(*size), f"box_{i}", CoulombFriction())
     surface, spacing = None, 0.0
@@ -86,12 +90,36 @@ def MakeRobotScene(
         robot,
         hands,
         planned_joints(scenario),
-        _cache_key(scenario, open_width, obstacle, X_WO, boxes),
+        _cache_key(scenario, open_width, obstacle, X_WO, boxes, known_box),
         0,  # the IK seed table is a property of the model, not of a run: one seed for all
         surface,
         spacing,
         TORSO_JOINT if torso_free(scenario) else None,
     )
+
+
+def clutter_surfaces_W(scenario: Scenario, spacing: float = 0.01) -> np.ndarray:
+    """Ground truth: points about `spacing` apart (m) on the surfaces of the scenario's other objects where they
+    stand (N x 3 in W), for the ground-truth pick and tests."""
+    from diagrams.generation.objects.bowl import bowl_mesh
+    from diagrams.station import clutter_object_config, clutter_pose_on_table
+
+    points = [np.zeros((0, 3))]
+    for other in scenario.clutter:
+        if other.instance:
+            model_file = resolve_object(clutter_object_config(other)).model_file
+            mesh = trimesh.load(model_file.parent / "visual.obj", force="mesh")
+        elif other.kind == "box":
+            mesh = trimesh.creation.box(other.size)
+            mesh.apply_translation([0, 0, other.size[2] / 2])
+        elif other.kind == "cylinder":
+            mesh = trimesh.creation.cylinder(other.size[0] / 2, other.size[2])
+            mesh.apply_translation([0, 0, other.size[2] / 2])
+        else:
+            mesh = bowl_mesh(other.size[0], other.size[2])
+        surface, _ = trimesh.sample.sample_surface_even(mesh, int(np.ceil(mesh.area / spacing**2)), seed=0)
+        points.append(clutter_pose_on_table(scenario, other).multiply(surface.T).T)
+    return np.vstack(points)
 
 
 def object_surface_W(model: ObjectModel, X_WO: RigidTransform, count: int) -> tuple[np.ndarray, float]:
@@ -113,7 +141,7 @@ def make_pick_motions(scenario: Scenario, config: PlannerConfig | None = None, *
     return PickMotions(make_planning_world(scenario, **scene_options), config)
 
 
-def _cache_key(scenario, open_width, obstacle, X_WO, boxes=()) -> str:
+def _cache_key(scenario, open_width, obstacle, X_WO, boxes=(), known_box=True) -> str:
     """A hash of everything the IK seed table depends on: the model files, placements and object."""
     digest = hashlib.sha256()
     robot = f"centauro/{sdf_name(torso_free(scenario))}"
@@ -121,7 +149,7 @@ def _cache_key(scenario, open_width, obstacle, X_WO, boxes=()) -> str:
         digest.update((SDF_DIR / path).read_bytes())
     box = scenario.obstacle
     placement = (scenario.pelvis_height, list(scenario.table_xyz), open_width)
-    digest.update(repr(placement + ((list(box.xy), list(box.size)) if box.present else ())).encode())
+    digest.update(repr(placement + ((list(box.xy), list(box.size)) if box.present and known_box else ())).encode())
     if obstacle is not None:
         for piece in sorted(obstacle.model_file.parent.glob("*")):
             if piece.suffix in (".sdf", ".obj", ".urdf"):

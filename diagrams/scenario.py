@@ -51,6 +51,27 @@ class ObjectConfig:
 
 
 @dataclass
+class ClutterObjectConfig:
+    """Another object on the table, not the one to pick (a cluttered table). It exists in the simulation only:
+    the pick knows it as the camera sees it (diagrams/generation/clutter_scenes.py draws whole tables)."""
+
+    # "box", "cylinder", "bowl", or a category ("watering_can", "drill"): then the generated `instance`.
+    kind: str = "box"
+    # For a category: a generated instance (train_<i>, test_<i>, extra_<seed>).
+    instance: str = ""
+    # A box's extent along x, y, z; a cylinder's or bowl's diameter, (unused), height; m. Not for a category.
+    size: list[float] = field(default_factory=lambda: [0.08, 0.08, 0.1])
+    # Its colour, RGB in [0, 1]; not for a category (its model's own).
+    color: list[float] = field(default_factory=lambda: [0.6, 0.6, 0.6])
+    # Its origin (the centre of its base) in the table_top frame, m.
+    xy: list[float] = field(default_factory=lambda: [-0.12, 0.25])
+    # Rotation about the world z axis, rad (for a category, from its presentation pose).
+    yaw: float = 0.0
+    # Mass of a box, cylinder or bowl, kg.
+    mass: float = 0.3
+
+
+@dataclass
 class ArmControllerConfig:
     """Joint PD gains of the simulated arms (the plant's own PD actuators)."""
 
@@ -182,6 +203,8 @@ class Scenario:
     place: PlaceConfig = field(default_factory=PlaceConfig)
     # A box on the table, known to the planner.
     obstacle: BoxObstacleConfig = field(default_factory=BoxObstacleConfig)
+    # Other objects on the table, unknown to the planner (it sees them through the camera).
+    clutter: list[ClutterObjectConfig] = field(default_factory=list)
     # Misalignment experiment (paper §V-B, which used 0.2): the yaw of the estimated pose handed to
     # the shape registration is turned by an offset uniform in +-this, drawn from random_seed, rad.
     registration_yaw_noise: float = 0.0
@@ -340,6 +363,8 @@ def validate(scenario: Scenario) -> None:
     box = scenario.obstacle
     if len(box.xy) != 2 or len(box.size) != 3 or not all(0 < v <= 1.0 for v in box.size):
         raise ValueError(f"obstacle: xy must have 2 entries and size 3 in (0, 1] m, got {box.xy}, {box.size}")
+    for index, other in enumerate(scenario.clutter):
+        _validate_clutter(f"clutter[{index}]", other)
     if obj.scale <= 0:
         raise ValueError(f"object.scale must be positive, got {obj.scale}")
     if not 0 <= scenario.planning.latency_s <= 10:
@@ -354,7 +379,26 @@ def validate(scenario: Scenario) -> None:
         )
 
 
+def clutter_name(other: ClutterObjectConfig) -> str:
+    """A clutter object's name for reports: its shape, or its category and instance."""
+    return f"{other.kind}/{other.instance}" if other.instance else other.kind
+
+
+def _validate_clutter(name: str, other: ClutterObjectConfig) -> None:
+    if other.kind not in CLUTTER_SHAPES and not other.instance:
+        raise ValueError(f"{name}.kind must be one of {CLUTTER_SHAPES}, or a category with an instance: {other.kind!r}")
+    if len(other.xy) != 2 or not all(abs(v) <= MAX_TABLE_OFFSET_M for v in other.xy):
+        raise ValueError(f"{name}.xy must be 2 entries within {MAX_TABLE_OFFSET_M} m of the table's centre")
+    if other.kind in CLUTTER_SHAPES and (len(other.size) != 3 or not all(0 < v <= 0.5 for v in other.size)):
+        raise ValueError(f"{name}.size must be 3 entries in (0, 0.5] m, got {other.size}")
+    if len(other.color) != 3 or not all(0 <= v <= 1 for v in other.color):
+        raise ValueError(f"{name}.color must be 3 entries in [0, 1], got {other.color}")
+    if not 0 < other.mass <= MAX_OBJECT_MASS_KG:
+        raise ValueError(f"{name}.mass must lie in (0, {MAX_OBJECT_MASS_KG}] kg, got {other.mass}")
+
+
 TASKS = ("lift", "place")
+CLUTTER_SHAPES = ("box", "cylinder", "bowl")
 TORSO_MODES = ("free", "locked")
 # Bounds of the scenario's physical fields.
 MAX_TABLE_OFFSET_M = 1.0

@@ -23,7 +23,10 @@ from pydrake.geometry import (
     AddRigidHydroelasticProperties,
     Box,
     CollisionFilterDeclaration,
+    Convex,
+    Cylinder,
     MakeRenderEngineVtk,
+    Mesh,
     Meshcat,
     MeshcatVisualizer,
     MeshcatVisualizerParams,
@@ -36,22 +39,31 @@ from pydrake.geometry import (
 from pydrake.math import RigidTransform, RollPitchYaw
 from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import AddMultibodyPlant, CoulombFriction, MultibodyPlant
-from pydrake.multibody.tree import PdControllerGains
+from pydrake.multibody.tree import PdControllerGains, SpatialInertia
 from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.systems.primitives import Demultiplexer, MatrixGain, PassThrough, StateInterpolatorWithDiscreteDerivative
 from pydrake.systems.sensors import RgbdSensor
 
 from diagrams.generation.centauro_description import TORSO_JOINT, joint_names, sdf_name
 from diagrams.generation.objects import catalog
+from diagrams.generation.objects.bowl import bowl_file
 from diagrams.generation.objects.library import ObjectModel, resolve_object
 from diagrams.paths import PACKAGE_XML
-from diagrams.scenario import Scenario, initial_positions, planned_joints, torso_free
+from diagrams.scenario import (
+    ClutterObjectConfig,
+    ObjectConfig,
+    Scenario,
+    initial_positions,
+    planned_joints,
+    torso_free,
+)
 from systems.perception.rgbd_noise import RgbdNoise, sensor_model
 from systems.robot_io.gravity_compensation import GravityCompensation
 
 ARM_INSTANCE = "centauro"
 HAND_INSTANCES = {"left": "left_hand", "right": "right_hand"}
 OBJECT_INSTANCE = "object"
+CLUTTER_INSTANCE = "clutter_{}"  # the scenario's other objects, by their index in scenario.clutter
 TABLE_HEIGHT = 0.76  # m: the table_top frame above the table's base (sdf/scene/table.sdf)
 # Lift the object this far above the table at t = 0 so that it settles without penetration.
 OBJECT_DROP_HEIGHT = 0.002
@@ -136,6 +148,69 @@ def AddBoxObstacle(plant: MultibodyPlant, scenario: Scenario):
     plant.RegisterCollisionGeometry(body, X_WB, shape, "obstacle_collision", friction)
 
 
+def clutter_object_config(other: ClutterObjectConfig) -> ObjectConfig:
+    """The ObjectConfig of a clutter object that is a category's generated instance."""
+    return ObjectConfig(category=other.kind, instance=other.instance, xy=list(other.xy), yaw=other.yaw)
+
+
+def clutter_pose_on_table(scenario: Scenario, other: ClutterObjectConfig) -> RigidTransform:
+    """X_WB of a clutter object's body resting on the table (a category's yaw from its presentation pose)."""
+    x, y = other.xy
+    top = np.array(scenario.table_xyz) + [x, y, TABLE_HEIGHT + OBJECT_DROP_HEIGHT]
+    yaw = other.yaw + (catalog.presentation_yaw(other.kind) if other.instance else 0.0)
+    return RigidTransform(RollPitchYaw(0.0, 0.0, yaw), top)
+
+
+def AddClutter(plant: MultibodyPlant, scene_graph: SceneGraph, scenario: Scenario) -> list:
+    """Adds the scenario's other objects (scenario.clutter) as free bodies resting on the table, each in a
+    model instance CLUTTER_INSTANCE.format(index); returns their bodies."""
+    bodies = []
+    friction = CoulombFriction(0.6, 0.5)
+    for index, other in enumerate(scenario.clutter):
+        name = CLUTTER_INSTANCE.format(index)
+        if other.instance:  # a generated instance of a category
+            model_file = resolve_object(clutter_object_config(other)).model_file
+            (instance,) = make_parser(plant).AddModels(file_name=str(model_file))
+            plant.RenameModelInstance(instance, name)
+            body = plant.get_body(plant.GetBodyIndices(instance)[0])
+        else:
+            instance = plant.AddModelInstance(name)
+            width, _, height = other.size
+            if other.kind == "box":
+                inertia = SpatialInertia.SolidBoxWithMass(other.mass, *other.size)
+                visual = collision = Box(*other.size)
+                X_BS = RigidTransform([0.0, 0.0, height / 2])
+            elif other.kind == "cylinder":
+                inertia = SpatialInertia.SolidCylinderWithMass(other.mass, width / 2, height, [0.0, 0.0, 1.0])
+                visual = collision = Cylinder(width / 2, height)
+                X_BS = RigidTransform([0.0, 0.0, height / 2])
+            else:  # a bowl: its own mesh to see, its convex hull to touch
+                inertia = SpatialInertia.SolidCylinderWithMass(other.mass, width / 2, height, [0.0, 0.0, 1.0])
+                mesh = str(bowl_file(width, height))
+                visual, collision, X_BS = Mesh(mesh), Convex(mesh), RigidTransform()
+            body = plant.AddRigidBody(name, instance, inertia)
+            plant.RegisterVisualGeometry(body, X_BS, visual, f"{name}_visual", np.append(other.color, 1.0))
+            properties = ProximityProperties()
+            properties.AddProperty("material", "coulomb_friction", friction)
+            AddRigidHydroelasticProperties(0.01, properties)
+            plant.RegisterCollisionGeometry(body, X_BS, collision, f"{name}_collision", properties)
+        plant.SetDefaultFloatingBaseBodyPose(body, clutter_pose_on_table(scenario, other))
+        _make_rigid_hydroelastic(plant, scene_graph, body)
+        bodies.append(body)
+    return bodies
+
+
+def _make_rigid_hydroelastic(plant: MultibodyPlant, scene_graph: SceneGraph, body) -> None:
+    """The body's collision geometries rigid hydroelastic (unless they say otherwise): it stands on the compliant
+    table top over a patch; the hands still touch it at points."""
+    inspector = scene_graph.model_inspector()
+    for geometry in plant.GetCollisionGeometriesForBody(body):
+        properties = ProximityProperties(inspector.GetProximityProperties(geometry))
+        if not properties.HasGroup("hydroelastic"):
+            AddRigidHydroelasticProperties(properties)
+            scene_graph.AssignRole(plant.get_source_id(), geometry, properties, RoleAssign.kReplace)
+
+
 def AddObject(plant: MultibodyPlant, scene_graph: SceneGraph, scenario: Scenario):
     """Adds the scenario's object as a free body resting on the table.
 
@@ -157,12 +232,7 @@ def AddObject(plant: MultibodyPlant, scene_graph: SceneGraph, scenario: Scenario
         raise ValueError(f"{model.model_file} has no links")
     body = plant.get_body(bodies[0])
     plant.SetDefaultFloatingBaseBodyPose(body, object_pose_on_table(scenario, model))
-    inspector = scene_graph.model_inspector()
-    for geometry in plant.GetCollisionGeometriesForBody(body):
-        properties = ProximityProperties(inspector.GetProximityProperties(geometry))
-        if not properties.HasGroup("hydroelastic"):
-            AddRigidHydroelasticProperties(properties)
-            scene_graph.AssignRole(plant.get_source_id(), geometry, properties, RoleAssign.kReplace)
+    _make_rigid_hydroelastic(plant, scene_graph, body)
     return instance, model
 
 
@@ -180,6 +250,7 @@ def MakeStation(scenario: Scenario, meshcat: Meshcat | None = None) -> Diagram:
     AddBoxObstacle(plant, scenario)
     if scenario.object.present:
         AddObject(plant, scene_graph, scenario)
+    AddClutter(plant, scene_graph, scenario)
     plant.Finalize()
 
     _set_arm_pd_gains(plant, robot, scenario)

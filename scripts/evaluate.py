@@ -34,9 +34,11 @@ from scenario_options import add_sensor_option, with_sensor
 
 from diagrams.evaluation import (
     COMPONENTS,
+    OTHERS_MOVED_LIMIT_M,
     PAPER_YAW_NOISE,
     PAPER_YAWS,
     TIMED_STAGES,
+    clutter_trials,
     file_objects,
     generated_objects,
     make_trials,
@@ -81,6 +83,21 @@ def parse_args(argv=None):
         "region with unseen instances, each also picked with ground truth (--yaws does not apply)",
     )
     parser.add_argument(
+        "--scene",
+        choices=("single", "clutter"),
+        default="single",
+        help="single: one object on the table; clutter: --scenes seeded cluttered tables, an unseen --category "
+        "object among 1-4 others, named to the pick (diagrams/generation/clutter_scenes.py)",
+    )
+    parser.add_argument("--scenes", type=int, default=30, help="cluttered tables (--scene clutter)")
+    parser.add_argument(
+        "--scene-split",
+        dest="scene_split",
+        choices=("report", "tune"),
+        default="report",
+        help="which cluttered tables: report (unseen instances; never tuned on) or tune (training instances)",
+    )
+    parser.add_argument(
         "--yaw-noise", dest="yaw_noise", type=float, default=PAPER_YAW_NOISE, help="registration yaw noise, +-rad"
     )
     parser.add_argument(
@@ -117,6 +134,8 @@ def parse_args(argv=None):
         parser.error("--jobs must be >= 1")
     if args.placement == "random" and (args.yaws or args.instances or args.object_files):
         parser.error("--placement random draws its own yaws and unseen instances: no --yaws, --instances or files")
+    if args.scene == "clutter" and (args.yaws or args.instances or args.object_files or args.placement != "paper"):
+        parser.error("--scene clutter draws its own objects and places: no --yaws, --instances, files or --placement")
     args.yaws = args.yaws or list(PAPER_YAWS)
     if args.records is None and args.json is not None:
         args.records = args.json.with_suffix(".jsonl")
@@ -243,7 +262,10 @@ def main(argv=None) -> int:
             objects = {n: {"instance": n, "file": ""} for n in args.instances}
         else:
             objects = generated_objects(args.category)
-        if args.placement == "random":
+        if args.scene == "clutter":
+            trials = clutter_trials(base, args.category, args.scenes, args.scene_split, args.yaw_noise)
+            objects = {trial.name: {} for trial in trials}
+        elif args.placement == "random":
             trials = random_placements(base, args.category, args.trials, args.yaw_noise)
             objects = {trial.name: {} for trial in trials}
         else:
@@ -255,7 +277,9 @@ def main(argv=None) -> int:
     where = f"{args.jobs} at a time"
     if args.ray is not None:
         where = f"as Ray tasks ({'at ' + args.ray if args.ray else f'a local Ray with {args.jobs} CPUs'})"
-    if args.placement == "random":
+    if args.scene == "clutter":
+        shape = f"{len(trials)} cluttered tables ({args.scene_split} range), the {args.category} named to the pick"
+    elif args.placement == "random":
         shape = f"{len(trials)} random placements of unseen {args.category} instances, each also with ground truth"
     else:
         shape = f"{len(objects)} {args.category} object(s) x {len(args.yaws)} yaw(s) x {args.trials} trial(s)"
@@ -362,6 +386,13 @@ def report(args, records: list[dict], first_seed: int):
         print_placements(summary, records, args.category)
     else:
         print_tables(summary, args.category, args.trials, args.yaw_noise)
+    if "others_moved_m_max" in summary:
+        print(
+            f"\ncluttered tables: other objects moved at most {100 * summary['others_moved_m_max']:.1f} cm "
+            f"({summary['picks_moving_others']} of {len(records)} picks moved one more than "
+            f"{100 * OTHERS_MOVED_LIMIT_M:.0f} cm); perception took the named category in "
+            f"{100 * summary['requested_category_share']:.0f} % of the picks that perceived"
+        )
     t_dev, o_dev = summary["closure_translation_dev_m_max"], summary["closure_orientation_dev_rad_max"]
     print(f"\nclosure along the played held moves (picks that lifted): largest {1000 * t_dev:.1f} mm, {o_dev:.4f} rad")
     if args.task == "place":
@@ -375,6 +406,7 @@ def report(args, records: list[dict], first_seed: int):
         "task": args.task,
         "obstacle": args.obstacle,
         "placement": "random" if placements else "paper",
+        "scene": "clutter" if any(r.get("clutter") for r in records) else "single",
         "trials_per_yaw": args.trials,
         "yaws": args.yaws,
         "yaw_noise_rad": args.yaw_noise,

@@ -40,6 +40,9 @@ def main():
         metavar="ADDRESS",
         help="render each scene as a Ray task: on a local Ray without ADDRESS, or on the cluster at ADDRESS ('auto')",
     )
+    parser.add_argument(
+        "--crowded", action="store_true", help="cluttered tables: up to 3 objects, distractors next to them (bowls too)"
+    )
     add_sensor_option(parser)
     args = parser.parse_args()
     if args.frames < 1 or args.frames_per_scene < 1 or args.jobs < 1:
@@ -51,10 +54,16 @@ def main():
             return fan_out(segmentation_data.render_scene, jobs, args.jobs, args.ray)
 
     dataset = segmentation_data.generate(
-        with_sensor(load_scenario(), args.sensor), args.frames, args.frames_per_scene, args.split, args.seed, run_jobs
+        with_sensor(load_scenario(), args.sensor),
+        args.frames,
+        args.frames_per_scene,
+        args.split,
+        args.seed,
+        run_jobs,
+        crowded=args.crowded,
     )
     segmentation_data.save(args.out, dataset)
-    print(f"wrote {args.out}: {args.frames} frames of {args.split} instances")
+    print(f"wrote {args.out}: {args.frames} {'crowded ' if args.crowded else ''}frames of {args.split} instances")
 
 
 if __name__ == "__main__":

@@ -21,6 +21,7 @@ from scenario_options import add_scenario_options, scenario_arguments, scenario_
 from diagrams import lcm_pick
 from diagrams.autonomous_pick import run_pick
 from diagrams.hardware_station import RobotNotResponding
+from diagrams.scenario import clutter_name
 from systems.planning.pick_motions import PlanningError
 
 
@@ -63,6 +64,8 @@ def main(argv=None) -> int:
             print(f"meshcat: {meshcat.web_url()}")
         obj = scenario.object
         print(f"object: {obj.category}/{obj.file or obj.instance}, yaw {obj.yaw:+.3f} rad")
+        if scenario.clutter:
+            print(f"on the table too: {', '.join(clutter_name(other) for other in scenario.clutter)}")
 
         if args.backend == "sim":
             perception = "ground_truth" if args.oracle else "camera"
@@ -114,6 +117,7 @@ def main(argv=None) -> int:
             "task": scenario.task,
             "place": outcome.place,
             "perception": outcome.perception,
+            "others_moved_m": outcome.others_moved_m,  # each other object's largest move (ground truth)
             "failed_stage": outcome.failed_stage,
             "attempts_made": outcome.attempts_made,
             "attempt_failures": outcome.attempt_failures,

@@ -4,6 +4,7 @@ import argparse
 import dataclasses
 from pathlib import Path
 
+from diagrams.generation.clutter_scenes import clutter_scene
 from diagrams.scenario import DEFAULT_SCENARIO, Scenario, load_scenario, replace_object
 from systems.perception.rgbd_noise import PRESETS
 
@@ -16,6 +17,16 @@ def add_scenario_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--object-file", dest="object_file", help="your own model: .sdf, .urdf, .obj/.ply/.stl")
     parser.add_argument("--yaw", type=float, help="object yaw relative to the category's presentation, rad")
     parser.add_argument("--seed", type=int, help="random seed of the run")
+    parser.add_argument(
+        "--scene",
+        choices=("single", "clutter"),
+        default="single",
+        help="single: the scenario's object alone; clutter: a seeded cluttered table with an unseen --object "
+        "(default watering_can) among 1-4 others (diagrams/generation/clutter_scenes.py)",
+    )
+    parser.add_argument(
+        "--clutter-index", dest="clutter_index", type=int, default=0, help="which cluttered table (--scene clutter)"
+    )
     add_sensor_option(parser)
 
 
@@ -47,8 +58,21 @@ def with_sensor(scenario: Scenario, sensor: str | None) -> Scenario:
 
 def scenario_from_args(args: argparse.Namespace) -> Scenario:
     """The scenario file, the --scenario_text overlay, then the object options. --object names the category to
-    perception too (requested_category): the user's word for what stands there wins over the network's class."""
+    perception too (requested_category): the user's word for what stands there wins over the network's class.
+    With --scene clutter, the cluttered table --clutter-index with an --object to pick among others.
+
+    Raises:
+        ValueError: --scene clutter with an option that places the object itself.
+    """
     scenario = load_scenario(args.scenario, args.scenario_text)
+    if getattr(args, "scene", "single") == "clutter":
+        given = [f"--{n.replace('_', '-')}" for n in ("instance", "object_file", "yaw") if getattr(args, n) is not None]
+        if given:
+            raise ValueError(f"--scene clutter draws the object and its place: no {', '.join(given)}")
+        scenario = clutter_scene(scenario, args.object or "watering_can", args.clutter_index)
+        if args.seed is not None:
+            scenario = dataclasses.replace(scenario, random_seed=args.seed)
+        return with_sensor(scenario, args.sensor)
     changes = {"category": args.object, "instance": args.instance, "file": args.object_file, "yaw": args.yaw}
     scenario = replace_object(scenario, **{k: v for k, v in changes.items() if v is not None})
     if args.object is not None:
@@ -61,7 +85,7 @@ def scenario_from_args(args: argparse.Namespace) -> Scenario:
 def scenario_arguments(args: argparse.Namespace) -> list[str]:
     """These options as given, to start another script on the same scenario."""
     forwarded = ["--scenario", str(args.scenario), "--scenario_text", args.scenario_text]
-    for name in ("object", "instance", "object_file", "yaw", "seed", "sensor"):
+    for name in ("object", "instance", "object_file", "yaw", "seed", "sensor", "scene", "clutter_index"):
         value = getattr(args, name)
         if value is not None:
             forwarded += [f"--{name.replace('_', '-')}", str(value)]

@@ -1,6 +1,7 @@
 """Trains the segmenter from scratch on synthetic frames (CPU, seeded) and writes models/segmenter.pt.
 
 python scripts/train_segmenter.py                       # renders data/segmentation/train.npz first if missing
+python scripts/train_segmenter.py --data data/segmentation/train.npz data/segmentation/crowded.npz   # both sets
 python scripts/train_segmenter.py --epochs 2 --out /tmp/seg.pt
 """
 
@@ -10,6 +11,7 @@ import logging
 import time
 from pathlib import Path
 
+import numpy as np
 import torch
 from scenario_options import add_sensor_option, with_sensor
 
@@ -25,7 +27,13 @@ VALIDATION_FRAMES = 60
 def main():
     logging.basicConfig(level=logging.INFO, format="%(message)s")
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--data", type=Path, default=segmentation_data.DEFAULT_DATASET, help="training frames (.npz)")
+    parser.add_argument(
+        "--data",
+        type=Path,
+        nargs="+",
+        default=[segmentation_data.DEFAULT_DATASET],
+        help="training frames (.npz files, taken together)",
+    )
     parser.add_argument(
         "--frames", type=int, default=segmentation_data.DEFAULT_FRAMES, help="frames to render if --data does not exist"
     )
@@ -37,31 +45,33 @@ def main():
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
     scenario = with_sensor(load_scenario(), args.sensor)
-    if not args.data.is_file():
-        logging.info("%s missing: rendering %d training frames", args.data, args.frames)
+    if args.data == [segmentation_data.DEFAULT_DATASET] and not args.data[0].is_file():
+        logging.info("%s missing: rendering %d training frames", args.data[0], args.frames)
         segmentation_data.save(
-            args.data,
+            args.data[0],
             segmentation_data.generate(scenario, args.frames, segmentation_data.FRAMES_PER_SCENE, "train", args.seed),
         )
-    data = segmentation_data.load(args.data)
+    parts = [segmentation_data.load(path) for path in args.data]
+    data = {key: np.concatenate([part[key] for part in parts]) for key in ("rgb", "labels", "instances")}
     if any(not name.split("/")[1].startswith("train") for row in data["instances"] for name in row.split(",") if name):
-        raise SystemExit(f"{args.data} holds non-training instances; refusing to train on them")
+        raise SystemExit(f"{args.data} hold non-training instances; refusing to train on them")
 
     start = time.perf_counter()
     model, history = segmenter_training.train(data["rgb"], data["labels"], len(CLASSES), args.epochs, args.seed)
     train_s = time.perf_counter() - start
 
-    logging.info("validating on %d frames of unseen (test) instances", VALIDATION_FRAMES)
+    logging.info("validating on %d frames of unseen (test) instances, and as many crowded ones", VALIDATION_FRAMES)
     seed = segmentation_data.VALIDATION_SEED
-    validation = segmentation_data.generate(scenario, VALIDATION_FRAMES, 20, "test", seed)
     metadata = segmenter_training.training_record(
         CLASSES, args.epochs, args.seed, len(data["rgb"]), scenario.camera_noise.preset, train_s, history
     )
-    metadata["validation"] = {
-        "frames": VALIDATION_FRAMES,
-        "seed": seed,
-        "iou": segmenter_training.class_iou(model, validation["rgb"], validation["labels"], CLASSES),
-    }
+    for key, crowded in (("validation", False), ("validation_crowded", True)):
+        validation = segmentation_data.generate(scenario, VALIDATION_FRAMES, 20, "test", seed, crowded=crowded)
+        metadata[key] = {
+            "frames": VALIDATION_FRAMES,
+            "seed": seed,
+            "iou": segmenter_training.class_iou(model, validation["rgb"], validation["labels"], CLASSES),
+        }
     args.out.parent.mkdir(parents=True, exist_ok=True)
     segmentation_network.save(model, args.out, metadata)
     print(json.dumps(metadata, indent=2))

@@ -17,6 +17,7 @@ from diagrams.station import MakeStation, object_pose_on_table, true_label_image
 from systems.messages import Segmentation
 from systems.perception import segmentation_network
 from systems.perception.depth_cleaning import flying_pixels
+from systems.perception.instances import named_object, object_instances
 from systems.perception.segmenter import DEFAULT_WEIGHTS, Segmenter, dominant_object
 from systems.perception.segmenter_training import intersection_over_union, predict_labels, train
 
@@ -71,17 +72,37 @@ def test_a_named_category_takes_the_whole_object_and_reports_the_networks_class(
     labels[20:80, 20:60] = 2  # 2400 px labelled drill
     labels[20:80, 60:80] = 1  # 1200 px of the same object labelled can
     labels[90:95, 100:105] = 2  # speck
-    named = dominant_object(labels, CLASSES, min_pixels=100, category="watering_can")
+    depth = np.full(labels.shape, 1.0, np.float32)
+    instances = object_instances(labels, depth, CLASSES, min_pixels=100)
+    named = named_object(instances, CLASSES, "watering_can", labels.shape)
     assert named.found and named.category == "watering_can" and named.pixel_count == 3600
     assert named.network_category == "drill" and "the network labelled 67% of it drill" in named.message
     network = dominant_object(labels, CLASSES, min_pixels=100)
     assert network.category == "drill" and network.pixel_count == 2400 and network.network_category == ""
-    agreed = dominant_object(labels, CLASSES, min_pixels=100, category="drill")
+    agreed = named_object(instances, CLASSES, "drill", labels.shape)
     assert agreed.category == agreed.network_category == "drill" and "network" not in agreed.message
     with pytest.raises(ValueError, match="knows no category 'pot'"):
-        dominant_object(labels, CLASSES, min_pixels=100, category="pot")
-    with pytest.raises(ValueError, match="knows no category 'pot'"):
         Segmenter(category="pot")
+
+
+def test_two_objects_one_in_front_of_the_other_are_two_and_the_nearest_of_the_named_category_is_picked():
+    """Two cans that touch in the image, one 12 cm in front of the other (a depth edge between them), and a
+    drill: the nearer can is the one to pick; a can's handle (a small piece in front of its body) stays with it."""
+    labels = np.zeros((120, 160), np.uint8)
+    depth = np.full(labels.shape, 1.4, np.float32)  # the table behind
+    labels[20:70, 20:80], depth[20:70, 20:80] = 1, 1.2  # the far can
+    labels[50:110, 60:120], depth[50:110, 60:120] = 1, 1.08  # the near can, overlapping it in the image
+    depth[55:62, 70:90] = 1.04  # the near can's handle, in front of its body
+    labels[10:40, 130:155], depth[10:40, 130:155] = 2, 1.0  # a drill, nearer still
+    instances = object_instances(labels, depth, CLASSES, min_pixels=100)
+    # (the pixels on the edge go to the nearer side: a pixel either way)
+    assert np.allclose(sorted(i.pixel_count for i in instances), [750, 2600, 3600], atol=2)
+    chosen = named_object(instances, CLASSES, "watering_can", labels.shape)
+    assert chosen.found and abs(chosen.pixel_count - 3600) <= 2 and chosen.mask[58, 80] and not chosen.mask[30, 30]
+    assert "the nearest of 2" in chosen.message
+    # Without depth, the two cans are one region.
+    assert len(object_instances(labels, None, CLASSES, min_pixels=100)) == 2
+    assert not named_object([], CLASSES, "drill", labels.shape).found
 
 
 def test_dominant_object_reports_nothing_found():

@@ -42,15 +42,16 @@ class SceneJob:
     index: int  # the scene's place in the dataset; with `seed`, its random stream
     frames: int
     classes: tuple[str, ...] = CLASSES  # label ids: background, then the categories placed
+    crowded: bool = False  # cluttered tables (SyntheticScene's `crowded`)
 
 
 def scene_jobs(
-    scenario: Scenario, frames: int, frames_per_scene: int, split: str, seed: int, classes=CLASSES
+    scenario: Scenario, frames: int, frames_per_scene: int, split: str, seed: int, classes=CLASSES, crowded=False
 ) -> list[SceneJob]:
     """`frames` frames as ceil(frames / frames_per_scene) scenes, each with a random stream of its own."""
     starts = range(0, frames, frames_per_scene)
     return [
-        SceneJob(scenario, split, seed, k, min(frames_per_scene, frames - s), tuple(classes))
+        SceneJob(scenario, split, seed, k, min(frames_per_scene, frames - s), tuple(classes), crowded)
         for k, s in enumerate(starts)
     ]
 
@@ -58,7 +59,7 @@ def scene_jobs(
 def render_scene(job: SceneJob) -> dict[str, np.ndarray]:
     """The job's frames, the same wherever they are rendered: every draw comes from the stream [seed, index]."""
     rng = np.random.default_rng([job.seed, job.index])
-    scene = SyntheticScene(job.scenario, rng, split=job.split, classes=job.classes)
+    scene = SyntheticScene(job.scenario, rng, split=job.split, classes=job.classes, crowded=job.crowded)
     sensor = job.scenario.camera_noise
     # The sensor's noise from a stream of its own: the scenes are those rendered without it.
     parameters = sensor_model(sensor.preset, sensor.overrides)
@@ -95,14 +96,16 @@ def generate(
     seed: int,
     run_jobs: Callable[[list[SceneJob]], Iterable[tuple[int, dict[str, np.ndarray]]]] = render_here,
     classes=CLASSES,
+    crowded: bool = False,
 ) -> dict[str, np.ndarray]:
-    """Renders `frames` frames from ceil(frames / frames_per_scene) random scenes of `split`'s instances.
+    """Renders `frames` frames from ceil(frames / frames_per_scene) random scenes of `split`'s instances (cluttered
+    tables where `crowded`).
 
     run_jobs: renders the scene jobs, yielding (job number, frames) in any order (e.g. on worker processes or
         Ray); the dataset is the same whichever renders it.
     classes: the label ids (background first); their categories are the ones placed.
     """
-    jobs = scene_jobs(scenario, frames, frames_per_scene, split, seed, classes)
+    jobs = scene_jobs(scenario, frames, frames_per_scene, split, seed, classes, crowded)
     parts = [None] * len(jobs)
     with tqdm(total=frames, unit="frame", desc=f"rendering {split} frames", dynamic_ncols=True) as bar:
         for n, part in run_jobs(jobs):

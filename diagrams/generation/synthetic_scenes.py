@@ -19,6 +19,7 @@ from pydrake.geometry import (
     Cylinder,
     LightParameter,
     MakeRenderEngineVtk,
+    Mesh,
     RenderEngineVtkParams,
     Rgba,
     Sphere,
@@ -31,6 +32,7 @@ from pydrake.systems.sensors import RgbdSensor
 
 from diagrams.generation.centauro_description import joint_names
 from diagrams.generation.objects import catalog
+from diagrams.generation.objects.bowl import bowl_file
 from diagrams.generation.objects.library import generated_instance_directory
 from diagrams.scenario import Scenario
 from diagrams.station import AddCentauro, make_parser
@@ -39,6 +41,7 @@ from systems import categories
 # The segmenter's classes: background, then the generated categories (a taught one widens it: add_category.py).
 CLASSES = ("background", *categories.GENERATED)
 PARKED = RigidTransform([0.0, 0.0, -10.0])  # where unused bodies wait, out of every view
+CROWDED_OBJECTS = 3  # at most this many objects in a frame of a crowded scene
 
 
 @dataclass
@@ -104,6 +107,7 @@ class SyntheticScene:
         camera_jitter: bool = True,
         instances: list[str] | None = None,
         models: dict[str, list[tuple[str, Path]]] | None = None,
+        crowded: bool = False,
     ):
         """Args:
         scenario: robot, camera and nominal table placement.
@@ -114,9 +118,12 @@ class SyntheticScene:
         camera_jitter: perturb the cameras about the chest mount (else all sit at the nominal pose).
         instances: these instances of each category instead of the split's (any generated name, e.g. extra_101).
         models: {category: [(name, SDF file)]}: these models of the categories named instead (a user's files).
+        crowded: a cluttered table: up to CROWDED_OBJECTS objects, more clutter (bowls too), half of it next to
+            the objects (in front of them, behind them, touching them in the image).
         """
         self.rng = rng
         self.classes = tuple(classes)
+        self.crowded = crowded
         builder = DiagramBuilder()
         self.plant, self.scene_graph = AddMultibodyPlantSceneGraph(builder, time_step=0.0)
         plant = self.plant
@@ -126,7 +133,8 @@ class SyntheticScene:
         self.table_x = scenario.table_xyz[0] + rng.uniform(-0.05, 0.05)
         self._add_static_background()
         clutter = plant.AddModelInstance("clutter")
-        self.clutter = [self._add_clutter_body(clutter, i) for i in range(rng.integers(2, 7))]
+        count = rng.integers(*((3, 10) if crowded else (2, 7)))
+        self.clutter = [self._add_clutter_body(clutter, i) for i in range(count)]
         # Every instance of the split, freshly coloured.
         self.objects = []  # (category, instance, body)
         parser = make_parser(plant)
@@ -196,15 +204,17 @@ class SyntheticScene:
         body = plant.AddRigidBody(
             f"clutter_{index}", model_instance, SpatialInertia.SolidBoxWithMass(0.1, 0.1, 0.1, 0.1)
         )
-        kind = rng.integers(3)
+        kind = rng.integers(4 if self.crowded else 3)
         size = rng.uniform(0.03, 0.12, size=3)
+        pose = RigidTransform([0, 0, size[2] / 2])
         if kind == 0:
-            shape, height = Box(*size), size[2]
+            shape = Box(*size)
         elif kind == 1:
-            shape, height = Cylinder(size[0] / 2, size[2]), size[2]
-        else:
-            shape, height = Sphere(size[0] / 2), size[0]
-        pose = RigidTransform([0, 0, height / 2])
+            shape = Cylinder(size[0] / 2, size[2])
+        elif kind == 2:
+            shape, pose = Sphere(size[0] / 2), RigidTransform([0, 0, size[0] / 2])
+        else:  # a bowl, 10-18 cm across
+            shape, pose = Mesh(str(bowl_file(round(size[0] + 0.07, 2), round(size[2] / 2 + 0.03, 2)))), RigidTransform()
         plant.RegisterVisualGeometry(body, pose, shape, "visual", rgba(random_color(rng, rng.uniform() < 0.5)))
         return body
 
@@ -246,7 +256,7 @@ class SyntheticScene:
         """Re-places everything at random and renders one frame from a random camera.
 
         Args:
-            max_objects: at most this many objects (none in 10 % of the frames).
+            max_objects: at most this many objects (none in 10 % of the frames); CROWDED_OBJECTS when crowded.
             object_region: ((x_min, x_max), (y_min, y_max)) of the objects' origins in W, m.
             count: exactly this many objects instead.
             placement: (category, instance, yaw, xy): exactly this object at this pose on the table.
@@ -254,6 +264,8 @@ class SyntheticScene:
         rng, plant = self.rng, self.plant
         for body in [b for *_, b in self.objects] + self.clutter:
             plant.SetFreeBodyPose(self.plant_context, body, PARKED)
+        if self.crowded:
+            max_objects = CROWDED_OBJECTS
         if count is None:
             count = rng.choice(max_objects + 1, p=[0.1] + [0.9 / max_objects] * max_objects)
         placed, occupied = [], []
@@ -267,13 +279,20 @@ class SyntheticScene:
             if len(placed) == count:
                 break
             xy = np.array([rng.uniform(*object_region[0]), rng.uniform(*object_region[1])])
-            if any(np.linalg.norm(xy - other) < 0.35 for other in occupied):
+            if any(np.linalg.norm(xy - other) < (0.22 if self.crowded else 0.35) for other in occupied):
                 continue
             category, name, body = self.objects[index]
             placed.append((category, name, self._place_on_table(body, xy, rng.uniform(-np.pi, np.pi))))
             occupied.append(xy)
         centre, half = self.table_extent
+        objects = list(occupied)
         for body in self.clutter:
+            if self.crowded and objects and rng.uniform() < 0.5:  # next to an object
+                angle = rng.uniform(-np.pi, np.pi)
+                beside = rng.uniform(0.07, 0.2) * np.array([np.cos(angle), np.sin(angle)])
+                xy = objects[rng.integers(len(objects))] + beside
+                self._place_on_table(body, xy, rng.uniform(-np.pi, np.pi))
+                continue
             xy = centre + rng.uniform(-0.9, 0.9, size=2) * half
             if any(np.linalg.norm(xy - other) < 0.2 for other in occupied):
                 continue

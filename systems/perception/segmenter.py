@@ -9,12 +9,13 @@ import numpy as np
 import torch
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import LeafSystem
-from pydrake.systems.sensors import ImageRgba8U
+from pydrake.systems.sensors import ImageDepth32F, ImageRgba8U
 from torch.nn import functional as F
 
 from systems.messages import Segmentation
 from systems.paths import MODELS_DIR
 from systems.perception import segmentation_network
+from systems.perception.instances import named_object, object_instances
 
 DEFAULT_WEIGHTS = MODELS_DIR / "segmenter.pt"
 
@@ -25,27 +26,15 @@ def check_category(category: str, classes) -> None:
         raise ValueError(f"the segmenter knows no category {category!r} (it knows {', '.join(classes[1:])})")
 
 
-def dominant_object(labels: np.ndarray, classes, min_pixels: int, category: str = "") -> Segmentation:
-    """The largest connected object region (outer contour, filled) over all object classes.
+def dominant_object(labels: np.ndarray, classes, min_pixels: int) -> Segmentation:
+    """The largest connected region of one object class (outer contour, filled): the object when the user named
+    no category.
 
     Args:
         labels: H x W class ids (0 = background).
         classes: class names by id.
         min_pixels: smaller regions are noise; with none larger, nothing is found.
-        category: the category the user named (one of classes): the region is then the largest of any object
-            class's pixels together, and it is that category; the class the network gave most of it is reported
-            as network_category. "": the class decides.
     """
-    if category:
-        check_category(category, classes)
-        region = dominant_object((labels > 0).astype(labels.dtype), ("background", category), min_pixels)
-        if region.found:
-            votes = np.bincount(labels[region.mask], minlength=len(classes))[1:]
-            region.network_category = classes[1 + int(np.argmax(votes))]
-            if region.network_category != category:
-                share = votes.max() / max(votes.sum(), 1)
-                region.message += f" as named (the network labelled {share:.0%} of it {region.network_category})"
-        return region
     best = Segmentation(False, mask=np.zeros(labels.shape, bool))
     kernel = np.ones((3, 3), np.uint8)
     for class_id, name in enumerate(classes):
@@ -78,19 +67,24 @@ class Segmenter(LeafSystem):
         name: Segmenter
         input_ports:
         - color_image
+        - depth_image (optional)
         output_ports:
         - labels
         - segmentation
 
-    Input ``color_image`` (ImageRgba8U from the camera). Outputs ``labels`` (H x W uint8 class ids at the
-    camera's resolution: 0 background, then ``classes``) and ``segmentation`` (a Segmentation of the dominant
-    object: the largest region by pixel count; its compute_s counts the network too).
+    Inputs ``color_image`` (ImageRgba8U from the camera) and, optionally, ``depth_image`` (ImageDepth32F, m, the
+    same view). Outputs ``labels`` (H x W uint8 class ids at the camera's resolution: 0 background, then
+    ``classes``) and ``segmentation`` (a Segmentation of the object to pick; its compute_s counts the network too).
+    Without a named category that is the dominant object, the largest region of one class (dominant_object).
+    With one, it is the nearest object the network labelled that category, objects cut apart by class and by the
+    depth image's edges where it is connected (systems/perception/instances.py: a cluttered table).
 
     Args:
         weights: the network's (its classes come with it).
         min_pixels: smaller object regions are noise.
-        category: the category the user named ("": the network's classes decide): the dominant region of any
-            object class is taken as that category, and the network's own class is reported (dominant_object).
+        category: the category the user named ("": the network's classes decide): the nearest object labelled so,
+            or, with none, the largest object taken as that category; the network's own class is reported
+            (instances.named_object).
 
     Raises:
         ValueError: the weights' network knows no such category.
@@ -106,6 +100,7 @@ class Segmenter(LeafSystem):
         # One inference now: torch's first call is several times slower than the next ones.
         self.segment(np.zeros((*segmentation_network.INPUT_SIZE[::-1], 3), np.uint8))
         self.color_image_port = self.DeclareAbstractInputPort("color_image", AbstractValue.Make(ImageRgba8U()))
+        self.depth_image_port = self.DeclareAbstractInputPort("depth_image", AbstractValue.Make(ImageDepth32F()))
         # Computed from the image alone (not from time): an image that does not change is segmented once.
         inputs = {self.all_input_ports_ticket()}
         self.labels_port = self.DeclareAbstractOutputPort(
@@ -140,7 +135,16 @@ class Segmenter(LeafSystem):
     def _calc_mask(self, context, output):
         started = time.perf_counter()
         labels = self.labels_port.Eval(context)
-        segmentation = dominant_object(labels, self.classes, self.min_pixels, self.category)
+        if self.category:
+            depth = None
+            if self.depth_image_port.HasValue(context):
+                depth = np.asarray(self.depth_image_port.Eval(context).data)[:, :, 0]
+                if depth.shape != labels.shape:
+                    raise ValueError(f"depth image {depth.shape} and colour image {labels.shape} differ in size")
+            instances = object_instances(labels, depth, self.classes, self.min_pixels)
+            segmentation = named_object(instances, self.classes, self.category, labels.shape)
+        else:
+            segmentation = dominant_object(labels, self.classes, self.min_pixels)
         if segmentation.network_category and segmentation.network_category != self.category:
             logging.warning("segmentation: %s", segmentation.message)
         segmentation.compute_s = time.perf_counter() - started

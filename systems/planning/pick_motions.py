@@ -123,6 +123,7 @@ class PickMotions:
         obstacle_points_W: np.ndarray | None = None,
         alternatives: dict[str, list[RigidTransform]] | None = None,
         approach_to: dict[str, list[RigidTransform]] | None = None,
+        scene_W: np.ndarray | None = None,
     ) -> Reach:
         """Keyframes from q_start to both hands at targets_W, collision-free: Drake's geometry, and the sphere model
         against the world's fixed scene and obstacle_points_W (the object as seen, N x 3 in W, e.g. a perceived
@@ -131,7 +132,8 @@ class PickMotions:
         are out of that hand's reach (DualArmIk.solve). approach_to: per side, where the hand goes straight on from
         each of its targets (the grasps, from pre-grasps; one per alternative, or one without alternatives): a
         goal from which that straight motion fails is passed over for the next, and where every goal is, goals are
-        found backwards from the grasps (_goals_from_the_grasps).
+        found backwards from the grasps (_goals_from_the_grasps). scene_W: the rest of the scene as the camera saw
+        it (occupied cubes' centres, N x 3 in W; world.planning_obstacles), avoided too.
 
         Raises:
             PlanningError: no collision-free IK solution, or no collision-free path to it. A path that fails from a
@@ -143,9 +145,9 @@ class PickMotions:
             counts = {side: len((alternatives or {}).get(side, [RigidTransform()])) for side in SIDES}
             if any(len(approach_to[side]) != counts[side] for side in SIDES):
                 raise ValueError(f"approach_to needs one grasp per alternative per side ({counts})")
-        obstacles = self.world.planning_obstacles(obstacle_points_W)
-        # Straight segments are checked with Drake's geometry, and with the sphere model where the object is points.
-        checked = obstacles if obstacle_points_W is not None else None
+        obstacles = self.world.planning_obstacles(obstacle_points_W, scene_W)
+        # Straight segments are checked with Drake's geometry, and with the sphere model where anything is points.
+        checked = obstacles if obstacle_points_W is not None or scene_W is not None else None
         forwards = self._reach_goals(q_start, targets_W, alternatives)
         backwards = self._goals_from_the_grasps(q_start, targets_W, alternatives, approach_to) if approach_to else ()
         failure, at_the_grasps = None, ""  # at_the_grasps: why the goals found backwards failed, if they did
@@ -204,7 +206,11 @@ class PickMotions:
             raise PlanningError(f"the approach from the goal fails ({error})") from None
 
     def reach_configuration(
-        self, q_start: np.ndarray, q_goal: np.ndarray, obstacle_points_W: np.ndarray | None = None
+        self,
+        q_start: np.ndarray,
+        q_goal: np.ndarray,
+        obstacle_points_W: np.ndarray | None = None,
+        scene_W: np.ndarray | None = None,
     ) -> np.ndarray:
         """Keyframes from q_start to the arm configuration q_goal (the planned joints, rad), collision-free as reach's.
         Where there is no such path from q_start (from beside an object, e.g. backed off an empty grasp), both
@@ -213,8 +219,8 @@ class PickMotions:
         Raises:
             PlanningError: no collision-free path, from q_start or from above it.
         """
-        obstacles = self.world.planning_obstacles(obstacle_points_W)
-        checked = obstacles if obstacle_points_W is not None else None
+        obstacles = self.world.planning_obstacles(obstacle_points_W, scene_W)
+        checked = obstacles if obstacle_points_W is not None or scene_W is not None else None
         q_goal = np.asarray(q_goal, float)
         try:
             return self._reach_path(q_start, q_goal, obstacles, checked)
@@ -338,6 +344,7 @@ class PickMotions:
         X_motion_W: RigidTransform,
         min_fraction: float = 1.0,
         carried_points_W: np.ndarray | None = None,
+        scene_W: np.ndarray | None = None,
     ) -> HeldMove:
         """Keyframes moving both hands (and the object they hold) by X_motion_W (X_WG -> X_motion_W X_WG),
         keeping the hands' relative pose (closure constraint) and, where the goal allows it, their world
@@ -347,7 +354,8 @@ class PickMotions:
         the edge of the arms' reach); where they cannot reach it with the hands' orientation kept within
         0.01 rad, the hands may tilt together (the closure still holds) by up to 0.04 rad. With
         carried_points_W (the held object's points in W at q_start), the object is kept clear of the scene
-        too (a carry over a box); without, only the robot is.
+        too (a carry over a box); without, only the robot is. scene_W: the scene as the camera saw it (occupied
+        cubes' centres, N x 3 in W), kept clear of too.
 
         Raises:
             PlanningError: the moved hands are out of reach, or STOMP found no constrained path.
@@ -373,7 +381,7 @@ class PickMotions:
             tilt = orientation_deviations(end_effectors, q_goal[None], R_goal, orientation.upright_only)
             if tilt.max() >= 0.5 * orientation.o_max:  # the goal itself tilts (the edge of reach): no constraint
                 orientation = None
-        scene = self.world.table_obstacles()
+        scene = self.world.table_obstacles(scene_W)
         centre_W = None
         if carried_points_W is not None and len(carried_points_W):
             scene = scene.carrying(self.carried(q_start, carried_points_W))

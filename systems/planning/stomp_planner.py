@@ -56,11 +56,13 @@ class StompPlanner(LeafSystem):
         - request
         - grasp_poses
         - obstacle_cloud_W
+        - scene_cloud_W (optional)
         output_ports:
         - plan
 
     Inputs: ``request`` (PlanRequest); ``grasp_poses`` (GraspPoses, X_WG of each hand's pre-grasp and
-    grasp); ``obstacle_cloud_W`` (N x 3 points of the object, m, in W: the reach's obstacle).
+    grasp); ``obstacle_cloud_W`` (N x 3 points of the object, m, in W: the reach's obstacle); ``scene_cloud_W`` (the
+    rest of the scene as the camera saw it: centres of occupied cubes, N x 3 in W, m; every motion avoids it).
     Output: ``plan`` (PlanResult of the latest request whose latency has passed).
 
     Args:
@@ -77,6 +79,7 @@ class StompPlanner(LeafSystem):
         self.DeclareAbstractInputPort("request", AbstractValue.Make(PlanRequest()))
         self.DeclareAbstractInputPort("grasp_poses", AbstractValue.Make(GraspPoses(False)))
         self.DeclareAbstractInputPort("obstacle_cloud_W", AbstractValue.Make(np.zeros((0, 3))))
+        self.DeclareAbstractInputPort("scene_cloud_W", AbstractValue.Make(np.zeros((0, 3))))
         self._state = self.DeclareAbstractState(AbstractValue.Make(_Planning()))
         self.DeclareAbstractOutputPort(
             "plan",
@@ -107,6 +110,7 @@ class StompPlanner(LeafSystem):
         started = time.perf_counter()
         motions = self.motions
         result = PlanResult(request.id, request.phase)
+        scene = self._scene(context)
         try:
             if request.path not in tuple(MoveKind):
                 raise PlanningError(f"unknown path {request.path!r} (one of {', '.join(MoveKind)})")
@@ -116,7 +120,7 @@ class StompPlanner(LeafSystem):
                 if request.carried_motion_W is not None:
                     cloud = self.GetInputPort("obstacle_cloud_W").Eval(context)
                     carried = request.carried_motion_W.multiply(cloud.T).T if len(cloud) else None
-                held = motions.held_move(request.q_start, request.X_motion_W, request.min_fraction, carried)
+                held = motions.held_move(request.q_start, request.X_motion_W, request.min_fraction, carried, scene)
                 keyframes = held.keyframes
                 min_segment = motions.held_segment_durations(keyframes)
                 start, end = (motions.world.grasp_frame_poses(q)["left"] for q in (keyframes[0], keyframes[-1]))
@@ -125,7 +129,7 @@ class StompPlanner(LeafSystem):
                 if request.path != MoveKind.FREE or request.q_goal is None:
                     raise PlanningError("going home is a free move to a q_goal")
                 keyframes = motions.reach_configuration(
-                    request.q_start, request.q_goal, self._thinned(self._object_cloud(request, context))
+                    request.q_start, request.q_goal, self._thinned(self._object_cloud(request, context)), scene
                 )
                 min_segment = STOMP_SEGMENT_S if len(keyframes) > 3 else SPARSE_SEGMENT_S
             else:
@@ -133,7 +137,7 @@ class StompPlanner(LeafSystem):
                 if request.path == MoveKind.FREE:
                     cloud = self._object_cloud(request, context)
                     keyframes, result.grasp_offsets_G = self._reach(
-                        request, context, targets, cloud, self._thinned(cloud)
+                        request, context, targets, cloud, self._thinned(cloud), scene
                     )
                     min_segment = STOMP_SEGMENT_S if len(keyframes) > 3 else SPARSE_SEGMENT_S
                 else:
@@ -154,16 +158,17 @@ class StompPlanner(LeafSystem):
         result.planning_s = time.perf_counter() - started
         return result
 
-    def _reach(self, request: PlanRequest, context, targets, cloud, points) -> tuple[np.ndarray, dict | None]:
+    def _reach(self, request: PlanRequest, context, targets, cloud, points, scene) -> tuple[np.ndarray, dict | None]:
         """The reach's keyframes to `targets`, and for pre-grasps the grasps they lead to (X_GG' per side). cloud:
-        the object's points (N x 3 in W, where it is now), which judge the grasp family; points: the obstacle.
+        the object's points (N x 3 in W, where it is now), which judge the grasp family; points: the obstacle;
+        scene: the rest of the scene as seen (occupied cubes, or None).
 
         For the pre-grasps, only a pre-grasp configuration from which the straight approach reaches the grasps
         will do; where a hand cannot reach its pre-grasp so, the other grasps of its family (grasp_alternatives:
         rolled about the handle, slid along it, judged on the object's points), and where none does, pre-grasps
         nearer the grasps (PREGRASP_STANDOFFS)."""
         if request.targets != Targets.PREGRASP:
-            return self.motions.reach(request.q_start, targets, points).keyframes, None
+            return self.motions.reach(request.q_start, targets, points, scene_W=scene).keyframes, None
         grasps = self._targets(dataclasses.replace(request, targets=Targets.GRASP), context, deeper=False)
         families = {side: grasp_alternatives(grasps[side], cloud) for side in SIDES}
         # Where each hand's approach ends, for each grasp of its family.
@@ -180,13 +185,20 @@ class StompPlanner(LeafSystem):
                 side: pregrasp_alternatives(grasps[side].inverse() @ nearer[side], families[side]) for side in SIDES
             }
             try:
-                reach = self.motions.reach(request.q_start, nearer, points, alternatives, approach_to)
+                reach = self.motions.reach(request.q_start, nearer, points, alternatives, approach_to, scene)
                 return reach.keyframes, {side: families[side][reach.choice[side]] for side in SIDES}
             except PlanningError as error:
                 failure = failure or error
                 if "no collision-free IK solution" not in str(error) and "approach" not in str(error):
                     break  # reachable but not by a free path: nearer the object will not help
         raise failure
+
+    def _scene(self, context) -> np.ndarray | None:
+        """The scene as the camera saw it (occupied cubes' centres, N x 3 in W), or None where there is none."""
+        if not self.GetInputPort("scene_cloud_W").HasValue(context):
+            return None
+        scene = self.GetInputPort("scene_cloud_W").Eval(context)
+        return scene if len(scene) else None
 
     def _object_cloud(self, request: PlanRequest, context) -> np.ndarray:
         """The obstacle cloud (N x 3 in W) where the object is now: moved by the request's object_motion_W (where

@@ -30,6 +30,11 @@ from systems.planning.obstacles import Obstacles
 # are 2.8-4.1 mm off (Chamfer, single views); 1.5 cm around the accurate drills left STOMP's reach without a
 # path to the pre-grasp in its 2 s (unseen drills 17/24 picks; 1 cm: see the README's evaluation).
 PERCEIVED_SHAPE_MARGIN = 0.01
+# Clearance added around the scene as the camera saw it (occupied cubes: systems/perception/scene_cloud.py), m:
+# the depth noise at a metre (a few millimetres) and the cubes' half-diagonal beyond their half-side.
+PERCEIVED_SCENE_MARGIN = 0.01
+# The cubes' side, m (scene_cloud.VOXEL_M: the planner takes the cloud as it comes).
+SCENE_CELL_M = 0.01
 
 
 @dataclass
@@ -111,16 +116,20 @@ class PlanningWorld:
                     obstacles.add_box(X_WG, [shape.width(), shape.depth(), shape.height()])
         return obstacles
 
-    def table_obstacles(self) -> Obstacles:
-        """The fixed scene's boxes for the sphere model (a new Obstacles each call: add to it freely)."""
+    def table_obstacles(self, scene_W: np.ndarray | None = None) -> Obstacles:
+        """The fixed scene's boxes for the sphere model, and the scene as seen (scene_W: occupied cubes' centres,
+        N x 3 in W, or None). A new Obstacles each call: add to it freely."""
         obstacles = Obstacles()
         obstacles.boxes = list(self.table_boxes)
+        if scene_W is not None and len(scene_W):
+            obstacles.add_occupied(scene_W, SCENE_CELL_M, inflation=PERCEIVED_SCENE_MARGIN)
         return obstacles
 
-    def planning_obstacles(self, points_W: np.ndarray | None = None) -> Obstacles:
+    def planning_obstacles(self, points_W: np.ndarray | None = None, scene_W: np.ndarray | None = None) -> Obstacles:
         """The scene for a reach: the table's boxes, the object as seen (points_W, N x 3 in W, e.g. a perceived
-        cloud: Drake's model has no geometry for it) and a welded object's surface."""
-        obstacles = self.table_obstacles()
+        cloud: Drake's model has no geometry for it), the rest of the scene as seen (scene_W: centres of occupied
+        SCENE_CELL_M cubes in W, N x 3) and a welded object's surface."""
+        obstacles = self.table_obstacles(scene_W)
         if points_W is not None:
             # A perceived shape is off by up to a centimetre or two where the camera did not see it.
             obstacles.add_points(points_W, inflation=PERCEIVED_SHAPE_MARGIN)

@@ -1,0 +1,137 @@
+"""Cluttered tables: the seeded scenes, the scene as the camera sees it (the planner's obstacle), and a pick that
+takes the named category from a table with another object on it, touching nothing else."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+from pydrake.systems.analysis import Simulator
+
+from diagrams.autonomous_pick import run_pick
+from diagrams.generation import clutter_scenes
+from diagrams.generation.clutter_scenes import clutter_scene, scene_outlines
+from diagrams.perception import _depth_camera
+from diagrams.planning_scene import make_pick_motions, true_grasp_poses
+from diagrams.scenario import ClutterObjectConfig, initial_positions, overlay_scenario, replace_object
+from diagrams.station import TABLE_HEIGHT, MakeStation, object_pose_on_table, true_label_image
+from diagrams.pick_simulation import object_body
+from systems.perception.robot_spheres import RobotSpheres
+from systems.perception.scene_cloud import HIDDEN_DEPTH_M, SELF_MARGIN_M, TABLE_MARGIN_M, VOXEL_M, scene_points
+from systems.planning.obstacles import Obstacles
+from systems.planning.world import SCENE_CELL_M
+
+# A box standing in front of the default can (between it and the robot), and a drill beside it.
+BOX = ClutterObjectConfig(kind="box", size=[0.1, 0.12, 0.08], color=[0.8, 0.2, 0.2], xy=[-0.3, 0.0])
+
+
+def test_cluttered_tables_are_seeded_and_keep_their_promises(scenario):
+    fronts = 0
+    for category in ("watering_can", "drill"):
+        for k in range(8):
+            table = clutter_scene(scenario, category, k)
+            assert table == clutter_scene(scenario, category, k)  # the seed alone makes it
+            assert table.requested_category == category and table.object.instance == f"extra_{2000 + k}"
+            assert 1 <= len(table.clutter) <= 4
+            overlay_scenario(table, "", "test")  # valid
+            outlines = scene_outlines(table)
+            target, others = outlines[0], outlines[1:]
+            gaps = [clutter_scenes._gap(target, other) for other in others]
+            assert min(gaps) <= clutter_scenes.NEAR_GAP_M[1] + 1e-9  # one stands near the target
+            for i, a in enumerate(outlines):  # no two overlap
+                assert all(clutter_scenes._gap(a, b) >= clutter_scenes.MIN_GAP_M - 1e-9 for b in outlines[i + 1 :])
+            for other, outline in zip(table.clutter, others, strict=True):
+                if other.kind == category:  # another of its category stands farther from the robot
+                    assert outline.mean(axis=0)[0] > target.mean(axis=0)[0]
+            x_min = target[:, 0].min()
+            ys = target[:, 1].min(), target[:, 1].max()
+            fronts += any(
+                o[:, 0].max() < x_min and o[:, 1].max() > ys[0] and o[:, 1].min() < ys[1] for o in others
+            )
+    assert 4 <= fronts <= 12  # in about half of the tables one stands between the target and the robot
+    with pytest.raises(ValueError, match="split"):
+        clutter_scene(scenario, "drill", 0, "validation")
+
+
+def _frame(scenario):
+    """The station's first frame (after the objects settle): depth (m), X_WC, the true object mask, and the robot's
+    sphere model at its start."""
+    station = MakeStation(scenario)
+    simulator = Simulator(station)
+    context = simulator.get_mutable_context()
+    station.GetInputPort("centauro.position").FixValue(context, initial_positions(scenario))
+    for hand in ("left_hand", "right_hand"):
+        station.GetInputPort(f"{hand}.position").FixValue(context, [scenario.initial_hand_width])
+    simulator.AdvanceTo(0.4)
+    depth = np.asarray(station.GetOutputPort("camera0.depth_image").Eval(context).data)[:, :, 0].copy()
+    intrinsics, X_BC = _depth_camera(scenario)
+    X_WC = station.GetOutputPort("camera0.pose").Eval(context) @ X_BC
+    plant = station.GetSubsystemByName("plant")
+    mask = true_label_image(station, context) == int(object_body(plant).index())
+    return depth, intrinsics, X_WC, mask
+
+
+def test_the_scene_cloud_holds_what_is_not_the_object_and_the_space_hidden_behind_it(scenario):
+    table = dataclasses.replace(scenario, clutter=[BOX])
+    depth, intrinsics, X_WC, mask = _frame(table)
+    motions = make_pick_motions(table)
+    spheres = RobotSpheres(motions.world.kinematics, motions.world.spheres).spheres_W(initial_positions(table))
+    top_z = table.table_xyz[2] + TABLE_HEIGHT
+    surface, _ = motions_surface(table)
+    seen, hidden = scene_points(depth, mask, intrinsics, X_WC, top_z, motions.world.torso_axis_W, spheres, surface)
+    centre = np.array(table.table_xyz[:2]) + BOX.xy
+    half = np.array([0.05, 0.06, 0.04])
+    box_centre = np.array([*centre, top_z + 0.04])
+    inside = lambda p, grow=0.0: np.all(np.abs(p - box_centre) <= half + grow, axis=1)  # noqa: E731
+    # The box's top and front faces are seen; its inside is hidden by them (the camera looks down at it).
+    assert np.count_nonzero(inside(seen, VOXEL_M)) > 50
+    assert np.count_nonzero(inside(hidden)) > 50
+    # Nothing is seen of the object (its mask), nothing of the table top or below it, nothing on the robot.
+    assert seen[:, 2].min() > top_z + TABLE_MARGIN_M - VOXEL_M
+    assert np.mean(inside(seen, VOXEL_M)) > 0.95  # what is seen is the box (the object and the robot are left out)
+    gaps = np.linalg.norm(np.vstack([seen, hidden])[:, None, :] - spheres[None, :, :3], axis=2) - spheres[:, 3]
+    assert gaps.min() > SELF_MARGIN_M - VOXEL_M
+    # Hidden space lies behind what is seen, along the camera's rays, at most HIDDEN_DEPTH_M further.
+    camera = X_WC.translation()
+    along = np.linalg.norm(hidden - camera, axis=1)
+    nearest_seen = np.array([np.linalg.norm(seen - h, axis=1).min() for h in hidden[::25]])
+    assert nearest_seen.max() <= HIDDEN_DEPTH_M + VOXEL_M and along.min() > 0.3
+
+
+def motions_surface(scenario):
+    from diagrams.generation.objects.library import resolve_object
+    from diagrams.planning_scene import object_surface_W
+
+    model = resolve_object(scenario.object)
+    return object_surface_W(model, object_pose_on_table(scenario, model), 3000)
+
+
+def test_the_planner_avoids_an_obstacle_only_the_camera_saw(scenario):
+    """The reach's straight move to the pre-grasps is free in the planning model (no box in it); a block of occupied
+    cubes the camera saw on the right hand's way makes STOMP go around it."""
+    motions = make_pick_motions(scenario)
+    poses = true_grasp_poses(scenario)
+    q_start = initial_positions(scenario)
+    targets = {side: poses[f"{side}_pregrasp"] for side in ("left", "right")}
+    straight = motions.reach(q_start, targets).keyframes
+    assert len(straight) == 2  # free: the straight move
+    middle = motions.world.grasp_frame_poses(0.5 * (straight[0] + straight[1]))["right"].translation()
+    grid = np.arange(-0.04, 0.045, SCENE_CELL_M)
+    block = middle + np.stack(np.meshgrid(grid, grid, grid), axis=-1).reshape(-1, 3)
+    around = motions.reach(q_start, targets, scene_W=block).keyframes
+    assert len(around) > 2
+    seen = Obstacles().add_occupied(block, SCENE_CELL_M)
+    dense = np.concatenate([np.linspace(a, b, 20) for a, b in zip(around[:-1], around[1:], strict=True)])
+    assert motions.stomp.clearance(dense, seen).min() > 0
+    assert motions.stomp.clearance(np.linspace(straight[0], straight[1], 40), seen).min() < 0
+
+
+def test_the_named_category_is_picked_from_a_table_with_both_and_nothing_else_moves(scenario):
+    """A drill to pick and a can beside it (both unseen): the user names the drill; the pick lifts it and the can
+    stays where it stood."""
+    can = ClutterObjectConfig(kind="watering_can", instance="test_0", xy=[0.08, 0.26], yaw=0.3)
+    table = replace_object(scenario, category="drill", instance="test_1", yaw=0.0)
+    table = dataclasses.replace(table, clutter=[can], requested_category="drill")
+    outcome = run_pick(table)
+    assert outcome.success, outcome.message
+    assert outcome.perception["category"] == "drill" and outcome.perception["position_error_m"] < 0.02
+    assert max(outcome.others_moved_m) < 0.02
