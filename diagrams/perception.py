@@ -92,9 +92,12 @@ def MakePerception(
     builder = DiagramBuilder()
     dof = robot_spheres.kinematics.dof if robot_spheres is not None else 14
     latch = builder.AddNamedSystem("camera_latch", CameraLatch(robot_positions=dof))
-    segmenter = builder.AddNamedSystem(
-        "segmenter", Segmenter(weights or categories.active_segmenter(), category=scenario.requested_category)
+    segmenter = Segmenter(
+        weights or categories.active_segmenter(),
+        category=scenario.requested_category,
+        intrinsics=_depth_camera(scenario)[0],
     )
+    builder.AddNamedSystem("segmenter", segmenter)
     pose_estimator = builder.AddNamedSystem("pose_estimator", MakePoseEstimator(scenario))
     registrar = builder.AddNamedSystem("shape_registrar", ShapeRegistrar())
     collector = builder.AddNamedSystem("perception_result", PerceptionResultCollector())

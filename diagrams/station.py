@@ -18,6 +18,8 @@ planned_joints): 15, the left arm, the right arm and the torso yaw, or 14 with t
 locked. The camera rides on the torso: its pose follows the torso's yaw.
 """
 
+from dataclasses import dataclass
+
 import numpy as np
 from pydrake.geometry import (
     AddRigidHydroelasticProperties,
@@ -276,6 +278,42 @@ def _frame_the_table(meshcat: Meshcat, scenario: Scenario):
     x, y, _ = scenario.table_xyz
     target = np.array([0.6 * x, y, scenario.pelvis_height - 0.15])
     meshcat.SetCameraPose(camera_in_world=target + [1.5, 1.3, 0.55], target_in_world=target)
+
+
+@dataclass
+class StationFrame:
+    """The chest camera's images once the objects have settled, with the simulator's ground truth (for benchmarks
+    and tests: the pick itself never reads labels or poses)."""
+
+    rgb: np.ndarray  # H x W x 3 uint8, as the sensor model reports it
+    depth: np.ndarray  # H x W float32, m
+    X_WB: RigidTransform  # the camera body's pose (the station's camera0.pose)
+    labels: np.ndarray  # H x W render labels: the plant's body index of what each pixel sees
+    X_WO: RigidTransform | None  # the object's pose (None without one)
+    object_label: int  # the object's render label (-1 without one)
+
+
+def settled_frame(scenario: Scenario, at_s: float = 0.4) -> StationFrame:
+    """The station's camera frame at context time at_s (the objects settled), the robot holding its start."""
+    from pydrake.systems.analysis import Simulator  # (here alone: the station itself never simulates)
+
+    station = MakeStation(scenario)
+    simulator = Simulator(station)
+    context = simulator.get_mutable_context()
+    station.GetInputPort("centauro.position").FixValue(context, initial_positions(scenario))
+    for hand in HAND_INSTANCES.values():
+        station.GetInputPort(f"{hand}.position").FixValue(context, [scenario.initial_hand_width])
+    simulator.AdvanceTo(at_s)
+    camera = scenario.camera.name
+    rgb = np.asarray(station.GetOutputPort(f"{camera}.rgb_image").Eval(context).data)[:, :, :3].copy()
+    depth = np.asarray(station.GetOutputPort(f"{camera}.depth_image").Eval(context).data)[:, :, 0].copy()
+    X_WB = station.GetOutputPort(f"{camera}.pose").Eval(context)
+    plant = station.GetSubsystemByName("plant")
+    X_WO, label = None, -1
+    if plant.HasModelInstanceNamed(OBJECT_INSTANCE):
+        body = plant.get_body(plant.GetBodyIndices(plant.GetModelInstanceByName(OBJECT_INSTANCE))[0])
+        X_WO, label = body.EvalPoseInWorld(plant.GetMyContextFromRoot(context)), int(body.index())
+    return StationFrame(rgb, depth, X_WB, true_label_image(station, context), X_WO, label)
 
 
 def true_label_image(station: Diagram, context) -> np.ndarray:

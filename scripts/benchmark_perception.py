@@ -5,8 +5,12 @@ seen from the chest camera's nominal pose (the whole object in view), its colour
 RGB-D sensor model reports them (--sensor, by default kinect_v2; --no-noise: the renderer's perfect
 images). The Segmenter and PoseEstimator systems run as they do in the pick diagram (FixValue / Eval).
 
+With --scene clutter, seeded cluttered tables instead (scripts/perception_in_clutter.py): the target among others,
+and empty tables with distractors only.
+
 python scripts/benchmark_perception.py --scenes 60 --json perception.json
 python scripts/benchmark_perception.py --scenes 60 --no-noise
+python scripts/benchmark_perception.py --scene clutter --scenes 30 --empty-tables 20 --json clutter_perception.json
 """
 
 import argparse
@@ -22,7 +26,7 @@ import torch
 from json_report import write_json
 from pydrake.common.value import AbstractValue
 from pydrake.systems.sensors import ImageDepth32F, ImageRgba8U
-from scenario_options import add_sensor_option
+from scenario_options import add_sensor_option, with_sensor
 
 from diagrams.generation.synthetic_scenes import CLASSES, SyntheticScene
 from diagrams.perception import MakePoseEstimator
@@ -98,8 +102,25 @@ def main():
     add_sensor_option(parser, default="kinect_v2")
     parser.add_argument("--json", type=Path, help="write the results here")
     parser.add_argument("--figure", type=Path, help="write a mosaic of the first 6 scenes here (.png)")
+    parser.add_argument(
+        "--scene",
+        choices=("single", "clutter"),
+        default="single",
+        help="single: synthetic scenes with one object; clutter: --scenes cluttered tables per category",
+    )
+    parser.add_argument("--empty-tables", dest="empty_tables", type=int, default=20, help="with --scene clutter")
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
+    if args.scene == "clutter":
+        import perception_in_clutter
+
+        base = with_sensor(load_scenario(), args.sensor)
+        results = perception_in_clutter.run(base, args.weights, args.scenes, args.empty_tables)
+        results |= {"sensor": args.sensor, "torch_threads": torch.get_num_threads()}
+        perception_in_clutter.print_table(results)
+        if args.json:
+            write_json(args.json, results)
+        return
     scenario = load_scenario()
     rng = np.random.default_rng(args.seed)
 

@@ -5,7 +5,6 @@ import dataclasses
 
 import numpy as np
 import pytest
-from pydrake.systems.analysis import Simulator
 
 from diagrams.autonomous_pick import run_pick
 from diagrams.generation import clutter_scenes
@@ -13,8 +12,7 @@ from diagrams.generation.clutter_scenes import clutter_scene, scene_outlines
 from diagrams.perception import _depth_camera
 from diagrams.planning_scene import make_pick_motions, true_grasp_poses
 from diagrams.scenario import ClutterObjectConfig, initial_positions, overlay_scenario, replace_object
-from diagrams.station import TABLE_HEIGHT, MakeStation, object_pose_on_table, true_label_image
-from diagrams.pick_simulation import object_body
+from diagrams.station import TABLE_HEIGHT, object_pose_on_table, settled_frame
 from systems.perception.robot_spheres import RobotSpheres
 from systems.perception.scene_cloud import HIDDEN_DEPTH_M, SELF_MARGIN_M, TABLE_MARGIN_M, VOXEL_M, scene_points
 from systems.planning.obstacles import Obstacles
@@ -52,27 +50,11 @@ def test_cluttered_tables_are_seeded_and_keep_their_promises(scenario):
         clutter_scene(scenario, "drill", 0, "validation")
 
 
-def _frame(scenario):
-    """The station's first frame (after the objects settle): depth (m), X_WC, the true object mask, and the robot's
-    sphere model at its start."""
-    station = MakeStation(scenario)
-    simulator = Simulator(station)
-    context = simulator.get_mutable_context()
-    station.GetInputPort("centauro.position").FixValue(context, initial_positions(scenario))
-    for hand in ("left_hand", "right_hand"):
-        station.GetInputPort(f"{hand}.position").FixValue(context, [scenario.initial_hand_width])
-    simulator.AdvanceTo(0.4)
-    depth = np.asarray(station.GetOutputPort("camera0.depth_image").Eval(context).data)[:, :, 0].copy()
-    intrinsics, X_BC = _depth_camera(scenario)
-    X_WC = station.GetOutputPort("camera0.pose").Eval(context) @ X_BC
-    plant = station.GetSubsystemByName("plant")
-    mask = true_label_image(station, context) == int(object_body(plant).index())
-    return depth, intrinsics, X_WC, mask
-
-
 def test_the_scene_cloud_holds_what_is_not_the_object_and_the_space_hidden_behind_it(scenario):
     table = dataclasses.replace(scenario, clutter=[BOX])
-    depth, intrinsics, X_WC, mask = _frame(table)
+    frame = settled_frame(table)
+    intrinsics, X_BC = _depth_camera(table)
+    depth, X_WC, mask = frame.depth, frame.X_WB @ X_BC, frame.labels == frame.object_label
     motions = make_pick_motions(table)
     spheres = RobotSpheres(motions.world.kinematics, motions.world.spheres).spheres_W(initial_positions(table))
     top_z = table.table_xyz[2] + TABLE_HEIGHT

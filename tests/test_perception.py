@@ -7,6 +7,7 @@ from pydrake.math import RigidTransform
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource
+from pydrake.systems.sensors import CameraInfo
 
 from diagrams.generation import segmentation_data
 from diagrams.generation.objects.library import resolve_object
@@ -73,7 +74,7 @@ def test_a_named_category_takes_the_whole_object_and_reports_the_networks_class(
     labels[20:80, 60:80] = 1  # 1200 px of the same object labelled can
     labels[90:95, 100:105] = 2  # speck
     depth = np.full(labels.shape, 1.0, np.float32)
-    instances = object_instances(labels, depth, CLASSES, min_pixels=100)
+    instances = object_instances(labels, depth, CLASSES, min_pixels=100, intrinsics=CameraInfo(120, 100, 0.3))
     named = named_object(instances, CLASSES, "watering_can", labels.shape)
     assert named.found and named.category == "watering_can" and named.pixel_count == 3600
     assert named.network_category == "drill" and "the network labelled 67% of it drill" in named.message
@@ -86,21 +87,23 @@ def test_a_named_category_takes_the_whole_object_and_reports_the_networks_class(
 
 
 def test_two_objects_one_in_front_of_the_other_are_two_and_the_nearest_of_the_named_category_is_picked():
-    """Two cans that touch in the image, one 12 cm in front of the other (a depth edge between them), and a
-    drill: the nearer can is the one to pick; a can's handle (a small piece in front of its body) stays with it."""
+    """Two cans that overlap in the image, one 12 cm in front of the other, and a drill nearer still: the nearer can
+    is the one to pick. A patch of the near can a few millimetres proud of it (a part) stays with it; a small patch
+    labelled can 3 cm in front of the far one (another object's fragment) is left out."""
     labels = np.zeros((120, 160), np.uint8)
     depth = np.full(labels.shape, 1.4, np.float32)  # the table behind
     labels[20:70, 20:80], depth[20:70, 20:80] = 1, 1.2  # the far can
-    labels[50:110, 60:120], depth[50:110, 60:120] = 1, 1.08  # the near can, overlapping it in the image
-    depth[55:62, 70:90] = 1.04  # the near can's handle, in front of its body
+    labels[50:110, 60:120], depth[50:110, 60:120] = 1, 1.08  # the near can, in front of it in the image
+    depth[80:90, 70:90] = 1.075  # a part of the near can, 5 mm proud of it
+    depth[22:30, 22:32] = 1.17  # a fragment of something else in front of the far can, labelled can
     labels[10:40, 130:155], depth[10:40, 130:155] = 2, 1.0  # a drill, nearer still
-    instances = object_instances(labels, depth, CLASSES, min_pixels=100)
-    # (the pixels on the edge go to the nearer side: a pixel either way)
-    assert np.allclose(sorted(i.pixel_count for i in instances), [750, 2600, 3600], atol=2)
+    intrinsics = CameraInfo(160, 120, 0.3)
+    instances = object_instances(labels, depth, CLASSES, min_pixels=100, intrinsics=intrinsics)
+    assert sorted(i.pixel_count for i in instances) == [750, 2520, 3600]
     chosen = named_object(instances, CLASSES, "watering_can", labels.shape)
-    assert chosen.found and abs(chosen.pixel_count - 3600) <= 2 and chosen.mask[58, 80] and not chosen.mask[30, 30]
+    assert chosen.found and chosen.pixel_count == 3600 and chosen.mask[85, 80] and not chosen.mask[30, 30]
     assert "the nearest of 2" in chosen.message
-    # Without depth, the two cans are one region.
+    # Without depth (or intrinsics), the two cans are one region.
     assert len(object_instances(labels, None, CLASSES, min_pixels=100)) == 2
     assert not named_object([], CLASSES, "drill", labels.shape).found
 

@@ -1,26 +1,31 @@
 """Object instances in a labelled image, and the one to pick among them.
 
 The network labels pixels by class; on a cluttered table one class's pixels can belong to several objects, and two
-objects can touch in the image. Instances are the connected regions of object pixels (any class), cut apart along
-the depth image's edges (a jump of more than DEPTH_JUMP_M between neighbouring pixels, or a hole: a real sensor loses
-the pixels along an occluding edge) into pieces that are each a large share of the region (an object's handle in
-front of its body, or a spout rising towards the camera, is a small piece: it stays with the body; an object
-standing in front of another is not). Classes never cut an instance: the network may label one object in parts.
-Each instance has the class that labelled most of it.
+objects can touch in the image. Instances are found in 3D: the object pixels' points (from the depth image) fall
+into VOXEL_M cubes, and cubes that touch (26 neighbours) are one cluster: two objects that stand apart by more than
+a cube come apart, whatever the image shows, and an object's parts (a handle in front of its body, a spout rising
+towards the camera) stay together where they join. A cluster with less than PIECE_SHARE of the largest in its image
+region is a part: it joins the nearest large cluster where it lies within ATTACHED_M of it (a part cut off by a line
+of lost pixels), and is left out otherwise (a fragment of another object the network labelled too). Pixels without
+depth go with the nearest pixel of their region that has it. Classes never cut an instance: the network may label
+one object in parts. Each instance has the class that labelled most of it.
 """
 
 from dataclasses import dataclass
 
 import cv2
 import numpy as np
+from pydrake.systems.sensors import CameraInfo
 from scipy import ndimage
+from scipy.spatial import cKDTree
 
 from systems.messages import Segmentation
 
-DEPTH_JUMP_M = 0.015  # m between neighbouring pixels: an edge between two surfaces
-# A piece cut off by depth edges is an object of its own only if it holds at least this share of the
-# largest piece of its region (and min_pixels): smaller ones are parts (a handle, a spout, mislabelled pixels).
+VOXEL_M = 0.008  # m: points in touching cubes of this side are one object
+# A cluster is an object of its own only with at least this share of the largest one in its image region (and
+# min_pixels): smaller ones are parts, or fragments.
 PIECE_SHARE = 0.25
+ATTACHED_M = 0.015  # m: a part this near a large cluster joins it
 # Among the instances of a named category, only those with at least this share of the largest one are candidates:
 # a small mislabelled patch nearer the camera is not an object to pick.
 CANDIDATE_SHARE = 0.4
@@ -42,58 +47,80 @@ class Instance:
         return classes[1 + int(np.argmax(self.votes))]
 
 
-def depth_edges(depth: np.ndarray, jump: float = DEPTH_JUMP_M) -> np.ndarray:
-    """H x W bool: pixels with a valid depth whose right or lower neighbour's depth differs by more than `jump` m
-    (both sides of the edge are marked)."""
-    valid = np.isfinite(depth) & (depth > 0)
-    edges = np.zeros(depth.shape, bool)
-    for axis in (0, 1):
-        a = [slice(None)] * 2
-        b = [slice(None)] * 2
-        a[axis], b[axis] = slice(None, -1), slice(1, None)
-        a, b = tuple(a), tuple(b)
-        both = valid[a] & valid[b]
-        jump_here = both & (np.abs(np.where(both, depth[a] - depth[b], 0.0)) > jump)
-        edges[a] |= jump_here
-        edges[b] |= jump_here
-    return edges
-
-
-def _split(region: np.ndarray, cut: np.ndarray, min_pixels: int) -> list[np.ndarray]:
-    """The region (H x W bool) as one mask, or, where removing `cut` leaves two or more large pieces (PIECE_SHARE),
-    one mask per large piece, every other pixel of the region given to the nearest one."""
-    count, pieces = cv2.connectedComponents((region & ~cut).astype(np.uint8), connectivity=8)
-    sizes = np.bincount(pieces[region], minlength=count)
-    sizes[0] = 0
-    large = [i for i in range(1, count) if sizes[i] >= max(min_pixels, PIECE_SHARE * sizes.max())]
-    if len(large) < 2:
-        return [region]
-    seeds = np.isin(pieces, large) & region
-    _, (rows, cols) = ndimage.distance_transform_edt(~seeds, return_indices=True)
-    owner = pieces[rows, cols]
-    return [region & (owner == i) for i in large]
-
-
-def object_instances(labels: np.ndarray, depth: np.ndarray | None, classes, min_pixels: int) -> list[Instance]:
-    """The objects in a labelled image (H x W class ids, 0 background), cut apart by depth edges (depth: H x W m,
-    or None) and by class; instances smaller than min_pixels are dropped. Largest first."""
+def object_instances(
+    labels: np.ndarray,
+    depth: np.ndarray | None,
+    classes,
+    min_pixels: int,
+    intrinsics: CameraInfo | None = None,
+) -> list[Instance]:
+    """The objects in a labelled image (H x W class ids, 0 background), cut apart in 3D where the depth image (H x W,
+    m) and the camera's intrinsics are given (else each connected region of object pixels is one); instances smaller
+    than min_pixels are dropped. Largest first."""
     pixels = cv2.morphologyEx((labels > 0).astype(np.uint8), cv2.MORPH_OPEN, np.ones((3, 3), np.uint8))
     count, regions = cv2.connectedComponents(pixels, connectivity=8)
-    # Cut along depth edges and holes (a real sensor loses the pixels along an occluding edge).
-    edges = depth_edges(depth) | ~(np.isfinite(depth) & (depth > 0)) if depth is not None else None
-    if edges is None:
-        edges = np.zeros(labels.shape, bool)
+    if depth is not None and intrinsics is not None:
+        owner = _clusters(regions, depth, intrinsics, min_pixels)
+    else:
+        owner = regions
     instances = []
-    for index in range(1, count):
-        region = regions == index
-        if np.count_nonzero(region) < min_pixels:
+    for index in np.unique(owner[owner > 0]):
+        mask = owner == index
+        votes = np.array([np.count_nonzero(mask & (labels == c)) for c in range(1, len(classes))])
+        if votes.sum() < min_pixels:
             continue
-        for mask in _split(region, edges, min_pixels):
-            votes = np.array([np.count_nonzero(mask & (labels == c)) for c in range(1, len(classes))])
-            valid = mask & np.isfinite(depth) & (depth > 0) if depth is not None else None
-            depth_m = float(np.median(depth[valid])) if valid is not None and valid.any() else float("nan")
-            instances.append(Instance(mask, votes, depth_m))
+        valid = mask & np.isfinite(depth) & (depth > 0) if depth is not None else None
+        depth_m = float(np.median(depth[valid])) if valid is not None and valid.any() else float("nan")
+        instances.append(Instance(mask, votes, depth_m))
     return sorted(instances, key=lambda instance: -instance.pixel_count)
+
+
+def _clusters(regions: np.ndarray, depth: np.ndarray, intrinsics: CameraInfo, min_pixels: int) -> np.ndarray:
+    """H x W cluster ids (0: none) of the object pixels (regions > 0), as the module docstring says."""
+    valid = (regions > 0) & np.isfinite(depth) & (depth > 0)
+    v, u = np.nonzero(valid)
+    z = depth[v, u].astype(float)
+    points = np.column_stack(
+        [
+            (u - intrinsics.center_x()) * z / intrinsics.focal_x(),
+            (v - intrinsics.center_y()) * z / intrinsics.focal_y(),
+            z,
+        ]
+    )
+    if not len(points):
+        return np.zeros(regions.shape, np.int32)
+    cells = np.floor(points / VOXEL_M).astype(np.int64)
+    cells -= cells.min(axis=0)
+    grid = np.zeros(cells.max(axis=0) + 1, bool)
+    grid[tuple(cells.T)] = True
+    cluster_of_cell, _ = ndimage.label(grid, structure=np.ones((3, 3, 3), bool))
+    cluster = cluster_of_cell[tuple(cells.T)]  # per valid pixel
+    sizes = np.bincount(cluster)
+    # Large clusters: PIECE_SHARE of the largest one in their image region.
+    region = regions[v, u]
+    largest_in_region = np.zeros(regions.max() + 1, int)
+    for c in np.unique(cluster):
+        r = np.bincount(region[cluster == c]).argmax()
+        largest_in_region[r] = max(largest_in_region[r], sizes[c])
+    home = {c: int(np.bincount(region[cluster == c]).argmax()) for c in np.unique(cluster)}
+    large = [c for c in home if sizes[c] >= max(min_pixels // 2, PIECE_SHARE * largest_in_region[home[c]])]
+    final = np.zeros(len(sizes), np.int64)  # cluster -> the large cluster it joins (0: left out)
+    final[large] = large
+    if large:
+        trees = {c: cKDTree(points[cluster == c][::4]) for c in large}
+        for c in set(home) - set(large):
+            gaps = {g: tree.query(points[cluster == c])[0].min() for g, tree in trees.items()}
+            nearest = min(gaps, key=gaps.get)
+            if gaps[nearest] < ATTACHED_M:
+                final[c] = nearest
+    owner = np.zeros(regions.shape, np.int64)
+    owner[v, u] = final[cluster]
+    # Pixels without depth (and left-out ones' holes) take the nearest pixel's owner in their region.
+    holes = (regions > 0) & ~valid
+    _, (rows, cols) = ndimage.distance_transform_edt(~valid, return_indices=True)
+    same_region = regions[rows, cols] == regions
+    owner[holes] = np.where(same_region[holes], owner[rows, cols][holes], 0)
+    return owner
 
 
 def named_object(instances: list[Instance], classes, category: str, shape) -> Segmentation:

@@ -9,7 +9,7 @@ import numpy as np
 import torch
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import LeafSystem
-from pydrake.systems.sensors import ImageDepth32F, ImageRgba8U
+from pydrake.systems.sensors import CameraInfo, ImageDepth32F, ImageRgba8U
 from torch.nn import functional as F
 
 from systems.messages import Segmentation
@@ -76,8 +76,8 @@ class Segmenter(LeafSystem):
     same view). Outputs ``labels`` (H x W uint8 class ids at the camera's resolution: 0 background, then
     ``classes``) and ``segmentation`` (a Segmentation of the object to pick; its compute_s counts the network too).
     Without a named category that is the dominant object, the largest region of one class (dominant_object).
-    With one, it is the nearest object the network labelled that category, objects cut apart by class and by the
-    depth image's edges where it is connected (systems/perception/instances.py: a cluttered table).
+    With one, it is the nearest object the network labelled that category, objects cut apart in 3D where the depth
+    image and the intrinsics are given (systems/perception/instances.py: a cluttered table).
 
     Args:
         weights: the network's (its classes come with it).
@@ -85,16 +85,24 @@ class Segmenter(LeafSystem):
         category: the category the user named ("": the network's classes decide): the nearest object labelled so,
             or, with none, the largest object taken as that category; the network's own class is reported
             (instances.named_object).
+        intrinsics: the depth camera's: with them and a depth image, objects are cut apart in 3D
+            (instances.object_instances); without, each connected region of object pixels is one.
 
     Raises:
         ValueError: the weights' network knows no such category.
     """
 
-    def __init__(self, weights: Path = DEFAULT_WEIGHTS, min_pixels: int = 400, category: str = ""):
+    def __init__(
+        self,
+        weights: Path = DEFAULT_WEIGHTS,
+        min_pixels: int = 400,
+        category: str = "",
+        intrinsics: CameraInfo | None = None,
+    ):
         super().__init__()
         self.model, metadata = segmentation_network.load(weights)
         self.classes = tuple(metadata["classes"])
-        self.min_pixels, self.category = min_pixels, category
+        self.min_pixels, self.category, self.intrinsics = min_pixels, category, intrinsics
         if category:
             check_category(category, self.classes)
         # One inference now: torch's first call is several times slower than the next ones.
@@ -141,7 +149,7 @@ class Segmenter(LeafSystem):
                 depth = np.asarray(self.depth_image_port.Eval(context).data)[:, :, 0]
                 if depth.shape != labels.shape:
                     raise ValueError(f"depth image {depth.shape} and colour image {labels.shape} differ in size")
-            instances = object_instances(labels, depth, self.classes, self.min_pixels)
+            instances = object_instances(labels, depth, self.classes, self.min_pixels, self.intrinsics)
             segmentation = named_object(instances, self.classes, self.category, labels.shape)
         else:
             segmentation = dominant_object(labels, self.classes, self.min_pixels)
