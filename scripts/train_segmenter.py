@@ -38,6 +38,10 @@ def main():
         "--frames", type=int, default=segmentation_data.DEFAULT_FRAMES, help="frames to render if --data does not exist"
     )
     parser.add_argument("--epochs", type=int, default=40)
+    parser.add_argument(
+        "--init", type=Path, help="start from these weights (fine-tuning; default: from scratch, at the default rate)"
+    )
+    parser.add_argument("--learning-rate", dest="learning_rate", type=float, default=3e-3, help="the peak rate")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--threads", type=int, default=2, help="torch CPU threads")
     parser.add_argument("--out", type=Path, default=MODELS_DIR / "segmenter.pt")
@@ -57,7 +61,17 @@ def main():
         raise SystemExit(f"{args.data} hold non-training instances; refusing to train on them")
 
     start = time.perf_counter()
-    model, history = segmenter_training.train(data["rgb"], data["labels"], len(CLASSES), args.epochs, args.seed)
+    if args.init:
+        model, metadata = segmentation_network.load(args.init)
+        if tuple(metadata["classes"]) != CLASSES:
+            raise SystemExit(f"{args.init} knows {metadata['classes']}, not {CLASSES}")
+        model, history = segmenter_training.fit(
+            model, data["rgb"], data["labels"], args.epochs, args.seed, learning_rate=args.learning_rate
+        )
+    else:
+        model, history = segmenter_training.train(
+            data["rgb"], data["labels"], len(CLASSES), args.epochs, args.seed, learning_rate=args.learning_rate
+        )
     train_s = time.perf_counter() - start
 
     logging.info("validating on %d frames of unseen (test) instances, and as many crowded ones", VALIDATION_FRAMES)
@@ -65,6 +79,7 @@ def main():
     metadata = segmenter_training.training_record(
         CLASSES, args.epochs, args.seed, len(data["rgb"]), scenario.camera_noise.preset, train_s, history
     )
+    metadata |= {"initial_weights": str(args.init) if args.init else "", "learning_rate": args.learning_rate}
     for key, crowded in (("validation", False), ("validation_crowded", True)):
         validation = segmentation_data.generate(scenario, VALIDATION_FRAMES, 20, "test", seed, crowded=crowded)
         metadata[key] = {
