@@ -42,9 +42,7 @@ def test_cluttered_tables_are_seeded_and_keep_their_promises(scenario):
                     assert outline.mean(axis=0)[0] > target.mean(axis=0)[0]
             x_min = target[:, 0].min()
             ys = target[:, 1].min(), target[:, 1].max()
-            fronts += any(
-                o[:, 0].max() < x_min and o[:, 1].max() > ys[0] and o[:, 1].min() < ys[1] for o in others
-            )
+            fronts += any(o[:, 0].max() < x_min and o[:, 1].max() > ys[0] and o[:, 1].min() < ys[1] for o in others)
     assert 4 <= fronts <= 12  # in about half of the tables one stands between the target and the robot
     with pytest.raises(ValueError, match="split"):
         clutter_scene(scenario, "drill", 0, "validation")
