@@ -28,7 +28,7 @@ def test_cluttered_tables_are_seeded_and_keep_their_promises(scenario):
         for k in range(8):
             table = clutter_scene(scenario, category, k)
             assert table == clutter_scene(scenario, category, k)  # the seed alone makes it
-            assert table.requested_category == category and table.object.instance == f"extra_{2000 + k}"
+            assert table.requested_category == category and table.object.instance == f"extra_{2200 + k}"
             assert 1 <= len(table.clutter) <= 4
             overlay_scenario(table, "", "test")  # valid
             outlines = scene_outlines(table)

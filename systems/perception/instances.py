@@ -26,6 +26,7 @@ VOXEL_M = 0.008  # m: points in touching cubes of this side are one object
 # min_pixels): smaller ones are parts, or fragments.
 PIECE_SHARE = 0.25
 ATTACHED_M = 0.015  # m: a part this near a large cluster joins it
+CONNECTIVITY = 3  # cubes that share a face (1), an edge (2) or a corner (3) touch
 # Among the instances of a named category, only those with at least this share of the largest one are candidates:
 # a small mislabelled patch nearer the camera is not an object to pick.
 CANDIDATE_SHARE = 0.4
@@ -93,7 +94,7 @@ def _clusters(regions: np.ndarray, depth: np.ndarray, intrinsics: CameraInfo, mi
     cells -= cells.min(axis=0)
     grid = np.zeros(cells.max(axis=0) + 1, bool)
     grid[tuple(cells.T)] = True
-    cluster_of_cell, _ = ndimage.label(grid, structure=np.ones((3, 3, 3), bool))
+    cluster_of_cell, _ = ndimage.label(grid, structure=ndimage.generate_binary_structure(3, CONNECTIVITY))
     cluster = cluster_of_cell[tuple(cells.T)]  # per valid pixel
     sizes = np.bincount(cluster)
     # Large clusters: PIECE_SHARE of the largest one in their image region.

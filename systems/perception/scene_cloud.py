@@ -6,8 +6,10 @@ Frames: C is the depth camera (z along the optical axis), W the world (z up).
 From one depth image:
   * every pixel with a valid depth that is no flying pixel (depth_cleaning), outside the object's mask (grown by
     MASK_GROWTH_PX: its edge mixes object and background), back-projected to W;
-  * kept where it is above the table top (its height is known: the table's own surface is the planner's box), within
-    reach (WORKSPACE_RADIUS_M of the robot's torso axis) and off the robot (its sphere model, SELF_MARGIN_M);
+  * kept where it is farther than OBJECT_SURFACE_M from the object's registered shape (its pixels the mask
+    missed are the object's), above the table top (its height is known: the table's own surface is the planner's
+    box), within reach (WORKSPACE_RADIUS_M of the robot's torso axis) and off the robot (its sphere model,
+    SELF_MARGIN_M);
   * thinned to one point per VOXEL_M cube; then, behind each, the space hidden from the camera along its ray, up to
     HIDDEN_DEPTH_M further (and never below the table top): the camera cannot tell how deep an object is, so the
     space behind what it sees counts as occupied that far;
@@ -36,6 +38,7 @@ WORKSPACE_RADIUS_M = 1.3  # m from the torso's axis
 WORKSPACE_HEIGHT_M = 0.8  # m above the table top
 SELF_MARGIN_M = 0.05  # m: the sphere model leaves parts of the fingers out by up to about 4 cm
 TARGET_MARGIN_M = 0.03
+OBJECT_SURFACE_M = 0.015  # m: a seen point this near the object's registered shape is the object's
 
 
 def scene_points(
@@ -64,6 +67,10 @@ def scene_points(
     points_W = off_the_robot(points_W, robot_spheres_W, SELF_MARGIN_M)
     if not len(points_W):
         return np.zeros((0, 3)), np.zeros((0, 3))
+    if object_cloud_W is not None and len(object_cloud_W):  # the object's own pixels the mask missed
+        points_W = points_W[cKDTree(object_cloud_W).query(points_W)[0] > OBJECT_SURFACE_M]
+        if not len(points_W):
+            return np.zeros((0, 3)), np.zeros((0, 3))
     seen = voxel_centres(points_W)
     rays = seen - X_WC.translation()
     rays /= np.linalg.norm(rays, axis=1, keepdims=True)

@@ -35,7 +35,7 @@ from systems.planning.ik import DualArmIk, IkResult
 from systems.planning.kinematics import Payload
 from systems.planning.obstacles import CarriedPoints, Obstacles
 from systems.planning.stomp import Stomp, StompConfig
-from systems.planning.world import SIDES, PlanningWorld
+from systems.planning.world import PERCEIVED_SCENE_MARGIN, SCENE_CELL_M, SIDES, PlanningWorld
 from systems.robot_io.joint_plan import move_duration
 
 APPROACH_STEPS = 3
@@ -145,7 +145,7 @@ class PickMotions:
             counts = {side: len((alternatives or {}).get(side, [RigidTransform()])) for side in SIDES}
             if any(len(approach_to[side]) != counts[side] for side in SIDES):
                 raise ValueError(f"approach_to needs one grasp per alternative per side ({counts})")
-        obstacles = self.world.planning_obstacles(obstacle_points_W, scene_W)
+        obstacles = self.world.planning_obstacles(obstacle_points_W, self.where_the_robot_is_not(scene_W, q_start))
         # Straight segments are checked with Drake's geometry, and with the sphere model where anything is points.
         checked = obstacles if obstacle_points_W is not None or scene_W is not None else None
         forwards = self._reach_goals(q_start, targets_W, alternatives)
@@ -219,7 +219,7 @@ class PickMotions:
         Raises:
             PlanningError: no collision-free path, from q_start or from above it.
         """
-        obstacles = self.world.planning_obstacles(obstacle_points_W, scene_W)
+        obstacles = self.world.planning_obstacles(obstacle_points_W, self.where_the_robot_is_not(scene_W, q_start))
         checked = obstacles if obstacle_points_W is not None or scene_W is not None else None
         q_goal = np.asarray(q_goal, float)
         try:
@@ -381,7 +381,7 @@ class PickMotions:
             tilt = orientation_deviations(end_effectors, q_goal[None], R_goal, orientation.upright_only)
             if tilt.max() >= 0.5 * orientation.o_max:  # the goal itself tilts (the edge of reach): no constraint
                 orientation = None
-        scene = self.world.table_obstacles(scene_W)
+        scene = self.world.table_obstacles(self.where_the_robot_is_not(scene_W, q_start))
         centre_W = None
         if carried_points_W is not None and len(carried_points_W):
             scene = scene.carrying(self.carried(q_start, carried_points_W))
@@ -397,6 +397,20 @@ class PickMotions:
             "%.2f s", 100 * fraction, tolerance, kept, result.iterations, result.seconds
         )  # fmt: skip
         return HeldMove(result.trajectory, X_E1E2)
+
+    def where_the_robot_is_not(self, scene_W: np.ndarray | None, q: np.ndarray) -> np.ndarray | None:
+        """The perceived scene (occupied cubes' centres, N x 3 in W) without the cubes within the robot's sphere model
+        at q grown by the scene's margin and two cubes: the robot stands there, so nothing else does. (A hand beside a
+        neighbour of the object it holds starts clear, whatever the cubes and their margin say.)"""
+        if scene_W is None or not len(scene_W):
+            return scene_W
+        centres = self.world.spheres.centres_W(self.world.kinematics.body_poses(np.asarray(q, float)[None]))[0]
+        # The scene's margin, half a cube (its inflation), STOMP's required clearance and the field's interpolation.
+        reach = self.world.spheres.radius + PERCEIVED_SCENE_MARGIN + 2 * SCENE_CELL_M
+        inside = np.zeros(len(scene_W), bool)
+        for centre, radius in zip(centres, reach, strict=True):
+            inside |= np.einsum("ij,ij->i", scene_W - centre, scene_W - centre) < radius**2
+        return scene_W[~inside]
 
     def held_path(self, q_start: np.ndarray, X_motion_W: RigidTransform, min_fraction: float):
         """Configurations holding the object along the motion (HELD_PATH_STEPS of it, each solved from the one
