@@ -49,7 +49,7 @@ def category_priors() -> dict[str, CategoryPrior]:
     return priors
 
 
-def _depth_camera(scenario: Scenario):
+def depth_camera(scenario: Scenario):
     """(intrinsics, X_BC: the depth sensor in the camera body) of the scenario's depth camera."""
     _, depth_camera = scenario.camera.MakeCameras()
     core = depth_camera.core()
@@ -58,13 +58,13 @@ def _depth_camera(scenario: Scenario):
 
 def MakePoseEstimator(scenario: Scenario) -> PoseEstimator:
     """A PoseEstimator with the intrinsics and mounting of the scenario's depth camera and the catalog's priors."""
-    intrinsics, X_BC = _depth_camera(scenario)
+    intrinsics, X_BC = depth_camera(scenario)
     return PoseEstimator(intrinsics, category_priors(), X_BC)
 
 
 def MakeObjectTracker(scenario: Scenario) -> ObjectTracker:
     """An ObjectTracker with the intrinsics and mounting of the scenario's depth camera."""
-    return ObjectTracker(*_depth_camera(scenario))
+    return ObjectTracker(*depth_camera(scenario))
 
 
 def MakePerception(
@@ -95,7 +95,7 @@ def MakePerception(
     segmenter = Segmenter(
         weights or categories.active_segmenter(),
         category=scenario.requested_category,
-        intrinsics=_depth_camera(scenario)[0],
+        intrinsics=depth_camera(scenario)[0],
     )
     builder.AddNamedSystem("segmenter", segmenter)
     pose_estimator = builder.AddNamedSystem("pose_estimator", MakePoseEstimator(scenario))
@@ -131,7 +131,7 @@ def MakePerception(
         builder.ExportInput(latch.GetInputPort("robot_position"), "robot_position")
         robot = builder.AddNamedSystem("robot_spheres", robot_spheres)
         builder.Connect(latch.GetOutputPort("robot_position"), robot.GetInputPort("position"))
-        intrinsics, X_BC = _depth_camera(scenario)
+        intrinsics, X_BC = depth_camera(scenario)
         table_top_z = scenario.table_xyz[2] + TABLE_HEIGHT
         scene = builder.AddNamedSystem("scene_cloud", SceneCloud(intrinsics, X_BC, table_top_z, torso_axis_W))
         for port, source in (

@@ -319,6 +319,18 @@ def _short_reason(record: dict) -> str:
     return f"{record['failed_stage']}: {message[:70]}"
 
 
+def print_clutter(summary: dict, records: list[dict], category: str):
+    """The cluttered tables: each one's other objects, the outcome and the largest move of another object."""
+    print(f"\nCluttered tables ({category} named): the other objects; the outcome; the largest move of one of them")
+    for record in records:
+        moved = max(record.get("others_moved_m") or [0.0])
+        outcome = "lifted" if record["success"] else _short_reason(record)
+        print(f"{record['name']:<20}{', '.join(record['clutter']):<60.60} {outcome:<40.40} {100 * moved:5.1f} cm")
+    low, high = summary["success_rate_ci95"]
+    successes = sum(r["success"] for r in records)
+    print(f"lifted {successes}/{len(records)} (95 % Wilson interval {100 * low:.0f}-{100 * high:.0f} %)")
+
+
 def print_placements(summary: dict, records: list[dict], category: str):
     """The random placements: where each was, whether ground truth and the autonomous pick did it."""
     print(f"\nRandom placements ({category}): table_top frame x, y (m), yaw (rad); ground truth, then autonomous")
@@ -384,6 +396,8 @@ def report(args, records: list[dict], first_seed: int):
     placements = all("oracle" in r for r in records)
     if placements:
         print_placements(summary, records, args.category)
+    elif any(r.get("clutter") for r in records):
+        print_clutter(summary, records, args.category)
     else:
         print_tables(summary, args.category, args.trials, args.yaw_noise)
     if "others_moved_m_max" in summary:
@@ -423,6 +437,8 @@ def report(args, records: list[dict], first_seed: int):
     figure = args.figure or (args.json.with_suffix(".png") if args.json else Path(f"evaluation_{args.category}.png"))
     if placements:
         draw_map(figure, records, args.category)
+    elif report["scene"] == "clutter":  # one table each, no yaws: the tables and the JSON say it all
+        print("(no figure for cluttered tables: draw one with scripts/draw_clutter_scene.py)")
     else:
         draw_figure(figure, summary, records, args.category)
 

@@ -9,8 +9,9 @@ import pytest
 from diagrams.autonomous_pick import run_pick
 from diagrams.generation import clutter_scenes
 from diagrams.generation.clutter_scenes import clutter_scene, scene_outlines
-from diagrams.perception import _depth_camera
-from diagrams.planning_scene import make_pick_motions, true_grasp_poses
+from diagrams.generation.objects.library import resolve_object
+from diagrams.perception import depth_camera
+from diagrams.planning_scene import make_pick_motions, object_surface_W, true_grasp_poses
 from diagrams.scenario import ClutterObjectConfig, initial_positions, overlay_scenario, replace_object
 from diagrams.station import TABLE_HEIGHT, object_pose_on_table, settled_frame
 from systems.perception.robot_spheres import RobotSpheres
@@ -51,12 +52,13 @@ def test_cluttered_tables_are_seeded_and_keep_their_promises(scenario):
 def test_the_scene_cloud_holds_what_is_not_the_object_and_the_space_hidden_behind_it(scenario):
     table = dataclasses.replace(scenario, clutter=[BOX])
     frame = settled_frame(table)
-    intrinsics, X_BC = _depth_camera(table)
+    intrinsics, X_BC = depth_camera(table)
     depth, X_WC, mask = frame.depth, frame.X_WB @ X_BC, frame.labels == frame.object_label
     motions = make_pick_motions(table)
     spheres = RobotSpheres(motions.world.kinematics, motions.world.spheres).spheres_W(initial_positions(table))
     top_z = table.table_xyz[2] + TABLE_HEIGHT
-    surface, _ = motions_surface(table)
+    model = resolve_object(table.object)
+    surface, _ = object_surface_W(model, object_pose_on_table(table, model), 3000)
     seen, hidden = scene_points(depth, mask, intrinsics, X_WC, top_z, motions.world.torso_axis_W, spheres, surface)
     centre = np.array(table.table_xyz[:2]) + BOX.xy
     half = np.array([0.05, 0.06, 0.04])
@@ -75,14 +77,6 @@ def test_the_scene_cloud_holds_what_is_not_the_object_and_the_space_hidden_behin
     along = np.linalg.norm(hidden - camera, axis=1)
     nearest_seen = np.array([np.linalg.norm(seen - h, axis=1).min() for h in hidden[::25]])
     assert nearest_seen.max() <= HIDDEN_DEPTH_M + VOXEL_M and along.min() > 0.3
-
-
-def motions_surface(scenario):
-    from diagrams.generation.objects.library import resolve_object
-    from diagrams.planning_scene import object_surface_W
-
-    model = resolve_object(scenario.object)
-    return object_surface_W(model, object_pose_on_table(scenario, model), 3000)
 
 
 def test_the_planner_avoids_an_obstacle_only_the_camera_saw(scenario):

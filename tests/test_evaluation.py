@@ -17,6 +17,7 @@ from diagrams.evaluation import (
     PLACEMENT_HALF_SIZE_M,
     PLACEMENT_MAX_YAW,
     Trial,
+    clutter_trials,
     file_objects,
     generated_objects,
     make_trials,
@@ -173,3 +174,18 @@ def test_random_placements_refuse_given_yaws(capsys):
     with pytest.raises(SystemExit):
         evaluate.main(["--placement", "random", "--yaws", "0"])
     assert "--placement random draws its own yaws" in capsys.readouterr().err
+
+
+def test_summary_of_cluttered_tables_keeps_the_largest_move_of_another_object(scenario):
+    trials = clutter_trials(scenario, "drill", 3)
+    assert [t.scenario.requested_category for t in trials] == ["drill"] * 3 and trials[0].scenario.clutter
+    records = [
+        _record("clutter_report_0", 0.0, True) | {"clutter": ["box"], "others_moved_m": [0.001]},
+        _record("clutter_report_1", 0.0, False, "planning") | {"clutter": ["bowl", "box"], "others_moved_m": [0.0, 0.05]},
+    ]
+    for record in records:
+        record |= {"requested_category": "drill", "perception": {"category": "drill"}}
+    summary = summarize(records)
+    assert summary["others_moved_m_max"] == 0.05 and summary["picks_moving_others"] == 1
+    assert summary["requested_category_share"] == 1.0
+    assert "others_moved_m_max" not in summarize([_record("test_0", 0.0, True)])
