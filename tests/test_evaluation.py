@@ -181,7 +181,7 @@ def test_summary_of_cluttered_tables_keeps_the_largest_move_of_another_object(sc
     assert [t.scenario.requested_category for t in trials] == ["drill"] * 3 and trials[0].scenario.clutter
     records = [
         _record("clutter_report_0", 0.0, True) | {"clutter": ["box"], "others_moved_m": [0.001]},
-        _record("clutter_report_1", 0.0, False, "planning") | {"clutter": ["bowl", "box"], "others_moved_m": [0.0, 0.05]},
+        _record("clutter_report_1", 0.0, False, "planning") | {"clutter": ["bowl", "box"], "others_moved_m": [0, 0.05]},
     ]
     for record in records:
         record |= {"requested_category": "drill", "perception": {"category": "drill"}}
