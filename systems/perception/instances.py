@@ -20,6 +20,7 @@ from scipy import ndimage
 from scipy.spatial import cKDTree
 
 from systems.messages import Segmentation
+from systems.perception.pose_estimator import depth_to_points
 
 VOXEL_M = 0.008  # m: points in touching cubes of this side are one object
 # A cluster is an object of its own only with at least this share of the largest one in its image region (and
@@ -80,14 +81,7 @@ def _clusters(regions: np.ndarray, depth: np.ndarray, intrinsics: CameraInfo, mi
     """H x W cluster ids (0: none) of the object pixels (regions > 0), as the module docstring says."""
     valid = (regions > 0) & np.isfinite(depth) & (depth > 0)
     v, u = np.nonzero(valid)
-    z = depth[v, u].astype(float)
-    points = np.column_stack(
-        [
-            (u - intrinsics.center_x()) * z / intrinsics.focal_x(),
-            (v - intrinsics.center_y()) * z / intrinsics.focal_y(),
-            z,
-        ]
-    )
+    points = depth_to_points(depth, valid, intrinsics)  # (in the same pixel order)
     if not len(points):
         return np.zeros(regions.shape, np.int32)
     cells = np.floor(points / VOXEL_M).astype(np.int64)
@@ -99,11 +93,10 @@ def _clusters(regions: np.ndarray, depth: np.ndarray, intrinsics: CameraInfo, mi
     sizes = np.bincount(cluster)
     # Large clusters: PIECE_SHARE of the largest one in their image region.
     region = regions[v, u]
+    home = {c: int(np.bincount(region[cluster == c]).argmax()) for c in np.unique(cluster)}  # its image region
     largest_in_region = np.zeros(regions.max() + 1, int)
-    for c in np.unique(cluster):
-        r = np.bincount(region[cluster == c]).argmax()
+    for c, r in home.items():
         largest_in_region[r] = max(largest_in_region[r], sizes[c])
-    home = {c: int(np.bincount(region[cluster == c]).argmax()) for c in np.unique(cluster)}
     large = [c for c in home if sizes[c] >= max(min_pixels // 2, PIECE_SHARE * largest_in_region[home[c]])]
     final = np.zeros(len(sizes), np.int64)  # cluster -> the large cluster it joins (0: left out)
     final[large] = large

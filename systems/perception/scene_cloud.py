@@ -65,12 +65,10 @@ def scene_points(
     reach = np.linalg.norm(points_W[:, :2] - torso_axis_W, axis=1)
     points_W = points_W[(height > TABLE_MARGIN_M) & (height < WORKSPACE_HEIGHT_M) & (reach < WORKSPACE_RADIUS_M)]
     points_W = off_the_robot(points_W, robot_spheres_W, SELF_MARGIN_M)
+    if object_cloud_W is not None and len(object_cloud_W) and len(points_W):  # its pixels the mask missed
+        points_W = points_W[cKDTree(object_cloud_W).query(points_W)[0] > OBJECT_SURFACE_M]
     if not len(points_W):
         return np.zeros((0, 3)), np.zeros((0, 3))
-    if object_cloud_W is not None and len(object_cloud_W):  # the object's own pixels the mask missed
-        points_W = points_W[cKDTree(object_cloud_W).query(points_W)[0] > OBJECT_SURFACE_M]
-        if not len(points_W):
-            return np.zeros((0, 3)), np.zeros((0, 3))
     seen = voxel_centres(points_W)
     rays = seen - X_WC.translation()
     rays /= np.linalg.norm(rays, axis=1, keepdims=True)
