@@ -20,7 +20,7 @@ from systems.perception.perception_result import PerceptionResultCollector
 from systems.perception.pose_estimator import CategoryPrior, PoseEstimator
 from systems.perception.pose_noise import PoseYawOffset, draw_yaw_offset
 from systems.perception.robot_spheres import RobotSpheres
-from systems.perception.scene_cloud import SceneCloud, voxel_centres
+from systems.perception.scene_cloud import SEEN_SPACING_M, SceneCloud
 from systems.perception.segmenter import Segmenter
 from systems.perception.shape_registrar import ShapeRegistrar
 
@@ -81,7 +81,7 @@ def MakePerception(
     robot_spheres robot_position (the planned joints, rad: latched with the frame).
     Output ports: frame_id (1: the frame latched), result (PerceptionResult), and the registrar's
     grasp_poses (GraspPoses), reconstructed_cloud_W (N x 3, m) and X_WO (RigidTransform); with robot_spheres,
-    scene_cloud_W (N x 3 in W, m: occupied cubes' centres).
+    scene_cloud_W (N x 3 in W, m: its occupied points).
 
     Args:
         weights: the segmenter's; None: the one that knows every taught category (categories.active_segmenter).
@@ -168,7 +168,7 @@ def MakeGroundTruthPerception(scenario: Scenario, surface_points: int = TRUE_SUR
         ("grasp_poses", grasps),
         ("reconstructed_cloud_W", surface),
         ("X_WO", X_WO),
-        ("scene_cloud_W", voxel_centres(clutter_surfaces_W(scenario))),
+        ("scene_cloud_W", clutter_surfaces_W(scenario, SEEN_SPACING_M)),
     ):
         source = builder.AddNamedSystem(name, ConstantValueSource(AbstractValue.Make(value)))
         builder.ExportOutput(source.get_output_port(), name)

@@ -80,8 +80,8 @@ def test_the_scene_cloud_holds_what_is_not_the_object_and_the_space_hidden_behin
 
 
 def test_the_planner_avoids_an_obstacle_only_the_camera_saw(scenario):
-    """The reach's straight move to the pre-grasps is free in the planning model (no box in it); a block of occupied
-    cubes the camera saw on the right hand's way makes STOMP go around it."""
+    """The reach's straight move to the pre-grasps is free in the planning model (no box in it); a block of points
+    the camera saw on the right hand's way makes STOMP go around it."""
     motions = make_pick_motions(scenario)
     poses = true_grasp_poses(scenario)
     q_start = initial_positions(scenario)
@@ -93,7 +93,7 @@ def test_the_planner_avoids_an_obstacle_only_the_camera_saw(scenario):
     block = middle + np.stack(np.meshgrid(grid, grid, grid), axis=-1).reshape(-1, 3)
     around = motions.reach(q_start, targets, scene_W=block).keyframes
     assert len(around) > 2
-    seen = Obstacles().add_occupied(block, SCENE_CELL_M)
+    seen = Obstacles().add_scene(block, SCENE_CELL_M)
     dense = np.concatenate([np.linspace(a, b, 20) for a, b in zip(around[:-1], around[1:], strict=True)])
     assert motions.stomp.clearance(dense, seen).min() > 0
     assert motions.stomp.clearance(np.linspace(straight[0], straight[1], 40), seen).min() < 0

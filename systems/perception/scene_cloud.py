@@ -10,9 +10,11 @@ From one depth image:
     missed are the object's), above the table top (its height is known: the table's own surface is the planner's
     box), within reach (WORKSPACE_RADIUS_M of the robot's torso axis) and off the robot (its sphere model,
     SELF_MARGIN_M);
-  * thinned to one point per VOXEL_M cube; then, behind each, the space hidden from the camera along its ray, up to
-    HIDDEN_DEPTH_M further (and never below the table top): the camera cannot tell how deep an object is, so the
-    space behind what it sees counts as occupied that far;
+  * thinned to one measured point per SEEN_SPACING_M cube (the planner measures its distance to these points: a
+    face is where the camera saw it, not up to a cube beyond); then, behind each VOXEL_M cube of them, the space
+    hidden from the camera along its ray, up to HIDDEN_DEPTH_M further (and never below the table top), as the
+    centres of VOXEL_M cubes: the camera cannot tell how deep an object is, so the space behind what it sees counts
+    as occupied that far;
   * hidden space within TARGET_MARGIN_M of the object's reconstruction is the object's (where the far hand goes),
     and within SELF_MARGIN_M of the robot the robot's: not an obstacle. Only space hidden by other things is.
 """
@@ -30,6 +32,7 @@ from systems.perception.depth_cleaning import flying_pixels
 from systems.perception.object_tracker import off_the_robot
 from systems.perception.pose_estimator import depth_to_points, voxel_thin
 
+SEEN_SPACING_M = 0.005
 VOXEL_M = 0.01
 HIDDEN_DEPTH_M = 0.10
 MASK_GROWTH_PX = 4
@@ -51,7 +54,8 @@ def scene_points(
     robot_spheres_W: np.ndarray,
     object_cloud_W: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """(seen, hidden): the scene's occupied points in W (N x 3 and M x 3, voxel centres VOXEL_M apart), as the
+    """(seen, hidden): the scene's occupied points in W (N x 3 measured points, SEEN_SPACING_M apart or more, and
+    M x 3 centres of VOXEL_M cubes), as the
     module docstring says. object_mask: H x W bool (may be empty: nothing to leave out); object_cloud_W: the
     object's reconstruction (N x 3 in W), or None."""
     depth = np.where(np.isfinite(depth), depth, 0.0).astype(np.float32)
@@ -69,11 +73,12 @@ def scene_points(
         points_W = points_W[cKDTree(object_cloud_W).query(points_W)[0] > OBJECT_SURFACE_M]
     if not len(points_W):
         return np.zeros((0, 3)), np.zeros((0, 3))
-    seen = voxel_centres(points_W)
-    rays = seen - X_WC.translation()
+    seen = voxel_thin(points_W, SEEN_SPACING_M)
+    cubes = voxel_centres(points_W)
+    rays = cubes - X_WC.translation()
     rays /= np.linalg.norm(rays, axis=1, keepdims=True)
     steps = np.arange(1, int(round(HIDDEN_DEPTH_M / VOXEL_M)) + 1) * VOXEL_M
-    behind = (seen[:, None, :] + steps[None, :, None] * rays[:, None, :]).reshape(-1, 3)
+    behind = (cubes[:, None, :] + steps[None, :, None] * rays[:, None, :]).reshape(-1, 3)
     behind = behind[behind[:, 2] > table_top_z + TABLE_MARGIN_M]
     hidden = voxel_centres(behind) if len(behind) else np.zeros((0, 3))
     if len(hidden):
@@ -110,7 +115,7 @@ class SceneCloud(LeafSystem):
     ``depth_image`` (ImageDepth32F, m) and ``camera_pose`` (X_WB of the camera body) of one frame; ``segmentation``
     (the object's mask in it); ``robot_spheres_W`` (S x 4, the robot's sphere model when the frame was taken: centre
     in W, radius; m); ``object_cloud_W`` (the object's reconstruction, N x 3 in W: the space hidden near it is the
-    object's). ``scene_cloud_W``: the occupied points (N x 3 in W, VOXEL_M apart), seen then hidden.
+    object's). ``scene_cloud_W``: the occupied points (N x 3 in W), seen then hidden (scene_points).
 
     Args:
         intrinsics, X_BC: the depth camera's intrinsics and its pose in the camera body.

@@ -1,5 +1,5 @@
 """The scene for the sphere model: oriented boxes, point sets as distance fields (an object's surface, a perceived
-cloud), occupied cubes (the scene as the camera saw it), and what the robot carries through it. Obstacles are data
+cloud, the scene as the camera saw it), and what the robot carries through it. Obstacles are data
 for one plan or check, built by their caller (systems/planning/world.py: PlanningWorld.planning_obstacles) and
 passed in: nothing keeps them between plans.
 """
@@ -33,19 +33,24 @@ class DistanceField:
         return np.minimum(distance - self.inflation, cap)
 
 
-class OccupancyField(DistanceField):
-    """Distance to a set of occupied cubes (their centres given, on a grid of cell `cell`, e.g. a perceived scene),
-    from the Euclidean distance transform of the occupancy grid: fast for many points. A cube's centre is half a
-    cell from its faces, so distances are reduced by that and by `inflation`."""
+class SceneField(DistanceField):
+    """Distance to a scene given as many points (e.g. the camera's: measured surface points and the centres of the
+    cubes hidden behind them). Within NEAR of them, where clearances are judged, it is the exact distance to the
+    points (k-d tree) at the grid's nodes; farther, the Euclidean distance transform of the grid's cells that hold
+    a point (within a cell's diagonal): fast for many points, and the grid only shapes the cost there."""
 
-    def __init__(self, centres: np.ndarray, cell: float, inflation: float = 0.0):  # (not DistanceField's)
-        self.cell, self.inflation = cell, inflation + 0.5 * cell
-        self.lower = centres.min(axis=0) - self.REACH
-        shape = np.ceil((centres.max(axis=0) + self.REACH - self.lower) / cell).astype(int) + 1
+    NEAR = 0.04  # m: beyond the largest sphere's radius plus STOMP's required clearance
+
+    def __init__(self, points: np.ndarray, cell: float, inflation: float = 0.0):  # (not DistanceField's)
+        self.cell, self.inflation = cell, inflation
+        self.lower = points.min(axis=0) - self.REACH
+        shape = np.ceil((points.max(axis=0) + self.REACH - self.lower) / cell).astype(int) + 1
         occupied = np.zeros(shape, bool)
-        index = np.clip(np.rint((centres - self.lower) / cell).astype(int), 0, shape - 1)
+        index = np.clip(np.rint((points - self.lower) / cell).astype(int), 0, shape - 1)
         occupied[index[:, 0], index[:, 1], index[:, 2]] = True
         self.values = distance_transform_edt(~occupied, sampling=cell)
+        near = self.values < self.NEAR + cell
+        self.values[near] = cKDTree(points).query(self.lower + cell * np.argwhere(near))[0]
 
 
 @dataclass
@@ -81,11 +86,11 @@ class Obstacles:
         self.fields.append(DistanceField(np.asarray(points_W, float), inflation))
         return self
 
-    def add_occupied(self, centres_W: np.ndarray, cell: float, inflation: float = 0.0) -> "Obstacles":
-        """Occupied cubes of side `cell` (their centres, N x 3 in W; e.g. a perceived scene); distances to them are
-        reduced by `inflation` (m)."""
-        if len(centres_W):
-            self.fields.append(OccupancyField(np.asarray(centres_W, float), cell, inflation))
+    def add_scene(self, points_W: np.ndarray, cell: float, inflation: float = 0.0) -> "Obstacles":
+        """A scene of many points (N x 3 in W, e.g. as the camera saw it), on a grid of cell `cell` (m); distances to
+        them are reduced by `inflation` (m)."""
+        if len(points_W):
+            self.fields.append(SceneField(np.asarray(points_W, float), cell, inflation))
         return self
 
     def distance(self, centres: np.ndarray, cap: float = 0.3) -> np.ndarray:

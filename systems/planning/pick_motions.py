@@ -133,7 +133,7 @@ class PickMotions:
         each of its targets (the grasps, from pre-grasps; one per alternative, or one without alternatives): a
         goal from which that straight motion fails is passed over for the next, and where every goal is, goals are
         found backwards from the grasps (_goals_from_the_grasps). scene_W: the rest of the scene as the camera saw
-        it (occupied cubes' centres, N x 3 in W; world.planning_obstacles), avoided too.
+        it (its occupied points, N x 3 in W; world.planning_obstacles), avoided too.
 
         Raises:
             PlanningError: no collision-free IK solution, or no collision-free path to it. A path that fails from a
@@ -355,7 +355,7 @@ class PickMotions:
         0.01 rad, the hands may tilt together (the closure still holds) by up to 0.04 rad. With
         carried_points_W (the held object's points in W at q_start), the object is kept clear of the scene
         too (a carry over a box); without, only the robot is. scene_W: the scene as the camera saw it (occupied
-        cubes' centres, N x 3 in W), kept clear of too.
+        points, N x 3 in W), kept clear of too.
 
         Raises:
             PlanningError: the moved hands are out of reach, or STOMP found no constrained path.
@@ -399,9 +399,9 @@ class PickMotions:
         return HeldMove(result.trajectory, X_E1E2)
 
     def where_the_robot_is_not(self, scene_W: np.ndarray | None, q: np.ndarray) -> np.ndarray | None:
-        """The perceived scene (occupied cubes' centres, N x 3 in W) without the cubes within the robot's sphere model
-        at q grown by the scene's margin and two cubes: the robot stands there, so nothing else does. (A hand beside a
-        neighbour of the object it holds starts clear, whatever the cubes and their margin say.)"""
+        """The perceived scene (its occupied points, N x 3 in W) without the points within the robot's sphere model
+        at q grown by the scene's margin and two grid cells: the robot stands there, so nothing else does. (A hand
+        beside a neighbour of the object it holds starts clear, whatever the points and their margin say.)"""
         if scene_W is None or not len(scene_W):
             return scene_W
         centres = self.world.spheres.centres_W(self.world.kinematics.body_poses(np.asarray(q, float)[None]))[0]

@@ -62,7 +62,7 @@ class StompPlanner(LeafSystem):
 
     Inputs: ``request`` (PlanRequest); ``grasp_poses`` (GraspPoses, X_WG of each hand's pre-grasp and
     grasp); ``obstacle_cloud_W`` (N x 3 points of the object, m, in W: the reach's obstacle); ``scene_cloud_W`` (the
-    rest of the scene as the camera saw it: centres of occupied cubes, N x 3 in W, m; every motion avoids it).
+    rest of the scene as the camera saw it: its occupied points, N x 3 in W, m; every motion avoids it).
     Output: ``plan`` (PlanResult of the latest request whose latency has passed).
 
     Args:
@@ -161,7 +161,7 @@ class StompPlanner(LeafSystem):
     def _reach(self, request: PlanRequest, context, targets, cloud, points, scene) -> tuple[np.ndarray, dict | None]:
         """The reach's keyframes to `targets`, and for pre-grasps the grasps they lead to (X_GG' per side). cloud:
         the object's points (N x 3 in W, where it is now), which judge the grasp family; points: the obstacle;
-        scene: the rest of the scene as seen (occupied cubes, or None).
+        scene: the rest of the scene as seen (its occupied points, or None).
 
         For the pre-grasps, only a pre-grasp configuration from which the straight approach reaches the grasps
         will do; where a hand cannot reach its pre-grasp so, the other grasps of its family (grasp_alternatives:
@@ -194,7 +194,7 @@ class StompPlanner(LeafSystem):
         raise failure
 
     def _scene(self, context) -> np.ndarray | None:
-        """The scene as the camera saw it (occupied cubes' centres, N x 3 in W), or None where there is none."""
+        """The scene as the camera saw it (its occupied points, N x 3 in W), or None where there is none."""
         if not self.GetInputPort("scene_cloud_W").HasValue(context):
             return None
         scene = self.GetInputPort("scene_cloud_W").Eval(context)

@@ -30,10 +30,13 @@ from systems.planning.obstacles import Obstacles
 # are 2.8-4.1 mm off (Chamfer, single views); 1.5 cm around the accurate drills left STOMP's reach without a
 # path to the pre-grasp in its 2 s (unseen drills 17/24 picks; 1 cm: see the README's evaluation).
 PERCEIVED_SHAPE_MARGIN = 0.01
-# Clearance added around the scene as the camera saw it (occupied cubes: systems/perception/scene_cloud.py), m:
-# the depth noise at a metre (a few millimetres) and the cubes' half-diagonal beyond their half-side.
-PERCEIVED_SCENE_MARGIN = 0.01
-# The cubes' side, m (scene_cloud.VOXEL_M: the planner takes the cloud as it comes).
+# Clearance added around the scene as the camera saw it (measured points and hidden cubes' centres:
+# systems/perception/scene_cloud.py), m: an edge seen up to a pixel short (2-3 mm at a metre) and the distance
+# field's interpolation between its nodes (up to about 2 mm at a sphere's radius from an edge). Depth noise
+# makes the nearest points nearer, not farther.
+PERCEIVED_SCENE_MARGIN = 0.005
+# The scene's distance field's grid, m (systems/planning/obstacles.py: SceneField; scene_cloud.VOXEL_M, the hidden
+# cubes' side).
 SCENE_CELL_M = 0.01
 
 
@@ -117,12 +120,12 @@ class PlanningWorld:
         return obstacles
 
     def table_obstacles(self, scene_W: np.ndarray | None = None) -> Obstacles:
-        """The fixed scene's boxes for the sphere model, and the scene as seen (scene_W: occupied cubes' centres,
-        N x 3 in W, or None). A new Obstacles each call: add to it freely."""
+        """The fixed scene's boxes for the sphere model, and the scene as seen (scene_W: its occupied points, N x 3 in
+        W, or None). A new Obstacles each call: add to it freely."""
         obstacles = Obstacles()
         obstacles.boxes = list(self.table_boxes)
         if scene_W is not None and len(scene_W):
-            obstacles.add_occupied(scene_W, SCENE_CELL_M, inflation=PERCEIVED_SCENE_MARGIN)
+            obstacles.add_scene(scene_W, SCENE_CELL_M, inflation=PERCEIVED_SCENE_MARGIN)
         return obstacles
 
     def planning_obstacles(self, points_W: np.ndarray | None = None, scene_W: np.ndarray | None = None) -> Obstacles:
