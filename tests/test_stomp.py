@@ -138,6 +138,19 @@ def test_point_set_distance_field_matches_exact_distances():
     assert distances[3] == pytest.approx(0.3)  # far outside the grid: the cap
 
 
+def test_the_scene_field_is_exact_near_the_seen_points_and_only_approximate_far_from_them():
+    """A face the camera saw (points 5 mm apart on the plane x = 0.503, off the 1 cm grid) is where it was seen:
+    within a millimetre near it (no cube's half-side beyond it), within a grid cell far from it."""
+    grid = np.arange(-0.1, 0.1, 0.005)
+    y, z = np.meshgrid(grid, grid)
+    face = np.stack([np.full(y.size, 0.503), y.ravel(), z.ravel()], axis=-1)
+    scene = Obstacles().add_scene(face, cell=0.01, inflation=0.005)
+    near = np.array([[0.523, 0.0, 0.0], [0.533, 0.0213, -0.0187], [0.478, 0.05, 0.05]])
+    np.testing.assert_allclose(scene.distance(near), [0.015, 0.025, 0.020], atol=0.001)
+    far = np.array([[0.603, 0.0, 0.0], [0.503, 0.0, 0.2]])
+    np.testing.assert_allclose(scene.distance(far), [0.095, 0.095], atol=0.01)
+
+
 def test_planning_model_places_every_body_where_drakes_collision_model_does(scenario):
     # A fresh world: its kinematics was read from the context at the default positions.
     world = make_planning_world(scenario)

@@ -1,5 +1,6 @@
 """Objects outside the generators' families (scripts/make_unfamiliar_objects.py), how the registrar judges a grasp
-against what was seen (grasp_support, DepthView), and a user's mesh that CoACD's default mode cannot take."""
+and the whole fit against what was seen (grasp_support, surface_support, DepthView), and a user's mesh that
+CoACD's default mode cannot take."""
 
 import sys
 from pathlib import Path
@@ -106,6 +107,26 @@ def test_a_grasp_whose_handle_was_not_seen_where_the_fit_put_it_is_a_poor_fit():
     assert registration({"left_grasp": 1.0, "right_grasp": None}).poor_fit == ""
     refused = registration({"left_grasp": 1.0, "right_grasp": MIN_GRASP_SUPPORT / 2}).poor_fit
     assert "the right grasp is not where its handle was seen" in refused
+
+
+def test_a_fit_that_puts_surface_where_the_camera_saw_through_is_a_poor_fit():
+    """Surface support of the whole visible fitted surface: a shape fitted where the camera saw the wall behind it is
+    not on what it saw; where something nearer hid it, there is no evidence; where it was measured, it counts."""
+    front = patch(np.array([0.0, 0.0, 1.0]), np.array([0.0, 0.0, -1.0]), size=0.1, count=4000)  # visible side
+    seen = front[np.abs(front[:, 0]) < 0.01]  # the camera saw a strip of it, the wall 30 cm behind the rest
+    wall = camera_view(1.3)
+    wall.depth[:, 98:103] = 1.0  # the strip's pixels (x within 1 cm at 1 m: 2 pixels either side of the centre)
+    assert registration.surface_support(front, seen, wall) < 0.3
+    assert registration.surface_support(front, front, camera_view(1.0)) == pytest.approx(1.0)
+    assert registration.surface_support(front, seen, camera_view(0.7)) is None  # all hidden behind something nearer
+
+    def fitted(surface_support):
+        return Registration(
+            RigidTransform(), np.zeros(1), front, {}, 0.002, 10, 0.95, {}, surface_support=surface_support
+        )
+
+    assert fitted(0.9).poor_fit == "" and fitted(None).poor_fit == ""
+    assert "the shape does not explain the view" in fitted(registration.MIN_SURFACE_SUPPORT - 0.1).poor_fit
 
 
 def test_a_mesh_coacds_default_mode_aborts_on_is_still_decomposed(held_out):
