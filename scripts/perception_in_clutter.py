@@ -35,21 +35,29 @@ def _to_images(frame):
     return to_rgba_image(frame.rgb), to_depth_image(frame.depth)
 
 
-def _perceived_grasps(segmenter, pose_estimator, registrar, rgb, depth, X_WB) -> GraspPoses:
-    """What the pick's perception hands on for one frame (segmenter -> pose estimator -> shape registrar), not found
-    with the reason where a stage found nothing or the fit is poor."""
+def _perceive(segmenter, pose_estimator, rgb, depth, X_WB):
+    """The segmentation and pose estimate of one frame, as the pick's perception makes them, and the segmentation's
+    wall time (s)."""
     context = segmenter.CreateDefaultContext()
     segmenter.GetInputPort("color_image").FixValue(context, rgb)
     segmenter.GetInputPort("depth_image").FixValue(context, depth)
+    start = time.perf_counter()
     segmentation = segmenter.GetOutputPort("segmentation").Eval(context)
+    segmentation_s = time.perf_counter() - start
     pose_context = pose_estimator.CreateDefaultContext()
     pose_estimator.GetInputPort("segmentation").FixValue(pose_context, AbstractValue.Make(segmentation))
     pose_estimator.GetInputPort("depth_image").FixValue(pose_context, depth)
     pose_estimator.GetInputPort("camera_pose").FixValue(pose_context, AbstractValue.Make(X_WB))
-    estimate = pose_estimator.GetOutputPort("estimate").Eval(pose_context)
-    registrar_context = registrar.CreateDefaultContext()
-    registrar.GetInputPort("estimate").FixValue(registrar_context, AbstractValue.Make(estimate))
-    return registrar.GetOutputPort("grasp_poses").Eval(registrar_context)
+    return segmentation, pose_estimator.GetOutputPort("estimate").Eval(pose_context), segmentation_s
+
+
+def _perceived_grasps(segmenter, pose_estimator, registrar, rgb, depth, X_WB) -> GraspPoses:
+    """What the pick's perception hands on for one frame (segmenter -> pose estimator -> shape registrar), not found
+    with the reason where a stage found nothing or the fit is poor."""
+    _, estimate, _ = _perceive(segmenter, pose_estimator, rgb, depth, X_WB)
+    context = registrar.CreateDefaultContext()
+    registrar.GetInputPort("estimate").FixValue(context, AbstractValue.Make(estimate))
+    return registrar.GetOutputPort("grasp_poses").Eval(context)
 
 
 def run(base: Scenario, weights, tables: int, empty_tables: int, split: str = "report") -> dict:
@@ -63,20 +71,10 @@ def run(base: Scenario, weights, tables: int, empty_tables: int, split: str = "r
             scenario = clutter_scene(base, category, k, split)
             frame = settled_frame(scenario)
             rgb, depth = _to_images(frame)
-            context = segmenter.CreateDefaultContext()
-            segmenter.GetInputPort("color_image").FixValue(context, rgb)
-            segmenter.GetInputPort("depth_image").FixValue(context, depth)
-            start = time.perf_counter()
-            segmentation = segmenter.GetOutputPort("segmentation").Eval(context)
-            segmentation_s = time.perf_counter() - start
+            segmentation, estimate, segmentation_s = _perceive(segmenter, pose_estimator, rgb, depth, frame.X_WB)
             truth = frame.labels == frame.object_label
             union = np.count_nonzero(truth | segmentation.mask)
             iou = np.count_nonzero(truth & segmentation.mask) / union if union else 0.0
-            pose_context = pose_estimator.CreateDefaultContext()
-            pose_estimator.GetInputPort("segmentation").FixValue(pose_context, AbstractValue.Make(segmentation))
-            pose_estimator.GetInputPort("depth_image").FixValue(pose_context, depth)
-            pose_estimator.GetInputPort("camera_pose").FixValue(pose_context, AbstractValue.Make(frame.X_WB))
-            estimate = pose_estimator.GetOutputPort("estimate").Eval(pose_context)
             row = {
                 "category": category,
                 "table": k,

@@ -39,6 +39,7 @@ from scipy.spatial import cKDTree
 from systems.messages import ObjectEstimate
 from systems.perception.depth_cleaning import flying_pixels
 from systems.perception.pose_estimator import depth_to_points, fit_yaw_translation, voxel_thin
+from systems.planning.kinematics import off_the_robot
 
 CROP_MARGIN = 0.03  # m
 SUPPORT_CLEARANCE = 0.01  # m: points lower than this over the object's origin are the table
@@ -66,16 +67,6 @@ REFINE_ITERATIONS = 20
 # (Chosen on looks at training cans and drills carried over the box, not on the test instances; taking every
 # refined tilt put drills, which hang 1-2 deg, 9 mm off in x-y instead of 7 mm.)
 MIN_TILT_CHANGE_RAD = np.radians(2.0)
-
-
-def off_the_robot(points_W: np.ndarray, robot_spheres_W: np.ndarray, margin: float = SELF_MARGIN) -> np.ndarray:
-    """The points (N x 3 in W) farther than `margin` from every sphere (S x 4: centre in W, radius; m)."""
-    if not len(robot_spheres_W) or not len(points_W):
-        return points_W
-    on_robot = np.zeros(len(points_W), bool)
-    for index in cKDTree(points_W).query_ball_point(robot_spheres_W[:, :3], robot_spheres_W[:, 3] + margin):
-        on_robot[index] = True
-    return points_W[~on_robot]
 
 
 class _ModelField:
@@ -249,7 +240,7 @@ class ObjectTracker(LeafSystem):
         lower, upper = model_O.min(axis=0) - CROP_MARGIN, model_O.max(axis=0) + CROP_MARGIN
         lower[2] = max(lower[2], SUPPORT_CLEARANCE)
         inside = np.all((in_O >= lower) & (in_O <= upper), axis=1)
-        points_W = off_the_robot(points_W[inside], robot_spheres_W)
+        points_W = off_the_robot(points_W[inside], robot_spheres_W, SELF_MARGIN)
         return track(points_W, model_O, X_WO_expected, robot_spheres_W)
 
     def _calc(self, context, output):

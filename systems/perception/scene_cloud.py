@@ -29,8 +29,8 @@ from scipy.spatial import cKDTree
 
 from systems.messages import Segmentation
 from systems.perception.depth_cleaning import flying_pixels
-from systems.perception.object_tracker import off_the_robot
 from systems.perception.pose_estimator import depth_to_points, voxel_thin
+from systems.planning.kinematics import off_the_robot
 
 SEEN_SPACING_M = 0.005
 VOXEL_M = 0.01
@@ -54,10 +54,9 @@ def scene_points(
     robot_spheres_W: np.ndarray,
     object_cloud_W: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """(seen, hidden): the scene's occupied points in W (N x 3 measured points, SEEN_SPACING_M apart or more, and
-    M x 3 centres of VOXEL_M cubes), as the
-    module docstring says. object_mask: H x W bool (may be empty: nothing to leave out); object_cloud_W: the
-    object's reconstruction (N x 3 in W), or None."""
+    """(seen, hidden): the scene's occupied points in W, as the module docstring says: N x 3 measured points (one per
+    SEEN_SPACING_M cube) and M x 3 centres of VOXEL_M cubes. object_mask: H x W bool (may be empty: nothing to leave
+    out); object_cloud_W: the object's reconstruction (N x 3 in W), or None."""
     depth = np.where(np.isfinite(depth), depth, 0.0).astype(np.float32)
     mask = np.zeros(depth.shape, bool)
     if object_mask.shape == depth.shape and object_mask.any():

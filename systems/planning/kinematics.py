@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 from pydrake.geometry import Box, Capsule, Cylinder, Sphere
 from pydrake.multibody.plant import MultibodyPlant
+from scipy.spatial import cKDTree
 
 _EYE3 = np.eye(3)
 
@@ -245,6 +246,16 @@ def joint_torques(
         total_moment += carried[:, s] @ _cross(origin[:, s] + offset, point_force)
     torques = np.einsum("bji,bji->bj", total_moment - _cross(positions, total_force), axes)
     return torques + kinematics.damping * qd
+
+
+def off_the_robot(points_W: np.ndarray, robot_spheres_W: np.ndarray, margin: float) -> np.ndarray:
+    """The points (N x 3 in W) farther than `margin` (m) from every sphere (S x 4: centre in W, radius; m)."""
+    if not len(robot_spheres_W) or not len(points_W):
+        return points_W
+    on_robot = np.zeros(len(points_W), bool)
+    for index in cKDTree(points_W).query_ball_point(robot_spheres_W[:, :3], robot_spheres_W[:, 3] + margin):
+        on_robot[index] = True
+    return points_W[~on_robot]
 
 
 @dataclass

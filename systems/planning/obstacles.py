@@ -21,11 +21,15 @@ class DistanceField:
     REACH = 0.15  # m
 
     def __init__(self, points: np.ndarray, inflation: float = 0.0):
-        self.inflation, self.cell = inflation, self.CELL
-        self.lower = points.min(axis=0) - self.REACH
-        shape = np.ceil((points.max(axis=0) + self.REACH - self.lower) / self.CELL).astype(int) + 1
-        nodes = self.lower + self.CELL * np.stack(np.indices(shape), axis=-1).reshape(-1, 3)
+        self.inflation = inflation
+        shape = self._grid(points, self.CELL)
+        nodes = self.lower + self.cell * np.stack(np.indices(shape), axis=-1).reshape(-1, 3)
         self.values = cKDTree(points).query(nodes)[0].reshape(shape)
+
+    def _grid(self, points: np.ndarray, cell: float) -> np.ndarray:
+        """Sets the grid (cell, lower corner) around the points, REACH beyond them; returns its shape."""
+        self.cell, self.lower = cell, points.min(axis=0) - self.REACH
+        return np.ceil((points.max(axis=0) + self.REACH - self.lower) / cell).astype(int) + 1
 
     def __call__(self, query: np.ndarray, cap: float) -> np.ndarray:
         grid = ((query - self.lower) / self.cell).T
@@ -42,9 +46,8 @@ class SceneField(DistanceField):
     NEAR = 0.04  # m: beyond the largest sphere's radius plus STOMP's required clearance
 
     def __init__(self, points: np.ndarray, cell: float, inflation: float = 0.0):  # (not DistanceField's)
-        self.cell, self.inflation = cell, inflation
-        self.lower = points.min(axis=0) - self.REACH
-        shape = np.ceil((points.max(axis=0) + self.REACH - self.lower) / cell).astype(int) + 1
+        self.inflation = inflation
+        shape = self._grid(points, cell)
         occupied = np.zeros(shape, bool)
         index = np.clip(np.rint((points - self.lower) / cell).astype(int), 0, shape - 1)
         occupied[index[:, 0], index[:, 1], index[:, 2]] = True

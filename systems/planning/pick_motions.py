@@ -32,7 +32,7 @@ from pydrake.trajectories import PiecewisePolynomial
 from systems.planning.closure import ClosureConstraint, OrientationConstraint, deviations, orientation_deviations
 from systems.planning.hand_constraints import MAX_STEP, bounded_step, rotation_error
 from systems.planning.ik import DualArmIk, IkResult
-from systems.planning.kinematics import Payload
+from systems.planning.kinematics import Payload, off_the_robot
 from systems.planning.obstacles import CarriedPoints, Obstacles
 from systems.planning.stomp import Stomp, StompConfig
 from systems.planning.world import PERCEIVED_SCENE_MARGIN, SCENE_CELL_M, SIDES, PlanningWorld
@@ -404,13 +404,12 @@ class PickMotions:
         beside a neighbour of the object it holds starts clear, whatever the points and their margin say.)"""
         if scene_W is None or not len(scene_W):
             return scene_W
-        centres = self.world.spheres.centres_W(self.world.kinematics.body_poses(np.asarray(q, float)[None]))[0]
-        # The scene's margin, half a cube (its inflation), STOMP's required clearance and the field's interpolation.
-        reach = self.world.spheres.radius + PERCEIVED_SCENE_MARGIN + 2 * SCENE_CELL_M
-        inside = np.zeros(len(scene_W), bool)
-        for centre, radius in zip(centres, reach, strict=True):
-            inside |= np.einsum("ij,ij->i", scene_W - centre, scene_W - centre) < radius**2
-        return scene_W[~inside]
+        world = self.world
+        centres = world.spheres.centres_W(world.kinematics.body_poses(np.asarray(q, float)[None]))[0]
+        # The scene's margin, STOMP's required clearance and the field's interpolation.
+        return off_the_robot(
+            scene_W, np.column_stack([centres, world.spheres.radius]), PERCEIVED_SCENE_MARGIN + 2 * SCENE_CELL_M
+        )
 
     def held_path(self, q_start: np.ndarray, X_motion_W: RigidTransform, min_fraction: float):
         """Configurations holding the object along the motion (HELD_PATH_STEPS of it, each solved from the one
