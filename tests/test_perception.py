@@ -1,5 +1,7 @@
 """Perception systems alone (FixValue / Eval) on rendered frames, and wired to the station."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 from pydrake.common.value import AbstractValue
@@ -234,6 +236,35 @@ def test_perception_subsystem_wired_to_station_localises_the_object():
     assert set(result.stage_seconds) == {"segmentation", "pose", "registration"}
     assert np.linalg.norm(result.X_WO_seen.translation() - X_WO.translation()) < TRANSLATION_TOLERANCE
     assert result.points_W is estimate.points_W and len(result.reconstruction_W) > 1000
+
+
+def test_the_named_category_is_registered_though_the_network_says_otherwise():
+    """pick.py --object watering_can on a drill: the chain registers it in the cans' shape space (which names the
+    fit poor, as it should) and reports the network's class beside, rather than obeying the network."""
+    scenario = replace_object(load_scenario(), category="drill", instance="test_2", yaw=-0.25)
+    scenario = dataclasses.replace(scenario, requested_category="watering_can")
+    builder = DiagramBuilder()
+    station = builder.AddNamedSystem("station", MakeStation(scenario))
+    perception = builder.AddNamedSystem("perception", MakePerception(scenario))
+    for port, output in (("color_image", "rgb_image"), ("depth_image", "depth_image"), ("camera_pose", "pose")):
+        builder.Connect(station.GetOutputPort(f"camera0.{output}"), perception.GetInputPort(port))
+    builder.Connect(
+        builder.AddSystem(ConstantVectorSource([1.0])).get_output_port(), perception.GetInputPort("trigger")
+    )
+    simulator = Simulator(builder.Build())
+    station_context = station.GetMyMutableContextFromRoot(simulator.get_mutable_context())
+    station.GetInputPort("centauro.position").FixValue(station_context, initial_positions(scenario))
+    for hand in ("left_hand", "right_hand"):
+        station.GetInputPort(f"{hand}.position").FixValue(station_context, [scenario.initial_hand_width])
+    simulator.AdvanceTo(0.02)
+    pose_estimator = perception.GetSubsystemByName("pose_estimator")
+    estimate = pose_estimator.GetOutputPort("estimate").Eval(
+        pose_estimator.GetMyContextFromRoot(simulator.get_context())
+    )
+    assert estimate.found and estimate.category == "watering_can"
+    result = perception.GetOutputPort("result").Eval(perception.GetMyContextFromRoot(simulator.get_context()))
+    assert result.category == "watering_can" and result.network_category == "drill"
+    assert not result.found and "a poor fit" in result.message  # a can's shape does not explain a drill
 
 
 def test_tiny_training_run_reduces_loss():

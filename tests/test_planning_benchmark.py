@@ -1,5 +1,6 @@
 """The planner benchmark's problem generator, its dense checker and the OMPL peer (scripts/benchmark_planner.py)."""
 
+import dataclasses
 import json
 import subprocess
 import sys
@@ -108,6 +109,19 @@ def test_the_dense_checker_rejects_a_box_in_the_way_and_a_broken_closure(motions
         blocked.q_start, blocked.q_goal, blocked.obstacles, ClosureConstraint(), blocked.orientation
     )
     assert not first.success and first.iterations == 0, first.message
+
+
+def test_a_reach_stuck_under_the_table_restarts_from_the_hands_cartesian_vias(motions):
+    """Tuning reach 70: from under the table past a box at its edge. From its joint-space first trajectories STOMP
+    stays in collision; restarted from paths that take both hands back, up and across, it gets out."""
+    problem = make_problem(motions, "reach", "tune", 70)
+    assert isinstance(problem, PlanningProblem) and problem.boxes, problem
+    config = StompConfig(seed=problem.index, max_iterations=300, time_limit_s=60.0)
+    without = Stomp(motions.world, dataclasses.replace(config, hand_via_heights=()))
+    assert not without.plan(problem.q_start, problem.q_goal, problem.obstacles).success
+    result = Stomp(motions.world, config).plan(problem.q_start, problem.q_goal, problem.obstacles)
+    assert result.success and result.iterations > config.restart_after, result.message
+    assert check_path(problem, result.trajectory)["valid"]
 
 
 def test_ompl_solves_a_small_carry_that_passes_the_dense_check(motions):

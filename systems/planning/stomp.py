@@ -21,8 +21,10 @@ Cost terms per keyframe (STOMP-New's):
   orientation: the hands' world orientation (or tilt), when asked for.
 Each term is counted in its unit (TERM_UNITS: 2 cm of clearance shortfall, a joint at its
 limit, a joint at its effort limit, a second, a transition at the threshold) times a weight.
-Unconstrained plans (reaches) whose straight line is not a solution start from the least
-colliding of it and paths through random via points, and restart from the next one when stuck.
+Unconstrained plans (reaches) whose straight line is not a solution start from the least colliding of it
+and paths through random joint-space via points; when stuck they restart from paths that move both hands
+through Cartesian via points (back towards the robot and up above the goal, across, down to it: out from
+under the table and over what stands at its edge), least colliding first, then from the other joint-space ones.
 
 With hand constraints (systems/planning/hand_constraints.py), the sampling respects them:
 the noise of each rollout lies in the constraints' tangent space at the current trajectory,
@@ -47,7 +49,7 @@ from systems.planning.closure import (
     threshold_cost,
     transition_costs,
 )
-from systems.planning.hand_constraints import HandConstraints
+from systems.planning.hand_constraints import HandConstraints, bounded_step
 from systems.planning.kinematics import Payload, joint_torques, relative_pose
 from systems.planning.obstacles import Obstacles
 from systems.planning.world import PlanningWorld
@@ -80,6 +82,13 @@ class StompConfig:
     segment_s: float = 0.25  # s: the shortest time between keyframes, for the torque term's velocities
     # Weights of the terms in their units (TERM_UNITS), in TERMS' order.
     weights: tuple = (1.0, 0.05, 0.01, 0.05, 1.0, 1.0)
+    # m: an unconstrained plan's Cartesian via paths, its restarts after the first trajectory: both hands pulled
+    # back towards the robot (along -x_W) by each of hand_via_backs and raised to each of hand_via_heights above
+    # the higher goal hand, then carried across at that height above their goals. On the tuning reaches, 8 of 200
+    # stayed stuck in collision from the joint-space vias alone (from under the table, past boxes at its edge);
+    # 7 of them are solved from these.
+    hand_via_heights: tuple = (0.05, 0.15, 0.25, 0.35)
+    hand_via_backs: tuple = (0.0, 0.12, 0.25)
     via_candidates: int = 128  # random via points tried for the first trajectory of an unconstrained plan
     via_std: float = 1.0  # rad
     restart_after: int = 100  # iterations without a solution before an unconstrained plan starts again from the next
@@ -442,6 +451,8 @@ class Stomp:
             if feasible:
                 return StompResult(True, theta, iteration, elapsed, float(clearance.min()), "collision-free")
             if starts and iteration % config.restart_after == 0:  # stuck: start again from the next first trajectory
+                if iteration == config.restart_after:  # (made only when needed: 10-20 ms)
+                    starts[:0] = self._hand_via_trajectories(theta, obstacles)
                 theta, std = starts.pop(0), config.noise_std
                 kept, kept_terms = kept[:0], kept_terms[:0]
             if iteration >= config.max_iterations or elapsed > config.time_limit_s:
@@ -453,6 +464,47 @@ class Stomp:
                     float(clearance.min()),
                     f"no collision-free trajectory after {iteration} iterations ({elapsed:.2f} s)",
                 )
+
+    def _hand_via_trajectories(self, theta: np.ndarray, obstacles: Obstacles) -> list[np.ndarray]:
+        """Trajectories to restart from (each N x n, from theta[0] to theta[-1]), least in collision first, that
+        move both hands through two Cartesian via points: from the start pulled back along -x_W by each of
+        hand_via_backs and raised to each of hand_via_heights above the higher goal hand, then above the goals at
+        that height. STOMP is local: from under the table, past a box at its edge, neither the straight line nor
+        random joint-space vias lead it out."""
+        config = self.config
+        start, goal = theta[0], theta[-1]
+        if not config.hand_via_heights:
+            return []
+        X1, X2 = self.end_effectors.poses(np.stack([start, goal]))
+        hands_start, hands_goal = np.stack([X1[0], X2[0]])[:, :3, 3], np.stack([X1[1], X2[1]])[:, :3, 3]
+        raised, above = [], []
+        for height, back in itertools.product(config.hand_via_heights, config.hand_via_backs):
+            level = hands_goal[:, 2].max() + height
+            raised.append(np.column_stack([hands_start[:, 0] - back, hands_start[:, 1], [level, level]]))
+            above.append(np.column_stack([hands_goal[:, :2], [level, level]]))
+        q_raised = self._hands_moved_to(np.repeat(start[None], len(raised), 0), np.array(raised))
+        q_above = self._hands_moved_to(np.repeat(goal[None], len(above), 0), np.array(above))
+        paths = np.stack(
+            [_resample(np.stack([start, a, b, goal]), len(theta)) for a, b in zip(q_raised, q_above, strict=True)]
+        )
+        shortfall = np.concatenate(
+            [
+                self._clearances(group, obstacles)[1].sum(axis=1)
+                for group in np.array_split(paths, max(1, len(paths) // 4))
+            ]
+        )
+        return [paths[i] for i in np.argsort(shortfall, kind="stable")]
+
+    def _hands_moved_to(self, q: np.ndarray, targets_W: np.ndarray, steps: int = 12) -> np.ndarray:
+        """Configurations (B x n) from q (B x n) with both grasp frames' origins as near targets_W (B x 2 x 3, m,
+        left then right) as the joints' limits allow: damped Gauss-Newton steps on the hands' positions alone, each
+        joint change at most 0.3 rad."""
+        for _ in range(steps):
+            (X1, X2), (J1, J2) = self.end_effectors.jacobians(q)
+            error = np.concatenate([X1[:, :3, 3] - targets_W[:, 0], X2[:, :3, 3] - targets_W[:, 1]], axis=1)
+            jacobian = np.concatenate([J1[:, 3:], J2[:, 3:]], axis=1)
+            q = bounded_step(q, error, jacobian, self.lower, self.upper, 0.3)
+        return q
 
     def _initial_trajectories(self, straight: np.ndarray, obstacles: Obstacles, rng) -> list[np.ndarray]:
         """First trajectories (each N x n), least in collision first: the straight joint-space line and paths
