@@ -75,6 +75,10 @@ class StompConfig:
     constrained_noise_std: float = 0.4
     margin: float = 0.02  # m: clearance below which the collision cost starts
     required_clearance: float = 0.005  # m: a plan counts as collision-free above this (covers model errors)
+    # rad: between keyframes the sphere model is checked at states no joint turns more than this apart (at least 4
+    # per segment). With 4 per segment (0.06 rad apart in a reach), a finger pad or the palm passed through a box
+    # corner or the table's edge between two checked states in 4 of 200 tuning reaches (0.4-2.7 mm deep).
+    segment_step_rad: float = 0.02
     sensitivity: float = 10.0  # h in exp(-h * normalised cost)
     seed: int = 0
     torque_limit_penalty: float = 100.0  # per unit of |tau| / tau_max beyond 1, besides (tau / tau_max)^2
@@ -99,6 +103,8 @@ class StompConfig:
     detour_heights: tuple = (0.0, 0.06, 0.12, 0.18)
     detour_sideways: tuple = (-0.12, -0.06, 0.0, 0.06, 0.12)
     detour_ramps: tuple = (1.0, 2.0)  # the detours' profiles along the way, tried in turn (see _detour_trajectory)
+    # m: where no detour above is collision-free, these heights too (turns of a held object among tall boxes)
+    high_detour_heights: tuple = (0.24, 0.30)
 
 
 @dataclass
@@ -530,34 +536,38 @@ class Stomp:
         """The cheapest (in STOMP's cost) of theta and detours of it: the held object moved up by each of
         detour_heights and sideways (across its straight path) by each of detour_sideways, as far as the
         constraints allow, along the profile min(1, ramp sin(pi s)) (s from 0 to 1) of each of detour_ramps in
-        turn until one is collision-free: a held object carried over or around what stands in its straight path."""
+        turn until one is collision-free: a held object carried over or around what stands in its straight path.
+        Where none is, the same with high_detour_heights."""
         n = len(theta)
         travel = self.end_effectors.poses(theta[[0, -1]])[0][:, :3, 3]
         across = np.cross([0.0, 0.0, 1.0], travel[1] - travel[0])
         across /= max(np.linalg.norm(across), 1e-9)
-        offsets = np.array(
-            [
-                height * np.array([0.0, 0.0, 1.0]) + sideways * across
-                for height, sideways in itertools.product(self.config.detour_heights, self.config.detour_sideways)
-                if height or sideways
-            ]
-        )
 
         def cost(trajectories):  # STOMP's total cost of each trajectory (K x N x n)
             return self._total(self._cost_terms(trajectories, obstacles, closure, orientation, payload)).sum(axis=1)
 
         best, best_cost = theta, cost(theta[None])[0]
-        for ramp in self.config.detour_ramps:
-            profile = np.minimum(1.0, ramp * np.sin(np.pi * np.linspace(0.0, 1.0, n)[1:-1]))
-            targets = profile[None, :, None] * offsets[:, None, :]  # detours x interior keyframes x 3
-            interior = constraints.moved(np.tile(theta[1:-1], (len(offsets), 1)), targets.reshape(-1, 3))
-            candidates = np.repeat(theta[None], len(offsets), axis=0)
-            candidates[:, 1:-1] = interior.reshape(len(offsets), n - 2, self.dof)
-            costs = cost(candidates)
-            if costs.min() < best_cost:
-                best, best_cost = candidates[np.argmin(costs)], costs.min()
-            if self._feasible(best, obstacles, closure, orientation)[0]:
-                break
+        for heights in (self.config.detour_heights, self.config.high_detour_heights):
+            offsets = np.array(
+                [
+                    height * np.array([0.0, 0.0, 1.0]) + sideways * across
+                    for height, sideways in itertools.product(heights, self.config.detour_sideways)
+                    if height or sideways
+                ]
+            )
+            if not len(offsets):
+                continue
+            for ramp in self.config.detour_ramps:
+                profile = np.minimum(1.0, ramp * np.sin(np.pi * np.linspace(0.0, 1.0, n)[1:-1]))
+                targets = profile[None, :, None] * offsets[:, None, :]  # detours x interior keyframes x 3
+                interior = constraints.moved(np.tile(theta[1:-1], (len(offsets), 1)), targets.reshape(-1, 3))
+                candidates = np.repeat(theta[None], len(offsets), axis=0)
+                candidates[:, 1:-1] = interior.reshape(len(offsets), n - 2, self.dof)
+                costs = cost(candidates)
+                if costs.min() < best_cost:
+                    best, best_cost = candidates[np.argmin(costs)], costs.min()
+                if self._feasible(best, obstacles, closure, orientation)[0]:
+                    return best
         return best
 
     def _feasible(self, theta, obstacles, closure, orientation) -> tuple[bool, np.ndarray]:
@@ -570,7 +580,9 @@ class Stomp:
         ok = ok and (orientation is None or self.orientation_within_limits(theta, orientation)[0])
         return bool(ok and self._segments_clear(theta, obstacles, held)), clearance
 
-    def _segments_clear(self, theta: np.ndarray, obstacles: Obstacles, held: bool, steps: int = 4) -> bool:
-        """The sphere model stays clear between keyframes too (checked `steps` times per segment)."""
+    def _segments_clear(self, theta: np.ndarray, obstacles: Obstacles, held: bool) -> bool:
+        """The sphere model stays clear between keyframes too: at states no joint turns more than segment_step_rad
+        apart (at least 4 per segment)."""
+        steps = max(4, int(np.ceil(np.abs(np.diff(theta, axis=0)).max() / self.config.segment_step_rad)))
         clearance = self.clearance(interpolate_segments(theta, steps), obstacles, held)
         return bool(clearance.min() > self.config.required_clearance)
