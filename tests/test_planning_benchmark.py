@@ -124,6 +124,19 @@ def test_a_reach_stuck_under_the_table_restarts_from_the_hands_cartesian_vias(mo
     assert check_path(problem, result.trajectory)["valid"]
 
 
+def test_stomp_checks_between_keyframes_densely_enough_for_the_exact_judge(motions):
+    """Tuning reach 54: checked 4 times per segment (states 0.06 rad apart), STOMP returns a path on which a finger
+    pad passes through a box between two checked states; checked every 0.02 rad it does not."""
+    problem = make_problem(motions, "reach", "tune", 54)
+    assert isinstance(problem, PlanningProblem), problem
+    config = StompConfig(seed=problem.index, time_limit_s=60.0)
+    coarse = Stomp(motions.world, dataclasses.replace(config, segment_step_rad=10.0))
+    result = coarse.plan(problem.q_start, problem.q_goal, problem.obstacles)
+    assert result.success and not check_path(problem, result.trajectory)["valid"]
+    result = Stomp(motions.world, config).plan(problem.q_start, problem.q_goal, problem.obstacles)
+    assert result.success and check_path(problem, result.trajectory)["valid"], result.message
+
+
 def test_ompl_solves_a_small_carry_that_passes_the_dense_check(motions):
     scenario = replace_object(load_scenario(), category="watering_can", instance="train_1", xy=[-0.12, 0.1])
     problem = held_problem(motions, scenario, 0.10, RigidTransform([0.0, -0.10, 0.0]), [])
