@@ -204,8 +204,9 @@ def test_pose_estimator_survives_depth_holes_and_reports_no_depth(station_frame)
     assert not teapot.found and "no pose prior for 'teapot'" in teapot.message
 
 
-def test_perception_subsystem_wired_to_station_localises_the_object():
-    scenario = load_scenario()
+def perception_at_the_station(scenario):
+    """The perception subsystem wired to the station's camera, triggered, after its latch took frame 1: the
+    simulator's context, the perception diagram and its pose estimator's estimate."""
     builder = DiagramBuilder()
     station = builder.AddNamedSystem("station", MakeStation(scenario))
     perception = builder.AddNamedSystem("perception", MakePerception(scenario))
@@ -214,19 +215,24 @@ def test_perception_subsystem_wired_to_station_localises_the_object():
     builder.Connect(
         builder.AddSystem(ConstantVectorSource([1.0])).get_output_port(), perception.GetInputPort("trigger")
     )
-    diagram = builder.Build()
-    simulator = Simulator(diagram)
+    simulator = Simulator(builder.Build())
     station_context = station.GetMyMutableContextFromRoot(simulator.get_mutable_context())
     station.GetInputPort("centauro.position").FixValue(station_context, initial_positions(scenario))
     for hand in ("left_hand", "right_hand"):
         station.GetInputPort(f"{hand}.position").FixValue(station_context, [scenario.initial_hand_width])
     simulator.AdvanceTo(0.02)  # the latch takes frame 1
     context = perception.GetMyContextFromRoot(simulator.get_context())
-    assert perception.GetOutputPort("frame_id").Eval(context)[0] == 1
     pose_estimator = perception.GetSubsystemByName("pose_estimator")
     estimate = pose_estimator.GetOutputPort("estimate").Eval(
         pose_estimator.GetMyContextFromRoot(simulator.get_context())
     )
+    return context, perception, estimate
+
+
+def test_perception_subsystem_wired_to_station_localises_the_object():
+    scenario = load_scenario()
+    context, perception, estimate = perception_at_the_station(scenario)
+    assert perception.GetOutputPort("frame_id").Eval(context)[0] == 1
     assert estimate.found and estimate.category == "watering_can" and estimate.compute_s > 0
     X_WO = object_pose_on_table(scenario, resolve_object(scenario.object))
     assert np.linalg.norm(estimate.X_WO.translation() - X_WO.translation()) < TRANSLATION_TOLERANCE
@@ -242,27 +248,11 @@ def test_the_named_category_is_registered_though_the_network_says_otherwise():
     """pick.py --object watering_can on a drill: the chain registers it in the cans' shape space (which names the
     fit poor, as it should) and reports the network's class beside, rather than obeying the network."""
     scenario = replace_object(load_scenario(), category="drill", instance="test_2", yaw=-0.25)
-    scenario = dataclasses.replace(scenario, requested_category="watering_can")
-    builder = DiagramBuilder()
-    station = builder.AddNamedSystem("station", MakeStation(scenario))
-    perception = builder.AddNamedSystem("perception", MakePerception(scenario))
-    for port, output in (("color_image", "rgb_image"), ("depth_image", "depth_image"), ("camera_pose", "pose")):
-        builder.Connect(station.GetOutputPort(f"camera0.{output}"), perception.GetInputPort(port))
-    builder.Connect(
-        builder.AddSystem(ConstantVectorSource([1.0])).get_output_port(), perception.GetInputPort("trigger")
-    )
-    simulator = Simulator(builder.Build())
-    station_context = station.GetMyMutableContextFromRoot(simulator.get_mutable_context())
-    station.GetInputPort("centauro.position").FixValue(station_context, initial_positions(scenario))
-    for hand in ("left_hand", "right_hand"):
-        station.GetInputPort(f"{hand}.position").FixValue(station_context, [scenario.initial_hand_width])
-    simulator.AdvanceTo(0.02)
-    pose_estimator = perception.GetSubsystemByName("pose_estimator")
-    estimate = pose_estimator.GetOutputPort("estimate").Eval(
-        pose_estimator.GetMyContextFromRoot(simulator.get_context())
+    context, perception, estimate = perception_at_the_station(
+        dataclasses.replace(scenario, requested_category="watering_can")
     )
     assert estimate.found and estimate.category == "watering_can"
-    result = perception.GetOutputPort("result").Eval(perception.GetMyContextFromRoot(simulator.get_context()))
+    result = perception.GetOutputPort("result").Eval(context)
     assert result.category == "watering_can" and result.network_category == "drill"
     assert not result.found and "a poor fit" in result.message  # a can's shape does not explain a drill
 
