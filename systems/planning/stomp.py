@@ -59,6 +59,7 @@ TERMS = ("collision", "limits", "torque", "duration", "closure", "orientation")
 # spheres), a joint at its limit, a joint at its effort limit ((tau / tau_max)^2), a second at full joint speed,
 # and a transition at the closure's and orientation's thresholds.
 TERM_UNITS = np.array([0.02, 1.0, 1.0, 1.0, 1.0, 1.0])
+HAND_VIA_STEP_RAD = 0.3  # the largest joint change of one Gauss-Newton step towards a hand via point
 
 
 @dataclass(frozen=True)
@@ -457,7 +458,7 @@ class Stomp:
             if feasible:
                 return StompResult(True, theta, iteration, elapsed, float(clearance.min()), "collision-free")
             if starts and iteration % config.restart_after == 0:  # stuck: start again from the next first trajectory
-                if iteration == config.restart_after:  # (made only when needed: 10-20 ms)
+                if iteration == config.restart_after:  # (made only when needed: about 15 ms)
                     starts[:0] = self._hand_via_trajectories(theta, obstacles)
                 theta, std = starts.pop(0), config.noise_std
                 kept, kept_terms = kept[:0], kept_terms[:0]
@@ -478,9 +479,9 @@ class Stomp:
         that height. STOMP is local: from under the table, past a box at its edge, neither the straight line nor
         random joint-space vias lead it out."""
         config = self.config
-        start, goal = theta[0], theta[-1]
-        if not config.hand_via_heights:
+        if not (config.hand_via_heights and config.hand_via_backs):
             return []
+        start, goal = theta[0], theta[-1]
         X1, X2 = self.end_effectors.poses(np.stack([start, goal]))
         hands_start, hands_goal = np.stack([X1[0], X2[0]])[:, :3, 3], np.stack([X1[1], X2[1]])[:, :3, 3]
         raised, above = [], []
@@ -504,12 +505,12 @@ class Stomp:
     def _hands_moved_to(self, q: np.ndarray, targets_W: np.ndarray, steps: int = 12) -> np.ndarray:
         """Configurations (B x n) from q (B x n) with both grasp frames' origins as near targets_W (B x 2 x 3, m,
         left then right) as the joints' limits allow: damped Gauss-Newton steps on the hands' positions alone, each
-        joint change at most 0.3 rad."""
+        joint change at most HAND_VIA_STEP_RAD."""
         for _ in range(steps):
             (X1, X2), (J1, J2) = self.end_effectors.jacobians(q)
             error = np.concatenate([X1[:, :3, 3] - targets_W[:, 0], X2[:, :3, 3] - targets_W[:, 1]], axis=1)
             jacobian = np.concatenate([J1[:, 3:], J2[:, 3:]], axis=1)
-            q = bounded_step(q, error, jacobian, self.lower, self.upper, 0.3)
+            q = bounded_step(q, error, jacobian, self.lower, self.upper, HAND_VIA_STEP_RAD)
         return q
 
     def _initial_trajectories(self, straight: np.ndarray, obstacles: Obstacles, rng) -> list[np.ndarray]:
