@@ -106,6 +106,7 @@ class StompConfig:
     detour_ramps: tuple = (1.0, 2.0)  # the detours' profiles along the way, tried in turn (see _detour_trajectory)
     # m: where no detour above is collision-free, these heights too (turns of a held object among tall boxes)
     high_detour_heights: tuple = (0.24, 0.30)
+    wide_detour_sideways: tuple = (-0.24, -0.18, 0.18, 0.24)  # m: ... and these farther sideways
 
 
 @dataclass
@@ -538,7 +539,7 @@ class Stomp:
         detour_heights and sideways (across its straight path) by each of detour_sideways, as far as the
         constraints allow, along the profile min(1, ramp sin(pi s)) (s from 0 to 1) of each of detour_ramps in
         turn until one is collision-free: a held object carried over or around what stands in its straight path.
-        Where none is, the same with high_detour_heights."""
+        Where none is, the same up to high_detour_heights and across to wide_detour_sideways."""
         n = len(theta)
         travel = self.end_effectors.poses(theta[[0, -1]])[0][:, :3, 3]
         across = np.cross([0.0, 0.0, 1.0], travel[1] - travel[0])
@@ -548,11 +549,16 @@ class Stomp:
             return self._total(self._cost_terms(trajectories, obstacles, closure, orientation, payload)).sum(axis=1)
 
         best, best_cost = theta, cost(theta[None])[0]
-        for heights in (self.config.detour_heights, self.config.high_detour_heights):
+        config = self.config
+        first = list(itertools.product(config.detour_heights, config.detour_sideways))
+        wider = itertools.product(
+            config.detour_heights + config.high_detour_heights, config.detour_sideways + config.wide_detour_sideways
+        )
+        for moves in (first, [move for move in wider if move not in first]):
             offsets = np.array(
                 [
                     height * np.array([0.0, 0.0, 1.0]) + sideways * across
-                    for height, sideways in itertools.product(heights, self.config.detour_sideways)
+                    for height, sideways in moves
                     if height or sideways
                 ]
             )
