@@ -13,6 +13,7 @@ simulator's ground truth: run_pick judges the outcome on it only afterwards.
 """
 
 import logging
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -28,7 +29,7 @@ from diagrams.planning_scene import make_planning_world
 from diagrams.robot_driver import MakeRobotDriver
 from diagrams.scenario import Scenario
 from diagrams.station import HAND_INSTANCES, MakeStation, place_target
-from systems.messages import PERCEPTION_STAGES, Mode, PickStatus
+from systems.messages import Mode, PickStatus
 from systems.perception.camera_latch import CameraLatch
 from systems.perception.grasp_offset import GraspOffset
 from systems.perception.robot_spheres import RobotSpheres
@@ -203,8 +204,10 @@ def pick_status(diagram: Diagram, context) -> PickStatus:
 class PickReport:
     """What the pick diagram tells of a pick once it has ended (no ground truth): the supervisor's final
     status, each stage's wall seconds ("segmentation", "pose", "registration", "planning": the first plan;
-    "image_to_trajectory": their sum, the camera excluded; "planning_total": every plan; "look": the last
-    look at the held object) and the held moves' largest closure deviations; the category perception took and,
+    "image_to_trajectory": from the latch of the frame perceived to the first trajectory planned after it,
+    the simulator's work between included (a pick that failed first: to the plan or the perception result that
+    failed; with ground truth, no image: the first plan's seconds); "planning_total": every plan; "look": the
+    last look at the held object) and the held moves' largest closure deviations; the category perception took and,
     where the user named it, what the segmenter's network made of the object ("" where it did not perceive)."""
 
     status: PickStatus
@@ -216,7 +219,7 @@ class PickReport:
 
 def pick_report(diagram: Diagram, context) -> PickReport:
     status = pick_status(diagram, context)
-    stages, category, network_category = {}, "", ""
+    stages, category, network_category, result = {}, "", "", None
     if status.perceived:  # (perception's result is cached: reading it again computes nothing)
         supervisor = diagram.GetSubsystemByName("pick_supervisor")
         result = supervisor.GetInputPort("perception").Eval(supervisor.GetMyContextFromRoot(context))
@@ -225,9 +228,13 @@ def pick_report(diagram: Diagram, context) -> PickReport:
     plans = _subsystem_output(diagram, context, "plan_telemetry", "telemetry")
     if plans.plans:
         stages["planning"] = plans.first_planning_s
-        perceived = [stages[s] for s in PERCEPTION_STAGES if s in stages]
-        stages["image_to_trajectory"] = sum(perceived) + plans.first_planning_s
+        stages["image_to_trajectory"] = plans.first_planning_s
         stages["planning_total"] = plans.planning_total_s
+    if result is not None and math.isfinite(result.latched_wall_s):
+        latency = plans.latency_after(result.latched_wall_s)
+        stages["image_to_trajectory"] = (
+            latency if math.isfinite(latency) else (result.finished_wall_s - result.latched_wall_s)
+        )
     if status.looks_read:  # (the tracker's last estimate is cached: its inputs change only with a new look)
         stages["look"] = _subsystem_output(diagram, context, "object_tracker", "estimate").compute_s
     return PickReport(status, stages, plans.closure, category, network_category)

@@ -123,6 +123,7 @@ def MakePerception(
         ("X_WO", registrar.GetOutputPort("X_WO")),
     ):
         builder.Connect(source, collector.GetInputPort(port))
+    builder.Connect(latch.GetOutputPort("latched_wall_s"), collector.GetInputPort("latched_wall_s"))
     builder.ExportOutput(latch.GetOutputPort("frame_id"), "frame_id")
     builder.ExportOutput(collector.GetOutputPort("result"), "result")
     for port in ("grasp_poses", "reconstructed_cloud_W", "X_WO"):

@@ -32,6 +32,7 @@ from planner_peers import KtoConfig, OmplConfig, PeerResult, kto_plan, ompl_plan
 from tqdm import tqdm
 
 from diagrams.generation.planning_problems import (
+    DRAWN_WITH,
     FAMILIES,
     HELD_FAMILIES,
     SPLITS,
@@ -295,7 +296,7 @@ def main():
     parser.add_argument("--figure-dir", type=Path, help="writes <family>.png there")
     parser.add_argument("--json", type=Path)
     args = parser.parse_args()
-    motions = make_pick_motions(load_scenario())
+    motions = make_pick_motions(load_scenario(), DRAWN_WITH)
     print(f"threads: this process, one problem at a time; time limit {TIME_LIMIT_S:.0f} s per planner and problem")
     results = {}
     for family in args.family:

@@ -171,6 +171,10 @@ class PerceptionResult:
     stage_seconds: dict[str, float] = field(default_factory=dict)
     # Where the user named the category: what the segmenter's network made of the object (Segmentation's).
     network_category: str = ""
+    # The process's time.perf_counter() when the frame was latched and when this result was complete, s (NaN:
+    # no camera). Reported only: perception's latency as the pick saw it, the simulator's work between included.
+    latched_wall_s: float = math.nan
+    finished_wall_s: float = math.nan
 
 
 @dataclass
@@ -207,6 +211,7 @@ class PlanResult:
     trajectory: PiecewisePolynomial | None = None  # the planned joints over context time
     message: str = "no plan requested"
     planning_s: float = 0.0  # wall time the planning took (reported, never simulated)
+    finished_wall_s: float = math.nan  # the process's time.perf_counter() when it was done, s (reported only)
     # Held moves: the largest deviation of the hands' relative pose along the played trajectory
     # (every 10 ms), m and rad; NaN for other motions.
     closure_translation_dev_m: float = math.nan

@@ -264,7 +264,10 @@ def test_ground_truth_pick_is_the_same_diagram_with_a_ground_truth_source(scenar
 def test_autonomous_pick_of_an_unseen_drill_lifts_it_with_the_closure_kept(scenario):
     outcome = run_pick(replace_object(scenario, category="drill", instance="test_1", yaw=0.25))
     assert outcome.success, outcome.message
-    assert outcome.stages["image_to_trajectory"] > 0 and not outcome.failed_stage
+    assert not outcome.failed_stage
+    # Image to trajectory is timed end to end, from the frame's latch: it holds every stage's own time.
+    stages = outcome.stages
+    assert stages["image_to_trajectory"] >= sum(stages[s] for s in ("segmentation", "pose", "registration", "planning"))
     # The lift is a held move: the played trajectory kept the hands' relative pose (t_max, o_max).
     assert 0 <= outcome.closure["max_translation_dev_m"] < 0.01
     assert 0 <= outcome.closure["max_orientation_dev_rad"] < 0.05

@@ -1,5 +1,7 @@
 """The planner, trajectory source, hand command and camera latch stages, each alone."""
 
+import time
+
 import numpy as np
 import pytest
 from pydrake.common.value import AbstractValue
@@ -12,6 +14,7 @@ from diagrams.planning_scene import make_pick_motions, true_grasp_poses
 from diagrams.scenario import initial_positions
 from systems.messages import GraspPoses, HandCommand, PlanRequest, PlanResult
 from systems.perception.camera_latch import CameraLatch
+from systems.planning.plan_telemetry import PlanTelemetry
 from systems.planning.stomp_planner import StompPlanner
 from systems.robot_io.hand_command import HandCommandSource
 from systems.robot_io.joint_plan import SPEED_FRACTION
@@ -172,9 +175,12 @@ def test_camera_latch_holds_one_frame_until_asked_again():
     simulator.AdvanceTo(0.1)
     assert dut.GetOutputPort("frame_id").Eval(context)[0] == 0
     assert dut.GetOutputPort("color_image").Eval(context).size() == 0  # nothing latched yet
+    assert np.isnan(dut.GetOutputPort("latched_wall_s").Eval(context)[0])
     dut.GetInputPort("trigger").FixValue(context, [1.0])
+    before = time.perf_counter()
     simulator.AdvanceTo(0.2)
     assert dut.GetOutputPort("frame_id").Eval(context)[0] == 1
+    assert before <= dut.GetOutputPort("latched_wall_s").Eval(context)[0] <= time.perf_counter()
     show(20)  # the camera and the robot move on; the latch does not
     dut.GetInputPort("robot_position").FixValue(context, np.full(14, 0.7))
     simulator.AdvanceTo(0.3)
@@ -184,3 +190,17 @@ def test_camera_latch_holds_one_frame_until_asked_again():
     dut.GetInputPort("trigger").FixValue(context, [2.0])
     simulator.AdvanceTo(0.4)
     assert np.all(np.asarray(dut.GetOutputPort("color_image").Eval(context).data) == 20)
+
+
+def test_plan_telemetry_times_the_first_trajectory_after_a_frame():
+    """From a frame's latch to the first successful plan after it, failed plans before it included; without one,
+    to the last plan (the pick failed there)."""
+    telemetry = PlanTelemetry()
+    for id_, finished, success in ((1, 10.0, True), (2, 20.5, False), (3, 21.0, True), (4, 22.0, True)):
+        telemetry = telemetry.with_plan(PlanResult(id_, success=success, planning_s=0.5, finished_wall_s=finished))
+    assert telemetry.plans == 3 and telemetry.last_id == 4 and telemetry.first_planning_s == 0.5
+    assert telemetry.latency_after(20.0) == pytest.approx(1.0)  # a retry's frame: plan 2 failed, plan 3 is its first
+    assert telemetry.latency_after(9.0) == pytest.approx(1.0)
+    failed = PlanTelemetry().with_plan(PlanResult(1, success=False, finished_wall_s=5.0))
+    assert failed.plans == 0 and failed.latency_after(4.0) == pytest.approx(1.0)
+    assert np.isnan(failed.latency_after(6.0))

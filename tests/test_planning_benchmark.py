@@ -11,6 +11,7 @@ import pytest
 from pydrake.math import RigidTransform
 
 from diagrams.generation.planning_problems import (
+    DRAWN_WITH,
     MIN_CLEARANCE_M,
     Dropped,
     PlanningProblem,
@@ -29,7 +30,7 @@ from planner_peers import OmplConfig, ompl_plan  # noqa: E402
 
 @pytest.fixture(scope="module")
 def motions():
-    return make_pick_motions(load_scenario())
+    return make_pick_motions(load_scenario(), DRAWN_WITH)
 
 
 def kept(motions, family: str, count: int) -> list[PlanningProblem]:

@@ -36,10 +36,13 @@ from diagrams.scenario import Scenario, initial_positions, load_scenario, replac
 from diagrams.station import TABLE_HEIGHT, object_pose_on_table
 from systems.planning.closure import ClosureConstraint, OrientationConstraint, deviations, orientation_deviations
 from systems.planning.obstacles import Obstacles
-from systems.planning.pick_motions import PickMotions
+from systems.planning.pick_motions import PickMotions, PlannerConfig
 from systems.planning.stomp import Stomp
 from systems.planning.world import SIDES, PlanningWorld
 
+# The planning core the problems are drawn with: SNOPT's IK, as when the families were first drawn (the batched IK
+# finds other, equally valid starts and goals: problem k would change).
+DRAWN_WITH = PlannerConfig(batched_ik=False)
 HELD_FAMILIES = ("lift", "carry", "turn", "set_down")
 FAMILIES = (*HELD_FAMILIES, "reach")
 SPLITS = ("tune", "report")
@@ -135,14 +138,16 @@ def make_problem(motions: PickMotions, family: str, split: str, index: int) -> P
     """Problem `index` of `family` in `split`, or why it was dropped.
 
     Args:
-        motions: the planning core of the default scenario (robot and table; no object): its IK solves the start
-            and goal.
+        motions: the planning core of the default scenario (robot and table; no object), built with DRAWN_WITH:
+            its IK solves the start and goal.
 
     Raises:
-        ValueError: an unknown family or split.
+        ValueError: an unknown family or split, or motions whose IK is not the one the problems are drawn with.
     """
     if family not in FAMILIES or split not in SPLITS:
         raise ValueError(f"unknown family {family!r} or split {split!r}: families {FAMILIES}, splits {SPLITS}")
+    if motions.ik.batched != DRAWN_WITH.batched_ik:
+        raise ValueError("the problems are drawn with SNOPT's IK: build the motions with DRAWN_WITH")
     rng = np.random.default_rng(problem_seed(family, split, index))
     scenario = _placement(rng, split)
     model = resolve_object(scenario.object)

@@ -2,7 +2,12 @@
 
 The segmenter, pose estimator and registrar compute from their inputs only (not from time), so
 downstream of the latch a frame is perceived once, however often its results are read.
+
+The latch also keeps the wall time at which it took its frame (time.perf_counter() of the process, s): the
+start of perception's latency, reported only (nothing the pick does reads it).
 """
+
+import time
 
 from pydrake.common.value import AbstractValue
 from pydrake.math import RigidTransform
@@ -28,11 +33,13 @@ class CameraLatch(LeafSystem):
         - camera_pose
         - frame_id
         - robot_position
+        - latched_wall_s
 
     ``trigger`` (1): the id of the frame wanted (a counter). ``frame_id`` (1): the id of the frame held
     (0 before the first). The image and pose outputs hold that frame (empty images before the first).
     ``robot_position`` (robot_positions, rad): the planned joints' measured positions when the frame was
     taken (the robot in view of the camera; zeros before the first, or where the input is not connected).
+    ``latched_wall_s`` (1): the process's time.perf_counter() when the frame was taken, s (NaN before the first).
     """
 
     def __init__(self, period_s: float = 0.01, robot_positions: int = 14):
@@ -55,6 +62,8 @@ class CameraLatch(LeafSystem):
         self.DeclareStateOutputPort("frame_id", self._frame_id)
         self._robot_position = self.DeclareDiscreteState(robot_positions)
         self.DeclareStateOutputPort("robot_position", self._robot_position)
+        self._latched_wall_s = self.DeclareDiscreteState([float("nan")])
+        self.DeclareStateOutputPort("latched_wall_s", self._latched_wall_s)
         self.DeclarePeriodicUnrestrictedUpdateEvent(period_s, 0.0, self._update)
 
     def _update(self, context, state) -> EventStatus:
@@ -67,4 +76,5 @@ class CameraLatch(LeafSystem):
         if self.GetInputPort("robot_position").HasValue(context):
             robot = self.GetInputPort("robot_position").Eval(context)
             state.get_mutable_discrete_state(self._robot_position).set_value(robot)
+        state.get_mutable_discrete_state(self._latched_wall_s).set_value([time.perf_counter()])
         return EventStatus.Succeeded()

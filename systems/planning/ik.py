@@ -1,5 +1,9 @@
-"""Dual-arm inverse kinematics for the hands' grasp frames (Drake InverseKinematics) in a PlanningWorld
-(systems/planning/world.py), started from a table of collision-free seeds cached on disk.
+"""Dual-arm inverse kinematics for the hands' grasp frames in a PlanningWorld (systems/planning/world.py), started
+from a table of collision-free seeds cached on disk.
+
+Each arm alone is solved by damped Gauss-Newton steps on the batched kinematics, from all its starts at once
+(SNOPT, Drake's InverseKinematics, only where none of them reaches); both arms together keep that answer where
+Drake's exact distance query finds it clear, and SNOPT with the collision constraint moves them apart where not.
 
 With the torso planned, the arms share its yaw: each arm is solved alone with the torso held at a
 candidate yaw (where it stands, then turned to face the targets, then as each arm alone would turn it),
@@ -13,8 +17,10 @@ import numpy as np
 from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.multibody.inverse_kinematics import InverseKinematics
 from pydrake.solvers import Solve
+from scipy.spatial.transform import Rotation
 
 from systems.paths import cache_dir, save_npz_atomically
+from systems.planning.hand_constraints import bounded_step
 from systems.planning.world import SIDES, PlanningWorld
 
 SEED_SAMPLES = 3000
@@ -22,6 +28,17 @@ SEED_SAMPLES = 3000
 TORSO_SPREAD = 0.35
 # A hand is symmetric under a half turn about its approach axis z_G.
 HALF_TURN = RigidTransform(RotationMatrix.MakeZRotation(np.pi))
+# The batched Gauss-Newton IK: at most this many steps, each joint at most this far a step (rad). A start is done
+# within CONVERGED_SHARE of the tolerances once its null-space pull towards the nominal configuration (NULL_SPACE_GAIN
+# of it each step) is below NULL_SPACE_SETTLED_RAD; failed once its error, outside the tolerances, fell by less than
+# a tenth over the last STALL_STEPS steps.
+GAUSS_NEWTON_STEPS = 60
+GAUSS_NEWTON_STEP_RAD = 0.3
+CONVERGED_SHARE = 0.2
+NULL_SPACE_GAIN = 0.5
+NULL_SPACE_SETTLED_RAD = 0.01
+STALL_STEPS = 5
+STALL_SHARE = 0.9
 
 
 @dataclass
@@ -39,12 +56,15 @@ class DualArmIk:
     Its SNOPT solves write into the world's plant context (world.plant_context), as its other queries do.
     """
 
-    def __init__(self, world: PlanningWorld):
+    def __init__(self, world: PlanningWorld, batched: bool = True):
         """Args:
         world: the robot, table (and welded object) to solve in; its seed table is loaded from the cache under
             world.scene.cache_key, or built and saved there.
+            batched: each arm alone by Gauss-Newton on the batched kinematics (SNOPT where it fails), and both
+                arms' answer kept where it is clear; False: SNOPT for every solve (as the planning benchmark's
+                problems were drawn).
         """
-        self.world = world
+        self.world, self.batched = world, batched
         self._seed_q, self._seed_poses = self._load_or_build_seed_table()
 
     def _load_or_build_seed_table(self) -> tuple[np.ndarray, dict[str, np.ndarray]]:
@@ -148,9 +168,14 @@ class DualArmIk:
         facing the targets (and nearby seeds, either half turn of the hand); None if it reaches from none."""
         guess = q_guess.copy()
         guess[self.world.torso] = facing
-        for start, flip in itertools.product([guess, *self._seeds({side: X_WG}, 4, facing)], (False, True)):
-            target = {side: X_WG @ HALF_TURN if flip else X_WG}
-            result = self._solve_once(target, start, start, 0.002, 0.03, None, torso=True)
+        tries = list(itertools.product([guess, *self._seeds({side: X_WG}, 4, facing)], (False, True)))
+        targets = [X_WG @ HALF_TURN if flip else X_WG for _, flip in tries]
+        if self.batched:
+            solved = self._solve_arm(side, targets, [start for start, _ in tries], guess, 0.002, 0.03, torso=True)
+            found = next((q for q in solved if q is not None), None)
+            return None if found is None else float(found[self.world.torso])
+        for (start, _), target in zip(tries, targets, strict=True):
+            result = self._solve_once({side: target}, start, start, 0.002, 0.03, None, torso=True)
             if result.success:
                 return float(result.q[self.world.torso])
         return None
@@ -225,15 +250,11 @@ class DualArmIk:
         for side in SIDES:
             per_arm[side] = []
             for index, alternative in enumerate((alternatives or {}).get(side, [RigidTransform()])):
-                for start, turn in itertools.product([guess, *seeds], turns):
-                    if min_distance is None and per_arm[side] and start is not guess:
-                        break  # solved from the guess: the seeds would only add answers farther from it
-                    target = X_WG[side] @ alternative @ turn
-                    result = self._solve_once(
-                        {side: target}, start, q_guess, position_tolerance, angle_tolerance, None, limit_margin
-                    )
-                    if result.success:
-                        per_arm[side].append((target, result.q))
+                targets = [X_WG[side] @ alternative @ turn for turn in turns]
+                per_arm[side] = self._arm_answers(
+                    side, targets, guess, seeds, q_guess, position_tolerance, angle_tolerance, limit_margin,
+                    everywhere=min_distance is not None,
+                )  # fmt: skip
                 if per_arm[side]:
                     choice[side] = index
                     break  # the alternatives after the first that reaches are not tried
@@ -247,6 +268,8 @@ class DualArmIk:
             start[7:14] = right_q[7:14]
             if min_distance is None:
                 return IkResult(True, start, "solved per arm", choice)
+            if self.batched and self.world.clearance(start, max_distance=2 * min_distance) >= min_distance:
+                return IkResult(True, start, "solved per arm, clear", choice)
             result = self._solve_once(
                 {"left": left_X, "right": right_X}, start, start, position_tolerance, angle_tolerance, min_distance,
                 limit_margin, torso=True,
@@ -254,6 +277,95 @@ class DualArmIk:
             if result.success:
                 return IkResult(True, result.q, result.message, choice)
         return IkResult(False, q_guess, "each hand reaches its target, but not without a collision")
+
+    def _arm_answers(
+        self, side, targets, guess, seeds, q_guess, position_tolerance, angle_tolerance, limit_margin, everywhere
+    ) -> list[tuple[RigidTransform, np.ndarray]]:
+        """(target, q) for one arm at each of targets (a grasp and its half turn) from the guess and each seed:
+        all of them if `everywhere`, else from the seeds only where the guess reaches none. Batched Gauss-Newton
+        first (SNOPT from the guess where it finds none), or SNOPT alone when not self.batched."""
+        answers = []
+        if not self.batched:
+            for start, X in itertools.product([guess, *seeds], targets):
+                if answers and not everywhere and start is not guess:
+                    break  # solved from the guess: the seeds would only add answers farther from it
+                result = self._solve_once({side: X}, start, q_guess, position_tolerance, angle_tolerance, None,
+                                          limit_margin)  # fmt: skip
+                if result.success:
+                    answers.append((X, result.q))
+            return answers
+        for starts in ([guess, *seeds],) if everywhere else ([guess], seeds):
+            tries = list(itertools.product(starts, targets))
+            if not tries:
+                continue
+            solved = self._solve_arm(
+                side, [X for _, X in tries], [q for q, _ in tries], q_guess, position_tolerance, angle_tolerance,
+                limit_margin,
+            )  # fmt: skip
+            answers = [(X, q) for (_, X), q in zip(tries, solved, strict=True) if q is not None]
+            if answers:
+                return answers
+        for X in targets:  # the last resort: SNOPT from the guess
+            result = self._solve_once(
+                {side: X}, guess, q_guess, position_tolerance, angle_tolerance, None, limit_margin
+            )
+            if result.success:
+                answers.append((X, result.q))
+        return answers
+
+    def _solve_arm(
+        self, side, targets, starts, q_nominal, position_tolerance, angle_tolerance, limit_margin=0.0, torso=False
+    ) -> list[np.ndarray | None]:
+        """One arm's grasp frame at each of `targets` (RigidTransforms in W) from the matching one of `starts` (the
+        planned joints, rad), all at once: damped Gauss-Newton steps of that arm's joints (and the torso's if
+        `torso`) within their limits, limit_margin (rad) inside them, each step's null-space share pulling towards
+        q_nominal; the other joints stay at their start. Each answer, or None where it did not come within
+        position_tolerance (m, per axis) and angle_tolerance (rad)."""
+        world = self.world
+        moving = np.zeros(len(world.lower), dtype=bool)
+        moving[slice(0, 7) if side == "left" else slice(7, 14)] = True
+        if torso and world.torso is not None:
+            moving[world.torso] = True
+        q = np.clip(np.array(starts, dtype=float), world.lower, world.upper)
+        lower = np.where(moving, world.lower + limit_margin, q)
+        upper = np.where(moving, world.upper - limit_margin, q)
+        q = np.clip(q, lower, upper)
+        X_target = np.array([X.GetAsMatrix4() for X in targets])
+        which = SIDES.index(side)
+        active = np.arange(len(q))
+        within = np.zeros(len(q), dtype=bool)
+        scores = np.full((GAUSS_NEWTON_STEPS, len(q)), np.inf)  # each start's error in tolerances, per step
+        for step in range(GAUSS_NEWTON_STEPS):
+            poses, jacobians = world.end_effectors.jacobians(q[active])
+            X, J = poses[which], jacobians[which] * moving
+            R_error = X[:, :3, :3] @ np.swapaxes(X_target[active, :3, :3], 1, 2)
+            rotation, position = Rotation.from_matrix(R_error).as_rotvec(), X[:, :3, 3] - X_target[active, :3, 3]
+            score = np.maximum(
+                np.abs(position).max(axis=1) / position_tolerance, np.linalg.norm(rotation, axis=1) / angle_tolerance
+            )
+            scores[step, active] = score
+            within[active] = score <= 1.0
+            pull = (q_nominal - q[active]) * moving
+            JT = np.swapaxes(J, 1, 2)
+            pull -= (JT @ np.linalg.solve(J @ JT + 1e-6 * np.eye(6), (J @ pull[..., None])))[..., 0]
+            # Done: converged and no nearer to q_nominal along the arm's self-motion; or no longer getting nearer.
+            done = (score <= CONVERGED_SHARE) & (np.abs(pull).max(axis=1) < NULL_SPACE_SETTLED_RAD)
+            if step >= STALL_STEPS:
+                done |= (score > 1.0) & (score > STALL_SHARE * scores[step - STALL_STEPS, active])
+            active, J, pull = active[~done], J[~done], pull[~done]
+            if not len(active):
+                break
+            error = np.concatenate([rotation, position], axis=1)[~done]
+            q[active] = bounded_step(
+                q[active] + NULL_SPACE_GAIN * pull, error, J, lower[active], upper[active], GAUSS_NEWTON_STEP_RAD
+            )
+        if len(active):  # (the last step's answers are judged too)
+            poses = world.end_effectors.poses(q[active])[which]
+            R_error = poses[:, :3, :3] @ np.swapaxes(X_target[active, :3, :3], 1, 2)
+            within[active] = (np.abs(poses[:, :3, 3] - X_target[active, :3, 3]).max(axis=1) <= position_tolerance) & (
+                np.linalg.norm(Rotation.from_matrix(R_error).as_rotvec(), axis=1) <= angle_tolerance
+            )
+        return [q[k] if within[k] else None for k in range(len(q))]
 
     def solve_held(
         self,

@@ -78,6 +78,9 @@ class PlannerConfig:
 
     stomp: StompConfig = field(default_factory=StompConfig)
     held_mass_kg: float = HELD_MASS_KG  # what STOMP's torque term assumes a held object weighs (HELD_MASS_KG)
+    # Each arm's IK by batched Gauss-Newton first (SNOPT as the last resort); False: SNOPT alone, as the planning
+    # benchmark's problems were drawn (diagrams/generation/planning_problems.py).
+    batched_ik: bool = True
 
 
 class PlanningError(RuntimeError):
@@ -111,7 +114,7 @@ class PickMotions:
 
     def __init__(self, world: PlanningWorld, config: PlannerConfig | None = None):
         self.world, self.config = world, config or PlannerConfig()
-        self.ik = DualArmIk(world)
+        self.ik = DualArmIk(world, self.config.batched_ik)
         self.stomp = Stomp(world, self.config.stomp)
         self.closure = ClosureConstraint()
         self.orientation = OrientationConstraint()

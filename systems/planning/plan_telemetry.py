@@ -1,5 +1,6 @@
 """What the pick's plans cost and how well the held moves kept the closure: telemetry for the outcome."""
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -13,14 +14,16 @@ from systems.messages import PlanResult
 @dataclass(frozen=True)
 class PlanTelemetry:
     """Over the pick's successful plans: wall seconds of the first and of all, and the largest closure
-    deviations of the held moves' played trajectories (m, rad; NaN: no held move yet)."""
+    deviations of the held moves' played trajectories (m, rad; NaN: no held move yet). Over every plan, failed
+    ones too: when each was done (the process's time.perf_counter(), s) and whether it succeeded."""
 
     plans: int = 0
-    last_id: int = -1
+    last_id: int = -1  # the last plan seen, successful or not
     first_planning_s: float = math.nan
     planning_total_s: float = 0.0
     closure_translation_dev_m: float = math.nan
     closure_orientation_dev_rad: float = math.nan
+    finished: tuple[tuple[float, bool], ...] = ()  # (finished_wall_s, success) of every plan, in order
 
     @property
     def closure(self) -> dict[str, float]:
@@ -31,16 +34,27 @@ class PlanTelemetry:
         }
 
     def with_plan(self, plan: PlanResult) -> "PlanTelemetry":
+        finished = (*self.finished, (plan.finished_wall_s, plan.success))
+        if not plan.success:
+            return dataclasses.replace(self, last_id=plan.id, finished=finished)
         t_dev, o_dev = self.closure_translation_dev_m, self.closure_orientation_dev_rad
         if math.isfinite(plan.closure_translation_dev_m):
             t_dev = float(np.nanmax([t_dev, plan.closure_translation_dev_m]))
             o_dev = float(np.nanmax([o_dev, plan.closure_orientation_dev_rad]))
         first = plan.planning_s if self.plans == 0 else self.first_planning_s
-        return PlanTelemetry(self.plans + 1, plan.id, first, self.planning_total_s + plan.planning_s, t_dev, o_dev)
+        total = self.planning_total_s + plan.planning_s
+        return PlanTelemetry(self.plans + 1, plan.id, first, total, t_dev, o_dev, finished)
+
+    def latency_after(self, latched_wall_s: float) -> float:
+        """Wall seconds from latched_wall_s (a frame's latch, time.perf_counter()) to the first successful plan
+        done after it; without one, to the last plan done after it (the pick failed there); NaN: no plan after."""
+        after = [(wall, success) for wall, success in self.finished if wall >= latched_wall_s]
+        done = next((wall for wall, success in after if success), after[-1][0] if after else math.nan)
+        return done - latched_wall_s
 
 
 class PlanTelemetryRecorder(LeafSystem):
-    """Records every successful plan once (it changes nothing the pick does).
+    """Records every plan once (it changes nothing the pick does).
 
     .. pydrake_system::
 
@@ -68,7 +82,7 @@ class PlanTelemetryRecorder(LeafSystem):
     def _update(self, context, state) -> EventStatus:
         telemetry = context.get_abstract_state(self._state).get_value()
         plan = self.plan_port.Eval(context)
-        if not plan.success or plan.id == telemetry.last_id:
+        if plan.id < 0 or plan.id == telemetry.last_id:
             return EventStatus.DidNothing()
         state.get_mutable_abstract_state(self._state).set_value(telemetry.with_plan(plan))
         return EventStatus.Succeeded()

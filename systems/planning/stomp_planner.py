@@ -155,7 +155,8 @@ class StompPlanner(LeafSystem):
         except PlanningError as error:
             result.message = f"{request.phase}: {error}"
             logging.warning("planning failed: %s", result.message)
-        result.planning_s = time.perf_counter() - started
+        result.finished_wall_s = time.perf_counter()
+        result.planning_s = result.finished_wall_s - started
         return result
 
     def _reach(self, request: PlanRequest, context, targets, cloud, points, scene) -> tuple[np.ndarray, dict | None]:
