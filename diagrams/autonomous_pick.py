@@ -23,7 +23,7 @@ from pydrake.lcm import DrakeLcm, DrakeLcmInterface
 from pydrake.systems.framework import Diagram, DiagramBuilder
 
 from diagrams.hardware_station import MakeHardwareStation
-from diagrams.perception import MakeGroundTruthPerception, MakeObjectTracker, MakePerception
+from diagrams.perception import MakeGroundTruthPerception, MakeObjectTracker, MakePerception, latch_offset
 from diagrams.pick_simulation import PickOutcome, PlaceJudge, pose_error, simulate_pick, station_plant
 from diagrams.planning_scene import make_planning_world
 from diagrams.robot_driver import MakeRobotDriver
@@ -171,7 +171,8 @@ def _AddLooks(builder, station, supervisor, perception, scenario, robot_spheres)
     """The supervisor's looks at the held object: look_latch (the frame and the arms' joints then) ->
     robot_spheres -> object_tracker, which fits perception's reconstruction (seen at its X_WO) near the
     supervisor's expected_X_WO."""
-    look = builder.AddNamedSystem("look_latch", CameraLatch(robot_positions=robot_spheres.kinematics.dof))
+    latch = CameraLatch(robot_positions=robot_spheres.kinematics.dof, offset_s=latch_offset(scenario, look=True))
+    look = builder.AddNamedSystem("look_latch", latch)
     _ConnectCamera(builder, station, scenario, look, supervisor.GetOutputPort("look_trigger"))
     builder.Connect(look.GetOutputPort("frame_id"), supervisor.GetInputPort("look_frame_id"))
     builder.Connect(station.GetOutputPort("centauro.position_measured"), look.GetInputPort("robot_position"))

@@ -56,6 +56,12 @@ def depth_camera(scenario: Scenario):
     return core.intrinsics(), core.sensor_pose_in_camera_body()
 
 
+def latch_offset(scenario: Scenario, look: bool = False) -> float:
+    """When perception's camera latch reads its trigger within each period, s: half a plant step (a quarter for
+    the look latch), where neither the plant nor the other's latch updates (see CameraLatch)."""
+    return (0.25 if look else 0.5) * scenario.plant_config.time_step
+
+
 def MakePoseEstimator(scenario: Scenario) -> PoseEstimator:
     """A PoseEstimator with the intrinsics and mounting of the scenario's depth camera and the catalog's priors."""
     intrinsics, X_BC = depth_camera(scenario)
@@ -91,7 +97,7 @@ def MakePerception(
     """
     builder = DiagramBuilder()
     dof = robot_spheres.kinematics.dof if robot_spheres is not None else 14
-    latch = builder.AddNamedSystem("camera_latch", CameraLatch(robot_positions=dof))
+    latch = builder.AddNamedSystem("camera_latch", CameraLatch(robot_positions=dof, offset_s=latch_offset(scenario)))
     segmenter = Segmenter(
         weights or categories.active_segmenter(),
         category=scenario.requested_category,

@@ -42,7 +42,14 @@ class CameraLatch(LeafSystem):
     ``latched_wall_s`` (1): the process's time.perf_counter() when the frame was taken, s (NaN before the first).
     """
 
-    def __init__(self, period_s: float = 0.01, robot_positions: int = 14):
+    def __init__(self, period_s: float = 0.01, robot_positions: int = 14, offset_s: float = 0.0):
+        """Args:
+        period_s, offset_s: when the trigger is read, s. Put the offset where no other system of the diagram
+            updates its state (e.g. between the plant's steps): at a time where any unrestricted update changed
+            something, Drake writes back the state of every system that had one, the held frame unchanged
+            included, and everything perceived from it is computed again (6 times a pick at offset 0).
+        robot_positions: the size of robot_position.
+        """
         super().__init__()
         self.DeclareAbstractInputPort("color_image", AbstractValue.Make(ImageRgba8U()))
         self.DeclareAbstractInputPort("depth_image", AbstractValue.Make(ImageDepth32F()))
@@ -64,7 +71,7 @@ class CameraLatch(LeafSystem):
         self.DeclareStateOutputPort("robot_position", self._robot_position)
         self._latched_wall_s = self.DeclareDiscreteState([float("nan")])
         self.DeclareStateOutputPort("latched_wall_s", self._latched_wall_s)
-        self.DeclarePeriodicUnrestrictedUpdateEvent(period_s, 0.0, self._update)
+        self.DeclarePeriodicUnrestrictedUpdateEvent(period_s, offset_s, self._update)
 
     def _update(self, context, state) -> EventStatus:
         wanted = self.GetInputPort("trigger").Eval(context)[0]
