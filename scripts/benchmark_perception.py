@@ -32,7 +32,7 @@ from diagrams.generation.synthetic_scenes import CLASSES, SyntheticScene
 from diagrams.perception import MakePoseEstimator
 from diagrams.scenario import load_scenario
 from systems.perception.rgbd_noise import noisy_color, noisy_depth, sensor_model
-from systems.perception.segmenter import DEFAULT_WEIGHTS, Segmenter
+from systems.perception.segmenter import DEFAULT_WEIGHTS, TEST_TIME_FLIP, Segmenter
 from systems.perception.segmenter_training import intersection_over_union
 
 OBJECT_REGION = ((0.6, 0.85), (-0.2, 0.2))  # m, in W: where the robot picks from
@@ -109,6 +109,11 @@ def main():
         help="single: synthetic scenes with one object; clutter: --scenes cluttered tables per category",
     )
     parser.add_argument("--empty-tables", dest="empty_tables", type=int, default=20, help="with --scene clutter")
+    parser.add_argument(
+        "--flip",
+        choices=("on", "off"),
+        help=f"the segmenter's test-time flip (default: the pick's, {'on' if TEST_TIME_FLIP else 'off'})",
+    )
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
     if args.scene == "clutter":
@@ -126,7 +131,7 @@ def main():
 
     sensor = sensor_model(args.sensor)
     intrinsics = scenario.camera.MakeCameras()[1].core().intrinsics()
-    segmenter = Segmenter(args.weights)
+    segmenter = Segmenter(args.weights, flip=TEST_TIME_FLIP if args.flip is None else args.flip == "on")
     pose_estimator = MakePoseEstimator(scenario)
     predicted, predicted_dominant, truth, rows, tiles = [], [], [], [], []
     for i in range(args.scenes):
