@@ -58,8 +58,10 @@ def depth_camera(scenario: Scenario):
 
 def latch_offset(scenario: Scenario, look: bool = False) -> float:
     """When perception's camera latch reads its trigger within each period, s: half a plant step (a quarter for
-    the look latch), where neither the plant nor the other's latch updates (see CameraLatch)."""
-    return (0.25 if look else 0.5) * scenario.plant_config.time_step
+    the look latch), where neither the plant nor the other's latch updates (see CameraLatch). A continuous plant
+    has no steps: then 5 and 2.5 ms, between the other systems' updates (every 10 ms from 0)."""
+    step = scenario.plant_config.time_step or 0.01
+    return (0.25 if look else 0.5) * step
 
 
 def MakePoseEstimator(scenario: Scenario) -> PoseEstimator:

@@ -66,9 +66,9 @@ class DualArmIk:
         """Args:
         world: the robot, table (and welded object) to solve in; its seed table is loaded from the cache under
             world.scene.cache_key, or built and saved there.
-            batched: each arm alone by Gauss-Newton on the batched kinematics (SNOPT where it fails), and both
-                arms' answer kept where it is clear; False: SNOPT for every solve (as the planning benchmark's
-                problems were drawn).
+        batched: each arm alone by Gauss-Newton on the batched kinematics (SNOPT where it fails), and both arms'
+            answer kept where it is clear; False: SNOPT for every solve (as the planning benchmark's problems were
+            drawn).
         """
         self.world, self.batched = world, batched
         self._seed_q, self._seed_poses = self._load_or_build_seed_table()

@@ -17,13 +17,17 @@ class PlanTelemetry:
     deviations of the held moves' played trajectories (m, rad; NaN: no held move yet). Over every plan, failed
     ones too: when each was done (the process's time.perf_counter(), s) and whether it succeeded."""
 
-    plans: int = 0
     last_id: int = -1  # the last plan seen, successful or not
     first_planning_s: float = math.nan
     planning_total_s: float = 0.0
     closure_translation_dev_m: float = math.nan
     closure_orientation_dev_rad: float = math.nan
     finished: tuple[tuple[float, bool], ...] = ()  # (finished_wall_s, success) of every plan, in order
+
+    @property
+    def plans(self) -> int:
+        """How many plans succeeded."""
+        return sum(success for _, success in self.finished)
 
     @property
     def closure(self) -> dict[str, float]:
@@ -34,16 +38,23 @@ class PlanTelemetry:
         }
 
     def with_plan(self, plan: PlanResult) -> "PlanTelemetry":
-        finished = (*self.finished, (plan.finished_wall_s, plan.success))
+        seen = dataclasses.replace(
+            self, last_id=plan.id, finished=(*self.finished, (plan.finished_wall_s, plan.success))
+        )
         if not plan.success:
-            return dataclasses.replace(self, last_id=plan.id, finished=finished)
+            return seen
         t_dev, o_dev = self.closure_translation_dev_m, self.closure_orientation_dev_rad
         if math.isfinite(plan.closure_translation_dev_m):
             t_dev = float(np.nanmax([t_dev, plan.closure_translation_dev_m]))
             o_dev = float(np.nanmax([o_dev, plan.closure_orientation_dev_rad]))
         first = plan.planning_s if self.plans == 0 else self.first_planning_s
-        total = self.planning_total_s + plan.planning_s
-        return PlanTelemetry(self.plans + 1, plan.id, first, total, t_dev, o_dev, finished)
+        return dataclasses.replace(
+            seen,
+            first_planning_s=first,
+            planning_total_s=self.planning_total_s + plan.planning_s,
+            closure_translation_dev_m=t_dev,
+            closure_orientation_dev_rad=o_dev,
+        )
 
     def latency_after(self, latched_wall_s: float) -> float:
         """Wall seconds from latched_wall_s (a frame's latch, time.perf_counter()) to the first successful plan
