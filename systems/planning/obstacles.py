@@ -10,50 +10,42 @@ import numpy as np
 from scipy.ndimage import distance_transform_edt, map_coordinates
 from scipy.spatial import cKDTree
 
+# m: a scene's distance field (many points) is exact this near them: the hands' spheres (0.031 m) plus STOMP's
+# required clearance; the arms' larger spheres are judged on the transform's values (within 8.7 mm at 1 cm cells)
+SCENE_NEAR = 0.04
+
 
 class DistanceField:
-    """Distance to a point set, precomputed on a grid (cell CELL) around it and interpolated trilinearly.
+    """Distance (m) to a point set, precomputed on a grid of cell `cell` around it, REACH beyond, and interpolated
+    trilinearly; points beyond the grid get the cap.
 
-    Points farther than REACH from the set's box get the cap.
+    Within `near` of the points, where clearances are judged, the grid's nodes hold the exact distance to the points
+    (k-d tree); farther, the Euclidean distance transform of the grid's cells that hold a point, within half a
+    cell's diagonal of the exact one: there the grid only shapes the cost (a k-d tree query at every node costs
+    several times as much).
     """
 
     CELL = 0.01  # m
     REACH = 0.15  # m
+    # The largest arm sphere (0.061 m) plus STOMP's margin (0.02 m), and a little: only the torso's and the
+    # pelvis' spheres are judged beyond it, and they never come near an object on the table.
+    NEAR = 0.085  # m
 
-    def __init__(self, points: np.ndarray, inflation: float = 0.0):
-        self.inflation = inflation
-        shape = self._grid(points, self.CELL)
-        nodes = self.lower + self.cell * np.stack(np.indices(shape), axis=-1).reshape(-1, 3)
-        self.values = cKDTree(points).query(nodes)[0].reshape(shape)
-
-    def _grid(self, points: np.ndarray, cell: float) -> np.ndarray:
-        """Sets the grid (cell, lower corner) around the points, REACH beyond them; returns its shape."""
-        self.cell, self.lower = cell, points.min(axis=0) - self.REACH
-        return np.ceil((points.max(axis=0) + self.REACH - self.lower) / cell).astype(int) + 1
+    def __init__(self, points: np.ndarray, inflation: float = 0.0, cell: float = CELL, near: float = NEAR):
+        self.inflation, self.cell = inflation, cell
+        self.lower = points.min(axis=0) - self.REACH
+        shape = np.ceil((points.max(axis=0) + self.REACH - self.lower) / cell).astype(int) + 1
+        occupied = np.zeros(shape, bool)
+        index = np.clip(np.rint((points - self.lower) / cell).astype(int), 0, shape - 1)
+        occupied[index[:, 0], index[:, 1], index[:, 2]] = True
+        self.values = distance_transform_edt(~occupied, sampling=cell)
+        exact = self.values < near + cell  # (the transform is within a cell of the exact distance)
+        self.values[exact] = cKDTree(points).query(self.lower + cell * np.argwhere(exact))[0]
 
     def __call__(self, query: np.ndarray, cap: float) -> np.ndarray:
         grid = ((query - self.lower) / self.cell).T
         distance = map_coordinates(self.values, grid, order=1, mode="constant", cval=np.inf)
         return np.minimum(distance - self.inflation, cap)
-
-
-class SceneField(DistanceField):
-    """Distance to a scene given as many points (e.g. the camera's: measured surface points and the centres of the
-    cubes hidden behind them). Within NEAR of them, where clearances are judged, it is the exact distance to the
-    points (k-d tree) at the grid's nodes; farther, the Euclidean distance transform of the grid's cells that hold
-    a point (within a cell's diagonal): fast for many points, and the grid only shapes the cost there."""
-
-    NEAR = 0.04  # m: beyond the largest sphere's radius plus STOMP's required clearance
-
-    def __init__(self, points: np.ndarray, cell: float, inflation: float = 0.0):  # (not DistanceField's)
-        self.inflation = inflation
-        shape = self._grid(points, cell)
-        occupied = np.zeros(shape, bool)
-        index = np.clip(np.rint((points - self.lower) / cell).astype(int), 0, shape - 1)
-        occupied[index[:, 0], index[:, 1], index[:, 2]] = True
-        self.values = distance_transform_edt(~occupied, sampling=cell)
-        near = self.values < self.NEAR + cell
-        self.values[near] = cKDTree(points).query(self.lower + cell * np.argwhere(near))[0]
 
 
 @dataclass
@@ -90,10 +82,11 @@ class Obstacles:
         return self
 
     def add_scene(self, points_W: np.ndarray, cell: float, inflation: float = 0.0) -> "Obstacles":
-        """A scene of many points (N x 3 in W, e.g. as the camera saw it), on a grid of cell `cell` (m); distances to
+        """A scene of many points (N x 3 in W, e.g. as the camera saw it: measured surface points and the centres of
+        the cubes hidden behind them), on a grid of cell `cell` (m), exact within SCENE_NEAR of them; distances to
         them are reduced by `inflation` (m)."""
         if len(points_W):
-            self.fields.append(SceneField(np.asarray(points_W, float), cell, inflation))
+            self.fields.append(DistanceField(np.asarray(points_W, float), inflation, cell, near=SCENE_NEAR))
         return self
 
     def distance(self, centres: np.ndarray, cap: float = 0.3) -> np.ndarray:
