@@ -91,29 +91,42 @@ def _clusters(regions: np.ndarray, depth: np.ndarray, intrinsics: CameraInfo, mi
     cluster_of_cell, _ = ndimage.label(grid, structure=ndimage.generate_binary_structure(3, CONNECTIVITY))
     cluster = cluster_of_cell[tuple(cells.T)]  # per valid pixel
     sizes = np.bincount(cluster)
+    order = np.argsort(cluster, kind="stable")  # the pixels of cluster c: order[starts[c]:starts[c + 1]]
+    starts = np.concatenate([[0], np.cumsum(sizes)])
+
+    def members(c):
+        return order[starts[c] : starts[c + 1]]
+
     # Large clusters: PIECE_SHARE of the largest one in their image region.
     region = regions[v, u]
-    home = {c: int(np.bincount(region[cluster == c]).argmax()) for c in np.unique(cluster)}  # its image region
+    home = {c: int(np.bincount(region[members(c)]).argmax()) for c in np.flatnonzero(sizes)}  # its image region
     largest_in_region = np.zeros(regions.max() + 1, int)
     for c, r in home.items():
         largest_in_region[r] = max(largest_in_region[r], sizes[c])
     large = [c for c in home if sizes[c] >= max(min_pixels // 2, PIECE_SHARE * largest_in_region[home[c]])]
     final = np.zeros(len(sizes), np.int64)  # cluster -> the large cluster it joins (0: left out)
     final[large] = large
-    if large:
-        trees = {c: cKDTree(points[cluster == c][::4]) for c in large}
-        for c in set(home) - set(large):
-            gaps = {g: tree.query(points[cluster == c])[0].min() for g, tree in trees.items()}
-            nearest = min(gaps, key=gaps.get)
-            if gaps[nearest] < ATTACHED_M:
-                final[c] = nearest
+    parts = [c for c in home if final[c] == 0]
+    if large and parts:
+        # Every part's points against every fourth point of the large clusters.
+        sample = np.concatenate([members(c)[::4] for c in large])
+        gap, nearest = cKDTree(points[sample]).query(points[np.concatenate([members(c) for c in parts])])
+        nearest = cluster[sample[nearest]]
+        ends = np.cumsum([sizes[c] for c in parts])
+        for c, end in zip(parts, ends, strict=True):
+            closest = end - sizes[c] + np.argmin(gap[end - sizes[c] : end])
+            if gap[closest] < ATTACHED_M:
+                final[c] = nearest[closest]
     owner = np.zeros(regions.shape, np.int64)
     owner[v, u] = final[cluster]
     # Pixels without depth (and left-out ones' holes) take the nearest pixel's owner in their region.
-    holes = (regions > 0) & ~valid
-    _, (rows, cols) = ndimage.distance_transform_edt(~valid, return_indices=True)
-    same_region = regions[rows, cols] == regions
-    owner[holes] = np.where(same_region[holes], owner[rows, cols][holes], 0)
+    # (Within the box of the object pixels: every valid pixel is one.)
+    box = ndimage.find_objects((regions > 0).astype(np.int8))[0]
+    holes = (regions[box] > 0) & ~valid[box]
+    _, (rows, cols) = ndimage.distance_transform_edt(~valid[box], return_indices=True)
+    nearest_owner = owner[box][rows[holes], cols[holes]]
+    same_region = regions[box][rows[holes], cols[holes]] == regions[box][holes]
+    owner[box][holes] = np.where(same_region, nearest_owner, 0)
     return owner
 
 

@@ -106,6 +106,8 @@ class Segmenter(LeafSystem):
     ):
         super().__init__()
         self.model, metadata = segmentation_network.load(weights)
+        # Channels-last: the CPU's convolutions take about a third of the time (the same labels)
+        self.model = self.model.to(memory_format=torch.channels_last)
         self.classes = tuple(metadata["classes"])
         self.min_pixels, self.category, self.intrinsics, self.flip = min_pixels, category, intrinsics, flip
         if category:
@@ -135,12 +137,12 @@ class Segmenter(LeafSystem):
         if rgb.ndim != 3 or rgb.shape[2] < 3 or rgb.size == 0:
             raise ValueError(f"expected an H x W x 3 colour image, got shape {rgb.shape}")
         x = segmentation_network.to_input(segmentation_network.resize_to_input(rgb))
+        if self.flip:
+            x = torch.cat([x, x.flip(-1)])
         with torch.no_grad():
+            scores = self.model(x.contiguous(memory_format=torch.channels_last))
             if self.flip:
-                scores = self.model(torch.cat([x, x.flip(-1)]))
                 scores = scores[:1] + scores[1:].flip(-1)
-            else:
-                scores = self.model(x)
             scores = F.interpolate(scores, size=rgb.shape[:2], mode="bilinear", align_corners=False)
         # (numpy's argmax over the class axis: torch's takes 25 ms at 512 x 424 on one thread)
         return scores[0].numpy().argmax(axis=0).astype(np.uint8)
