@@ -197,7 +197,10 @@ def grasp_shift(origin_W: np.ndarray, model_W: np.ndarray, observed_W: np.ndarra
 
 
 def grasp_support(
-    origin_W: np.ndarray, visible_model_W: np.ndarray, observed_W: np.ndarray, view: DepthView | None = None
+    origin_W: np.ndarray,
+    visible_model_W: np.ndarray,
+    observed_W: np.ndarray | cKDTree,
+    view: DepthView | None = None,
 ) -> float | None:
     """How much of the fitted surface about a grasp frame the camera confirms: surface_support of the fitted surface
     points visible from the camera (N x 3, W) within SUPPORT_M of the grasp's origin (3, W). Low where the fit put a
@@ -209,13 +212,14 @@ def grasp_support(
 
 
 def surface_support(
-    visible_model_W: np.ndarray, observed_W: np.ndarray, view: DepthView | None = None, min_points: int = 1
+    visible_model_W: np.ndarray, observed_W: np.ndarray | cKDTree, view: DepthView | None = None, min_points: int = 1
 ) -> float | None:
     """The share of fitted surface points visible from the camera (N x 3, W) that the camera confirms: with a seen
-    point (K x 3, W) within INLIER_M. Given the depth image (view), a point also counts where the camera measured a
-    surface within INLIER_M of its depth (a part the segmenter missed), and the points something other than the
-    object hid are left out (a nearer surface off the object's pixels by more than HIDDEN_MARGIN: an arm, the
-    gripper, another object). None with fewer than min_points such points."""
+    point (K x 3, W, or their k-d tree: built once for several calls) within INLIER_M. Given the depth image (view),
+    a point also counts where the camera measured a surface within INLIER_M of its depth (a part the segmenter
+    missed), and the points something other than the object hid are left out (a nearer surface off the object's
+    pixels by more than HIDDEN_MARGIN: an arm, the gripper, another object). None with fewer than min_points such
+    points."""
     points = visible_model_W
     if view is not None and len(points):
         depth, measured, on_object = view.look_up(points)
@@ -223,7 +227,8 @@ def surface_support(
         points, depth, measured = points[~hidden], depth[~hidden], measured[~hidden]
     if len(points) < min_points:
         return None
-    supported = cKDTree(observed_W).query(points)[0] < INLIER_M
+    seen = observed_W if isinstance(observed_W, cKDTree) else cKDTree(observed_W)
+    supported = seen.query(points)[0] < INLIER_M
     if view is not None:
         supported |= np.abs(measured - depth) < INLIER_M
     return float(np.mean(supported))
@@ -354,10 +359,9 @@ class Registrar:
         support, seen_share = {}, None
         if viewpoint_W is not None:
             seen_model = shape_W[visible_from(shape_W, viewpoint_W)]
-            support = {
-                name: grasp_support(poses[name].translation(), seen_model, observed, view) for name in GRASP_NAMES
-            }
-            seen_share = surface_support(seen_model, observed, view, MIN_SUPPORT_POINTS)
+            seen = cKDTree(observed)
+            support = {name: grasp_support(poses[name].translation(), seen_model, seen, view) for name in GRASP_NAMES}
+            seen_share = surface_support(seen_model, seen, view, MIN_SUPPORT_POINTS)
         return Registration(X_WO, z, shape_W, poses, error, iterations, inlier_share, support, scale, seen_share)
 
     def _fit(self, X, X_WO0, viewpoint_W, scale_prior):
