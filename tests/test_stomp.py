@@ -4,6 +4,7 @@ import dataclasses
 
 import numpy as np
 import pytest
+from scipy.spatial import cKDTree
 
 from diagrams.generation.objects.library import resolve_object
 from diagrams.planning_scene import make_pick_motions, make_planning_world, true_grasp_poses
@@ -11,7 +12,7 @@ from diagrams.scenario import initial_positions
 from diagrams.station import object_pose_on_table
 from systems.planning.ik import DualArmIk
 from systems.planning.kinematics import Payload, joint_torques
-from systems.planning.obstacles import Obstacles
+from systems.planning.obstacles import DistanceField, Obstacles
 from systems.planning.stomp import TERMS, Stomp
 
 # Both hands start under the table top, at its front edge: the straight move collides.
@@ -136,6 +137,21 @@ def test_point_set_distance_field_matches_exact_distances():
     distances = Obstacles().add_points(sphere, inflation=0.002).distance(queries, cap=0.3)
     np.testing.assert_allclose(distances[:3], exact[:3] - 0.002, atol=0.006)
     assert distances[3] == pytest.approx(0.3)  # far outside the grid: the cap
+
+
+def test_a_point_set_field_holds_exact_distances_where_clearances_are_judged():
+    """At its nodes within NEAR of the points (the largest arm sphere plus STOMP's margin), the exact distance;
+    farther, the distance transform's, within half a cell's diagonal of it."""
+    rng = np.random.default_rng(3)
+    points = rng.uniform([-0.1, -0.05, 0.0], [0.1, 0.05, 0.25], size=(2000, 3))
+    field_ = DistanceField(points)
+    nodes = field_.lower + field_.cell * np.stack(np.indices(field_.values.shape), axis=-1).reshape(-1, 3)
+    exact = cKDTree(points).query(nodes)[0]
+    values = field_.values.ravel()
+    near = exact < DistanceField.NEAR
+    assert near.sum() > 10000 and (~near).sum() > 10000
+    np.testing.assert_array_equal(values[near], exact[near])
+    np.testing.assert_allclose(values[~near], exact[~near], atol=0.5 * np.sqrt(3) * field_.cell)
 
 
 def test_the_scene_field_is_exact_near_the_seen_points_and_only_approximate_far_from_them():

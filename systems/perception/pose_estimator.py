@@ -121,6 +121,7 @@ def category_template(mesh_file: Path, count: int = 3000) -> tuple[np.ndarray, N
     """
     mesh = trimesh.load(mesh_file, force="mesh")
     points, _ = trimesh.sample.sample_surface_even(mesh, count, seed=0)
+    points = np.asarray(points)  # (not trimesh's tracked array: its bookkeeping slowed every ICP step)
     key = hashlib.sha256(mesh_file.read_bytes() + f"{count} {GRID_CELL}".encode()).hexdigest()[:16]
     path = cache_dir() / "pose_templates" / f"{key}.npz"
     if path.is_file():
