@@ -17,8 +17,6 @@ from pydrake.geometry import Box, Capsule, Cylinder, Sphere
 from pydrake.multibody.plant import MultibodyPlant
 from scipy.spatial import cKDTree
 
-_EYE3 = np.eye(3)
-
 
 @dataclass
 class _Link:
@@ -30,8 +28,14 @@ class _Link:
     X_MB: np.ndarray  # joint frame on child -> child body (4 x 4)
 
     def __post_init__(self):
-        self.K = skew(self.axis)  # [a]x and [a]x^2 of the axis, for Rodrigues' formula
-        self.K2 = self.K @ self.K
+        # Rodrigues: the joint's rotation about its unit axis a is I + sin(q) [a]x + (1 - cos(q)) [a]x^2, so
+        # X_PB(q) = X_PF (that) X_MB = fixed + sin(q) sine + (1 - cos(q)) versine, three constant 4 x 4 matrices.
+        K, K2 = np.zeros((4, 4)), np.zeros((4, 4))
+        K[:3, :3] = skew(self.axis)
+        K2[:3, :3] = K[:3, :3] @ K[:3, :3]
+        self.fixed = self.X_PF @ self.X_MB
+        self.sine = self.X_PF @ K @ self.X_MB
+        self.versine = self.X_PF @ K2 @ self.X_MB
 
 
 class BatchedKinematics:
@@ -129,15 +133,12 @@ class BatchedKinematics:
         q = np.atleast_2d(q)
         batch = len(q)
         poses = np.empty((batch, len(self.links), 4, 4))
+        sines, versines = np.sin(q)[:, :, None, None], 1.0 - np.cos(q)[:, :, None, None]
         for i, link in enumerate(self.links):
             X_PB = link.X_PF
             if link.arm_dof >= 0:
-                # Rodrigues: the joint's rotation about its unit axis a, I + sin(q) [a]x + (1 - cos(q)) [a]x^2.
-                angle = q[:, link.arm_dof, None, None]
-                joint = np.zeros((batch, 4, 4))
-                joint[:, :3, :3] = _EYE3 + np.sin(angle) * link.K + (1.0 - np.cos(angle)) * link.K2
-                joint[:, 3, 3] = 1.0
-                X_PB = link.X_PF @ joint @ link.X_MB
+                j = link.arm_dof
+                X_PB = link.fixed + sines[:, j] * link.sine + versines[:, j] * link.versine
             poses[:, i] = X_PB if link.parent < 0 else poses[:, link.parent] @ X_PB
         return poses
 

@@ -92,19 +92,25 @@ class Obstacles:
     def distance(self, centres: np.ndarray, cap: float = 0.3) -> np.ndarray:
         """Distance (m, negative inside a box) from each point (... x 3) to the nearest obstacle, capped at `cap`.
 
-        Nothing beyond the cap matters to the costs (it must exceed the margin plus the largest sphere).
+        Nothing beyond the cap matters to the costs (it must exceed the margin plus the largest sphere). The boxes'
+        distances in float32 (within a micrometre), on the points' coordinates as three rows: a large share of a
+        STOMP iteration's time, 4-6 times less than in float64 on N x 3 rows.
         """
         flat = centres.reshape(-1, 3)
-        nearest = np.full(len(flat), float(cap))
-        for X_BW, half in self.boxes:  # in place: a large share of a STOMP iteration's time
-            excess = flat @ X_BW[:3, :3].T
-            excess += X_BW[:3, 3]
+        points = flat.T.astype(np.float32)  # 3 x N
+        nearest = np.full(len(flat), cap, np.float32)
+        for X_BW, half in self.boxes:
+            excess = X_BW[:3, :3].astype(np.float32) @ points
+            excess += X_BW[:3, 3, None].astype(np.float32)
             np.abs(excess, out=excess)
-            excess -= half
-            largest = np.maximum(np.maximum(excess[:, 0], excess[:, 1]), excess[:, 2])  # (.max(axis=1) is slow)
-            inside = np.minimum(largest, 0.0)
+            excess -= half[:, None].astype(np.float32)
+            largest = np.maximum(np.maximum(excess[0], excess[1]), excess[2])
             np.maximum(excess, 0.0, out=excess)
-            np.minimum(nearest, np.sqrt(np.einsum("ij,ij->i", excess, excess)) + inside, out=nearest)
+            excess *= excess
+            outside = np.sqrt(excess[0] + excess[1] + excess[2])
+            outside += np.minimum(largest, 0.0)
+            np.minimum(nearest, outside, out=nearest)
+        nearest = nearest.astype(np.float64)
         for field_ in self.fields:
             nearest = np.minimum(nearest, field_(flat, cap))
         return nearest.reshape(centres.shape[:-1])
