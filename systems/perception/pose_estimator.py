@@ -70,7 +70,12 @@ def depth_to_points(depth: np.ndarray, mask: np.ndarray, intrinsics: CameraInfo)
     """Back-projects the masked pixels with a finite, positive depth to N x 3 points in C."""
     if depth.shape != mask.shape:
         raise ValueError(f"depth image {depth.shape} and mask {mask.shape} differ in size")
-    v, u = np.nonzero(mask & np.isfinite(depth) & (depth > 0))
+    rows, columns = np.flatnonzero(mask.any(axis=1)), np.flatnonzero(mask.any(axis=0))
+    if not len(rows):
+        return np.zeros((0, 3))
+    box = slice(rows[0], rows[-1] + 1), slice(columns[0], columns[-1] + 1)  # (the same pixels, in the same order)
+    v, u = np.nonzero(mask[box] & np.isfinite(depth[box]) & (depth[box] > 0))
+    v, u = v + rows[0], u + columns[0]
     z = depth[v, u].astype(float)
     x = (u - intrinsics.center_x()) * z / intrinsics.focal_x()
     y = (v - intrinsics.center_y()) * z / intrinsics.focal_y()
