@@ -122,11 +122,11 @@ def _clusters(regions: np.ndarray, depth: np.ndarray, intrinsics: CameraInfo, mi
     # Pixels without depth (and left-out ones' holes) take the nearest pixel's owner in their region.
     # (Within the box of the object pixels: every valid pixel is one.)
     box = ndimage.find_objects((regions > 0).astype(np.int8))[0]
-    holes = (regions[box] > 0) & ~valid[box]
+    owner_in, regions_in = owner[box], regions[box]  # (views: writing owner_in writes owner)
+    holes = (regions_in > 0) & ~valid[box]
     _, (rows, cols) = ndimage.distance_transform_edt(~valid[box], return_indices=True)
-    nearest_owner = owner[box][rows[holes], cols[holes]]
-    same_region = regions[box][rows[holes], cols[holes]] == regions[box][holes]
-    owner[box][holes] = np.where(same_region, nearest_owner, 0)
+    rows, cols = rows[holes], cols[holes]
+    owner_in[holes] = np.where(regions_in[rows, cols] == regions_in[holes], owner_in[rows, cols], 0)
     return owner
 
 
