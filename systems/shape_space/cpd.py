@@ -42,15 +42,24 @@ def _initial_sigma2(X, Y) -> float:
     return float((M * np.sum(X**2) + N * np.sum(Y**2) - 2 * np.sum(X.sum(0) * Y.sum(0))) / (D * M * N))
 
 
+# exp(-70) = 4e-31, above float32's smallest normal number (exp(-87.3)); M such weights (M <= 1e4) beside the
+# outlier term (at least 1e-13 for w >= 0.01 and sigma^2 >= 1e-8 m^2) change no float64 sum.
+EXPONENT_FLOOR = -70.0
+
+
 def gmm_posteriors(squared: np.ndarray, sigma2: float, w: float, dimension: int) -> np.ndarray:
     """Posteriors of M isotropic Gaussian centroids (variance sigma2) for N points in `dimension`-D, with a uniform
     outlier component of weight w, from the M x N squared distances: overwritten in place, returned.
 
-    A point far from every centroid (its column underflows to 0) just contributes nothing.
+    A point far from every centroid (its column underflows to 0) just contributes nothing. With an outlier
+    component, the exponents are floored at EXPONENT_FLOOR: the weights below it are nothing beside the outlier
+    term, and computed they would be subnormal numbers, on which every pass over P is 10-30 times slower.
     """
     M, N = squared.shape
     P = squared
     P *= squared.dtype.type(-0.5 / sigma2)
+    if w > 0:
+        np.maximum(P, EXPONENT_FLOOR, out=P)
     np.exp(P, out=P)
     c = (2 * np.pi * sigma2) ** (dimension / 2) * w / (1 - w) * M / N if w > 0 else 0.0
     denominator = P.sum(0, dtype=np.float64) + c

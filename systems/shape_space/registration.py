@@ -27,10 +27,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import open3d as o3d
+from pydrake.common.eigen_geometry import AngleAxis
 from pydrake.math import RigidTransform, RotationMatrix
 from scipy.spatial import cKDTree
 from scipy.spatial.distance import cdist
-from scipy.spatial.transform import Rotation
 
 from systems.messages import DepthView
 from systems.perception.depth_cleaning import dense_inliers
@@ -155,6 +155,21 @@ def _skew_columns(v: np.ndarray) -> np.ndarray:
     out[:, 1, 0], out[:, 1, 2] = -v[:, 2], v[:, 0]
     out[:, 2, 0], out[:, 2, 1] = v[:, 1], -v[:, 0]
     return out
+
+
+def _squared_distances(A: np.ndarray, B32: np.ndarray) -> np.ndarray:
+    """The M x N squared distances (float32) between the rows of A (M x 3) and of B32 (N x 3, float32)."""
+    A32 = A.astype(np.float32)
+    squared = A32 @ (-2 * B32.T)
+    squared += np.einsum("ij,ij->i", A32, A32)[:, None]
+    squared += np.einsum("ij,ij->i", B32, B32)[None, :]
+    return np.maximum(squared, 0, out=squared)
+
+
+def _rotation(omega: np.ndarray) -> np.ndarray:
+    """The rotation matrix of the rotation vector omega (3,), rad."""
+    angle = float(np.linalg.norm(omega))
+    return np.eye(3) if angle < 1e-12 else RotationMatrix(AngleAxis(angle, omega / angle)).matrix()
 
 
 def visible_from(points_W: np.ndarray, viewpoint_W: np.ndarray) -> np.ndarray:
@@ -384,22 +399,28 @@ class Registrar:
         # their rows of the posteriors are ever non-zero, so only they are computed.
         rows = np.arange(len(model))
         squared = None
-        X32 = X.astype(np.float32)
+        # The squared distances in float32 about the seen points' centroid (coordinates within the object's
+        # size: the rounding of |s|^2 + |x|^2 - 2 s.x stays near 1e-9 m^2); X1's column of ones gives P's row sums
+        # (P1) in the same product as P X.
+        centre = X.mean(0)
+        X32 = (X - centre).astype(np.float32)
+        X1 = np.hstack([X32, np.ones((len(X), 1), np.float32)])
         for iteration in range(1, ITERATIONS + 1):  # noqa: B007 (the count is returned)
             if viewpoint_W is not None and iteration % VISIBILITY_EVERY == 1:
                 rows = np.flatnonzero(visible_from(model, viewpoint_W))
                 squared = None
             if squared is None:
-                squared = cdist(model[rows], X, "sqeuclidean").astype(np.float32)
+                squared = _squared_distances(model[rows] - centre, X32)
             # E-step: posterior of each centroid for each observed point, with a uniform outlier term (in
-            # float32, twice the speed; the sums come back in float64).
+            # float32, twice the speed; P X and P 1 summed by float32's matrix product, the rest in float64).
             P = gmm_posteriors(squared, sigma2, OUTLIER_WEIGHT, 3)
-            P1 = P.sum(1, dtype=np.float64)
+            PX1 = (P @ X1).astype(float)
+            P1 = PX1[:, 3]
             Np = P1.sum()
             if Np < 1e-9:
                 break
             # Gauss-Newton on sum_m P1_m |s_m - target_m / P1_m|^2 / (2 sigma2) + prior.
-            residual = (P @ X32).astype(float) - P1[:, None] * model[rows]  # = P1_m (target_m - s_m)
+            residual = PX1[:, :3] - P1[:, None] * (model[rows] - centre)  # = P1_m (target_m - s_m)
             scale = np.exp(log_scale)
             blocks = [
                 _skew_columns(RS[rows])[:, :, rotation_dofs],
@@ -422,7 +443,7 @@ class Registrar:
             step = np.linalg.solve(H + 1e-9 * np.eye(len(g)), g)
             omega = np.zeros(3)
             omega[rotation_dofs] = step[: len(rotation_dofs)]
-            R = Rotation.from_rotvec(omega).as_matrix() @ R
+            R = _rotation(omega) @ R
             t[translation_dofs] += step[moved]
             z = z + step[latent]
             if scale_prior:
@@ -430,7 +451,7 @@ class Registrar:
             shape_O = (self.mean_shape + self.B @ z) * np.exp(log_scale)
             RS = shape_O @ R.T
             model = RS + t
-            squared = cdist(model[rows], X, "sqeuclidean").astype(np.float32)
+            squared = _squared_distances(model[rows] - centre, X32)
             previous, sigma2 = sigma2, max(float(np.vdot(P, squared)) / (3 * Np), 1e-8)
             if abs(previous - sigma2) < CONVERGED * previous:
                 break
