@@ -202,39 +202,3 @@ def test_obstacles_are_arguments_not_state(planning):
     assert len(world.planning_obstacles().fields) == 1  # the welded object's surface alone
     with pytest.raises(dataclasses.FrozenInstanceError):
         motions.stomp.config.seed = 1  # a planner's settings are given when it is built
-
-
-def test_sweep_radii_bound_how_far_every_sphere_moves(planning):
-    """Along random straight segments, no sphere centre moves farther between two close states than the swept
-    bound allows (sum_j |dq_j| r_j), and the bound is not loose by orders of magnitude."""
-    motions, q_goal = planning
-    stomp, kinematics = motions.stomp, motions.world.kinematics
-    rng = np.random.default_rng(3)
-    q_a = rng.uniform(stomp.lower, stomp.upper, (50, stomp.dof))
-    q_b = np.clip(q_a + rng.normal(0, 0.01, q_a.shape), stomp.lower, stomp.upper)
-    moved = np.linalg.norm(
-        stomp.spheres.centres_W(kinematics.body_poses(q_b)) - stomp.spheres.centres_W(kinematics.body_poses(q_a)),
-        axis=-1,
-    )
-    bound = np.abs(q_b - q_a) @ stomp.sphere_radii.T
-    assert np.all(moved <= bound + 1e-9)
-    assert np.median(moved[moved > 1e-6] / bound[moved > 1e-6]) > 0.2
-
-
-def test_the_swept_check_finds_a_box_between_sparse_samples(planning):
-    """A small box on the path of the sphere that moves farthest, 7/40 of the way along a swing of the left
-    shoulder: clear at four evenly spaced states, not clear along the segment. Without it, proven clear."""
-    motions, q_goal = planning
-    stomp = motions.stomp
-    q_a, q_b = q_goal.copy(), q_goal.copy()
-    q_b[0] -= 0.5
-    states = q_a + np.linspace(0, 1, 41)[:, None] * (q_b - q_a)
-    centres = stomp.spheres.centres_W(motions.world.kinematics.body_poses(states))
-    fastest = np.argmax(np.linalg.norm(centres[-1] - centres[0], axis=-1))
-    X_WB = np.eye(4)
-    X_WB[:3, 3] = centres[7, fastest]
-    blocked = Obstacles().add_box(X_WB, [0.004, 0.004, 0.004])
-    sparse = q_a + np.linspace(0, 1, 4)[:, None] * (q_b - q_a)
-    assert stomp.clearance(sparse, blocked).min() > stomp.config.required_clearance
-    assert not stomp.segments_clear(np.stack([q_a, q_b]), blocked)
-    assert stomp.segments_clear(np.stack([q_a, q_b]), Obstacles())

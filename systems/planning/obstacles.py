@@ -48,12 +48,6 @@ class DistanceField:
         return np.minimum(distance - self.inflation, cap)
 
 
-# m: the cap of the distances a swept check bounds (Stomp.segments_clear). Beyond a field's grid, `distance`
-# returns its cap, and the true distance there is at least the grid's reach: capped at it, the distance is a
-# lower bound everywhere and changes no faster than `lipschitz` (at a larger cap it would jump at the grid's edge).
-SWEPT_CAP = DistanceField.REACH
-
-
 @dataclass
 class CarriedPoints:
     """An object the hands carry, as spheres fixed to one of the robot's bodies: kept clear of the scene."""
@@ -71,13 +65,6 @@ class Obstacles:
         self.boxes: list[tuple[np.ndarray, np.ndarray]] = []  # (X_BW 4x4, half sizes)
         self.fields: list[DistanceField] = []
         self.carried: CarriedPoints | None = None
-
-    @property
-    def lipschitz(self) -> float:
-        """How fast `distance` can change per metre a point moves (capped at SWEPT_CAP): 1 for boxes; a distance
-        field's trilinear interpolation of a 1-Lipschitz distance changes at most 1 along each axis, sqrt(3) in
-        all."""
-        return float(np.sqrt(3.0)) if self.fields else 1.0
 
     def carrying(self, carried: CarriedPoints) -> "Obstacles":
         """The same scene with the robot carrying `carried`."""

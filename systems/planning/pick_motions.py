@@ -251,12 +251,7 @@ class PickMotions:
         if not result.success:
             raise PlanningError(result.message)
         logging.info("reach: STOMP, %d iterations, %.2f s", result.iterations, result.seconds)
-        # Shortened on the sphere model's swept check; Drake's exact check on the shortened path alone, and where
-        # that fails, the shortening again with the exact check on each segment tried.
-        path = list(result.trajectory)
-        keyframes = shortcut(lambda a, b: self.stomp.segments_clear(np.stack([a, b]), obstacles), path)
-        if keyframes is None or not all(self.segment_is_free(a, b, checked) for a, b in itertools.pairwise(keyframes)):
-            keyframes = shortcut(lambda a, b: self.segment_is_free(a, b, checked), path)
+        keyframes = shortcut(lambda a, b: self.segment_is_free(a, b, checked), list(result.trajectory))
         if keyframes is None:
             raise PlanningError("the STOMP trajectory collides under Drake's exact check")
         return np.stack(keyframes)

@@ -51,8 +51,7 @@ from systems.planning.closure import (
 )
 from systems.planning.hand_constraints import HandConstraints, bounded_step
 from systems.planning.kinematics import Payload, joint_torques, relative_pose
-from systems.planning.obstacles import SWEPT_CAP, Obstacles
-from systems.planning.swept import segments_clear, sweep_radii
+from systems.planning.obstacles import Obstacles
 from systems.planning.world import PlanningWorld
 
 TERMS = ("collision", "limits", "torque", "duration", "closure", "orientation")
@@ -204,11 +203,6 @@ class Stomp:
         # Pairs of a sphere fixed to one hand and one fixed to the other: while both hands hold an object (the
         # closure constraint) their gap stays as the grasp made it, so a held move does not count them (the
         # sphere model can find two hands on one handle overlapping where Drake's geometry does not).
-        # Each sphere's bound on its distance from each joint's axis (S x n, m), for the swept segment checks.
-        self.sphere_radii = np.zeros((len(spheres.radius), self.dof))
-        for body in np.unique(spheres.body):
-            on = spheres.body == body
-            self.sphere_radii[on] = sweep_radii(world.kinematics, body, spheres.centre_B[on])
         moved_by = np.array([world.kinematics.driving_dof(position) for position in spheres.body])
         hands = {world.kinematics.driving_dof(position) for position in world.end_effectors.positions}
         self.hand_to_hand = np.array(
@@ -229,32 +223,27 @@ class Stomp:
         shape = q.shape[:-1]
         if poses is None:
             poses = self.kinematics.body_poses(q.reshape(-1, self.dof))
-        near = self._near_sphere_pairs(poses)
-        if held:
-            near = near[~self.hand_to_hand[near]]
-        gaps = self._gaps(poses, obstacles, near)
-        shortfall = np.maximum(self.config.margin - gaps, 0.0).sum(axis=1)
-        return gaps.min(axis=1).reshape(shape), shortfall.reshape(shape)
-
-    def _gaps(self, poses: np.ndarray, obstacles: Obstacles, pairs: np.ndarray, cap: float = 0.3) -> np.ndarray:
-        """Clearances (B x C, m) at the bodies' poses (B x L x 4 x 4): each sphere's to the scene (capped at `cap`),
-        each carried sphere's to the scene, and those of the sphere pairs `pairs` (indices into pair_a, pair_b)."""
         centres = self.spheres.centres_W(poses)
         radius = self.spheres.radius
-        gaps = [obstacles.distance(centres, cap) - radius]
+        gaps = [obstacles.distance(centres) - radius]
         if obstacles.carried is not None:
             carried = obstacles.carried
             X = poses[:, carried.slot]
             points = carried.points_B @ np.swapaxes(X[:, :3, :3], 1, 2) + X[:, None, :3, 3]
-            gaps.append(obstacles.distance(points, cap) - carried.radius)
-        if len(pairs):
-            a, b = self.pair_a[pairs], self.pair_b[pairs]
+            gaps.append(obstacles.distance(points) - carried.radius)
+        near = self._near_sphere_pairs(poses)
+        if held:
+            near = near[~self.hand_to_hand[near]]
+        if len(near):
+            a, b = self.pair_a[near], self.pair_b[near]
             centres32 = centres.astype(np.float32)
             difference = centres32[:, a] - centres32[:, b]
             difference *= difference
             distance = np.sqrt(difference[..., 0] + difference[..., 1] + difference[..., 2])
             gaps.append(distance - (radius[a] + radius[b]).astype(np.float32))
-        return np.concatenate(gaps, axis=1, dtype=np.float64)
+        gaps = np.concatenate(gaps, axis=1, dtype=np.float64)
+        shortfall = np.maximum(self.config.margin - gaps, 0.0).sum(axis=1)
+        return gaps.min(axis=1).reshape(shape), shortfall.reshape(shape)
 
     def _near_sphere_pairs(self, body_poses: np.ndarray) -> np.ndarray:
         """Indices of the sphere pairs whose bodies' bounding spheres come within the margin in any configuration."""
@@ -600,24 +589,7 @@ class Stomp:
 
     def _segments_clear(self, theta: np.ndarray, obstacles: Obstacles, held: bool) -> bool:
         """The sphere model stays clear between keyframes too: at states no joint turns more than segment_step_rad
-        apart (at least 4 per segment). (Not segments_clear: its proof needs more iterations, and on 60 tuning
-        turns it solved one fewer.)"""
+        apart (at least 4 per segment)."""
         steps = max(4, int(np.ceil(np.abs(np.diff(theta, axis=0)).max() / self.config.segment_step_rad)))
         clearance = self.clearance(interpolate_segments(theta, steps), obstacles, held)
         return bool(clearance.min() > self.config.required_clearance)
-
-    def segments_clear(self, theta: np.ndarray, obstacles: Obstacles, held: bool = False) -> bool:
-        """Whether the sphere model stays clear (above required_clearance) all along the straight segments between
-        the configurations of theta (N x n), not only at sampled states: a swept bound (systems/planning/swept.py).
-        With `held`, without the hand-to-hand pairs."""
-        pairs = np.flatnonzero(~self.hand_to_hand) if held else np.arange(len(self.pair_a))
-        rates = [obstacles.lipschitz * self.sphere_radii]
-        if obstacles.carried is not None:
-            carried = obstacles.carried
-            rates.append(obstacles.lipschitz * sweep_radii(self.kinematics, carried.slot, carried.points_B))
-        rates.append(self.sphere_radii[self.pair_a[pairs]] + self.sphere_radii[self.pair_b[pairs]])
-
-        def gaps(q):  # (capped where the scene's distance is a lower bound everywhere: see Obstacles.lipschitz)
-            return self._gaps(self.kinematics.body_poses(q), obstacles, pairs, cap=SWEPT_CAP)
-
-        return segments_clear(theta, gaps, np.concatenate(rates), self.config.required_clearance)
