@@ -52,6 +52,10 @@ NAMESPACE_SETUP = (
 ROBOT_HOLD_S = 2.5
 # A spawned driver needs a few seconds to start (imports, model, renderer).
 DRIVER_START_TIMEOUT_S = 60.0
+# The spawned driver simulates the robot and renders and noises each camera frame in one loop: its status stops
+# while it does (0.1-0.2 s a frame on the project's 2-core VM, the driver alone; longer while the pick perceives
+# beside it), where a real robot's controller streams on. Its status is watched this long before the guard trips.
+SPAWNED_DRIVER_WATCHDOG_S = 1.0
 
 
 def run_pick_on_robot(
@@ -185,7 +189,9 @@ def run_with_spawned_driver(scenario: Scenario, driver_arguments: list[str]) -> 
     scenario = replace(
         scenario,
         hardware=replace(
-            scenario.hardware, status_timeout_s=max(scenario.hardware.status_timeout_s, DRIVER_START_TIMEOUT_S)
+            scenario.hardware,
+            status_timeout_s=max(scenario.hardware.status_timeout_s, DRIVER_START_TIMEOUT_S),
+            watchdog_s=max(scenario.hardware.watchdog_s, SPAWNED_DRIVER_WATCHDOG_S),
         ),
     )
     with tempfile.TemporaryDirectory() as folder:
