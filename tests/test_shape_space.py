@@ -9,7 +9,7 @@ from scipy.spatial.transform import Rotation
 from diagrams.generation.objects import catalog
 from diagrams.generation.objects.library import load_info
 from systems.perception.shape_registrar import shape_space_file
-from systems.shape_space.cpd import deformable_cpd, rigid_cpd
+from systems.shape_space.cpd import deformable_cpd, gmm_posteriors, rigid_cpd, squared_distances
 from systems.shape_space.pca_em import pca_em
 from systems.shape_space.registration import Registrar, evenly_thinned, grasp_shift, visible_from
 from systems.shape_space.space import POSE_NAMES, ShapeSpace, build_shape_space
@@ -35,6 +35,23 @@ def test_rigid_cpd_recovers_a_known_transform_with_outliers(cloud):
     result = rigid_cpd(cloud, target, w=0.1)
     np.testing.assert_allclose(result.R, R, atol=0.01)
     np.testing.assert_allclose(result.t, t, atol=0.003)
+
+
+def test_posteriors_leave_no_subnormal_weights_and_match_float64(cloud):
+    """At a small sigma most of a float32 mixture's weights would be subnormal numbers (10-30 times slower to sum
+    and multiply); floored, the posteriors agree with a float64 computation without the floor."""
+    points = cloud + 0.5  # (off the origin, as points in W are)
+    centroids = points[::4] + np.random.default_rng(1).normal(0, 0.003, (100, 3))
+    sigma2, w = 0.002**2, 0.1
+    centre = points.mean(0)
+    squared = squared_distances(centroids - centre, points - centre)
+    exact = ((centroids[:, None] - points[None]) ** 2).sum(-1)
+    np.testing.assert_allclose(squared, exact, atol=2e-8)  # (m^2: float32 rounding of |a|^2 + |b|^2 - 2 a.b)
+    P = gmm_posteriors(squared, sigma2, w, 3)
+    assert P.dtype == np.float32 and not np.any((P > 0) & (P < np.finfo(np.float32).tiny))
+    weights = np.exp(-exact / (2 * sigma2))
+    c = (2 * np.pi * sigma2) ** 1.5 * w / (1 - w) * len(centroids) / len(points)
+    np.testing.assert_allclose(P, weights / (weights.sum(0) + c), atol=1e-4)  # (the distances' float32 rounding)
 
 
 def test_rigid_cpd_estimates_scale(cloud):

@@ -42,6 +42,17 @@ def _initial_sigma2(X, Y) -> float:
     return float((M * np.sum(X**2) + N * np.sum(Y**2) - 2 * np.sum(X.sum(0) * Y.sum(0))) / (D * M * N))
 
 
+def squared_distances(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """The M x N squared distances between the rows of A (M x D) and of B (N x D), in float32 as |a|^2 + |b|^2 -
+    2 a.b (fast; their rounding grows with |a|^2 and |b|^2: centre both first where the points lie far from 0)."""
+    A32, B32 = np.asarray(A, np.float32), np.asarray(B, np.float32)
+    squared = A32 @ B32.T
+    squared *= -2.0
+    squared += (A32**2).sum(1)[:, None]
+    squared += (B32**2).sum(1)[None, :]
+    return np.maximum(squared, 0.0, out=squared)
+
+
 # exp(-70) = 4e-31, above float32's smallest normal number (exp(-87.3)); M such weights (M <= 1e4) beside the
 # outlier term (at least 1e-13 for w >= 0.01 and sigma^2 >= 1e-8 m^2) change no float64 sum.
 EXPONENT_FLOOR = -70.0
@@ -74,13 +85,8 @@ def _e_step(X, T, sigma2, w):
     The M x N work runs in float32 (twice the speed; the posteriors need no more), the
     sums come back in float64.
     """
-    X32, T32 = X.astype(np.float32), T.astype(np.float32)
-    squared = T32 @ X32.T
-    squared *= -2.0
-    squared += (T32**2).sum(1)[:, None]
-    squared += (X32**2).sum(1)[None, :]
-    np.maximum(squared, 0.0, out=squared)
-    P = gmm_posteriors(squared, sigma2, w, X.shape[1])
+    X32 = X.astype(np.float32)
+    P = gmm_posteriors(squared_distances(T, X32), sigma2, w, X.shape[1])
     return P.sum(1, dtype=np.float64), P.sum(0, dtype=np.float64), (P @ X32).astype(np.float64)
 
 

@@ -34,7 +34,7 @@ from scipy.spatial.distance import cdist
 
 from systems.messages import DepthView
 from systems.perception.depth_cleaning import dense_inliers
-from systems.shape_space.cpd import gmm_posteriors
+from systems.shape_space.cpd import gmm_posteriors, squared_distances
 from systems.shape_space.space import GRASP_NAMES, ShapeSpace
 
 MODEL_POINTS = 800
@@ -155,15 +155,6 @@ def _skew_columns(v: np.ndarray) -> np.ndarray:
     out[:, 1, 0], out[:, 1, 2] = -v[:, 2], v[:, 0]
     out[:, 2, 0], out[:, 2, 1] = v[:, 1], -v[:, 0]
     return out
-
-
-def _squared_distances(A: np.ndarray, B32: np.ndarray) -> np.ndarray:
-    """The M x N squared distances (float32) between the rows of A (M x 3) and of B32 (N x 3, float32)."""
-    A32 = A.astype(np.float32)
-    squared = A32 @ (-2 * B32.T)
-    squared += np.einsum("ij,ij->i", A32, A32)[:, None]
-    squared += np.einsum("ij,ij->i", B32, B32)[None, :]
-    return np.maximum(squared, 0, out=squared)
 
 
 def _rotation(omega: np.ndarray) -> np.ndarray:
@@ -400,8 +391,8 @@ class Registrar:
         rows = np.arange(len(model))
         squared = None
         # The squared distances in float32 about the seen points' centroid (coordinates within the object's
-        # size: the rounding of |s|^2 + |x|^2 - 2 s.x stays near 1e-9 m^2); X1's column of ones gives P's row sums
-        # (P1) in the same product as P X.
+        # size: the rounding of |s|^2 + |x|^2 - 2 s.x stays within about 1e-8 m^2); X1's column of ones gives P's
+        # row sums (P1) in the same product as P X.
         centre = X.mean(0)
         X32 = (X - centre).astype(np.float32)
         X1 = np.hstack([X32, np.ones((len(X), 1), np.float32)])
@@ -410,7 +401,7 @@ class Registrar:
                 rows = np.flatnonzero(visible_from(model, viewpoint_W))
                 squared = None
             if squared is None:
-                squared = _squared_distances(model[rows] - centre, X32)
+                squared = squared_distances(model[rows] - centre, X32)
             # E-step: posterior of each centroid for each observed point, with a uniform outlier term (in
             # float32, twice the speed; P X and P 1 summed by float32's matrix product, the rest in float64).
             P = gmm_posteriors(squared, sigma2, OUTLIER_WEIGHT, 3)
@@ -451,7 +442,7 @@ class Registrar:
             shape_O = (self.mean_shape + self.B @ z) * np.exp(log_scale)
             RS = shape_O @ R.T
             model = RS + t
-            squared = _squared_distances(model[rows] - centre, X32)
+            squared = squared_distances(model[rows] - centre, X32)
             previous, sigma2 = sigma2, max(float(np.vdot(P, squared)) / (3 * Np), 1e-8)
             if abs(previous - sigma2) < CONVERGED * previous:
                 break
