@@ -53,7 +53,7 @@ ROBOT_HOLD_S = 2.5
 # A spawned driver needs a few seconds to start (imports, model, renderer).
 DRIVER_START_TIMEOUT_S = 60.0
 # The spawned driver simulates the robot and renders and noises each camera frame in one loop: its status stops
-# while it does (0.1-0.2 s a frame on the project's 2-core VM, the driver alone; longer while the pick perceives
+# while it does (about 0.2 s a frame on the project's 2-core VM, the driver alone; longer while the pick perceives
 # beside it), where a real robot's controller streams on. Its status is watched this long before the guard trips.
 SPAWNED_DRIVER_WATCHDOG_S = 1.0
 
