@@ -1,7 +1,8 @@
 """Image to first trajectory: the pick's latency end to end and each stage's share, one pick at a time.
 
-Each pick is evaluate.py's (diagrams/evaluation.py run_trial in a single-threaded worker process: torch, BLAS
-and OpenMP on one thread), run one after another so that no two share the CPU. Image to first trajectory is
+Each pick is evaluate.py's (diagrams/evaluation.py run_trial in a worker process: torch, BLAS and OpenMP on one
+thread, the stages' independent pieces on two threads: systems/parallel.py), run one after another so that no
+two share the CPU. Image to first trajectory is
 the wall time from the camera latch taking the frame to the end of the first successful plan after it (the
 supervisor's reads, the simulator's steps between the stages and every failed plan before it included); a pick
 that failed counts until the plan or the perception result that failed. It is not a sum of the stage timers:
@@ -24,6 +25,7 @@ from scenario_options import add_sensor_option, with_sensor
 
 from diagrams.evaluation import PAPER_YAW_NOISE, PAPER_YAWS, generated_objects, make_trials
 from diagrams.scenario import DEFAULT_SCENARIO, load_scenario
+from systems.parallel import THREADS
 
 CATEGORIES = ("watering_can", "drill")
 STAGES = ("segmentation", "pose", "registration", "planning")
@@ -146,7 +148,8 @@ def main(argv=None) -> int:
         return 2
     sensor = trials[0].scenario.camera_noise.preset
     print(f"{len(trials)} picks one at a time (sensor {sensor}), each in a worker process with torch, BLAS and "
-          f"OpenMP on one thread, as evaluate.py runs them")  # fmt: skip
+          f"OpenMP on one thread and the stages' independent pieces on {THREADS} threads, as evaluate.py runs "
+          "them")  # fmt: skip
 
     def describe(record: dict) -> str:
         outcome = "lifted" if record["success"] else f"FAILED at {record['failed_stage']}"

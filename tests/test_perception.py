@@ -19,6 +19,7 @@ from diagrams.scenario import initial_positions, load_scenario, replace_object
 from diagrams.station import MakeStation, object_pose_on_table, true_label_image
 from systems.messages import Segmentation
 from systems.perception import segmentation_network
+from systems.perception import segmenter as segmenter_module
 from systems.perception.depth_cleaning import flying_pixels
 from systems.perception.instances import named_object, object_instances
 from systems.perception.segmenter import DEFAULT_WEIGHTS, Segmenter, dominant_object
@@ -124,6 +125,16 @@ def test_segmenter_finds_unseen_object_in_station_image(segmenter, station_frame
     truth = station_frame["mask"]
     iou = np.count_nonzero(result.mask & truth) / np.count_nonzero(result.mask | truth)
     assert iou > 0.85, f"IoU {iou:.3f}"
+
+
+def test_the_image_and_its_mirror_on_two_threads_score_as_one_after_the_other(segmenter, station_frame, monkeypatch):
+    """The test-time flip's two passes run on the cores at once (systems/parallel.py): the same labels to the pixel
+    as the two passes one after another."""
+    rgb = np.asarray(station_frame["rgb"].data)[:, :, :3]
+    at_once = segmenter.segment(rgb)
+    monkeypatch.setattr(segmenter_module, "parallel_map", lambda function, items: [function(item) for item in items])
+    np.testing.assert_array_equal(segmenter.segment(rgb), at_once)
+    assert np.count_nonzero(at_once) > 1000
 
 
 def test_the_category_the_user_names_wins_over_the_networks(station_frame):

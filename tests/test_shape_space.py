@@ -1,6 +1,7 @@
 """Coherent Point Drift and PCA-EM against planted ground truth."""
 
 import numpy as np
+import open3d as o3d
 import pytest
 import trimesh
 from pydrake.math import RigidTransform, RotationMatrix
@@ -9,6 +10,7 @@ from scipy.spatial.transform import Rotation
 from diagrams.generation.objects import catalog
 from diagrams.generation.objects.library import load_info
 from systems.perception.shape_registrar import shape_space_file
+from systems.shape_space import registration
 from systems.shape_space.cpd import deformable_cpd, gmm_posteriors, rigid_cpd, squared_distances
 from systems.shape_space.pca_em import pca_em
 from systems.shape_space.registration import Registrar, evenly_thinned, grasp_shift, visible_from
@@ -163,6 +165,23 @@ def test_visible_from_keeps_the_near_side_of_a_sphere():
     assert visible[height > 0.02].mean() > 0.95 and visible[height < -0.02].mean() < 0.02
 
 
+def test_visible_from_gives_open3ds_hidden_point_removal():
+    """visible_from is Katz et al.'s operator as open3d's hidden_point_removal computes it (scipy's qhull instead,
+    so that other threads run meanwhile): the same points on a drill's surface seen from the chest camera."""
+    mesh = trimesh.load(catalog.instance_directory("drill", "test_0") / "visual.obj", force="mesh")
+    X_WO = RigidTransform(RotationMatrix.MakeZRotation(0.4), [0.73, 0.0, 0.76])
+    for count, seed in ((800, 1), (6000, 2)):
+        points = X_WO.multiply(trimesh.sample.sample_surface_even(mesh, count, seed=seed)[0].T).T
+        viewpoint = np.array([0.2, 0.1, 1.6])
+        cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points))
+        radius = 100.0 * np.linalg.norm(points - viewpoint, axis=1).max()
+        expected = np.zeros(len(points), bool)
+        expected[cloud.hidden_point_removal(viewpoint, radius)[1]] = True
+        visible = visible_from(points, viewpoint)
+        assert 0.2 < visible.mean() < 0.8
+        np.testing.assert_array_equal(visible, expected)
+
+
 def test_deformable_cpd_landmarks_settle_ambiguous_correspondences():
     # A ring turned about its own axis looks unchanged: CPD alone leaves it where it is; a
     # landmark (one point and where it must go) makes the field carry that point there.
@@ -237,6 +256,26 @@ def test_registration_from_a_single_view_uses_the_viewpoint(instance):
         grasp, pregrasp = result.grasp_poses_W[f"{side}_grasp"], result.grasp_poses_W[f"{side}_pregrasp"]
         moved = grasp.translation() - decoded[f"{side}_grasp"].translation()
         np.testing.assert_allclose(pregrasp.translation() - decoded[f"{side}_pregrasp"].translation(), moved, atol=1e-9)
+
+
+def test_the_hypotheses_fitted_at_once_give_the_fits_one_after_another(monkeypatch):
+    """The yaw hypotheses run on the cores at once (systems/parallel.py); the registration is the same to the bit
+    as with them one after another."""
+    registrar = Registrar(ShapeSpace.load(shape_space_file("watering_can")))
+    X_WO = RigidTransform(RotationMatrix.MakeZRotation(catalog.presentation_yaw("watering_can")), [0.73, 0.0, 0.76])
+    mesh = trimesh.load(catalog.instance_directory("watering_can", "test_1") / "visual.obj", force="mesh")
+    surface_W = X_WO.multiply(trimesh.sample.sample_surface_even(mesh, 4000, seed=4)[0].T).T
+    camera = np.array([0.2, 0.0, 1.6])
+    seen = surface_W[visible_from(surface_W, camera)]
+    start = RigidTransform(RotationMatrix.MakeZRotation(0.1), [0.01, 0, 0]) @ X_WO
+    at_once = registrar.register(seen, start, camera)
+    monkeypatch.setattr(registration, "parallel_map", lambda function, items: [function(item) for item in items])
+    in_turn = registrar.register(seen, start, camera)
+    np.testing.assert_array_equal(at_once.X_WO.GetAsMatrix4(), in_turn.X_WO.GetAsMatrix4())
+    np.testing.assert_array_equal(at_once.latent, in_turn.latent)
+    for name, pose in at_once.grasp_poses_W.items():
+        np.testing.assert_array_equal(pose.GetAsMatrix4(), in_turn.grasp_poses_W[name].GetAsMatrix4())
+    assert at_once.grasp_support == in_turn.grasp_support and at_once.iterations == in_turn.iterations
 
 
 def handle_front(offset, count=800, seed=0):

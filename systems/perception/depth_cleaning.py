@@ -22,6 +22,8 @@ grasps 6 cm off. Two filters, as real pipelines have them:
 import numpy as np
 from scipy.spatial import cKDTree
 
+from systems.parallel import THREADS
+
 MIN_AGREEING = 2
 # Two neighbours agree within AGREE_M + AGREE_PER_M2 * z^2 (m): a few standard deviations of a Kinect-v2-like
 # sensor's axial noise (0.5 mm + 1.5 mm/m^2 z^2) and the step between neighbours on a surface seen at a slant.
@@ -58,5 +60,7 @@ def dense_inliers(points: np.ndarray) -> np.ndarray:
     if len(points) <= 2 * STRAY_NEIGHBOUR:
         return np.ones(len(points), bool)
     # (A sliding-midpoint tree: the same neighbours, built and queried in about 0.7 of the balanced one's time here.)
-    distance = cKDTree(points, balanced_tree=False).query(points, STRAY_NEIGHBOUR + 1)[0][:, STRAY_NEIGHBOUR]
+    # (The query on the cores: each point's neighbours are found alone, the same answers on any number of threads.)
+    tree = cKDTree(points, balanced_tree=False)
+    distance = tree.query(points, STRAY_NEIGHBOUR + 1, workers=THREADS)[0][:, STRAY_NEIGHBOUR]
     return distance <= STRAY_RATIO * np.median(distance)

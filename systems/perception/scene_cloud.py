@@ -28,6 +28,7 @@ from pydrake.systems.sensors import CameraInfo, ImageDepth32F
 from scipy.spatial import cKDTree
 
 from systems.messages import Segmentation
+from systems.parallel import THREADS
 from systems.perception.depth_cleaning import flying_pixels
 from systems.perception.pose_estimator import depth_to_points, voxel_thin
 from systems.planning.kinematics import off_the_robot
@@ -69,7 +70,7 @@ def scene_points(
     points_W = points_W[(height > TABLE_MARGIN_M) & (height < WORKSPACE_HEIGHT_M) & (reach < WORKSPACE_RADIUS_M)]
     points_W = off_the_robot(points_W, robot_spheres_W, SELF_MARGIN_M)
     if object_cloud_W is not None and len(object_cloud_W) and len(points_W):  # its pixels the mask missed
-        points_W = points_W[cKDTree(object_cloud_W).query(points_W)[0] > OBJECT_SURFACE_M]
+        points_W = points_W[cKDTree(object_cloud_W).query(points_W, workers=THREADS)[0] > OBJECT_SURFACE_M]
     if not len(points_W):
         return np.zeros((0, 3)), np.zeros((0, 3))
     seen = voxel_thin(points_W, SEEN_SPACING_M)
@@ -81,9 +82,9 @@ def scene_points(
     behind = behind[behind[:, 2] > table_top_z + TABLE_MARGIN_M]
     hidden = voxel_centres(behind) if len(behind) else np.zeros((0, 3))
     if len(hidden):
-        hidden = hidden[cKDTree(seen).query(hidden)[0] > 0.5 * VOXEL_M]  # (not what is seen already)
+        hidden = hidden[cKDTree(seen).query(hidden, workers=THREADS)[0] > 0.5 * VOXEL_M]  # (not what is seen already)
     if object_cloud_W is not None and len(object_cloud_W) and len(hidden):
-        hidden = hidden[cKDTree(object_cloud_W).query(hidden)[0] > TARGET_MARGIN_M]
+        hidden = hidden[cKDTree(object_cloud_W).query(hidden, workers=THREADS)[0] > TARGET_MARGIN_M]
     # The robot's own shadow (behind parts of it the sphere model leaves out, e.g. the fingers) is not an obstacle.
     return seen, off_the_robot(hidden, robot_spheres_W, SELF_MARGIN_M)
 

@@ -10,6 +10,8 @@ import numpy as np
 from scipy.ndimage import distance_transform_edt, map_coordinates
 from scipy.spatial import cKDTree
 
+from systems.parallel import THREADS
+
 # m: a scene's distance field (many points) is exact this near them: the hands' spheres (0.031 m) plus STOMP's
 # required clearance; the arms' larger spheres are judged on the transform's values (within 8.7 mm at 1 cm cells)
 SCENE_NEAR = 0.04
@@ -40,7 +42,8 @@ class DistanceField:
         occupied[index[:, 0], index[:, 1], index[:, 2]] = True
         self.values = distance_transform_edt(~occupied, sampling=cell)
         exact = self.values < near + cell  # (the transform is within a cell of the exact distance)
-        self.values[exact] = cKDTree(points).query(self.lower + cell * np.argwhere(exact))[0]
+        # (The nodes' query on the cores: each node's nearest point found alone, the same on any number of threads.)
+        self.values[exact] = cKDTree(points).query(self.lower + cell * np.argwhere(exact), workers=THREADS)[0]
 
     def __call__(self, query: np.ndarray, cap: float) -> np.ndarray:
         grid = ((query - self.lower) / self.cell).T

@@ -29,10 +29,11 @@ import numpy as np
 import open3d as o3d
 from pydrake.common.eigen_geometry import AngleAxis
 from pydrake.math import RigidTransform, RotationMatrix
-from scipy.spatial import cKDTree
+from scipy.spatial import ConvexHull, cKDTree
 from scipy.spatial.distance import cdist
 
 from systems.messages import DepthView
+from systems.parallel import parallel_map
 from systems.perception.depth_cleaning import dense_inliers
 from systems.shape_space.cpd import gmm_posteriors, squared_distances
 from systems.shape_space.space import GRASP_NAMES, ShapeSpace
@@ -164,13 +165,19 @@ def _rotation(omega: np.ndarray) -> np.ndarray:
 
 
 def visible_from(points_W: np.ndarray, viewpoint_W: np.ndarray) -> np.ndarray:
-    """Which points (N x 3, W) of a surface sampling are visible from the viewpoint (3, W): a boolean mask,
-    by open3d's hidden point removal (Katz et al. 2007)."""
-    cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points_W))
-    radius = 100.0 * float(np.linalg.norm(points_W - viewpoint_W, axis=1).max())
-    _, index = cloud.hidden_point_removal(np.asarray(viewpoint_W, dtype=float), radius)
-    mask = np.zeros(len(points_W), dtype=bool)
-    mask[index] = True
+    """Which points (N x 3, W) of a surface sampling are visible from the viewpoint (3, W): a boolean mask, by
+    hidden point removal (Katz et al. 2007): the points flipped about a sphere around the viewpoint (radius 100
+    times the farthest point's distance) that are vertices of their convex hull with the viewpoint.
+
+    (As open3d's hidden_point_removal, the same masks on the registration's point sets; scipy's qhull lets other
+    threads run meanwhile, open3d's call does not.)"""
+    relative = np.asarray(points_W, dtype=float) - viewpoint_W
+    distance = np.linalg.norm(relative, axis=1)
+    radius = 100.0 * float(distance.max())
+    flipped = relative + (2 * (radius - distance) / distance)[:, None] * relative
+    vertices = ConvexHull(np.vstack([flipped, np.zeros(3)])).vertices
+    mask = np.zeros(len(relative), dtype=bool)
+    mask[vertices[vertices < len(relative)]] = True
     return mask
 
 
@@ -333,11 +340,13 @@ class Registrar:
 
     def _register(self, X, observed, X_WO_initial, viewpoint_W, view, scale_prior) -> Registration:
         """The best of the yaw hypotheses' fits to the thinned points X (and the grasps judged on `observed`)."""
-        best = None
+        starts = []
         for offset in self.yaw_hypotheses:
             X0 = RigidTransform(RotationMatrix.MakeZRotation(offset)) @ X_WO_initial
-            X0 = RigidTransform(X0.rotation(), X_WO_initial.translation())  # turn about the object's origin
-            result = self._fit(X, X0, viewpoint_W, scale_prior)
+            starts.append(RigidTransform(X0.rotation(), X_WO_initial.translation()))  # turned about the origin
+        # The hypotheses are independent: fitted at once on the cores (the same fits as one after the other).
+        best = None
+        for result in parallel_map(lambda X0: self._fit(X, X0, viewpoint_W, scale_prior), starts):
             if best is None or result[4] < best[4]:
                 best = result
         R, t, z, scale, error, iterations = best
@@ -396,12 +405,18 @@ class Registrar:
         centre = X.mean(0)
         X32 = (X - centre).astype(np.float32)
         X1 = np.hstack([X32, np.ones((len(X), 1), np.float32)])
+        latent_prior = self.prior_weight * np.diag(self.inverse_variances)
+        translation_prior = np.eye(len(translation_dofs)) / TRANSLATION_PRIOR**2
+        damping = 1e-9 * np.eye(scaled.stop)
         for iteration in range(1, ITERATIONS + 1):  # noqa: B007 (the count is returned)
             if viewpoint_W is not None and iteration % VISIBILITY_EVERY == 1:
                 rows = np.flatnonzero(visible_from(model, viewpoint_W))
                 squared = None
             if squared is None:
                 squared = squared_distances(model[rows] - centre, X32)
+                # The Jacobian's blocks that change only with the rows: d s_m / d t, and the latent basis's rows.
+                d_translation = np.broadcast_to(np.eye(3)[:, translation_dofs], (len(rows), 3, len(translation_dofs)))
+                B_rows = self.B[rows]
             # E-step: posterior of each centroid for each observed point, with a uniform outlier term (in
             # float32, twice the speed; P X and P 1 summed by float32's matrix product, the rest in float64).
             P = gmm_posteriors(squared, sigma2, OUTLIER_WEIGHT, 3)
@@ -415,8 +430,8 @@ class Registrar:
             scale = np.exp(log_scale)
             blocks = [
                 _skew_columns(RS[rows])[:, :, rotation_dofs],
-                np.broadcast_to(np.eye(3)[:, translation_dofs], (len(rows), 3, len(translation_dofs))),
-                R @ (scale[:, None] * self.B[rows]),
+                d_translation,
+                R @ (scale[:, None] * B_rows if scale_prior else B_rows),  # (scale: all ones without a prior)
             ]
             if scale_prior:  # d(R S y)/d(log s_k) = R[:, k] s_k y_k
                 blocks.append(R[None, :, :] * shape_O[rows][:, None, :])
@@ -424,14 +439,14 @@ class Registrar:
             H = (J * np.repeat(P1, 3)[:, None]).T @ J / sigma2
             g = J.T @ residual.ravel() / sigma2
             # Priors: a plausible shape, and an origin near the initial estimate.
-            H[latent, latent] += self.prior_weight * np.diag(self.inverse_variances)
+            H[latent, latent] += latent_prior
             g[latent] -= self.prior_weight * self.inverse_variances * z
-            H[moved, moved] += np.eye(len(translation_dofs)) / TRANSLATION_PRIOR**2
+            H[moved, moved] += translation_prior
             g[moved] -= (t - t0)[translation_dofs] / TRANSLATION_PRIOR**2
             if scale_prior:
                 H[scaled, scaled] += np.eye(3) / scale_prior**2
                 g[scaled] -= log_scale / scale_prior**2
-            step = np.linalg.solve(H + 1e-9 * np.eye(len(g)), g)
+            step = np.linalg.solve(H + damping, g)
             omega = np.zeros(3)
             omega[rotation_dofs] = step[: len(rotation_dofs)]
             R = _rotation(omega) @ R
