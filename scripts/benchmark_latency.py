@@ -1,13 +1,13 @@
 """Image to first trajectory: the pick's latency end to end and each stage's share, one pick at a time.
 
 Each pick is evaluate.py's (diagrams/evaluation.py run_trial in a worker process: torch, BLAS and OpenMP on one
-thread, the stages' independent pieces on two threads: systems/parallel.py), run one after another so that no
-two share the CPU. Image to first trajectory is
-the wall time from the camera latch taking the frame to the end of the first successful plan after it (the
-supervisor's reads, the simulator's steps between the stages and every failed plan before it included); a pick
-that failed counts until the plan or the perception result that failed. It is not a sum of the stage timers:
-what the stages' medians leave of it is shown as "between the stages". Nothing is kept from one pick to the
-next but what is built before the image (the diagram, its IK seed table), which is not counted.
+thread, the stages' independent pieces on two threads: systems/parallel.py), run one after another so that no two
+share the CPU. Image to first trajectory is the wall time from the camera latch taking the frame to the end of the
+first successful plan after it (the supervisor's reads, the simulator's steps between the stages and every failed
+plan before it included); a pick that failed counts until the plan or the perception result that failed. It is not
+a sum of the stage timers: what the stages' medians leave of it is shown as "between the stages". Nothing is kept
+from one pick to the next but what is built before the image (the diagram, its IK seed table), which is not
+counted.
 
 python scripts/benchmark_latency.py --json latency.json          # 30 picks of both categories, about 8 min
 python scripts/benchmark_latency.py --unseen 0 --yaws 0          # the test instances at yaw 0 alone

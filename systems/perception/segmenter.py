@@ -138,19 +138,18 @@ class Segmenter(LeafSystem):
         if rgb.ndim != 3 or rgb.shape[2] < 3 or rgb.size == 0:
             raise ValueError(f"expected an H x W x 3 colour image, got shape {rgb.shape}")
         x = segmentation_network.to_input(segmentation_network.resize_to_input(rgb))
-        with torch.no_grad():
-            if self.flip:  # the image and its mirror image on the cores at once (each as it would run alone)
-                scores, mirrored = parallel_map(self._scores, [x, x.flip(-1)])
-                scores = scores + mirrored.flip(-1)
-            else:
-                scores = self._scores(x)
-            scores = F.interpolate(scores, size=rgb.shape[:2], mode="bilinear", align_corners=False)
+        if self.flip:  # the image and its mirror image on the cores at once (each as it would run alone)
+            scores, mirrored = parallel_map(self._scores, [x, x.flip(-1)])
+            scores = scores + mirrored.flip(-1)
+        else:
+            scores = self._scores(x)
+        scores = F.interpolate(scores, size=rgb.shape[:2], mode="bilinear", align_corners=False)
         # (numpy's argmax over the class axis: torch's takes 25 ms at 512 x 424 on one thread)
         return scores[0].numpy().argmax(axis=0).astype(np.uint8)
 
     def _scores(self, x: torch.Tensor) -> torch.Tensor:
-        """The network's class scores (1 x C x h x w) for one input image (1 x 3 x h x w)."""
-        with torch.no_grad():
+        """The network's class scores (1 x C x h x w, no gradient) for one input image (1 x 3 x h x w)."""
+        with torch.no_grad():  # (in the calling thread: torch's gradient mode is per thread)
             return self.model(x.contiguous(memory_format=torch.channels_last))
 
     def _calc_labels(self, context, output):
