@@ -31,7 +31,7 @@ import numpy as np
 from pydrake.math import RigidTransform, RollPitchYaw
 
 from diagrams.generation.objects.library import ObjectModel, resolve_object
-from diagrams.planning_scene import MakeRobotScene, object_surface_W
+from diagrams.planning_scene import MakeRobotScene, object_collision_surface_W, object_surface_W
 from diagrams.scenario import Scenario, initial_positions, load_scenario, replace_object
 from diagrams.station import TABLE_HEIGHT, object_pose_on_table
 from systems.planning.closure import ClosureConstraint, OrientationConstraint, deviations, orientation_deviations
@@ -72,6 +72,8 @@ BELOW_TABLE = np.array([0, 0.15, 0, -0.1, 0, 0, 0, 0, -0.15, 0, -0.1, 0, 0, 0.0,
 DENSE_STEP_RAD = 0.01  # the dense checks: no joint turns more than this between two checked states
 MAX_GOAL_JOINT_CHANGE = 2.0  # rad: a held move's goal no further from its start in any joint (its branch)
 CHECK_POINTS = 1000  # the held object's surface points the checks move with the hands
+# The planners' carried object: spheres spread over this many points of its collision pieces (the judge's geometry).
+CARRIED_SURFACE_POINTS = 3000
 # Integer codes of the families and splits in the seed sequence (the random stream of each problem).
 _FAMILY_CODE = {name: i for i, name in enumerate(FAMILIES)}
 _SPLIT_CODE = {name: i for i, name in enumerate(SPLITS)}
@@ -203,7 +205,8 @@ def held_problem(
     if reason := _too_near(check_world, q_start, q_goal, MIN_CLEARANCE_M):
         return reason
     points, _ = object_surface_W(model, X_WO, CHECK_POINTS)
-    obstacles = check_world.table_obstacles().carrying(motions.carried(q_start, points))
+    carried = motions.carried(q_start, object_collision_surface_W(model, X_WO, CARRIED_SURFACE_POINTS))
+    obstacles = check_world.table_obstacles().carrying(carried)
     if reason := _too_near_for_the_planners(motions, obstacles, q_start, q_goal, held=True):
         return reason
     X_WO_goal = world.grasp_frame_poses(q_goal)["left"] @ X_GO  # the motion's, within IK's and projection's error

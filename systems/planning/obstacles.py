@@ -60,6 +60,20 @@ class CarriedPoints:
     radius: float  # m
 
 
+def covering_centres(points: np.ndarray, radius: float, most: int) -> np.ndarray:
+    """Sphere centres among the points (N x 3, m) such that every point lies within `radius` (m) of one: farthest
+    point sampling from the first point, stopped once the farthest is that near (or at `most` centres)."""
+    points = np.asarray(points, float)
+    if not len(points):
+        raise ValueError("no points to cover")
+    chosen = [0]
+    nearest = np.linalg.norm(points - points[0], axis=1)
+    while len(chosen) < most and nearest.max() > radius:
+        chosen.append(int(nearest.argmax()))
+        np.minimum(nearest, np.linalg.norm(points - points[chosen[-1]], axis=1), out=nearest)
+    return points[chosen]
+
+
 class Obstacles:
     """The scene for the sphere model: oriented boxes and point sets (e.g. an object's surface), and what
     the robot carries through it (`carried`, optional)."""

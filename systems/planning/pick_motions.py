@@ -33,7 +33,7 @@ from systems.planning.closure import ClosureConstraint, OrientationConstraint, d
 from systems.planning.hand_constraints import MAX_STEP, bounded_step, rotation_error
 from systems.planning.ik import DualArmIk, IkResult
 from systems.planning.kinematics import Payload, off_the_robot
-from systems.planning.obstacles import CarriedPoints, Obstacles
+from systems.planning.obstacles import CarriedPoints, Obstacles, covering_centres
 from systems.planning.stomp import Stomp, StompConfig
 from systems.planning.world import PERCEIVED_SCENE_MARGIN, SCENE_CELL_M, SIDES, PlanningWorld
 from systems.robot_io.joint_plan import move_duration
@@ -62,9 +62,10 @@ HELD_GOAL_POSITION_TOLERANCE = 0.001
 HELD_GOAL_ANGLE_TOLERANCES = (0.01, 0.04)
 HELD_PATH_STEPS = 10  # configurations solved along a held move's motion
 PROJECTION_STEPS = 15
-# A carried object as spheres for the collision cost: about this many, of this radius (m; they overlap).
-CARRIED_POINTS = 150
+# A carried object as spheres of this radius (m) for the collision cost, centred on its points so that every
+# point lies in one (farthest point sampling; 3000 points of a can take 380-510, of a drill 290-330), at most this many.
 CARRIED_RADIUS = 0.015
+CARRIED_MOST_SPHERES = 600
 # The played trajectory's closure is checked at this period, s.
 DENSE_CHECK_S = 0.01
 # The mass STOMP's torque term assumes for a held object, kg: the heaviest of the familiar categories (the generated
@@ -474,11 +475,12 @@ class PickMotions:
         return Payload(slots, points_B, np.full(2, 0.5 * self.config.held_mass_kg))
 
     def carried(self, q: np.ndarray, points_W: np.ndarray) -> CarriedPoints:
-        """The held object's points fixed to the left hand's body (as at q), thinned to CARRIED_POINTS spheres."""
+        """The held object's points (N x 3 in W) as spheres fixed to the left hand's body (as at q), every point
+        within a sphere (at most CARRIED_MOST_SPHERES)."""
         world = self.world
         slot = world.end_effectors.positions[0]
         X_WB = world.kinematics.body_poses(np.asarray(q)[None])[0, slot]
-        points = points_W[:: max(1, len(points_W) // CARRIED_POINTS)]
+        points = covering_centres(points_W, CARRIED_RADIUS, CARRIED_MOST_SPHERES)
         points_B = (points - X_WB[:3, 3]) @ X_WB[:3, :3]
         return CarriedPoints(slot, points_B, CARRIED_RADIUS)
 
