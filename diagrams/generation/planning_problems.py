@@ -92,9 +92,9 @@ class PlanningProblem:
         model: the object's model (files and true grasps).
         check_world: the robot, table and boxes with the object in Drake's exact geometry (held: welded to the
             left hand as at q_start; a reach: standing at X_WO), for the dense checks.
-        obstacles: the planners' scene for the sphere model (table, boxes, and the object's surface: carried in
-            a held move, standing in a reach).
-        object_points_W: the object's surface at X_WO (N x 3, m).
+        obstacles: the planners' scene for the sphere model (table, boxes, and the object: carried in a held move,
+            as spheres covering its collision pieces' surface; standing in a reach, its visual mesh's surface).
+        object_points_W: the object's surface (its visual mesh) at X_WO (N x 3, m).
     """
 
     family: str
