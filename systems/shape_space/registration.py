@@ -431,7 +431,7 @@ class Registrar:
             blocks = [
                 _skew_columns(RS[rows])[:, :, rotation_dofs],
                 d_translation,
-                R @ (scale[:, None] * B_rows if scale_prior else B_rows),  # (scale: all ones without a prior)
+                R @ (scale[:, None] * B_rows),
             ]
             if scale_prior:  # d(R S y)/d(log s_k) = R[:, k] s_k y_k
                 blocks.append(R[None, :, :] * shape_O[rows][:, None, :])
