@@ -107,6 +107,15 @@ class StompConfig:
     # m: where no detour above is collision-free, these heights too (turns of a held object among tall boxes)
     high_detour_heights: tuple = (0.24, 0.30)
     wide_detour_sideways: tuple = (-0.24, -0.18, 0.18, 0.24)  # m: ... and these farther sideways
+    # The detours are first ranked by how clear of the scene the part of the robot that moves with the held object
+    # (the hands' spheres and every len // detour_proxy_points-th carried sphere) would be, moved rigidly by each
+    # detour's offsets; the best detour_checks of each stage are then built (detour_moved_steps Gauss-Newton steps)
+    # and checked one at a time. Only where none of them is a solution are all of them built and scored. Tuning
+    # range (100 problems): a lift's detour 0.21 -> 0.05 s, a carry's 0.23 -> 0.05 s (median), the same problems
+    # solved.
+    detour_checks: int = 4
+    detour_proxy_points: int = 64
+    detour_moved_steps: int = 6
 
 
 @dataclass
@@ -208,6 +217,7 @@ class Stomp:
         self.hand_to_hand = np.array(
             [{moved_by[a], moved_by[b]} == hands for a, b in zip(self.pair_a, self.pair_b, strict=True)], bool
         )
+        self.hand_sphere = np.isin(moved_by, list(hands))  # the spheres that move with a held object
 
     def clearance(self, q: np.ndarray, obstacles: Obstacles, held: bool = False, poses=None) -> np.ndarray:
         """Smallest clearance (m) of the sphere model at each configuration (... x n); with `held` (both hands
@@ -416,8 +426,9 @@ class Stomp:
             theta = starts.pop(0)
             feasible, clearance = self._feasible(theta, obstacles, closure, orientation)
         if not feasible and constraints is not None and config.detour_heights:
-            theta = self._detour_trajectory(theta, obstacles, closure, orientation, constraints, payload)
-            feasible, clearance = self._feasible(theta, obstacles, closure, orientation)
+            theta, feasible, clearance = self._detour_trajectory(
+                theta, obstacles, closure, orientation, constraints, payload
+            )
         if feasible:  # the first trajectory is already a solution: nothing to optimise (0 iterations)
             elapsed = time.perf_counter() - start
             return StompResult(True, theta, 0, elapsed, float(clearance.min()), "collision-free as first drawn")
@@ -534,48 +545,108 @@ class Stomp:
         )
         return [candidates[i] for i in np.argsort(shortfall, kind="stable")]
 
-    def _detour_trajectory(self, theta, obstacles, closure, orientation, constraints, payload) -> np.ndarray:
-        """The cheapest (in STOMP's cost) of theta and detours of it: the held object moved up by each of
-        detour_heights and sideways (across its straight path) by each of detour_sideways, as far as the
-        constraints allow, along the profile min(1, ramp sin(pi s)) (s from 0 to 1) of each of detour_ramps in
-        turn until one is collision-free: a held object carried over or around what stands in its straight path.
-        Where none is, the same up to high_detour_heights and across to wide_detour_sideways."""
-        n = len(theta)
+    def _detour_trajectory(
+        self, theta, obstacles, closure, orientation, constraints, payload
+    ) -> tuple[np.ndarray, bool, np.ndarray]:
+        """A detour of theta to start from, whether it is a solution, and its keyframes' clearances: the held object
+        moved up by each of detour_heights and sideways (across its straight path) by each of detour_sideways, as
+        far as the constraints allow, along the profile min(1, ramp sin(pi s)) (s from 0 to 1) of each of
+        detour_ramps: a held object carried over or around what stands in its straight path. Where none of those
+        is a solution, the same up to high_detour_heights and across to wide_detour_sideways.
+
+        Within each stage, the detours the held part would take clear of the scene (moved rigidly) are built and
+        checked first, the smallest first (_ranked_detour). Where none of those is a solution, the cheapest in
+        STOMP's cost of theta and all detours (_cheapest_detour), built stage by stage until one is a solution."""
         travel = self.end_effectors.poses(theta[[0, -1]])[0][:, :3, 3]
         across = np.cross([0.0, 0.0, 1.0], travel[1] - travel[0])
         across /= max(np.linalg.norm(across), 1e-9)
+        stages = self._detour_stages()
+        held_part = self._held_part(theta[1:-1], obstacles)
+        for moves in stages:
+            found = self._ranked_detour(theta, obstacles, closure, orientation, constraints, moves, across, held_part)
+            if found is not None:
+                return found
+        return self._cheapest_detour(theta, obstacles, closure, orientation, constraints, payload, stages, across)
 
-        def cost(trajectories):  # STOMP's total cost of each trajectory (K x N x n)
-            return self._total(self._cost_terms(trajectories, obstacles, closure, orientation, payload)).sum(axis=1)
-
-        best, best_cost = theta, cost(theta[None])[0]
+    def _detour_stages(self) -> list[list[tuple[float, float]]]:
+        """The detours' (height, sideways) moves (m): the first stage's, then the wider stage's not among them."""
         config = self.config
         first = list(itertools.product(config.detour_heights, config.detour_sideways))
         wider = itertools.product(
             config.detour_heights + config.high_detour_heights, config.detour_sideways + config.wide_detour_sideways
         )
-        for moves in (first, [move for move in wider if move not in first]):
-            offsets = np.array(
-                [
-                    height * np.array([0.0, 0.0, 1.0]) + sideways * across
-                    for height, sideways in moves
-                    if height or sideways
-                ]
-            )
-            if not len(offsets):
+        return [first, [move for move in wider if move not in first]]
+
+    def _detour_targets(self, moves, across: np.ndarray, n: int) -> np.ndarray:
+        """The held object's offsets (m, in W) at the interior keyframes of each detour of the moves, every ramp in
+        turn (ramps x moves, less the zero move) x (n - 2) x 3."""
+        offsets = np.array([height * np.array([0.0, 0.0, 1.0]) + sideways * across for height, sideways in moves])
+        offsets = offsets[np.any(offsets != 0.0, axis=1)]
+        s = np.linspace(0.0, 1.0, n)[1:-1]
+        profiles = np.array([np.minimum(1.0, ramp * np.sin(np.pi * s)) for ramp in self.config.detour_ramps])
+        return (profiles[:, None, :, None] * offsets[None, :, None, :]).reshape(-1, n - 2, 3)
+
+    def _held_part(self, keyframes: np.ndarray, obstacles: Obstacles) -> tuple[np.ndarray, np.ndarray]:
+        """Sphere centres that move with the held object at the keyframes (K x P x 3, m, in W: the hands' spheres
+        and a subset of the carried ones) and their radii (P)."""
+        poses = self.kinematics.body_poses(keyframes)
+        centres, radii = self.spheres.centres_W(poses)[:, self.hand_sphere], self.spheres.radius[self.hand_sphere]
+        if obstacles.carried is not None:
+            carried = obstacles.carried
+            points_B = carried.points_B[:: max(1, len(carried.points_B) // self.config.detour_proxy_points)]
+            X = poses[:, carried.slot]
+            points = points_B @ np.swapaxes(X[:, :3, :3], 1, 2) + X[:, None, :3, 3]
+            centres = np.concatenate([centres, points], axis=1)
+            radii = np.concatenate([radii, np.full(len(points_B), carried.radius)])
+        return centres, radii
+
+    def _ranked_detour(self, theta, obstacles, closure, orientation, constraints, moves, across, held_part):
+        """The first solution (theta, True, clearances) among the detour_checks detours of the moves that the held
+        part, moved rigidly along each, takes clearest of the scene (all above the margin, the smallest detour
+        first; then the least shortfall), or None."""
+        targets = self._detour_targets(moves, across, len(theta))
+        if not len(targets):
+            return None
+        centres, radii = held_part
+        gaps = obstacles.distance(centres[None] + targets[:, :, None, :]) - radii
+        shortfall = np.maximum(self.config.margin - gaps, 0.0).sum(axis=(1, 2))
+        size = np.linalg.norm(targets, axis=-1).mean(axis=1)
+        order = np.lexsort((np.where(shortfall > 0, shortfall, size), shortfall > 0))
+        for i in order[: self.config.detour_checks]:
+            candidate = theta.copy()
+            candidate[1:-1] = constraints.moved(theta[1:-1], targets[i], self.config.detour_moved_steps)
+            feasible, clearance = self._feasible(candidate, obstacles, closure, orientation)
+            if feasible:
+                return candidate, True, clearance
+        return None
+
+    def _cheapest_detour(self, theta, obstacles, closure, orientation, constraints, payload, stages, across):
+        """The cheapest (in STOMP's cost) of theta and the detours, stage by stage and ramp by ramp until the cheapest
+        so far is a solution; with whether it is, and its keyframes' clearances."""
+        n = len(theta)
+
+        def cost(trajectories):  # STOMP's total cost of each trajectory (K x N x n)
+            return self._total(self._cost_terms(trajectories, obstacles, closure, orientation, payload)).sum(axis=1)
+
+        best, best_cost = theta, cost(theta[None])[0]
+        feasible, clearance = False, None
+        for moves in stages:
+            targets = self._detour_targets(moves, across, n)
+            if not len(targets):
                 continue
-            for ramp in self.config.detour_ramps:
-                profile = np.minimum(1.0, ramp * np.sin(np.pi * np.linspace(0.0, 1.0, n)[1:-1]))
-                targets = profile[None, :, None] * offsets[:, None, :]  # detours x interior keyframes x 3
-                interior = constraints.moved(np.tile(theta[1:-1], (len(offsets), 1)), targets.reshape(-1, 3))
-                candidates = np.repeat(theta[None], len(offsets), axis=0)
-                candidates[:, 1:-1] = interior.reshape(len(offsets), n - 2, self.dof)
+            for per_ramp in np.split(targets, len(self.config.detour_ramps)):
+                interior = constraints.moved(np.tile(theta[1:-1], (len(per_ramp), 1)), per_ramp.reshape(-1, 3))
+                candidates = np.repeat(theta[None], len(per_ramp), axis=0)
+                candidates[:, 1:-1] = interior.reshape(len(per_ramp), n - 2, self.dof)
                 costs = cost(candidates)
                 if costs.min() < best_cost:
                     best, best_cost = candidates[np.argmin(costs)], costs.min()
-                if self._feasible(best, obstacles, closure, orientation)[0]:
-                    return best
-        return best
+                feasible, clearance = self._feasible(best, obstacles, closure, orientation)
+                if feasible:
+                    return best, True, clearance
+        if clearance is None:
+            feasible, clearance = self._feasible(best, obstacles, closure, orientation)
+        return best, feasible, clearance
 
     def _feasible(self, theta, obstacles, closure, orientation) -> tuple[bool, np.ndarray]:
         """Whether the trajectory is a solution (clear of collision at and between its keyframes, within the
@@ -583,13 +654,32 @@ class Stomp:
         held = closure is not None
         clearance = self.clearance(theta, obstacles, held)
         ok = clearance.min() > self.config.required_clearance
-        ok = ok and (closure is None or self.closure_within_limits(theta, closure)[0])
-        ok = ok and (orientation is None or self.orientation_within_limits(theta, orientation)[0])
+        ok = ok and self._within_hand_constraints(theta, closure, orientation)
         return bool(ok and self._segments_clear(theta, obstacles, held)), clearance
+
+    def _within_hand_constraints(self, theta: np.ndarray, closure, orientation, steps: int = 10) -> bool:
+        """closure_within_limits() and orientation_within_limits() (where given) from one batch of hand poses."""
+        if closure is None and orientation is None:
+            return True
+        hands = self.end_effectors.poses(interpolate_segments(theta, steps))
+        if closure is not None:
+            constraint, X_desired = closure
+            t_dev, o_dev = relative_deviations(relative_pose(*hands), X_desired)
+            if t_dev.max() >= constraint.t_max or o_dev.max() >= constraint.o_max:
+                return False
+        if orientation is not None:
+            constraint, R_desired = orientation
+            return bool(hand_orientation_deviations(hands, R_desired, constraint.upright_only).max() < constraint.o_max)
+        return True
 
     def _segments_clear(self, theta: np.ndarray, obstacles: Obstacles, held: bool) -> bool:
         """The sphere model stays clear between keyframes too: at states no joint turns more than segment_step_rad
-        apart (at least 4 per segment)."""
+        apart (at least 4 per segment). The states about each segment's middle are checked first: a trajectory that
+        collides is mostly found there."""
         steps = max(4, int(np.ceil(np.abs(np.diff(theta, axis=0)).max() / self.config.segment_step_rad)))
-        clearance = self.clearance(interpolate_segments(theta, steps), obstacles, held)
-        return bool(clearance.min() > self.config.required_clearance)
+        states = interpolate_segments(theta, steps).reshape(steps + 1, len(theta) - 1, self.dof)
+        middle = np.arange(steps + 1) == steps // 2
+        return all(
+            self.clearance(subset.reshape(-1, self.dof), obstacles, held).min() > self.config.required_clearance
+            for subset in (states[middle], states[~middle])
+        )
