@@ -111,8 +111,8 @@ class StompConfig:
     # (the hands' spheres and every len // detour_proxy_points-th carried sphere) would be, moved rigidly by each
     # detour's offsets; the best detour_checks of each stage are then built (detour_moved_steps Gauss-Newton steps)
     # and checked one at a time. Only where none of them is a solution are all of them built and scored. Tuning
-    # range (100 problems): a lift's detour 0.21 -> 0.05 s, a carry's 0.23 -> 0.05 s (median), the same problems
-    # solved.
+    # range (the first 100 problems, STOMP alone): lift median 0.127 -> 0.020 s, carry 0.207 -> 0.025 s, the same
+    # problems solved (6 Gauss-Newton steps against 10: 0.027 against 0.030 s, carry 0.039 against 0.049 s).
     detour_checks: int = 4
     detour_proxy_points: int = 64
     detour_moved_steps: int = 6
