@@ -237,10 +237,7 @@ class Stomp:
         radius = self.spheres.radius
         gaps = [obstacles.distance(centres) - radius]
         if obstacles.carried is not None:
-            carried = obstacles.carried
-            X = poses[:, carried.slot]
-            points = carried.points_B @ np.swapaxes(X[:, :3, :3], 1, 2) + X[:, None, :3, 3]
-            gaps.append(obstacles.distance(points) - carried.radius)
+            gaps.append(obstacles.carried_clearances(poses[:, obstacles.carried.slot], self.config.margin))
         near = self._near_sphere_pairs(poses)
         if held:
             near = near[~self.hand_to_hand[near]]

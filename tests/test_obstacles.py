@@ -1,0 +1,35 @@
+"""The sphere model's scene (systems/planning/obstacles.py): a carried object's clearances by clusters."""
+
+import numpy as np
+from pydrake.math import RigidTransform, RollPitchYaw
+
+from systems.planning.obstacles import CarriedPoints, Obstacles
+
+
+def test_a_carried_objects_clearances_are_exact_wherever_they_count():
+    """Placing only the spheres of clusters near the scene changes nothing below the cost's margin: there every
+    clearance is the sphere's own, and elsewhere the value given is at least the margin and at most the truth."""
+    rng = np.random.default_rng(3)
+    points_B = rng.uniform([-0.15, -0.05, -0.1], [0.15, 0.05, 0.1], (400, 3))  # a can-sized object, m
+    carried = CarriedPoints(slot=0, points_B=points_B, radius=0.015)
+    scene = Obstacles().add_box(RigidTransform([0.0, 0.0, -0.05]).GetAsMatrix4(), [1.0, 1.0, 0.1])  # a table
+    scene.add_box(RigidTransform(RollPitchYaw(0, 0, 0.4), [0.3, 0.1, 0.15]).GetAsMatrix4(), [0.1, 0.3, 0.3])
+    scene = scene.carrying(carried)
+    X_WB = np.array(
+        [
+            RigidTransform(
+                RollPitchYaw(rng.uniform(-0.5, 0.5, 3)), rng.uniform([0.0, -0.2, 0.1], [0.4, 0.3, 0.4])
+            ).GetAsMatrix4()
+            for _ in range(60)
+        ]
+    )
+    margin = 0.02
+    clearances = scene.carried_clearances(X_WB, margin)
+    points_W = points_B @ np.swapaxes(X_WB[:, :3, :3], 1, 2) + X_WB[:, None, :3, 3]
+    exact = scene.distance(points_W) - carried.radius
+    near = exact < margin
+    assert 0.02 < near.mean() < 0.9  # the poses put some of the object near the boxes, not all
+    np.testing.assert_array_equal(clearances[near], exact[near])
+    assert np.all(clearances[~near] >= margin)
+    assert np.all(clearances <= exact + 1e-12)
+    assert len(carried.cluster_centres_B) < len(points_B) / 4
