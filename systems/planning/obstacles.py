@@ -74,6 +74,11 @@ class CarriedPoints:
         self.cluster_radii = reach + self.radius  # K, m: each cluster's spheres lie within
 
 
+def placed(points_B: np.ndarray, X_WB: np.ndarray) -> np.ndarray:
+    """Points fixed to a body (M x 3, m, in its frame B) where the body is at each pose X_WB (B x 4 x 4): B x M x 3."""
+    return points_B @ np.swapaxes(X_WB[:, :3, :3], 1, 2) + X_WB[:, None, :3, 3]
+
+
 def covering_centres(points: np.ndarray, radius: float, most: int) -> np.ndarray:
     """Sphere centres among the points (N x 3, m) such that every point lies within `radius` (m) of one: farthest
     point sampling from the first point, stopped once the farthest is that near (or at `most` centres)."""
@@ -125,12 +130,11 @@ class Obstacles:
         exact where the sphere's cluster comes within `margin` (m) of the scene; elsewhere the cluster's lower
         bound, at least `margin`. Nothing below the margin differs from placing every sphere."""
         carried = self.carried
-        R_T, p = np.swapaxes(X_WB[:, :3, :3], 1, 2), X_WB[:, None, :3, 3]
-        bound = self.distance(carried.cluster_centres_B @ R_T + p) - carried.cluster_radii  # B x K
+        bound = self.distance(placed(carried.cluster_centres_B, X_WB)) - carried.cluster_radii  # B x K
         clearances = bound[:, carried.cluster_of]
         b, m = np.nonzero(clearances < margin)
-        if len(b):
-            points = (carried.points_B[m, None, :] @ R_T[b])[:, 0] + p[b, 0]
+        if len(b):  # each near sphere alone at its own pose
+            points = placed(carried.points_B[m, None, :], X_WB[b])[:, 0]
             clearances[b, m] = self.distance(points) - carried.radius
         return clearances
 

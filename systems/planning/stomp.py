@@ -42,16 +42,14 @@ import numpy as np
 from systems.planning.closure import (
     ClosureConstraint,
     OrientationConstraint,
-    deviations,
     hand_orientation_deviations,
-    orientation_deviations,
     relative_deviations,
     threshold_cost,
     transition_costs,
 )
 from systems.planning.hand_constraints import HandConstraints, bounded_step
 from systems.planning.kinematics import Payload, joint_torques, relative_pose
-from systems.planning.obstacles import Obstacles
+from systems.planning.obstacles import Obstacles, placed
 from systems.planning.world import PlanningWorld
 
 TERMS = ("collision", "limits", "torque", "duration", "closure", "orientation")
@@ -354,17 +352,24 @@ class Stomp:
         steps = self.config.projection_steps if steps is None else steps
         return self.constraints(X_desired, R_desired, upright_only).project(q, steps)
 
-    def orientation_within_limits(self, theta: np.ndarray, orientation, steps: int = 10) -> tuple[bool, float]:
-        """Whether both hands stay within o_max of their desired orientations densely; also the largest deviation."""
+    def dense_hand_poses(self, theta: np.ndarray, steps: int = 10) -> tuple[np.ndarray, np.ndarray]:
+        """Both hands' poses (X_WE1, X_WE2, each S x 4 x 4) at `steps` states per segment of the trajectory."""
+        return self.end_effectors.poses(interpolate_segments(theta, steps))
+
+    def orientation_within_limits(self, theta: np.ndarray, orientation, steps: int = 10, hands=None):
+        """Whether both hands stay within o_max of their desired orientations densely; also the largest deviation.
+        `hands`: dense_hand_poses(theta, steps) if already computed."""
         constraint, R_desired = orientation
-        states = interpolate_segments(theta, steps)
-        worst = float(orientation_deviations(self.end_effectors, states, R_desired, constraint.upright_only).max())
+        hands = self.dense_hand_poses(theta, steps) if hands is None else hands
+        worst = float(hand_orientation_deviations(hands, R_desired, constraint.upright_only).max())
         return worst < constraint.o_max, worst
 
-    def closure_within_limits(self, theta: np.ndarray, closure, steps: int = 10) -> tuple[bool, float, float]:
-        """Whether the deviations stay below t_max and o_max densely along the trajectory; also the largest ones."""
+    def closure_within_limits(self, theta: np.ndarray, closure, steps: int = 10, hands=None):
+        """Whether the deviations stay below t_max and o_max densely along the trajectory; also the largest ones.
+        `hands`: dense_hand_poses(theta, steps) if already computed."""
         constraint, X_desired = closure
-        t_dev, o_dev = deviations(self.end_effectors, interpolate_segments(theta, steps), X_desired)
+        hands = self.dense_hand_poses(theta, steps) if hands is None else hands
+        t_dev, o_dev = relative_deviations(relative_pose(*hands), X_desired)
         ok = t_dev.max() < constraint.t_max and o_dev.max() < constraint.o_max
         return bool(ok), float(t_dev.max()), float(o_dev.max())
 
@@ -591,9 +596,7 @@ class Stomp:
         if obstacles.carried is not None:
             carried = obstacles.carried
             points_B = carried.points_B[:: max(1, len(carried.points_B) // self.config.detour_proxy_points)]
-            X = poses[:, carried.slot]
-            points = points_B @ np.swapaxes(X[:, :3, :3], 1, 2) + X[:, None, :3, 3]
-            centres = np.concatenate([centres, points], axis=1)
+            centres = np.concatenate([centres, placed(points_B, poses[:, carried.slot])], axis=1)
             radii = np.concatenate([radii, np.full(len(points_B), carried.radius)])
         return centres, radii
 
@@ -651,23 +654,11 @@ class Stomp:
         held = closure is not None
         clearance = self.clearance(theta, obstacles, held)
         ok = clearance.min() > self.config.required_clearance
-        ok = ok and self._within_hand_constraints(theta, closure, orientation)
+        if ok and (closure is not None or orientation is not None):  # both from one batch of hand poses
+            hands = self.dense_hand_poses(theta)
+            ok = closure is None or self.closure_within_limits(theta, closure, hands=hands)[0]
+            ok = ok and (orientation is None or self.orientation_within_limits(theta, orientation, hands=hands)[0])
         return bool(ok and self._segments_clear(theta, obstacles, held)), clearance
-
-    def _within_hand_constraints(self, theta: np.ndarray, closure, orientation, steps: int = 10) -> bool:
-        """closure_within_limits() and orientation_within_limits() (where given) from one batch of hand poses."""
-        if closure is None and orientation is None:
-            return True
-        hands = self.end_effectors.poses(interpolate_segments(theta, steps))
-        if closure is not None:
-            constraint, X_desired = closure
-            t_dev, o_dev = relative_deviations(relative_pose(*hands), X_desired)
-            if t_dev.max() >= constraint.t_max or o_dev.max() >= constraint.o_max:
-                return False
-        if orientation is not None:
-            constraint, R_desired = orientation
-            return bool(hand_orientation_deviations(hands, R_desired, constraint.upright_only).max() < constraint.o_max)
-        return True
 
     def _segments_clear(self, theta: np.ndarray, obstacles: Obstacles, held: bool) -> bool:
         """The sphere model stays clear between keyframes too: at states no joint turns more than segment_step_rad
