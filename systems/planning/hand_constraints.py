@@ -28,9 +28,10 @@ def rotation_error(R_desired: np.ndarray, R: np.ndarray) -> np.ndarray:
     """Small-angle rotation vectors (B x 3) of R_desired^T R for rotations R (B x 3 x 3); R_desired is one rotation
     (3 x 3) or one per configuration (B x 3 x 3)."""
     R_error = np.swapaxes(R_desired, -1, -2) @ R
-    return 0.5 * np.column_stack(
-        [R_error[:, 2, 1] - R_error[:, 1, 2], R_error[:, 0, 2] - R_error[:, 2, 0], R_error[:, 1, 0] - R_error[:, 0, 1]]
-    )
+    return 0.5 * (R_error[:, _ROWS, _COLUMNS] - R_error[:, _COLUMNS, _ROWS])
+
+
+_ROWS, _COLUMNS = np.array([2, 0, 1]), np.array([1, 2, 0])  # the entries (2, 1), (0, 2), (1, 0) of a rotation
 
 
 @dataclass
@@ -115,9 +116,8 @@ def bounded_step(
     alone stalls where every step pushes a joint beyond its limit again."""
     pinned = np.zeros_like(q)  # the pinned joints' moves to their limits
     free = np.ones_like(q)
+    residual, J = error, jacobian  # (nothing pinned yet)
     for _ in range(4):
-        residual = error + np.einsum("beq,bq->be", jacobian, pinned)
-        J = jacobian * free[:, None, :]
         JT = np.swapaxes(J, 1, 2)
         damped = J @ JT + DAMPING * np.eye(error.shape[1])
         step = (JT @ np.linalg.solve(damped, residual[..., None]))[..., 0]
@@ -129,4 +129,6 @@ def bounded_step(
             break
         pinned = np.where(beyond, np.clip(moved, lower, upper) - q, pinned)
         free = free * ~beyond
+        residual = error + np.einsum("beq,bq->be", jacobian, pinned)
+        J = jacobian * free[:, None, :]
     return np.clip(moved, lower, upper)

@@ -85,6 +85,27 @@ class BatchedKinematics:
                 if self.links[j].arm_dof >= 0:
                     self.carried[self.links[j].arm_dof, i] = True
                 j = self.links[j].parent
+        # The driven links' Rodrigues matrices stacked (D x 4 x 4), so that a batch's joint transforms are three
+        # array operations; and each arm joint's parent, joint frame and axis (joint_axes()).
+        driven = [i for i, link in enumerate(self.links) if link.arm_dof >= 0]
+        self._driven = np.array(driven, int)
+        self._driven_dof = np.array([self.links[i].arm_dof for i in driven], int)
+        self._fixed, self._sine, self._versine = (
+            np.array([getattr(self.links[i], name) for i in driven]) for name in ("fixed", "sine", "versine")
+        )
+        self._X_PB = np.array([link.X_PF for link in self.links])  # the fixed links' (the driven ones' replaced)
+        # The tree by depth: the links of one depth are placed on their parents' poses in one operation.
+        depth = []
+        for link in self.links:  # (a parent is listed before its children)
+            depth.append(0 if link.parent < 0 else depth[link.parent] + 1)
+        depth = np.array(depth)
+        self._levels = [
+            (np.nonzero(depth == d)[0], np.array([self.links[i].parent for i in np.nonzero(depth == d)[0]]))
+            for d in range(depth.max() + 1)
+        ]
+        self.joint_parents = np.array([self.links[i].parent for i in self.dof_link])
+        self.joint_X_PF = np.array([self.links[i].X_PF for i in self.dof_link])  # n x 4 x 4
+        self.joint_axes_F = np.array([self.links[i].axis for i in self.dof_link])  # n x 3
 
     def _add(self, body) -> int:
         index = body.index()
@@ -130,16 +151,15 @@ class BatchedKinematics:
 
     def body_poses(self, q: np.ndarray) -> np.ndarray:
         """X_WB of every tracked body: an array (B x L x 4 x 4), in the order of `links`."""
-        q = np.atleast_2d(q)
-        batch = len(q)
-        poses = np.empty((batch, len(self.links), 4, 4))
+        q = np.atleast_2d(q)[:, self._driven_dof]
+        X_PB = np.repeat(self._X_PB[None], len(q), axis=0)  # B x L x 4 x 4, each link in its parent
         sines, versines = np.sin(q)[:, :, None, None], 1.0 - np.cos(q)[:, :, None, None]
-        for i, link in enumerate(self.links):
-            X_PB = link.X_PF
-            if link.arm_dof >= 0:
-                j = link.arm_dof
-                X_PB = link.fixed + sines[:, j] * link.sine + versines[:, j] * link.versine
-            poses[:, i] = X_PB if link.parent < 0 else poses[:, link.parent] @ X_PB
+        X_PB[:, self._driven] = self._fixed + sines * self._sine + versines * self._versine
+        poses = np.empty_like(X_PB)
+        (roots, _), *levels = self._levels
+        poses[:, roots] = X_PB[:, roots]
+        for links, parents in levels:
+            poses[:, links] = poses[:, parents] @ X_PB[:, links]
         return poses
 
 
@@ -160,11 +180,8 @@ def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def joint_axes(kinematics: "BatchedKinematics", poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Each arm joint's position p_j on its axis and unit axis a_j in W (each B x n x 3), from the bodies' poses."""
-    parents = np.array([kinematics.links[i].parent for i in kinematics.dof_link])
-    X_PF = np.array([kinematics.links[i].X_PF for i in kinematics.dof_link])  # n x 4 x 4
-    axes_F = np.array([kinematics.links[i].axis for i in kinematics.dof_link])  # n x 3
-    X_WF = poses[:, parents] @ X_PF  # every arm joint's parent is a tracked body
-    return X_WF[:, :, :3, 3], np.einsum("bjik,jk->bji", X_WF[:, :, :3, :3], axes_F)
+    X_WF = poses[:, kinematics.joint_parents] @ kinematics.joint_X_PF  # every arm joint's parent is a tracked body
+    return X_WF[:, :, :3, 3], np.einsum("bjik,jk->bji", X_WF[:, :, :3, :3], kinematics.joint_axes_F)
 
 
 def gravity_torques(kinematics: "BatchedKinematics", q: np.ndarray, poses: np.ndarray | None = None) -> np.ndarray:
@@ -381,6 +398,8 @@ class EndEffectors:
         self.kinematics = kinematics
         self.positions = [kinematics.position_of_body[frame.body().index()] for frame in frames]
         self.X_BE = [frame.GetFixedPoseInBodyFrame().GetAsMatrix4() for frame in frames]
+        # n x 1 per frame: 1 for the joints that move it
+        self._moved_by = [kinematics.carried[:, position].astype(float)[:, None] for position in self.positions]
 
     def poses(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(X_WE1, X_WE2), each B x 4 x 4."""
@@ -397,13 +416,12 @@ class EndEffectors:
         body = self.kinematics.body_poses(q)
         positions, axes = joint_axes(self.kinematics, body)
         poses, jacobians = [], []
-        for slot, X_BE in zip(self.positions, self.X_BE, strict=True):
+        for slot, X_BE, moved_by in zip(self.positions, self.X_BE, self._moved_by, strict=True):
             X = body[:, slot] @ X_BE
-            carries = self.kinematics.carried[:, slot].astype(float)[None, :, None]  # 1 x n x 1
-            J_w = axes * carries
-            J_v = np.cross(J_w, X[:, None, :3, 3] - positions)
+            J_w = axes * moved_by
+            J_v = _cross(J_w, X[:, None, :3, 3] - positions)
             poses.append(X)
-            jacobians.append(np.concatenate([np.transpose(J_w, (0, 2, 1)), np.transpose(J_v, (0, 2, 1))], axis=1))
+            jacobians.append(np.concatenate([J_w, J_v], axis=2).transpose(0, 2, 1))
         return tuple(poses), tuple(jacobians)
 
     def relative(self, q: np.ndarray) -> np.ndarray:

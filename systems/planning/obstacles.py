@@ -83,6 +83,11 @@ def covering_centres(points: np.ndarray, radius: float, most: int) -> np.ndarray
     """Sphere centres among the points (N x 3, m) such that every point lies within `radius` (m) of one: farthest
     point sampling from the first point, stopped once the farthest is that near (or at `most` centres)."""
     points = np.asarray(points, float)
+    return points[covering(points, radius, most)]
+
+
+def covering(points: np.ndarray, radius: float, most: int) -> np.ndarray:
+    """The indices of covering_centres' centres among the points."""
     if not len(points):
         raise ValueError("no points to cover")
     chosen = [0]
@@ -90,7 +95,7 @@ def covering_centres(points: np.ndarray, radius: float, most: int) -> np.ndarray
     while len(chosen) < most and nearest.max() > radius:
         chosen.append(int(nearest.argmax()))
         np.minimum(nearest, np.linalg.norm(points - points[chosen[-1]], axis=1), out=nearest)
-    return points[chosen]
+    return np.array(chosen)
 
 
 class Obstacles:

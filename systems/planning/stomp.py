@@ -49,7 +49,7 @@ from systems.planning.closure import (
 )
 from systems.planning.hand_constraints import HandConstraints, bounded_step
 from systems.planning.kinematics import Payload, joint_torques, relative_pose
-from systems.planning.obstacles import Obstacles, placed
+from systems.planning.obstacles import CLUSTER_RADIUS, Obstacles, covering, placed
 from systems.planning.world import PlanningWorld
 
 TERMS = ("collision", "limits", "torque", "duration", "closure", "orientation")
@@ -114,6 +114,33 @@ class StompConfig:
     detour_checks: int = 4
     detour_proxy_points: int = 64
     detour_moved_steps: int = 6
+
+
+@dataclass
+class HeldPart:
+    """Spheres that move with a held object (centres K x P x 3 at K keyframes, m, in W; radii P, m), grouped in
+    clusters (a CLUSTER_RADIUS covering at the first keyframe) so that only the clusters near the scene are placed
+    sphere by sphere."""
+
+    centres: np.ndarray
+    radii: np.ndarray
+
+    def __post_init__(self):
+        chosen = covering(self.centres[0], CLUSTER_RADIUS, len(self.radii))
+        self.cluster_of = np.linalg.norm(self.centres[0][:, None] - self.centres[0][chosen], axis=2).argmin(axis=1)
+        self.cluster_centres = self.centres[:, chosen]  # K x C x 3
+        reach = np.linalg.norm(self.centres - self.cluster_centres[:, self.cluster_of], axis=2) + self.radii
+        self.cluster_radii = np.zeros(self.cluster_centres.shape[:2])  # K x C: each keyframe's spheres lie within
+        np.maximum.at(self.cluster_radii.T, self.cluster_of, reach.T)
+
+    def gaps(self, obstacles: Obstacles, offsets: np.ndarray, margin: float) -> np.ndarray:
+        """Clearances (T x K x P, m) of the spheres moved by each of T offsets per keyframe (T x K x 3, m, in W):
+        exact below `margin` (m); elsewhere `margin`."""
+        bound = obstacles.distance(self.cluster_centres[None] + offsets[:, :, None]) - self.cluster_radii
+        t, k, p = np.nonzero(bound[:, :, self.cluster_of] < margin)
+        gaps = np.full((len(offsets),) + self.centres.shape[:2], margin)
+        gaps[t, k, p] = obstacles.distance(self.centres[k, p] + offsets[t, k]) - self.radii[p]
+        return gaps
 
 
 @dataclass
@@ -588,9 +615,9 @@ class Stomp:
         profiles = np.array([np.minimum(1.0, ramp * np.sin(np.pi * s)) for ramp in self.config.detour_ramps])
         return (profiles[:, None, :, None] * offsets[None, :, None, :]).reshape(-1, n - 2, 3)
 
-    def _held_part(self, keyframes: np.ndarray, obstacles: Obstacles) -> tuple[np.ndarray, np.ndarray]:
-        """Sphere centres that move with the held object at the keyframes (K x P x 3, m, in W: the hands' spheres
-        and a subset of the carried ones) and their radii (P)."""
+    def _held_part(self, keyframes: np.ndarray, obstacles: Obstacles) -> "HeldPart":
+        """The spheres that move with the held object at the keyframes: the hands' and a subset of the carried
+        ones."""
         poses = self.kinematics.body_poses(keyframes)
         centres, radii = self.spheres.centres_W(poses)[:, self.hand_sphere], self.spheres.radius[self.hand_sphere]
         if obstacles.carried is not None:
@@ -598,7 +625,7 @@ class Stomp:
             points_B = carried.points_B[:: max(1, len(carried.points_B) // self.config.detour_proxy_points)]
             centres = np.concatenate([centres, placed(points_B, poses[:, carried.slot])], axis=1)
             radii = np.concatenate([radii, np.full(len(points_B), carried.radius)])
-        return centres, radii
+        return HeldPart(centres, radii)
 
     def _ranked_detour(self, theta, obstacles, closure, orientation, constraints, moves, across, held_part):
         """The first solution (theta, True, clearances) among the detour_checks detours of the moves that the held
@@ -607,8 +634,7 @@ class Stomp:
         targets = self._detour_targets(moves, across, len(theta))
         if not len(targets):
             return None
-        centres, radii = held_part
-        gaps = obstacles.distance(centres[None] + targets[:, :, None, :]) - radii
+        gaps = held_part.gaps(obstacles, targets, self.config.margin)
         shortfall = np.maximum(self.config.margin - gaps, 0.0).sum(axis=(1, 2))
         size = np.linalg.norm(targets, axis=-1).mean(axis=1)
         order = np.lexsort((np.where(shortfall > 0, shortfall, size), shortfall > 0))
@@ -662,12 +688,16 @@ class Stomp:
 
     def _segments_clear(self, theta: np.ndarray, obstacles: Obstacles, held: bool) -> bool:
         """The sphere model stays clear between keyframes too: at states no joint turns more than segment_step_rad
-        apart (at least 4 per segment). The states about each segment's middle are checked first: a trajectory that
-        collides is mostly found there."""
-        steps = max(4, int(np.ceil(np.abs(np.diff(theta, axis=0)).max() / self.config.segment_step_rad)))
-        states = interpolate_segments(theta, steps).reshape(steps + 1, len(theta) - 1, self.dof)
-        middle = np.arange(steps + 1) == steps // 2
+        apart (at least 4 steps per segment, each segment as many as its largest joint change needs). The states
+        at each segment's middle are checked first: a trajectory that collides is mostly found there."""
+        steps = np.maximum(4, np.ceil(np.abs(np.diff(theta, axis=0)).max(axis=1) / self.config.segment_step_rad))
+        steps = steps.astype(int)
+        segment = np.repeat(np.arange(len(steps)), steps + 1)
+        along = np.concatenate([np.arange(k + 1) for k in steps])
+        s = (along / steps[segment])[:, None]
+        states = (1 - s) * theta[segment] + s * theta[segment + 1]
+        middle = along == steps[segment] // 2
         return all(
-            self.clearance(subset.reshape(-1, self.dof), obstacles, held).min() > self.config.required_clearance
+            self.clearance(subset, obstacles, held).min() > self.config.required_clearance
             for subset in (states[middle], states[~middle])
         )
