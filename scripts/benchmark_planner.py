@@ -159,7 +159,6 @@ def generate(motions: PickMotions, family: str, split: str, count: int) -> tuple
 def run_family(args, motions: PickMotions, family: str) -> dict:
     problems, dropped = generate(motions, family, args.split, args.problems)
     planners = [p for p in (PLANNERS if family in HELD_FAMILIES else REACH_PLANNERS) if p in args.planners]
-    rows: dict[str, list[dict]] = {}
     ompl_config = OmplConfig(
         space=args.ompl_space,
         range=args.ompl_range,
@@ -167,17 +166,18 @@ def run_family(args, motions: PickMotions, family: str) -> dict:
         tolerance=args.ompl_tolerance,
         bounds_margin=args.ompl_bounds_margin,
     )
-    for planner in planners:
-        subset = problems if planner == "stomp" else problems[: args.peer_problems]
-        records = []
-        for problem in tqdm(subset, desc=f"{family}: {planner}", unit="problem"):
+    rows = {planner: [] for planner in planners}
+    # Problem by problem, every planner that runs it in turn: a machine that slows down for a while slows all alike.
+    for k, problem in enumerate(tqdm(problems, desc=f"{family}: {', '.join(planners)}", unit="problem")):
+        for planner in planners:
+            if planner != "stomp" and k >= args.peer_problems:
+                continue
             if planner in STOMP_PLANNERS:
-                records.append(run_stomp(problem, motions, planner))
+                rows[planner].append(run_stomp(problem, motions, planner))
             elif planner == "ompl":
-                records.append(judged(problem, ompl_plan(problem, motions.stomp, TIME_LIMIT_S, ompl_config)))
+                rows[planner].append(judged(problem, ompl_plan(problem, motions.stomp, TIME_LIMIT_S, ompl_config)))
             else:
-                records.append(judged(problem, kto_plan(problem, motions.stomp, TIME_LIMIT_S, KtoConfig())))
-        rows[planner] = records
+                rows[planner].append(judged(problem, kto_plan(problem, motions.stomp, TIME_LIMIT_S, KtoConfig())))
     collides = [straight_line_collides(p, motions) for p in problems]
     result = {
         "split": args.split,

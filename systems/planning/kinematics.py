@@ -103,6 +103,11 @@ class BatchedKinematics:
             (np.nonzero(depth == d)[0], np.array([self.links[i].parent for i in np.nonzero(depth == d)[0]]))
             for d in range(depth.max() + 1)
         ]
+        # Links no planned joint moves (e.g. the pelvis and, without the torso yaw, the torso) keep one pose.
+        moved = self.carried.any(axis=0)
+        self._still = np.nonzero(~moved)[0]
+        self._still_poses = self._poses(np.zeros((1, self.dof)))[0, self._still]
+        self._levels = [(links[moved[links]], parents[moved[links]]) for links, parents in self._levels]
         self.joint_parents = np.array([self.links[i].parent for i in self.dof_link])
         self.joint_X_PF = np.array([self.links[i].X_PF for i in self.dof_link])  # n x 4 x 4
         self.joint_axes_F = np.array([self.links[i].axis for i in self.dof_link])  # n x 3
@@ -151,15 +156,19 @@ class BatchedKinematics:
 
     def body_poses(self, q: np.ndarray) -> np.ndarray:
         """X_WB of every tracked body: an array (B x L x 4 x 4), in the order of `links`."""
-        q = np.atleast_2d(q)[:, self._driven_dof]
+        return self._poses(np.atleast_2d(q), self._still, self._still_poses)
+
+    def _poses(self, q: np.ndarray, still=(), still_poses=None) -> np.ndarray:
+        """body_poses(), the links at `still` given their poses (the same at every q)."""
+        q = q[:, self._driven_dof]
         X_PB = np.repeat(self._X_PB[None], len(q), axis=0)  # B x L x 4 x 4, each link in its parent
         sines, versines = np.sin(q)[:, :, None, None], 1.0 - np.cos(q)[:, :, None, None]
         X_PB[:, self._driven] = self._fixed + sines * self._sine + versines * self._versine
         poses = np.empty_like(X_PB)
-        (roots, _), *levels = self._levels
-        poses[:, roots] = X_PB[:, roots]
-        for links, parents in levels:
-            poses[:, links] = poses[:, parents] @ X_PB[:, links]
+        if len(still):
+            poses[:, still] = still_poses
+        for depth, (links, parents) in enumerate(self._levels):
+            poses[:, links] = X_PB[:, links] if depth == 0 else poses[:, parents] @ X_PB[:, links]
         return poses
 
 

@@ -687,13 +687,14 @@ class Stomp:
         return bool(ok and self._segments_clear(theta, obstacles, held)), clearance
 
     def _segments_clear(self, theta: np.ndarray, obstacles: Obstacles, held: bool) -> bool:
-        """The sphere model stays clear between keyframes too: at states no joint turns more than segment_step_rad
-        apart (at least 4 steps per segment, each segment as many as its largest joint change needs). The states
-        at each segment's middle are checked first: a trajectory that collides is mostly found there."""
+        """The sphere model stays clear between keyframes too (the keyframes themselves checked by the caller): at
+        states no joint turns more than segment_step_rad apart (at least 4 steps per segment, each segment as many
+        as its largest joint change needs). The states at each segment's middle are checked first: a trajectory
+        that collides is mostly found there."""
         steps = np.maximum(4, np.ceil(np.abs(np.diff(theta, axis=0)).max(axis=1) / self.config.segment_step_rad))
         steps = steps.astype(int)
-        segment = np.repeat(np.arange(len(steps)), steps + 1)
-        along = np.concatenate([np.arange(k + 1) for k in steps])
+        segment = np.repeat(np.arange(len(steps)), steps - 1)
+        along = np.concatenate([np.arange(1, k) for k in steps])
         s = (along / steps[segment])[:, None]
         states = (1 - s) * theta[segment] + s * theta[segment + 1]
         middle = along == steps[segment] // 2
