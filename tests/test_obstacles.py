@@ -1,9 +1,11 @@
-"""The sphere model's scene (systems/planning/obstacles.py): a carried object's clearances by clusters."""
+"""The sphere model's scene (systems/planning/obstacles.py): a carried object's clearances by clusters, and the
+held part's along the detours (systems/planning/stomp.py)."""
 
 import numpy as np
 from pydrake.math import RigidTransform, RollPitchYaw
 
 from systems.planning.obstacles import CarriedPoints, Obstacles
+from systems.planning.stomp import HeldPart
 
 
 def test_a_carried_objects_clearances_are_exact_wherever_they_count():
@@ -33,3 +35,31 @@ def test_a_carried_objects_clearances_are_exact_wherever_they_count():
     assert np.all(clearances[~near] >= margin)
     assert np.all(clearances <= exact + 1e-12)
     assert len(carried.cluster_centres_B) < len(points_B) / 4
+
+
+def test_the_held_parts_clearances_along_detours_are_exact_wherever_they_count():
+    """The detours' ranking places only the held part's clusters near the scene sphere by sphere: below the
+    margin every clearance is the sphere's own (so the ranking's shortfalls are the same to the bit), elsewhere
+    the value given is at least the margin and at most the truth."""
+    rng = np.random.default_rng(5)
+    keyframes = 6
+    part_B = rng.uniform([-0.2, -0.1, -0.1], [0.2, 0.1, 0.1], (120, 3))  # two hands and an object, m
+    path = np.linspace([0.0, -0.2, 0.15], [0.3, 0.2, 0.2], keyframes)  # where the part is at each keyframe
+    part = HeldPart(part_B[None] + path[:, None], rng.uniform(0.01, 0.03, len(part_B)))
+    scene = Obstacles().add_box(RigidTransform([0.0, 0.0, -0.05]).GetAsMatrix4(), [1.0, 1.0, 0.1])
+    scene.add_box(RigidTransform(RollPitchYaw(0, 0, 0.3), [0.2, 0.0, 0.1]).GetAsMatrix4(), [0.1, 0.2, 0.2])
+    offsets = (
+        rng.uniform([-0.1, -0.1, 0.0], [0.1, 0.1, 0.2], (20, 1, 3))
+        * np.sin(np.linspace(0, np.pi, keyframes))[None, :, None]
+    )
+    margin = 0.02
+    gaps = part.gaps(scene, offsets, margin)
+    exact = scene.distance(part.centres[None] + offsets[:, :, None]) - part.radii
+    near = exact < margin
+    assert 0.02 < near.mean() < 0.9  # some of the part passes near the boxes, not all of it
+    np.testing.assert_array_equal(gaps[near], exact[near])
+    assert np.all(gaps[~near] >= margin)
+    assert np.all(gaps <= exact)
+    shortfall = np.maximum(margin - gaps, 0.0).sum(axis=(1, 2))
+    np.testing.assert_array_equal(shortfall, np.maximum(margin - exact, 0.0).sum(axis=(1, 2)))
+    assert len(part.cluster_centres[0]) < len(part_B) / 2

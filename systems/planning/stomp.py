@@ -135,7 +135,7 @@ class HeldPart:
 
     def gaps(self, obstacles: Obstacles, offsets: np.ndarray, margin: float) -> np.ndarray:
         """Clearances (T x K x P, m) of the spheres moved by each of T offsets per keyframe (T x K x 3, m, in W):
-        exact below `margin` (m); elsewhere `margin`."""
+        exact below `margin` (m); elsewhere at least `margin` (that, or exact)."""
         bound = obstacles.distance(self.cluster_centres[None] + offsets[:, :, None]) - self.cluster_radii
         t, k, p = np.nonzero(bound[:, :, self.cluster_of] < margin)
         gaps = np.full((len(offsets),) + self.centres.shape[:2], margin)
@@ -615,7 +615,7 @@ class Stomp:
         profiles = np.array([np.minimum(1.0, ramp * np.sin(np.pi * s)) for ramp in self.config.detour_ramps])
         return (profiles[:, None, :, None] * offsets[None, :, None, :]).reshape(-1, n - 2, 3)
 
-    def _held_part(self, keyframes: np.ndarray, obstacles: Obstacles) -> "HeldPart":
+    def _held_part(self, keyframes: np.ndarray, obstacles: Obstacles) -> HeldPart:
         """The spheres that move with the held object at the keyframes: the hands' and a subset of the carried
         ones."""
         poses = self.kinematics.body_poses(keyframes)
