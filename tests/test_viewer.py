@@ -24,11 +24,17 @@ def screenshot(html: Path, tmp_path: Path) -> np.ndarray:
     chromium = shutil.which("chromium")
     assert chromium, "chromium is not installed: `make apt` installs it"
     png = html.with_suffix(".png")
-    profile = tmp_path / f"profile_{html.stem}"
-    subprocess.run(
-        [chromium, *CHROMIUM_FLAGS, f"--user-data-dir={profile}", f"--screenshot={png}", html.as_uri()],
-        check=True, capture_output=True, timeout=120,
-    )  # fmt: skip
+    # Headless Chromium now and then never ends its virtual time on a loaded machine (once in a `make test`, 120 s;
+    # the same page alone took seconds): a second try with a fresh profile, then the timeout stands.
+    for attempt in range(2):
+        profile = tmp_path / f"profile_{html.stem}_{attempt}"
+        command = [chromium, *CHROMIUM_FLAGS, f"--user-data-dir={profile}", f"--screenshot={png}", html.as_uri()]
+        try:
+            subprocess.run(command, check=True, capture_output=True, timeout=120)
+            break
+        except subprocess.TimeoutExpired:
+            if attempt == 1:
+                raise
     image = cv2.imread(str(png))
     assert image is not None, f"chromium wrote no screenshot {png}"
     return cv2.cvtColor(image, cv2.COLOR_BGR2HSV)
