@@ -66,11 +66,11 @@ class CarriedPoints:
     radius: float  # m
 
     def __post_init__(self):
-        self.cluster_centres_B = covering_centres(self.points_B, CLUSTER_RADIUS, len(self.points_B))  # K x 3, m
-        offsets = np.linalg.norm(self.points_B[:, None] - self.cluster_centres_B[None], axis=2)  # M x K
-        self.cluster_of = offsets.argmin(axis=1)  # M: each sphere's cluster
-        reach = np.zeros(len(self.cluster_centres_B))
-        np.maximum.at(reach, self.cluster_of, offsets[np.arange(len(offsets)), self.cluster_of])
+        chosen, self.cluster_of = clusters(self.points_B, CLUSTER_RADIUS)  # cluster_of: M, each sphere's cluster
+        self.cluster_centres_B = self.points_B[chosen]  # K x 3, m
+        reach = np.zeros(len(chosen))
+        offsets = np.linalg.norm(self.points_B - self.cluster_centres_B[self.cluster_of], axis=1)
+        np.maximum.at(reach, self.cluster_of, offsets)
         self.cluster_radii = reach + self.radius  # K, m: each cluster's spheres lie within
 
 
@@ -84,6 +84,13 @@ def covering_centres(points: np.ndarray, radius: float, most: int) -> np.ndarray
     point sampling from the first point, stopped once the farthest is that near (or at `most` centres)."""
     points = np.asarray(points, float)
     return points[covering(points, radius, most)]
+
+
+def clusters(points: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
+    """The points (N x 3, m) grouped about covering_centres(points, radius): the centres' indices among the points
+    (K), and each point's nearest centre (N, 0..K-1)."""
+    chosen = covering(points, radius, len(points))
+    return chosen, np.linalg.norm(points[:, None] - points[chosen][None], axis=2).argmin(axis=1)
 
 
 def covering(points: np.ndarray, radius: float, most: int) -> np.ndarray:

@@ -49,7 +49,7 @@ from systems.planning.closure import (
 )
 from systems.planning.hand_constraints import HandConstraints, bounded_step
 from systems.planning.kinematics import Payload, joint_torques, relative_pose
-from systems.planning.obstacles import CLUSTER_RADIUS, Obstacles, covering, placed
+from systems.planning.obstacles import CLUSTER_RADIUS, Obstacles, clusters, placed
 from systems.planning.world import PlanningWorld
 
 TERMS = ("collision", "limits", "torque", "duration", "closure", "orientation")
@@ -126,8 +126,7 @@ class HeldPart:
     radii: np.ndarray
 
     def __post_init__(self):
-        chosen = covering(self.centres[0], CLUSTER_RADIUS, len(self.radii))
-        self.cluster_of = np.linalg.norm(self.centres[0][:, None] - self.centres[0][chosen], axis=2).argmin(axis=1)
+        chosen, self.cluster_of = clusters(self.centres[0], CLUSTER_RADIUS)
         self.cluster_centres = self.centres[:, chosen]  # K x C x 3
         reach = np.linalg.norm(self.centres - self.cluster_centres[:, self.cluster_of], axis=2) + self.radii
         self.cluster_radii = np.zeros(self.cluster_centres.shape[:2])  # K x C: each keyframe's spheres lie within
