@@ -108,6 +108,23 @@ class BatchedKinematics:
         self._still = np.nonzero(~moved)[0]
         self._still_poses = self._poses(np.zeros((1, self.dof)))[0, self._still]
         self._levels = [(links[moved[links]], parents[moved[links]]) for links, parents in self._levels]
+        # The same depths for the inverse dynamics, every link: (fixed links, their parents, driven links, their
+        # parents, their coordinates) per depth below the roots.
+        self._dynamics_levels = []
+        for d in range(1, depth.max() + 1):
+            at = np.nonzero(depth == d)[0]
+            fixed = np.array([i for i in at if self.links[i].arm_dof < 0], int)
+            driven = np.array([i for i in at if self.links[i].arm_dof >= 0], int)
+            self._dynamics_levels.append(
+                (
+                    fixed,
+                    np.array([self.links[i].parent for i in fixed], int),
+                    driven,
+                    np.array([self.links[i].parent for i in driven], int),
+                    np.array([self.links[i].arm_dof for i in driven], int),
+                )
+            )
+        self._roots = np.nonzero(depth == 0)[0]
         self.joint_parents = np.array([self.links[i].parent for i in self.dof_link])
         self.joint_X_PF = np.array([self.links[i].X_PF for i in self.dof_link])  # n x 4 x 4
         self.joint_axes_F = np.array([self.links[i].axis for i in self.dof_link])  # n x 3
@@ -232,23 +249,23 @@ def joint_torques(
     omega = np.zeros((batch, count, 3))
     alpha = np.zeros((batch, count, 3))
     accel = np.zeros((batch, count, 3))  # of each body's origin, W, with gravity's -g
-    for i, link in enumerate(kinematics.links):
-        if link.parent < 0:
-            accel[:, i] = -kinematics.gravity
-            continue
-        p = link.parent
-        w, a, ap = omega[:, p], alpha[:, p], accel[:, p]
-        pivot = origin[:, p]
-        if link.arm_dof >= 0:
-            j = link.arm_dof
-            pivot = positions[:, j]
-            spin = axes[:, j] * qd[:, j, None]
-            ap = ap + _cross(a, pivot - origin[:, p]) + _cross(w, _cross(w, pivot - origin[:, p]))
-            a = a + axes[:, j] * qdd[:, j, None] + _cross(w, spin)
+    accel[:, kinematics._roots] = -kinematics.gravity
+    for fixed, fixed_parents, driven, driven_parents, dofs in kinematics._dynamics_levels:  # one depth at a time
+        if len(fixed):  # rigidly on their parents
+            w, a = omega[:, fixed_parents], alpha[:, fixed_parents]
+            r = origin[:, fixed] - origin[:, fixed_parents]
+            omega[:, fixed], alpha[:, fixed] = w, a
+            accel[:, fixed] = accel[:, fixed_parents] + _cross(a, r) + _cross(w, _cross(w, r))
+        if len(driven):  # turned by their joints
+            w, a, origin_p = omega[:, driven_parents], alpha[:, driven_parents], origin[:, driven_parents]
+            pivot = positions[:, dofs]
+            spin = axes[:, dofs] * qd[:, dofs, None]
+            ap = accel[:, driven_parents] + _cross(a, pivot - origin_p) + _cross(w, _cross(w, pivot - origin_p))
+            a = a + axes[:, dofs] * qdd[:, dofs, None] + _cross(w, spin)
             w = w + spin
-        r = origin[:, i] - pivot
-        omega[:, i], alpha[:, i] = w, a
-        accel[:, i] = ap + _cross(a, r) + _cross(w, _cross(w, r))
+            r = origin[:, driven] - pivot
+            omega[:, driven], alpha[:, driven] = w, a
+            accel[:, driven] = ap + _cross(a, r) + _cross(w, _cross(w, r))
     R = poses[:, :, :3, :3]
     offset = (R @ kinematics.coms_B[:, :, None])[..., 0]
     com = origin + offset
