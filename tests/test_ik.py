@@ -7,7 +7,7 @@ from pydrake.math import RigidTransform
 from diagrams.generation.planning_problems import make_problem
 from diagrams.planning_scene import make_pick_motions, true_grasp_poses
 from diagrams.scenario import initial_positions, replace_object
-from systems.planning.ik import HALF_TURN
+from systems.planning.ik import HALF_TURN, LAST_RESORT_MAJOR_ITERATIONS
 from systems.planning.pick_motions import PlannerConfig
 from systems.planning.world import SIDES
 
@@ -57,6 +57,23 @@ def test_batched_ik_names_a_hand_out_of_reach(scenario, motions):
     targets = {"left": poses["left_pregrasp"], "right": far @ poses["right_pregrasp"]}
     result = motions[True].ik.solve(targets, initial_positions(scenario), restarts=4)
     assert not result.success and result.message == "right hand: target out of reach"
+
+
+def test_the_last_resorts_cap_on_snopts_iterations_stops_a_solve_and_keeps_a_reachable_answer(scenario, motions):
+    """SNOPT's last resort runs at most LAST_RESORT_MAJOR_ITERATIONS major iterations: one is not enough to reach a
+    pre-grasp from the start, the cap gives the same answer as no cap."""
+    ik = motions[True].ik
+    target = {"left": true_grasp_poses(scenario)["left_pregrasp"]}
+    q0 = initial_positions(scenario)
+
+    def solved(major_iterations):
+        return ik._solve_once(target, q0, q0, 0.002, 0.03, None, MARGIN, major_iterations=major_iterations)
+
+    free = solved(None)
+    assert free.success, free.message
+    assert not solved(1).success
+    capped = solved(LAST_RESORT_MAJOR_ITERATIONS)
+    assert capped.success and np.array_equal(capped.q, free.q)
 
 
 def test_the_planning_problems_are_drawn_with_snopt_ik_alone(motions):

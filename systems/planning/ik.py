@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.multibody.inverse_kinematics import InverseKinematics
-from pydrake.solvers import Solve
+from pydrake.solvers import SnoptSolver, Solve, SolverOptions
 from scipy.spatial.transform import Rotation
 
 from systems.paths import cache_dir, save_npz_atomically
@@ -45,6 +45,11 @@ STALL_SHARE = 0.9
 # reaches were longer, and one unseen drill's took 8.5 s of STOMP where SNOPT's took 0.5 s).
 NOMINAL_PULL = 0.8
 NOMINAL_PULL_DECAY = 0.7
+# SNOPT's major iterations in the last resort (its default allows 1000 or more). Where it reaches a target it needs
+# few: of the 69 last resorts that succeeded in the 30 picks of benchmark_latency.py, none needed more than 80 (3 more
+# than 40), each with the same answer as without the cap. Where it does not reach, it iterated for up to 155 ms
+# before giving up: 1.1 s of those 30 picks' 1.7 s in last resorts.
+LAST_RESORT_MAJOR_ITERATIONS = 100
 
 
 @dataclass
@@ -316,8 +321,9 @@ class DualArmIk:
         # placements at every torso yaw tried, 82 of its 366 calls in 672 solves (measured before NOMINAL_PULL).
         for X in targets:
             result = self._solve_once(
-                {side: X}, guess, q_guess, position_tolerance, angle_tolerance, None, limit_margin
-            )
+                {side: X}, guess, q_guess, position_tolerance, angle_tolerance, None, limit_margin,
+                major_iterations=LAST_RESORT_MAJOR_ITERATIONS,
+            )  # fmt: skip
             if result.success:
                 answers.append((X, result.q))
         return answers
@@ -427,9 +433,10 @@ class DualArmIk:
 
     def _solve_once(
         self, targets, start, q_nominal, position_tolerance, angle_tolerance, min_distance, limit_margin=0.0,
-        torso=False,
+        torso=False, major_iterations=None,
     ) -> IkResult:  # fmt: skip
-        """One SNOPT solve; the joints of an arm without a target, and the torso unless `torso`, stay at `start`."""
+        """One SNOPT solve (at most `major_iterations` major iterations if given); the joints of an arm without a
+        target, and the torso unless `torso`, stay at `start`."""
         world, plant = self.world, self.world.plant
         ik = InverseKinematics(plant, world.plant_context, with_joint_limits=True)
         q = ik.q()
@@ -460,6 +467,9 @@ class DualArmIk:
             prog.AddBoundingBoxConstraint(world.lower + limit_margin, world.upper - limit_margin, q[arm])
         prog.AddQuadraticErrorCost(np.eye(len(arm)), q_nominal, q[arm])
         prog.SetInitialGuess(q, world.full_positions(start))
-        result = Solve(prog)
+        options = SolverOptions()
+        if major_iterations is not None:
+            options.SetOption(SnoptSolver.id(), "Major iterations limit", major_iterations)
+        result = Solve(prog, None, options)
         q_arms = result.GetSolution(q)[arm]
         return IkResult(result.is_success(), q_arms, str(result.get_solution_result()))
