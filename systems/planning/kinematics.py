@@ -95,36 +95,25 @@ class BatchedKinematics:
         )
         self._X_PB = np.array([link.X_PF for link in self.links])  # the fixed links' (the driven ones' replaced)
         # The tree by depth: the links of one depth are placed on their parents' poses in one operation.
+        parent = np.array([link.parent for link in self.links], int)
+        arm_dof = np.array([link.arm_dof for link in self.links], int)
         depth = []
         for link in self.links:  # (a parent is listed before its children)
             depth.append(0 if link.parent < 0 else depth[link.parent] + 1)
-        depth = np.array(depth)
-        self._levels = [
-            (np.nonzero(depth == d)[0], np.array([self.links[i].parent for i in np.nonzero(depth == d)[0]]))
-            for d in range(depth.max() + 1)
-        ]
+        by_depth = [np.nonzero(np.array(depth) == d)[0] for d in range(max(depth) + 1)]
+        self._levels = [(links, parent[links]) for links in by_depth]
         # Links no planned joint moves (e.g. the pelvis and, without the torso yaw, the torso) keep one pose.
         moved = self.carried.any(axis=0)
         self._still = np.nonzero(~moved)[0]
         self._still_poses = self._poses(np.zeros((1, self.dof)))[0, self._still]
         self._levels = [(links[moved[links]], parents[moved[links]]) for links, parents in self._levels]
-        # The same depths for the inverse dynamics, every link: (fixed links, their parents, driven links, their
-        # parents, their coordinates) per depth below the roots.
+        # The same depths for the inverse dynamics, every link: the roots, then per depth below them (fixed links,
+        # their parents, driven links, their parents, their coordinates).
+        self._roots = by_depth[0]
         self._dynamics_levels = []
-        for d in range(1, depth.max() + 1):
-            at = np.nonzero(depth == d)[0]
-            fixed = np.array([i for i in at if self.links[i].arm_dof < 0], int)
-            driven = np.array([i for i in at if self.links[i].arm_dof >= 0], int)
-            self._dynamics_levels.append(
-                (
-                    fixed,
-                    np.array([self.links[i].parent for i in fixed], int),
-                    driven,
-                    np.array([self.links[i].parent for i in driven], int),
-                    np.array([self.links[i].arm_dof for i in driven], int),
-                )
-            )
-        self._roots = np.nonzero(depth == 0)[0]
+        for links in by_depth[1:]:
+            fixed, driven = links[arm_dof[links] < 0], links[arm_dof[links] >= 0]
+            self._dynamics_levels.append((fixed, parent[fixed], driven, parent[driven], arm_dof[driven]))
         self.joint_parents = np.array([self.links[i].parent for i in self.dof_link])
         self.joint_X_PF = np.array([self.links[i].X_PF for i in self.dof_link])  # n x 4 x 4
         self.joint_axes_F = np.array([self.links[i].axis for i in self.dof_link])  # n x 3
