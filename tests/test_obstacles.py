@@ -4,7 +4,7 @@ held part's along the detours (systems/planning/stomp.py)."""
 import numpy as np
 from pydrake.math import RigidTransform, RollPitchYaw
 
-from systems.planning.obstacles import CarriedPoints, Obstacles
+from systems.planning.obstacles import CLUSTER_RADIUS, CarriedPoints, Obstacles, clusters
 from systems.planning.stomp import HeldPart
 
 
@@ -45,7 +45,8 @@ def test_the_held_parts_clearances_along_detours_are_exact_wherever_they_count()
     keyframes = 6
     part_B = rng.uniform([-0.2, -0.1, -0.1], [0.2, 0.1, 0.1], (120, 3))  # two hands and an object, m
     path = np.linspace([0.0, -0.2, 0.15], [0.3, 0.2, 0.2], keyframes)  # where the part is at each keyframe
-    part = HeldPart(part_B[None] + path[:, None], rng.uniform(0.01, 0.03, len(part_B)))
+    labels = clusters(part_B, CLUSTER_RADIUS)[1]
+    part = HeldPart(part_B[None] + path[:, None], rng.uniform(0.01, 0.03, len(part_B)), labels)
     scene = Obstacles().add_box(RigidTransform([0.0, 0.0, -0.05]).GetAsMatrix4(), [1.0, 1.0, 0.1])
     scene.add_box(RigidTransform(RollPitchYaw(0, 0, 0.3), [0.2, 0.0, 0.1]).GetAsMatrix4(), [0.1, 0.2, 0.2])
     offsets = (

@@ -85,15 +85,14 @@ class BatchedKinematics:
                 if self.links[j].arm_dof >= 0:
                     self.carried[self.links[j].arm_dof, i] = True
                 j = self.links[j].parent
-        # The driven links' Rodrigues matrices stacked (D x 4 x 4), so that a batch's joint transforms are three
-        # array operations; and each arm joint's parent, joint frame and axis (joint_axes()).
+        # The D driven links' Rodrigues matrices (D x 3 x 16): a driven link's X_PB, flattened, is
+        # [1, sin q, 1 - cos q] times its three rows, so that a batch's joint transforms are one product.
         driven = [i for i, link in enumerate(self.links) if link.arm_dof >= 0]
         self._driven = np.array(driven, int)
         self._driven_dof = np.array([self.links[i].arm_dof for i in driven], int)
-        self._fixed, self._sine, self._versine = (
-            np.array([getattr(self.links[i], name) for i in driven]) for name in ("fixed", "sine", "versine")
-        )
-        self._X_PB = np.array([link.X_PF for link in self.links])  # the fixed links' (the driven ones' replaced)
+        self._rodrigues = np.array(
+            [[self.links[i].fixed, self.links[i].sine, self.links[i].versine] for i in driven]
+        ).reshape(len(driven), 3, 16)
         # The tree by depth: the links of one depth are placed on their parents' poses in one operation.
         parent = np.array([link.parent for link in self.links], int)
         arm_dof = np.array([link.arm_dof for link in self.links], int)
@@ -101,12 +100,13 @@ class BatchedKinematics:
         for link in self.links:  # (a parent is listed before its children)
             depth.append(0 if link.parent < 0 else depth[link.parent] + 1)
         by_depth = [np.nonzero(np.array(depth) == d)[0] for d in range(max(depth) + 1)]
-        self._levels = [(links, parent[links]) for links in by_depth]
+        self._still, self._still_poses = np.zeros(0, int), None
+        self._groups = self._placing_groups(by_depth, parent)
         # Links no planned joint moves (e.g. the pelvis and, without the torso yaw, the torso) keep one pose.
         moved = self.carried.any(axis=0)
+        self._still_poses = self.body_poses(np.zeros(self.dof))[0, ~moved]
         self._still = np.nonzero(~moved)[0]
-        self._still_poses = self._poses(np.zeros((1, self.dof)))[0, self._still]
-        self._levels = [(links[moved[links]], parents[moved[links]]) for links, parents in self._levels]
+        self._groups = self._placing_groups([links[moved[links]] for links in by_depth], parent)
         # The same depths for the inverse dynamics, every link: the roots, then per depth below them (fixed links,
         # their parents, driven links, their parents, their coordinates).
         self._roots = by_depth[0]
@@ -114,9 +114,11 @@ class BatchedKinematics:
         for links in by_depth[1:]:
             fixed, driven = links[arm_dof[links] < 0], links[arm_dof[links] >= 0]
             self._dynamics_levels.append((fixed, parent[fixed], driven, parent[driven], arm_dof[driven]))
-        self.joint_parents = np.array([self.links[i].parent for i in self.dof_link])
-        self.joint_X_PF = np.array([self.links[i].X_PF for i in self.dof_link])  # n x 4 x 4
-        self.joint_axes_F = np.array([self.links[i].axis for i in self.dof_link])  # n x 3
+        # Each arm joint's origin and axis in its child's frame B: a revolute joint's frames F and M share their
+        # origin and its axis, so both are fixed in B (X_BM = X_MB^-1).
+        X_BM = np.linalg.inv(np.array([self.links[i].X_MB for i in self.dof_link]))  # n x 4 x 4
+        self.joint_origin_B = X_BM[:, :3, 3]  # n x 3, m
+        self.joint_axis_B = np.einsum("jik,jk->ji", X_BM[:, :3, :3], [self.links[i].axis for i in self.dof_link])
 
     def _add(self, body) -> int:
         index = body.index()
@@ -161,21 +163,33 @@ class BatchedKinematics:
         return self.links[position].arm_dof if position >= 0 else -1
 
     def body_poses(self, q: np.ndarray) -> np.ndarray:
-        """X_WB of every tracked body: an array (B x L x 4 x 4), in the order of `links`."""
-        return self._poses(np.atleast_2d(q), self._still, self._still_poses)
+        """X_WB of every tracked body: an array (B x L x 4 x 4), in the order of `links` (a view of an array
+        stored link by link: each depth's links are placed on their parents' poses in contiguous blocks)."""
+        q = np.atleast_2d(q)[:, self._driven_dof].T  # D x B
+        batch = q.shape[1]
+        factors = np.stack([np.ones_like(q), np.sin(q), 1.0 - np.cos(q)], axis=2)  # D x B x 3
+        joints = (factors @ self._rodrigues).reshape(len(q), batch, 4, 4)  # each driven link's X_PB
+        poses = np.empty((len(self.links), batch, 4, 4))
+        if len(self._still):
+            poses[self._still] = self._still_poses[:, None]
+        for links, parents, driven, X_PB in self._groups:
+            X = joints[driven] if driven[0] >= 0 else X_PB
+            poses[links] = X if parents[0] < 0 else poses[parents] @ X
+        return poses.transpose(1, 0, 2, 3)
 
-    def _poses(self, q: np.ndarray, still=(), still_poses=None) -> np.ndarray:
-        """body_poses(), the links at `still` given their poses (the same at every q)."""
-        q = q[:, self._driven_dof]
-        X_PB = np.repeat(self._X_PB[None], len(q), axis=0)  # B x L x 4 x 4, each link in its parent
-        sines, versines = np.sin(q)[:, :, None, None], 1.0 - np.cos(q)[:, :, None, None]
-        X_PB[:, self._driven] = self._fixed + sines * self._sine + versines * self._versine
-        poses = np.empty_like(X_PB)
-        if len(still):
-            poses[:, still] = still_poses
-        for depth, (links, parents) in enumerate(self._levels):
-            poses[:, links] = X_PB[:, links] if depth == 0 else poses[:, parents] @ X_PB[:, links]
-        return poses
+    def _placing_groups(self, by_depth, parent) -> list:
+        """The links of each depth (parents first) as up to two groups, each placed in one operation: the driven
+        ones (with their positions among the driven links) and the fixed ones (with their constant X_PB)."""
+        driven_position = np.full(len(self.links), -1)
+        driven_position[self._driven] = np.arange(len(self._driven))
+        groups = []
+        for links in by_depth:
+            for chosen in (driven_position[links] >= 0, driven_position[links] < 0):
+                if chosen.any():
+                    group = links[chosen]
+                    X_PB = np.array([self.links[i].X_PF for i in group])[:, None]  # (fixed links: X_PB = X_PF)
+                    groups.append((group, parent[group], driven_position[group], X_PB))
+        return groups
 
 
 def skew(v: np.ndarray) -> np.ndarray:
@@ -195,8 +209,9 @@ def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def joint_axes(kinematics: "BatchedKinematics", poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Each arm joint's position p_j on its axis and unit axis a_j in W (each B x n x 3), from the bodies' poses."""
-    X_WF = poses[:, kinematics.joint_parents] @ kinematics.joint_X_PF  # every arm joint's parent is a tracked body
-    return X_WF[:, :, :3, 3], np.einsum("bjik,jk->bji", X_WF[:, :, :3, :3], kinematics.joint_axes_F)
+    X_WB = poses[:, kinematics.dof_link, :3]  # each joint's child, B x n x 3 x 4
+    positions = np.einsum("bjik,jk->bji", X_WB[..., :3], kinematics.joint_origin_B) + X_WB[..., 3]
+    return positions, np.einsum("bjik,jk->bji", X_WB[..., :3], kinematics.joint_axis_B)
 
 
 def gravity_torques(kinematics: "BatchedKinematics", q: np.ndarray, poses: np.ndarray | None = None) -> np.ndarray:
@@ -301,6 +316,19 @@ class SphereModel:
     group: np.ndarray  # S, which rigid group (arm side) the sphere belongs to: 0 torso, 1 left, 2 right
     geometry: list  # S, the GeometryId each sphere covers
 
+    def __post_init__(self):
+        # Each body's sphere centres as the columns of one matrix (bodies x 3 x most per body, zero-padded), and
+        # where each sphere lands among them: every centre is then one small product per body.
+        count = np.bincount(self.body) if len(self.body) else np.zeros(0, int)
+        most = int(count.max()) if len(count) else 0
+        self._centres_by_body = np.zeros((len(count), 3, most))
+        self._column = np.zeros(len(self.body), int)
+        filled = np.zeros(len(count), int)
+        for sphere, body in enumerate(self.body):
+            self._centres_by_body[body, :, filled[body]] = self.centre_B[sphere]
+            self._column[sphere] = body * most + filled[body]
+            filled[body] += 1
+
     def pairs(self, inspector, group_a: int, group_b: int) -> tuple[np.ndarray, np.ndarray]:
         """Index pairs (i in group_a, j in group_b) of spheres whose geometries may collide (not filtered).
 
@@ -323,8 +351,10 @@ class SphereModel:
 
     def centres_W(self, body_poses: np.ndarray) -> np.ndarray:
         """Sphere centres in W (B x S x 3) from the batch of body poses."""
-        X = body_poses[:, self.body]  # B x S x 4 x 4: each sphere's body
-        return (X[..., :3, :3] @ self.centre_B[..., None])[..., 0] + X[..., :3, 3]
+        bodies = body_poses[:, : len(self._centres_by_body), :3]  # B x bodies x 3 x 4
+        centres = bodies[..., :3] @ self._centres_by_body  # B x bodies x 3 x most
+        centres += bodies[..., 3:]
+        return centres.swapaxes(2, 3).reshape(len(body_poses), -1, 3)[:, self._column]
 
 
 BOX_SPHERE_SPACING = 0.04  # m: boxes thinner than this are covered by fewer, larger spheres

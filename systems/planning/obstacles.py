@@ -160,17 +160,18 @@ class Obstacles:
         flat = centres.reshape(-1, 3)
         points = flat.T.astype(np.float32)  # 3 x N
         nearest = np.full(len(flat), cap, np.float32)
-        for X_BW, half in self.boxes:
-            excess = X_BW[:3, :3].astype(np.float32) @ points
-            excess += X_BW[:3, 3, None].astype(np.float32)
+        if self.boxes:  # every box at once: excess (boxes x 3 x N) of each point beyond each box's faces
+            X_BW = np.array([X for X, _ in self.boxes], np.float32)
+            excess = X_BW[:, :3, :3] @ points
+            excess += X_BW[:, :3, 3, None]
             np.abs(excess, out=excess)
-            excess -= half[:, None].astype(np.float32)
-            largest = np.maximum(np.maximum(excess[0], excess[1]), excess[2])
+            excess -= np.array([half for _, half in self.boxes], np.float32)[:, :, None]
+            largest = np.maximum(np.maximum(excess[:, 0], excess[:, 1]), excess[:, 2])
             np.maximum(excess, 0.0, out=excess)
             excess *= excess
-            outside = np.sqrt(excess[0] + excess[1] + excess[2])
+            outside = np.sqrt(excess[:, 0] + excess[:, 1] + excess[:, 2])
             outside += np.minimum(largest, 0.0)
-            np.minimum(nearest, outside, out=nearest)
+            np.minimum(nearest, outside.min(axis=0), out=nearest)
         nearest = nearest.astype(np.float64)
         for field_ in self.fields:
             nearest = np.minimum(nearest, field_(flat, cap))

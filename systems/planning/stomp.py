@@ -49,7 +49,7 @@ from systems.planning.closure import (
 )
 from systems.planning.hand_constraints import HandConstraints, bounded_step
 from systems.planning.kinematics import Payload, joint_torques, relative_pose
-from systems.planning.obstacles import CLUSTER_RADIUS, Obstacles, clusters, placed
+from systems.planning.obstacles import Obstacles, placed
 from systems.planning.world import PlanningWorld
 
 TERMS = ("collision", "limits", "torque", "duration", "closure", "orientation")
@@ -123,15 +123,19 @@ class StompConfig:
 @dataclass
 class HeldPart:
     """Spheres that move with a held object (centres K x P x 3 at K keyframes, m, in W; radii P, m), grouped in
-    clusters (a CLUSTER_RADIUS covering at the first keyframe) so that only the clusters near the scene are placed
-    sphere by sphere."""
+    clusters (cluster_of: P labels, e.g. each hand's bodies and the carried object's CLUSTER_RADIUS covering),
+    each bounded at each keyframe by one sphere about its members' mean, so that only the clusters near the scene
+    are placed sphere by sphere."""
 
     centres: np.ndarray
     radii: np.ndarray
+    cluster_of: np.ndarray
 
     def __post_init__(self):
-        chosen, self.cluster_of = clusters(self.centres[0], CLUSTER_RADIUS)
-        self.cluster_centres = self.centres[:, chosen]  # K x C x 3
+        _, self.cluster_of = np.unique(self.cluster_of, return_inverse=True)  # (labels 0..C-1, none empty)
+        members = np.zeros((self.cluster_of.max() + 1, len(self.radii)))
+        members[self.cluster_of, np.arange(len(self.radii))] = 1.0
+        self.cluster_centres = (members / members.sum(axis=1, keepdims=True)) @ self.centres  # K x C x 3
         reach = np.linalg.norm(self.centres - self.cluster_centres[:, self.cluster_of], axis=2) + self.radii
         self.cluster_radii = np.zeros(self.cluster_centres.shape[:2])  # K x C: each keyframe's spheres lie within
         np.maximum.at(self.cluster_radii.T, self.cluster_of, reach.T)
@@ -282,11 +286,11 @@ class Stomp:
 
     def _near_sphere_pairs(self, body_poses: np.ndarray) -> np.ndarray:
         """Indices of the sphere pairs whose bodies' bounding spheres come within the margin in any configuration."""
-        poses = body_poses[:, self.bound_body]
-        centres = (poses[:, :, :3, :3] @ self.bound_centre[:, :, None])[..., 0] + poses[:, :, :3, 3]
+        poses = body_poses[:, self.bound_body, :3]  # B x bodies x 3 x 4
+        centres = np.einsum("bkij,kj->bki", poses[..., :3], self.bound_centre) + poses[..., 3]
         i, j = self.body_pairs[:, 0], self.body_pairs[:, 1]
-        gap = np.linalg.norm(centres[:, i] - centres[:, j], axis=-1) - self.bound_radius[i] - self.bound_radius[j]
-        close = (gap < self.config.margin).any(axis=0)
+        squared = np.square(centres[:, i] - centres[:, j]).sum(axis=-1)
+        close = (squared < (self.bound_radius[i] + self.bound_radius[j] + self.config.margin) ** 2).any(axis=0)
         return np.nonzero(close[self.pair_group])[0]
 
     def _cost_terms(
@@ -623,12 +627,15 @@ class Stomp:
         ones."""
         poses = self.kinematics.body_poses(keyframes)
         centres, radii = self.spheres.centres_W(poses)[:, self.hand_sphere], self.spheres.radius[self.hand_sphere]
+        cluster_of = self.spheres.body[self.hand_sphere]  # a hand's spheres: one cluster per body
         if obstacles.carried is not None:
             carried = obstacles.carried
-            points_B = carried.points_B[:: max(1, len(carried.points_B) // self.config.detour_proxy_points)]
+            every = max(1, len(carried.points_B) // self.config.detour_proxy_points)
+            points_B = carried.points_B[::every]
             centres = np.concatenate([centres, placed(points_B, poses[:, carried.slot])], axis=1)
             radii = np.concatenate([radii, np.full(len(points_B), carried.radius)])
-        return HeldPart(centres, radii)
+            cluster_of = np.concatenate([cluster_of, len(self.kinematics.links) + carried.cluster_of[::every]])
+        return HeldPart(centres, radii, cluster_of)
 
     def _ranked_detour(self, theta, obstacles, closure, orientation, constraints, moves, across, held_part):
         """The first solution (theta, True, clearances) among the detour_checks detours of the moves that the held
