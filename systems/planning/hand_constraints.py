@@ -114,7 +114,10 @@ def bounded_step(
     (rad) per joint if given, within the joints' limits: a joint the step would push beyond its limit is pinned
     at the limit and the rest of the error solved by the other joints (up to 3 times; clipped after). Clipping
     alone stalls where every step pushes a joint beyond its limit again."""
-    pinned = np.zeros_like(q)  # the pinned joints' moves to their limits
+    lower, upper = np.broadcast_to(lower, q.shape), np.broadcast_to(upper, q.shape)  # (per joint, or B x n)
+    moved = np.empty_like(q)
+    rows = np.arange(len(q))  # the configurations still being solved: those a step pushed beyond a limit
+    pinned = np.zeros_like(q)  # their pinned joints' moves to their limits
     free = np.ones_like(q)
     residual, J = error, jacobian  # (nothing pinned yet)
     for _ in range(4):
@@ -123,12 +126,15 @@ def bounded_step(
         step = (JT @ np.linalg.solve(damped, residual[..., None]))[..., 0]
         if max_step is not None:
             step *= np.minimum(1.0, max_step / np.maximum(np.abs(step).max(axis=1, keepdims=True), 1e-12))
-        moved = q + pinned - step
-        beyond = (moved < lower) | (moved > upper)
-        if not beyond.any():
+        moved[rows] = q[rows] + pinned - step
+        beyond = (moved[rows] < lower[rows]) | (moved[rows] > upper[rows])
+        again = beyond.any(axis=1)
+        if not again.any():
             break
-        pinned = np.where(beyond, np.clip(moved, lower, upper) - q, pinned)
-        free = free * ~beyond
-        residual = error + np.einsum("beq,bq->be", jacobian, pinned)
-        J = jacobian * free[:, None, :]
+        # Only the configurations with a joint newly pinned are solved again (the others' steps would not change).
+        rows, beyond = rows[again], beyond[again]
+        pinned = np.where(beyond, np.clip(moved[rows], lower[rows], upper[rows]) - q[rows], pinned[again])
+        free = free[again] * ~beyond
+        residual = error[rows] + np.einsum("beq,bq->be", jacobian[rows], pinned)
+        J = jacobian[rows] * free[:, None, :]
     return np.clip(moved, lower, upper)
