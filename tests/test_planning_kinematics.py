@@ -3,12 +3,12 @@
 import numpy as np
 import pytest
 from pydrake.multibody.plant import AddMultibodyPlantSceneGraph
-from pydrake.multibody.tree import MultibodyForces
+from pydrake.multibody.tree import FrameIndex, JacobianWrtVariable, MultibodyForces
 from pydrake.systems.framework import DiagramBuilder
 
 from diagrams.scenario import planned_joints
 from diagrams.station import AddCentauro
-from systems.planning.kinematics import centauro_kinematics, gravity_torques, joint_torques
+from systems.planning.kinematics import EndEffectors, centauro_kinematics, gravity_torques, joint_torques
 
 
 @pytest.fixture(scope="module")
@@ -43,6 +43,33 @@ def test_batched_kinematics_equals_drake(robot):
         for link, X in zip(kinematics.links, batch_poses, strict=True):
             X_drake = plant.EvalBodyPoseInWorld(plant_context, plant.get_body(link.body_index)).GetAsMatrix4()
             np.testing.assert_allclose(X, X_drake, atol=1e-10)
+    plant.SetPositions(plant_context, default)
+
+
+def test_grasp_frame_jacobians_equal_drake(robot):
+    """The batched poses and geometric Jacobians of both hands' grasp frames (rows angular then translational
+    velocity in W, per planned joint) are Drake's, at random configurations."""
+    plant, _, plant_context, kinematics, _, joints = robot
+    frames = [
+        frame
+        for frame in map(plant.get_frame, map(FrameIndex, range(plant.num_frames())))
+        if frame.name() == "grasp_frame"
+    ]
+    assert len(frames) == 2  # each hand's
+    end_effectors = EndEffectors(kinematics, frames)
+    q_batch = random_configurations(joints, 10, seed=3)
+    poses, jacobians = end_effectors.jacobians(q_batch)
+    columns = [joint.velocity_start() for joint in joints]
+    default = plant.GetPositions(plant_context).copy()
+    for b, q in enumerate(q_batch):
+        for joint, value in zip(joints, q, strict=True):
+            joint.set_angle(plant_context, value)
+        for frame, X, J in zip(frames, poses, jacobians, strict=True):
+            np.testing.assert_allclose(X[b], frame.CalcPoseInWorld(plant_context).GetAsMatrix4(), atol=1e-10)
+            J_drake = plant.CalcJacobianSpatialVelocity(
+                plant_context, JacobianWrtVariable.kV, frame, [0, 0, 0], plant.world_frame(), plant.world_frame()
+            )
+            np.testing.assert_allclose(J[b], J_drake[:, columns], atol=1e-10)
     plant.SetPositions(plant_context, default)
 
 
