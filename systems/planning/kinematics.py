@@ -100,12 +100,15 @@ class BatchedKinematics:
         for link in self.links:  # (a parent is listed before its children)
             depth.append(0 if link.parent < 0 else depth[link.parent] + 1)
         by_depth = [np.nonzero(np.array(depth) == d)[0] for d in range(max(depth) + 1)]
-        self._still, self._still_poses = np.zeros(0, int), None
-        self._groups = self._placing_groups(by_depth, parent)
-        # Links no planned joint moves (e.g. the pelvis and, without the torso yaw, the torso) keep one pose.
+        # Links no planned joint moves (e.g. the pelvis and, without the torso yaw, the torso) keep one pose: the
+        # product of their fixed transforms (each such link's parent is one too, listed before it).
         moved = self.carried.any(axis=0)
-        self._still_poses = self.body_poses(np.zeros(self.dof))[0, ~moved]
         self._still = np.nonzero(~moved)[0]
+        still_pose = {}
+        for i in self._still:
+            X_PF, up = self.links[i].X_PF, self.links[i].parent
+            still_pose[i] = X_PF if up < 0 else still_pose[up] @ X_PF
+        self._still_poses = np.array([still_pose[i] for i in self._still]).reshape(-1, 4, 4)
         self._groups = self._placing_groups([links[moved[links]] for links in by_depth], parent)
         # The same depths for the inverse dynamics, every link: the roots, then per depth below them (fixed links,
         # their parents, driven links, their parents, their coordinates).
@@ -173,22 +176,23 @@ class BatchedKinematics:
         if len(self._still):
             poses[self._still] = self._still_poses[:, None]
         for links, parents, driven, X_PB in self._groups:
-            X = joints[driven] if driven[0] >= 0 else X_PB
+            X = joints[driven] if X_PB is None else X_PB
             poses[links] = X if parents[0] < 0 else poses[parents] @ X
         return poses.transpose(1, 0, 2, 3)
 
     def _placing_groups(self, by_depth, parent) -> list:
         """The links of each depth (parents first) as up to two groups, each placed in one operation: the driven
-        ones (with their positions among the driven links) and the fixed ones (with their constant X_PB)."""
+        ones (with their positions among the driven links; X_PB None) and the fixed ones (with their constant X_PB,
+        which is X_PF)."""
         driven_position = np.full(len(self.links), -1)
         driven_position[self._driven] = np.arange(len(self._driven))
         groups = []
         for links in by_depth:
-            for chosen in (driven_position[links] >= 0, driven_position[links] < 0):
-                if chosen.any():
-                    group = links[chosen]
-                    X_PB = np.array([self.links[i].X_PF for i in group])[:, None]  # (fixed links: X_PB = X_PF)
-                    groups.append((group, parent[group], driven_position[group], X_PB))
+            driven, fixed = links[driven_position[links] >= 0], links[driven_position[links] < 0]
+            if len(driven):
+                groups.append((driven, parent[driven], driven_position[driven], None))
+            if len(fixed):
+                groups.append((fixed, parent[fixed], None, np.array([self.links[i].X_PF for i in fixed])[:, None]))
         return groups
 
 
