@@ -100,10 +100,11 @@ def frame_warnings(clouds: dict[str, np.ndarray], canonical: str) -> list[str]:
     return warnings
 
 
-def generated_instances(category: str, extra: int):
-    """Clouds and true control poses of the training instances (and `extra` more generated ones)."""
+def generated_instances(category: str, extra: int, wide: int = 0):
+    """Clouds and true control poses of the training instances, `extra` more of their family (extra_0..) and
+    `wide` of the generator's wider family (wide_0..)."""
     names = [n for n in catalog.instance_names(category) if n.startswith("train")]
-    names += [f"extra_{i}" for i in range(extra)]
+    names += [f"extra_{i}" for i in range(extra)] + [f"wide_{i}" for i in range(wide)]
     clouds, poses = {}, {}
     for name in names:
         directory = generated_instance_directory(category, name)
@@ -209,6 +210,9 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--category", required=True, help="generated category, or the name of a folder's category")
     parser.add_argument("--extra", type=int, default=40, help="extra generated instances beyond train_0..7")
+    parser.add_argument(
+        "--wide", type=int, default=0, help="generated instances of the wider family (wide_0..) beside them"
+    )
     parser.add_argument("--folder", type=Path, help="a folder of your own models (meshes or point clouds)")
     parser.add_argument("--poses", type=Path, help="with --folder: YAML with the canonical model's control poses")
     parser.add_argument(
@@ -236,7 +240,7 @@ def main():
             args.folder, args.poses, args.category, args.components, args.align, landmarks=not args.no_landmarks
         )
     else:
-        clouds, poses = generated_instances(args.category, args.extra)
+        clouds, poses = generated_instances(args.category, args.extra, args.wide)
         space = build_shape_space(args.category, clouds, poses, args.components, landmarks=not args.no_landmarks)
     out = args.out or MODELS_DIR / f"shape_space_{args.category}.npz"
     space.save(out)

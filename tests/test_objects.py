@@ -6,17 +6,28 @@ import trimesh
 from scipy.spatial import Delaunay
 
 from diagrams.generation.objects import catalog
-from diagrams.generation.objects.library import load_info, resolve_object
+from diagrams.generation.objects.library import load_info, resolve_object, written_whole
 from diagrams.scenario import ObjectConfig
 
 INSTANCES = [(c, n) for c in sorted(catalog.CATEGORIES) for n in catalog.instance_names(c)]
+# A few of the wider family (on demand, not committed): the same checks of shape, grasps and stance.
+WIDE = [(c, f"wide_{k}") for c in sorted(catalog.CATEGORIES) for k in range(4)]
 
 
-@pytest.fixture(scope="module", params=INSTANCES, ids=lambda p: "/".join(p))
-def generated(request):
+def _generated(request):
     category, name = request.param
     instance = catalog.generate(category, name)
     return instance, instance.visual_mesh()
+
+
+@pytest.fixture(scope="module", params=INSTANCES, ids=lambda p: "/".join(p))
+def committed(request):
+    return _generated(request)
+
+
+@pytest.fixture(scope="module", params=INSTANCES + WIDE, ids=lambda p: "/".join(p))
+def generated(request):
+    return _generated(request)
 
 
 def test_mesh_is_watertight_with_positive_definite_inertia(generated):
@@ -71,8 +82,8 @@ def test_test_cans_differ_from_each_other():
         assert np.max(np.abs(sizes[i] - sizes[j])) > 0.01, f"test_{i} and test_{j} have nearly the same size"
 
 
-def test_generation_is_reproducible_and_matches_the_committed_files(generated):
-    instance, _ = generated
+def test_generation_is_reproducible_and_matches_the_committed_files(committed):
+    instance, _ = committed
     committed = load_info(catalog.instance_directory(instance.category, instance.name) / "info.yaml")
     fresh = instance.info()
     hint = f"{instance.category}/{instance.name}: run scripts/generate_objects.py"
@@ -99,10 +110,46 @@ def test_unknown_category_gives_a_clear_error():
         resolve_object(ObjectConfig(category="teapot"))
 
 
-def test_extra_instances_on_demand(tmp_path, monkeypatch):
+def test_extra_and_wide_instances_on_demand(tmp_path, monkeypatch):
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
-    model = resolve_object(ObjectConfig(category="drill", instance="extra_42"))
-    assert model.model_file.is_file() and model.info.name == "extra_42"
+    for name in ("extra_42", "wide_42"):
+        model = resolve_object(ObjectConfig(category="drill", instance=name))
+        assert model.model_file.is_file() and model.info.name == name
+
+
+def test_a_cache_folder_is_never_seen_half_written(tmp_path):
+    """Parallel workers generate the same instance into the cache: a folder appears whole or not at all."""
+    target = tmp_path / "objects" / "drill" / "wide_3"
+
+    def fails_halfway(folder):
+        (folder / "visual.obj").write_text("v 0 0 0")
+        raise OSError("disk full")
+
+    with pytest.raises(OSError, match="disk full"):
+        written_whole(target, fails_halfway)
+    assert list(target.parent.iterdir()) == []
+    written_whole(target, lambda folder: (folder / "model.sdf").write_text("first"))
+    written_whole(target, lambda folder: (folder / "model.sdf").write_text("second"))  # another worker, later
+    assert (target / "model.sdf").read_text() == "first" and len(list(target.parent.iterdir())) == 1
+    for leftover in target.iterdir():  # a run killed while writing the old way left an incomplete folder
+        leftover.unlink()
+    (target / "visual.obj").write_text("v 0 0 0")
+    written_whole(target, lambda folder: (folder / "model.sdf").write_text("whole"))
+    assert sorted(p.name for p in target.iterdir()) == ["model.sdf"]
+
+
+def test_the_wider_family_reaches_past_the_paper_like_one():
+    """wide_<seed> instances are reproducible, and their parameters leave the ranges train_*, test_* and
+    extra_* are drawn from (watering_can.py, drill.py)."""
+    can_ranges = {"radius": (0.075, 0.1), "height": (0.18, 0.26), "rear_handle_radius": (0.05, 0.075)}
+    drill_ranges = {"housing_length": (0.17, 0.24), "grip_tilt": (0.0, 0.25), "side_handle_position": (0.6, 0.8)}
+    for category, ranges in (("watering_can", can_ranges), ("drill", drill_ranges)):
+        outside = 0
+        for k in range(12):
+            parameters = catalog.generate(category, f"wide_{k}").parameters
+            assert parameters == catalog.generate(category, f"wide_{k}").parameters
+            outside += any(not low <= parameters[key] <= high for key, (low, high) in ranges.items())
+        assert outside >= 6, f"only {outside} of 12 wide {category}s leave the paper-like family's ranges"
 
 
 def test_a_users_mesh_becomes_a_model_placed_like_the_category(tmp_path, monkeypatch):

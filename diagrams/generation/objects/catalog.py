@@ -1,7 +1,9 @@
 """The fixed, seeded instances of each category, and instances on demand.
 
 Every instance's shape comes from `numpy.random.default_rng([CATALOG_SEED, category id,
-split id, index])`, so `train_3` is the same can on every machine.
+split id, index])`, so `train_3` is the same can on every machine. `extra_<seed>` instances are drawn
+from the same family as train_* and test_*; `wide_<seed>` ones from each generator's wider family
+(`sample_wide_parameters`: more of what real products vary in).
 """
 
 import functools
@@ -10,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import trimesh
+from scipy.spatial import ConvexHull
 
 from diagrams.generation.objects.instance import ObjectInstance
 from diagrams.paths import SDF_DIR
@@ -20,6 +23,8 @@ CATALOG_SEED = 2018
 # them; taught categories are data). Their order seeds the instances: never reorder GENERATED.
 CATEGORIES = {name: importlib.import_module(f"diagrams.generation.objects.{name}") for name in categories.GENERATED}
 SPLITS = {"train": 8, "test": 3}
+# On-demand instances, any number of each: the paper-like family, and the wider one. Never reorder.
+ON_DEMAND = ("extra", "wide")
 # The paper's test cans differ clearly from each other: one body style each.
 TEST_CAN_STYLES = ("cylinder", "oval", "tapered")
 
@@ -43,27 +48,46 @@ def category_module(category: str):
 
 
 def parse_instance_name(name: str) -> tuple[str, int]:
-    """Splits 'train_3' into ('train', 3); 'extra_17' names an on-demand instance."""
+    """Splits 'train_3' into ('train', 3); 'extra_17' and 'wide_17' name on-demand instances."""
     split, _, index = name.rpartition("_")
-    if split not in (*SPLITS, "extra") or not index.isdigit():
-        raise ValueError(f"bad instance name {name!r}: expected train_<i>, test_<i> or extra_<seed>")
+    if split not in (*SPLITS, *ON_DEMAND) or not index.isdigit():
+        raise ValueError(f"bad instance name {name!r}: expected train_<i>, test_<i>, extra_<seed> or wide_<seed>")
     return split, int(index)
 
 
 def generate(category: str, name: str) -> ObjectInstance:
-    """Generates the named instance (train_i, test_i, or extra_<seed> for any number more)."""
+    """Generates the named instance (train_i, test_i, or extra_<seed> and wide_<seed> for any number more)."""
     module = category_module(category)
     split, index = parse_instance_name(name)
     if split in SPLITS and index >= SPLITS[split]:
         raise ValueError(f"{category} has {SPLITS[split]} {split} instances; {name!r} does not exist")
-    split_id = (*SPLITS, "extra").index(split)
+    split_id = (*SPLITS, *ON_DEMAND).index(split)
     category_id = list(CATEGORIES).index(category)
     rng = np.random.default_rng([CATALOG_SEED, category_id, split_id, index])
+    if split == "wide":
+        return _standing_wide_instance(module, name, rng)
     if category == "watering_can" and split == "test":
         parameters = module.sample_parameters(rng, body_style=TEST_CAN_STYLES[index])
     else:
         parameters = module.sample_parameters(rng)
     return module.build(name, parameters)
+
+
+# A wide instance's centre of mass lies this far inside its footprint (m), or its shape is drawn again.
+STANDING_MARGIN = 0.01
+
+
+def _standing_wide_instance(module, name: str, rng: np.random.Generator) -> ObjectInstance:
+    """The first shape of the wider family drawn from `rng` that stands on its base (a long, front-heavy drill
+    on a small battery would tip over)."""
+    for _ in range(100):
+        instance = module.build(name, module.sample_wide_parameters(rng))
+        com, _ = instance.mass_properties()
+        base = np.vstack([part.mesh.vertices for part in instance.parts])
+        hull = ConvexHull(base[base[:, 2] < 1e-6][:, :2])
+        if np.max(hull.equations @ [com[0], com[1], 1.0]) <= -STANDING_MARGIN:
+            return instance
+    raise RuntimeError(f"no standing {module.CATEGORY} found for {name} in 100 draws")
 
 
 def instance_directory(category: str, name: str) -> Path:

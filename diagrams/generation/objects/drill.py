@@ -41,19 +41,46 @@ def sample_parameters(rng: np.random.Generator) -> dict[str, float]:
     }
 
 
+def sample_wide_parameters(rng: np.random.Generator) -> dict[str, float]:
+    """Draws a drill of the wider family (the `wide_<seed>` instances): what real two-handed drills vary in
+    beyond the paper-like family: compact to hammer-drill housings, slim to thick grips leaning back or forward,
+    the grip further back or further under the housing, small to large batteries, side handles anywhere along
+    the housing and sloping down. Metres, radians, kg; the keys of `sample_parameters` and three more."""
+    return {
+        "battery_length": rng.uniform(0.08, 0.15),
+        "battery_width": rng.uniform(0.06, 0.1),
+        "battery_height": rng.uniform(0.035, 0.08),
+        "grip_length": rng.uniform(0.09, 0.15),
+        "grip_radius": rng.uniform(0.015, 0.025),
+        "grip_tilt": rng.uniform(-0.1, 0.4),
+        "housing_radius": rng.uniform(0.028, 0.05),
+        "housing_length": rng.uniform(0.14, 0.32),
+        "chuck_length": rng.uniform(0.03, 0.1),
+        "side_handle_length": rng.uniform(0.1, 0.2),
+        "side_handle_radius": rng.uniform(0.014, 0.022),
+        "side_handle_position": rng.uniform(0.45, 0.9),
+        # How far the housing reaches behind the grip's top (m), where on the battery the grip stands (x, m),
+        # and how far the side handle slopes down from horizontal (rad).
+        "housing_overhang": rng.uniform(0.02, 0.1),
+        "grip_x": rng.uniform(-0.05, 0.0),
+        "side_handle_slope": rng.choice([0.0, rng.uniform(0.0, 0.35)]),
+        "mass": rng.uniform(1.3, 2.4),
+    }
+
+
 def build(name: str, p: dict[str, float]) -> ObjectInstance:
     """Builds the instance's parts and ground-truth grasps from its parameters."""
     hb, rg, rh = p["battery_height"], p["grip_radius"], p["housing_radius"]
     battery = geometry.box([p["battery_length"], p["battery_width"], hb], [0.0, 0.0, hb / 2])
 
     # The grip leans forward by grip_tilt from the battery up to the housing.
-    grip_bottom = np.array([-0.035, 0.0, hb - 0.01])
+    grip_bottom = np.array([p.get("grip_x", -0.035), 0.0, hb - 0.01])
     grip_axis = np.array([np.sin(p["grip_tilt"]), 0.0, np.cos(p["grip_tilt"])])
     grip_top = grip_bottom + p["grip_length"] * grip_axis
     grip = geometry.frustum(grip_bottom, grip_top + 0.5 * rh * grip_axis, rg, rg)
 
     housing_z = grip_top[2] + 0.6 * rh
-    housing_rear = np.array([grip_top[0] - 0.04, 0.0, housing_z])
+    housing_rear = np.array([grip_top[0] - p.get("housing_overhang", 0.04), 0.0, housing_z])
     housing_front = housing_rear + [p["housing_length"], 0.0, 0.0]
     housing = geometry.frustum(housing_rear, housing_front, rh, 0.85 * rh)
     chuck_end = housing_front + [p["chuck_length"], 0.0, 0.0]
@@ -61,10 +88,15 @@ def build(name: str, p: dict[str, float]) -> ObjectInstance:
 
     side_x = housing_rear[0] + p["side_handle_position"] * p["housing_length"]
     side_start = np.array([side_x, 0.0, housing_z])
-    side_end = side_start + [0.0, p["side_handle_length"], 0.0]
+    slope = p.get("side_handle_slope", 0.0)
+    side_axis = np.array([0.0, np.cos(slope), -np.sin(slope)])
+    side_end = side_start + p["side_handle_length"] * side_axis
     side = geometry.frustum(side_start, side_end, p["side_handle_radius"], p["side_handle_radius"])
     knob = geometry.frustum(
-        side_end - [0, 0.005, 0], side_end + [0, 0.015, 0], 1.5 * p["side_handle_radius"], 1.2 * p["side_handle_radius"]
+        side_end - 0.005 * side_axis,
+        side_end + 0.015 * side_axis,
+        1.5 * p["side_handle_radius"],
+        1.2 * p["side_handle_radius"],
     )
 
     parts = [
@@ -77,10 +109,10 @@ def build(name: str, p: dict[str, float]) -> ObjectInstance:
         Part("knob", knob, [knob]),
     ]
     grip_middle = grip_bottom + 0.5 * p["grip_length"] * grip_axis
-    side_middle = side_start + [0.0, 0.5 * (rh + p["side_handle_length"]), 0.0]
+    side_middle = side_start + 0.5 * (rh + p["side_handle_length"]) * side_axis
     grasps = {
         "left": make_grasp(
-            side_middle, approach=[np.sin(APPROACH_TILT), 0, -np.cos(APPROACH_TILT)], handle_axis=[0, 1, 0]
+            side_middle, approach=[np.sin(APPROACH_TILT), 0, -np.cos(APPROACH_TILT)], handle_axis=side_axis
         ),
         "right": make_grasp(
             grip_middle, approach=[np.cos(RIGHT_APPROACH_YAW), np.sin(RIGHT_APPROACH_YAW), 0], handle_axis=grip_axis

@@ -20,6 +20,19 @@ def ellipse_ring(center, radius_x: float, radius_y: float, sections: int = 48) -
     return ring + np.asarray(center, dtype=float)
 
 
+def superellipse_ring(center, radius_x: float, radius_y: float, exponent: float, sections: int = 48) -> np.ndarray:
+    """Points of the superellipse |x/rx|^n + |y/ry|^n = 1 in the plane z = center[2] (n = 2: an ellipse; larger
+    n: a box with rounded corners)."""
+    angles = np.linspace(0.0, 2.0 * np.pi, sections, endpoint=False)
+    c, s = np.cos(angles), np.sin(angles)
+    shape = 2.0 / exponent
+    ring = np.stack(
+        [radius_x * np.sign(c) * np.abs(c) ** shape, radius_y * np.sign(s) * np.abs(s) ** shape, np.zeros_like(c)],
+        axis=1,
+    )
+    return ring + np.asarray(center, dtype=float)
+
+
 def circle_ring(center, axis, radius: float, sections: int = 24) -> np.ndarray:
     """Points of a circle of `radius` around `center`, normal to `axis`."""
     axis = np.asarray(axis, dtype=float)

@@ -9,6 +9,7 @@ convex pieces with CoACD and written as an SDF into the cache.
 
 import hashlib
 import logging
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -61,7 +62,7 @@ def resolve_object(config) -> ObjectModel:
 
 
 def generated_instance_directory(category: str, name: str) -> Path:
-    """The folder of a generated instance; extra_<seed> ones are generated into the cache on first use.
+    """The folder of a generated instance; extra_<seed> and wide_<seed> ones are generated into the cache on first use.
 
     Raises:
         ValueError: unknown category or impossible instance name.
@@ -71,14 +72,33 @@ def generated_instance_directory(category: str, name: str) -> Path:
     directory = catalog.instance_directory(category, name)
     if (directory / "model.sdf").is_file():
         return directory
-    if not name.startswith("extra_"):
+    if catalog.parse_instance_name(name)[0] not in catalog.ON_DEMAND:
         catalog.generate(category, name)  # raises a clear error for names that cannot exist (e.g. test_9)
         raise FileNotFoundError(f"{directory / 'model.sdf'} is missing; run scripts/generate_objects.py")
     directory = cache_dir() / "objects" / category / name
     if not (directory / "model.sdf").is_file():
         logging.info("generating %s/%s into %s", category, name, directory)
-        catalog.generate(category, name).write(directory)
+        written_whole(directory, catalog.generate(category, name).write)
     return directory
+
+
+def written_whole(directory: Path, write) -> None:
+    """Fills a cache folder by `write(folder)` in a temporary sibling, then renames it into place: another process
+    (parallel evaluation workers making the same instance) never reads it half written. Where one got there first,
+    its folder stands; a folder left incomplete (no model.sdf: a run killed while writing) is replaced."""
+    directory.parent.mkdir(parents=True, exist_ok=True)
+    partial = Path(tempfile.mkdtemp(dir=directory.parent, prefix=f".{directory.name}."))
+    try:
+        write(partial)
+        if directory.is_dir() and not (directory / "model.sdf").is_file():
+            shutil.rmtree(directory, ignore_errors=True)
+        try:
+            partial.rename(directory)
+        except OSError:
+            if not (directory / "model.sdf").is_file():
+                raise
+    finally:
+        shutil.rmtree(partial, ignore_errors=True)
 
 
 def _user_model(path: Path, config, yaw: float) -> ObjectModel:
@@ -117,13 +137,13 @@ def mesh_to_sdf(path: Path, mass: float, scale: float, category: str) -> Path:
     check_metres(mesh.vertices, f"{path} (scaled by {scale:g})")
     mesh = recentred(mesh, box_centre_xy)
     pieces = convex_decomposition(mesh)
-    directory.mkdir(parents=True, exist_ok=True)
-    export_obj(mesh, directory / "visual.obj")
-    for i, piece in enumerate(pieces):
-        export_obj(piece, directory / f"collision_{i:02d}.obj")
     com, inertia = mass_properties(mesh, pieces, mass)
-    sdf_path.write_text(
-        object_sdf(
+
+    def write(folder: Path):
+        export_obj(mesh, folder / "visual.obj")
+        for i, piece in enumerate(pieces):
+            export_obj(piece, folder / f"collision_{i:02d}.obj")
+        sdf = object_sdf(
             model_name=path.stem,
             visual_uri="visual.obj",
             collision_uris=[f"collision_{i:02d}.obj" for i in range(len(pieces))],
@@ -132,7 +152,9 @@ def mesh_to_sdf(path: Path, mass: float, scale: float, category: str) -> Path:
             inertia=inertia,
             color=(0.6, 0.6, 0.65),
         )
-    )
+        (folder / "model.sdf").write_text(sdf)
+
+    written_whole(directory, write)
     return sdf_path
 
 

@@ -57,18 +57,73 @@ def sample_parameters(rng: np.random.Generator, body_style: str | None = None) -
     return p
 
 
+def sample_wide_parameters(rng: np.random.Generator) -> dict[str, float]:
+    """Draws a can of the wider family (the `wide_<seed>` instances): what real cans vary in beyond the
+    paper-like family: small indoor cans to 10 l garden cans, bodies from round to rounded boxes (plastic cans),
+    straight, tapered, flared or bellied, low or high spouts, larger and taller (D-shaped) rear handles, taller
+    top arches. Metres, radians, kg; the keys of `sample_parameters` and the profile's own."""
+    radius = rng.uniform(0.065, 0.125)
+    height = rng.uniform(0.16, 0.34)
+    p = {
+        "radius": radius,
+        "height": height,
+        "oval_ratio": rng.uniform(0.55, 1.0),
+        "taper": rng.uniform(0.7, 1.25),
+        # The body's outline: a superellipse of this exponent at every height (2: an ellipse; 5: a rounded box),
+        # and a belly: the radius grows by this share at mid height.
+        "squareness": rng.choice([2.0, rng.uniform(2.0, 5.0)]),
+        "bulge": rng.choice([0.0, rng.uniform(0.0, 0.3)]),
+        "spout_base": rng.uniform(0.05, 0.45) * height,
+        "spout_angle": rng.uniform(0.45, 1.0),
+        "spout_length": rng.uniform(0.14, 0.34),
+        "spout_radius": rng.uniform(0.013, 0.024),
+        "tube_radius": rng.uniform(0.01, 0.016),
+        "mass": rng.uniform(0.8, 1.2),
+    }
+    top_radius = radius * min(p["taper"], 1.0)
+    p["top_handle_offset"] = rng.uniform(-0.3, 0.1) * top_radius
+    max_top = top_radius - p["tube_radius"] - 0.015 - abs(p["top_handle_offset"])
+    p["top_handle_radius"] = rng.uniform(0.65, 1.0) * min(max_top, 0.11)
+    p["top_handle_height"] = rng.uniform(0.05, 0.11)
+    p["rear_handle_radius"] = rng.uniform(0.045, 0.1)
+    # A D-shaped rear handle: its half ellipse this many times taller than deep.
+    p["rear_handle_stretch"] = rng.choice([1.0, rng.uniform(1.0, 1.8)])
+    reach = p["rear_handle_radius"] * p["rear_handle_stretch"]
+    lo = 0.025 + reach
+    hi = height - 0.015 - reach
+    p["rear_handle_height"] = rng.uniform(lo, max(lo, hi))
+    return p
+
+
 def radius_at(p: dict[str, float], z: float) -> float:
-    """Body x-radius at height z (linear taper)."""
-    return p["radius"] * (1.0 + (p["taper"] - 1.0) * z / p["height"])
+    """Body x-radius at height z (linear taper; times the belly, where the can has one)."""
+    r = p["radius"] * (1.0 + (p["taper"] - 1.0) * z / p["height"])
+    if p.get("bulge", 0.0):
+        r *= 1.0 + p["bulge"] * np.sin(np.pi * z / p["height"])
+    return r
+
+
+def _body(p: dict[str, float]):
+    """The body: a convex loft of the outline at its heights (two ellipses for the paper-like family)."""
+    h, ratio = p["height"], p["oval_ratio"]
+    if not p.get("bulge", 0.0) and p.get("squareness", 2.0) == 2.0:
+        r0, r1 = radius_at(p, 0.0), radius_at(p, h)
+        return geometry.convex_loft(
+            [geometry.ellipse_ring([0, 0, 0], r0, r0 * ratio), geometry.ellipse_ring([0, 0, h], r1, r1 * ratio)]
+        )
+    heights = np.linspace(0.0, h, 9)
+    return geometry.convex_loft(
+        [
+            geometry.superellipse_ring([0, 0, z], radius_at(p, z), radius_at(p, z) * ratio, p["squareness"])
+            for z in heights
+        ]
+    )
 
 
 def build(name: str, p: dict[str, float]) -> ObjectInstance:
     """Builds the instance's parts and ground-truth grasps from its parameters."""
-    h, ratio, tube = p["height"], p["oval_ratio"], p["tube_radius"]
-    r0, r1 = radius_at(p, 0.0), radius_at(p, h)
-    body = geometry.convex_loft(
-        [geometry.ellipse_ring([0, 0, 0], r0, r0 * ratio), geometry.ellipse_ring([0, 0, h], r1, r1 * ratio)]
-    )
+    h, tube = p["height"], p["tube_radius"]
+    body = _body(p)
 
     spout_start = np.array([radius_at(p, p["spout_base"]) - 0.03, 0.0, p["spout_base"]])
     direction = np.array([np.cos(p["spout_angle"]), 0.0, np.sin(p["spout_angle"])])
@@ -87,11 +142,14 @@ def build(name: str, p: dict[str, float]) -> ObjectInstance:
     )
     top = geometry.tube(top_path, tube)
 
-    # Rear handle: half circle in the xz plane bulging backwards (-x).
+    # Rear handle: half circle (or half ellipse, taller than deep) in the xz plane bulging backwards (-x).
     rz, rr = p["rear_handle_height"], p["rear_handle_radius"]
-    rear_x = -min(radius_at(p, rz - rr), radius_at(p, rz + rr)) + 0.012
+    stretch = p.get("rear_handle_stretch", 1.0)
+    rear_x = -min(radius_at(p, rz - stretch * rr), radius_at(p, rz + stretch * rr)) + 0.012
     rear_center = np.array([rear_x, 0.0, rz])
     rear_path = geometry.arc(rear_center, rr, np.pi / 2, 3 * np.pi / 2)
+    if stretch != 1.0:
+        rear_path[:, 2] = rz + stretch * (rear_path[:, 2] - rz)
     rear = geometry.tube(rear_path, tube)
 
     parts = [
