@@ -39,9 +39,8 @@ from diagrams.perception import MakePoseEstimator
 from diagrams.scenario import load_scenario
 from systems.messages import Segmentation
 from systems.perception.rgbd_noise import RgbdNoiseParameters, noisy_depth, sensor_model
-from systems.perception.shape_registrar import scale_prior, shape_space_file
+from systems.perception.shape_registrar import registrar_of, shape_space_file, wider_shape_space_file
 from systems.shape_space.cpd import deformable_cpd, thinned
-from systems.shape_space.registration import Registrar
 from systems.shape_space.space import ShapeSpace, choose_canonical
 
 NOMINAL_XY = (0.73, 0.0)  # m, where the scenario puts the object
@@ -88,6 +87,14 @@ def chamfer_to_mesh(points: np.ndarray, mesh: trimesh.Trimesh, samples: int = 20
     return 0.5 * float(to_surface + cKDTree(points).query(dense)[0].mean())
 
 
+def space_files(category: str, space_dir: Path | None) -> tuple[Path, Path | None]:
+    """The category's space and wider space: models/' (the wider one where shipped), or those in `space_dir`."""
+    if space_dir is None:
+        return shape_space_file(category), wider_shape_space_file(category)
+    wider = space_dir / f"shape_space_{category}_wide.npz"
+    return space_dir / shape_space_file(category).name, wider if wider.is_file() else None
+
+
 def registration_trials(
     trials: int,
     seed: int,
@@ -105,8 +112,7 @@ def registration_trials(
     intrinsics = scenario.camera.MakeCameras()[1].core().intrinsics()
     rng = np.random.default_rng(seed)
     estimator = MakePoseEstimator(scenario)
-    spaces = {c: space_dir / shape_space_file(c).name if space_dir else shape_space_file(c) for c in categories}
-    registrars = {c: Registrar(ShapeSpace.load(path), scale_prior=scale_prior(c)) for c, path in spaces.items()}
+    registrars = {c: registrar_of(c, *space_files(c, space_dir)) for c in categories}
     # (category, instance) -> (its true control poses, the folder of its visual.obj)
     models, truth = None, {}
     if files:

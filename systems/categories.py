@@ -99,6 +99,13 @@ def shape_space_file(category: str) -> Path:
     return category_directory(category) / "shape_space.npz"
 
 
+def wider_shape_space_file(category: str) -> Path | None:
+    """A generated category's space of its wider family (models/shape_space_<category>_wide.npz), None where there
+    is none (a taught category)."""
+    path = MODELS_DIR / f"shape_space_{category}_wide.npz"
+    return path if category in GENERATED and path.is_file() else None
+
+
 def active_segmenter() -> Path:
     """The segmenter that knows the most classes: the one add_category.py last wrote, else the shipped one."""
     taught = categories_dir() / "segmenter.pt"

@@ -2,6 +2,7 @@
 
 import time
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 from pydrake.common.value import AbstractValue
@@ -9,7 +10,7 @@ from pydrake.math import RigidTransform
 from pydrake.systems.framework import LeafSystem, ValueProducer
 
 from systems import categories
-from systems.categories import shape_space_file
+from systems.categories import shape_space_file, wider_shape_space_file
 from systems.messages import GraspPoses, ObjectEstimate
 from systems.shape_space.registration import Registrar
 from systems.shape_space.space import ShapeSpace
@@ -93,8 +94,14 @@ class ShapeRegistrar(LeafSystem):
 
 def _registrar(category: str) -> Registrar:
     symmetric = category not in categories.GENERATED and categories.load_record(category).half_turn_symmetric
-    space = ShapeSpace.load(shape_space_file(category))
-    return Registrar(space, half_turn_symmetric=symmetric, scale_prior=scale_prior(category))
+    return registrar_of(category, shape_space_file(category), wider_shape_space_file(category), symmetric)
+
+
+def registrar_of(category: str, space_file: Path, wider_file: Path | None = None, symmetric: bool = False) -> Registrar:
+    """The category's registrar: its space, the scale beyond it, and last its wider space (where there is one)."""
+    wider = Registrar(ShapeSpace.load(wider_file), half_turn_symmetric=symmetric) if wider_file else None
+    space = ShapeSpace.load(space_file)
+    return Registrar(space, half_turn_symmetric=symmetric, scale_prior=scale_prior(category), wider=wider)
 
 
 # How far (the standard deviation of its log) a category's shape may be scaled along each axis beyond its latent

@@ -20,7 +20,8 @@ best fit kept, against the local minima where one end of an object is registered
 the other. Strays are removed before the thinning (points in free space, far from their neighbours:
 farthest point sampling would pick them first), and a fit that leaves many seen points off the fitted shape, puts
 a handle where none was seen, or puts surface where the camera saw through says so (Registration.poor_fit) rather
-than hand on grasps centimetres off.
+than hand on grasps centimetres off. Where the latent fit is poor, the shape's scale along O's axes is fitted
+beside it, and last the category's wider space (a registrar of its own) is tried.
 """
 
 from dataclasses import dataclass, field
@@ -105,6 +106,7 @@ class Registration:
     # The share of the whole fitted surface the camera sees that lies on what it saw (surface_support); None without
     # a viewpoint or where too little of it is visible to judge.
     surface_support: float | None = None
+    wider: bool = False  # fitted in the category's wider shape space (Registrar's `wider`)
 
     @property
     def poor_fit(self) -> str:
@@ -122,6 +124,11 @@ class Registration:
         beyond_family = float(np.max(np.abs(np.log(self.scale[[0, 2]]))))
         for name, share in self.grasp_support.items():
             hand = name.replace("_grasp", "")
+            if share is None and self.wider:
+                return (
+                    f"a poor fit: the camera cannot confirm the {hand} grasp (out of view or hidden), and the shape "
+                    "lies outside the paper-like family, where only the wider space's prior placed the grasp"
+                )
             if share is None and beyond_family > MAX_UNCONFIRMED_LOG_SCALE:
                 return (
                     f"a poor fit: the camera cannot confirm the {hand} grasp (out of view or hidden), and the shape "
@@ -281,6 +288,7 @@ class Registrar:
         prior_weight: float = 1.0,
         half_turn_symmetric: bool = False,
         scale_prior: float | None = None,
+        wider: "Registrar | None" = None,
     ):
         """Args:
         upright: the object stands upright (rotation about the world z only), else full 3D rotation.
@@ -289,8 +297,11 @@ class Registrar:
             hypothesis is not tried, so the pose stays on the initial pose's side (and each grasp on its hand's).
         scale_prior: the standard deviation of the log of the shape's scale along each of O's axes, fitted
             beside the latent vector where the latent fit alone is poor; None: the latent space alone.
+        wider: a registrar of the category's wider shape space (more of what its products vary in), tried last
+            where this space's fits are poor; a grasp the camera cannot confirm in its fit makes the fit poor.
         """
         self.space = space
+        self.wider = wider
         self.scale_prior = scale_prior
         self.yaw_hypotheses = tuple(h for h in YAW_HYPOTHESES if not (half_turn_symmetric and h == np.pi))
         self.upright = upright
@@ -336,6 +347,11 @@ class Registrar:
         if registration.poor_fit and self.scale_prior is not None:
             # Beyond the latent space only where it does not fit: a shape it does fit keeps its latent fit exactly.
             registration = self._register(X, observed, X_WO_initial, viewpoint_W, view, self.scale_prior)
+        if registration.poor_fit and self.wider is not None:
+            wider = self.wider._register(X, observed, X_WO_initial, viewpoint_W, view, None)
+            wider.wider = True
+            if not wider.poor_fit:
+                registration = wider
         return registration
 
     def _register(self, X, observed, X_WO_initial, viewpoint_W, view, scale_prior) -> Registration:
