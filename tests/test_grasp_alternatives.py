@@ -14,7 +14,8 @@ from systems.planning.grasp_alternatives import (
     handle_slides,
     pregrasp_alternatives,
 )
-from systems.planning.pick_motions import PlanningError
+from systems.planning.ik import IkResult
+from systems.planning.pick_motions import SCREENING_ITERATIONS, PlanningError, _FirstLookFailed
 
 SIDES = ("left", "right")
 
@@ -87,3 +88,32 @@ def test_a_grasp_slides_along_its_handle_only_as_far_as_the_fingers_stay_on_it()
     family = grasp_alternatives(X_WG, blocked)
     assert len(family) == 1 + len(GRASP_ROLLS) + 3
     np.testing.assert_allclose(family[-1].translation(), [-0.03, 0.0, 0.0])
+
+
+def test_the_reach_looks_briefly_at_later_goals_before_giving_any_its_full_budget(scenario, monkeypatch):
+    """The first goal STOMP plans to gets all its iterations; every later one a first look (SCREENING_ITERATIONS),
+    and only then, in the same order, all of them: one goal STOMP cannot reach costs its budget once, not once per
+    goal."""
+    motions = make_pick_motions(scenario)
+    q0 = initial_positions(scenario)
+    goals = [IkResult(True, np.full_like(q0, k), choice={"left": k}) for k in range(4)]
+    monkeypatch.setattr(motions, "_reach_goals", lambda *args: iter(goals))
+    looks = []
+
+    def reach_path(q_start, q_goal, obstacles, checked, max_iterations=None):
+        goal = int(q_goal[0])
+        looks.append((goal, max_iterations))
+        if (goal, max_iterations) == (2, None):
+            return np.stack([q_start, q_goal])
+        raise (PlanningError if max_iterations is None else _FirstLookFailed)(f"no path to goal {goal}")
+
+    monkeypatch.setattr(motions, "_reach_path", reach_path)
+    reach = motions.reach(q0, {})
+    screen = SCREENING_ITERATIONS
+    assert looks == [(0, None), (1, screen), (2, screen), (3, screen), (1, None), (2, None)]
+    assert reach.choice["left"] == 2
+    goals[2] = IkResult(False, q0, "out of reach")  # now no goal has a path: the first goal's failure is named
+    looks.clear()
+    with pytest.raises(PlanningError, match="no path to goal"):
+        motions.reach(q0, {})
+    assert looks == [(0, None), (1, screen), (3, screen), (1, None), (3, None)]

@@ -33,6 +33,7 @@ before it is scored; the update is projected too (projection_steps), which STOMP
 do. With both set to 0, only the tangent-space noise and the cost terms keep the constraints.
 """
 
+import dataclasses
 import itertools
 import time
 from dataclasses import dataclass
@@ -416,6 +417,7 @@ class Stomp:
         orientation_constraint: OrientationConstraint | None = None,
         initial_path: np.ndarray | None = None,
         payload: Payload | None = None,
+        max_iterations: int | None = None,
     ) -> StompResult:
         """Plans from q_start to q_goal (both fixed).
 
@@ -426,8 +428,11 @@ class Stomp:
             orientation_constraint: keep both hands' world orientations (or with upright_only their tilt) as at
                 q_start.
             payload: a held object's masses, for the torque term.
+            max_iterations: fewer iterations than the config's (a first look at a goal among several).
         """
         config = self.config
+        if max_iterations is not None:
+            config = dataclasses.replace(config, max_iterations=min(max_iterations, config.max_iterations))
         rng = np.random.default_rng(config.seed)
         start = time.perf_counter()
         n, free = config.keyframes, config.keyframes - 2
