@@ -32,7 +32,7 @@ class ObjectConfig:
     present: bool = True
     # Category: "watering_can", "drill", or one taught by scripts/add_category.py.
     category: str = "watering_can"
-    # A generated instance: train_<i>, test_<i> (the fixed seeded ones) or extra_<seed>.
+    # A generated instance: train_<i>, test_<i> (the fixed seeded ones), extra_<seed> or wide_<seed>.
     instance: str = "test_0"
     # A user's own model instead of a generated instance: .sdf, .urdf, or .obj
     # (then `mass` and `scale` apply). Relative paths are relative to the working
@@ -57,7 +57,7 @@ class ClutterObjectConfig:
 
     # "box", "cylinder", "bowl", or a category ("watering_can", "drill"): then the generated `instance`.
     kind: str = "box"
-    # For a category: a generated instance (train_<i>, test_<i>, extra_<seed>).
+    # For a category: a generated instance (train_<i>, test_<i>, extra_<seed>, wide_<seed>).
     instance: str = ""
     # A box's extent along x, y, z; a cylinder's or bowl's diameter, (unused), height; m. Not for a category.
     size: list[float] = field(default_factory=lambda: [0.08, 0.08, 0.1])

@@ -13,7 +13,9 @@ def add_scenario_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--scenario", type=Path, default=DEFAULT_SCENARIO, help="scenario YAML file")
     parser.add_argument("--scenario_text", default="", help="YAML overlaid on the scenario file")
     parser.add_argument("--object", help="object category: watering_can, drill, or one taught by add_category.py")
-    parser.add_argument("--instance", help="generated instance: train_<i>, test_<i>, extra_<seed>")
+    parser.add_argument(
+        "--instance", help="generated instance: train_<i>, test_<i>, extra_<seed>, wide_<seed> (the wider family)"
+    )
     parser.add_argument("--object-file", dest="object_file", help="your own model: .sdf, .urdf, .obj/.ply/.stl")
     parser.add_argument("--yaw", type=float, help="object yaw relative to the category's presentation, rad")
     parser.add_argument("--seed", type=int, help="random seed of the run")

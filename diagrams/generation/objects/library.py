@@ -1,7 +1,7 @@
 """Finds the model file (and, when known, the ground truth) of the object a scenario names.
 
 Generated instances live under sdf/objects/<category>/<instance>/ (model.sdf and
-info.yaml); `extra_<seed>` instances are generated into a cache on first use. A
+info.yaml); `extra_<seed>` and `wide_<seed>` instances are generated into a cache on first use. A
 user's own model is an SDF/URDF used as is, or a mesh (.obj/.ply/.stl) that is
 recentred (origin at the centre of its bottom face), scaled, decomposed into
 convex pieces with CoACD and written as an SDF into the cache.
