@@ -91,8 +91,7 @@ def space_files(category: str, space_dir: Path | None) -> tuple[Path, Path | Non
     """The category's space and wider space: models/' (the wider one where shipped), or those in `space_dir`."""
     if space_dir is None:
         return shape_space_file(category), wider_shape_space_file(category)
-    wider = space_dir / f"shape_space_{category}_wide.npz"
-    return space_dir / shape_space_file(category).name, wider if wider.is_file() else None
+    return space_dir / shape_space_file(category).name, wider_shape_space_file(category, space_dir)
 
 
 def registration_trials(

@@ -99,10 +99,10 @@ def shape_space_file(category: str) -> Path:
     return category_directory(category) / "shape_space.npz"
 
 
-def wider_shape_space_file(category: str) -> Path | None:
-    """A generated category's space of its wider family (models/shape_space_<category>_wide.npz), None where there
-    is none (a taught category)."""
-    path = MODELS_DIR / f"shape_space_{category}_wide.npz"
+def wider_shape_space_file(category: str, directory: Path = MODELS_DIR) -> Path | None:
+    """A generated category's space of its wider family (<directory>/shape_space_<category>_wide.npz, models/ by
+    default), None where there is none (a taught category)."""
+    path = directory / f"shape_space_{category}_wide.npz"
     return path if category in GENERATED and path.is_file() else None
 
 

@@ -33,10 +33,9 @@ before it is scored; the update is projected too (projection_steps), which STOMP
 do. With both set to 0, only the tangent-space noise and the cost terms keep the constraints.
 """
 
-import dataclasses
 import itertools
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -432,7 +431,7 @@ class Stomp:
         """
         config = self.config
         if max_iterations is not None:
-            config = dataclasses.replace(config, max_iterations=min(max_iterations, config.max_iterations))
+            config = replace(config, max_iterations=min(max_iterations, config.max_iterations))
         rng = np.random.default_rng(config.seed)
         start = time.perf_counter()
         n, free = config.keyframes, config.keyframes - 2

@@ -15,9 +15,7 @@ def convex_loft(rings: list[np.ndarray]) -> trimesh.Trimesh:
 
 def ellipse_ring(center, radius_x: float, radius_y: float, sections: int = 48) -> np.ndarray:
     """Points of an ellipse in the plane z = center[2]."""
-    angles = np.linspace(0.0, 2.0 * np.pi, sections, endpoint=False)
-    ring = np.stack([radius_x * np.cos(angles), radius_y * np.sin(angles), np.zeros_like(angles)], axis=1)
-    return ring + np.asarray(center, dtype=float)
+    return superellipse_ring(center, radius_x, radius_y, 2.0, sections)
 
 
 def superellipse_ring(center, radius_x: float, radius_y: float, exponent: float, sections: int = 48) -> np.ndarray:

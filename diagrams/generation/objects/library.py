@@ -68,11 +68,11 @@ def generated_instance_directory(category: str, name: str) -> Path:
         ValueError: unknown category or impossible instance name.
         FileNotFoundError: a fixed instance's files are missing from the repository.
     """
-    catalog.parse_instance_name(name)
+    split, _ = catalog.parse_instance_name(name)
     directory = catalog.instance_directory(category, name)
     if (directory / "model.sdf").is_file():
         return directory
-    if catalog.parse_instance_name(name)[0] not in catalog.ON_DEMAND:
+    if split not in catalog.ON_DEMAND:
         catalog.generate(category, name)  # raises a clear error for names that cannot exist (e.g. test_9)
         raise FileNotFoundError(f"{directory / 'model.sdf'} is missing; run scripts/generate_objects.py")
     directory = cache_dir() / "objects" / category / name

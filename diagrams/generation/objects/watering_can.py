@@ -104,19 +104,12 @@ def radius_at(p: dict[str, float], z: float) -> float:
 
 
 def _body(p: dict[str, float]):
-    """The body: a convex loft of the outline at its heights (two ellipses for the paper-like family)."""
-    h, ratio = p["height"], p["oval_ratio"]
-    if not p.get("bulge", 0.0) and p.get("squareness", 2.0) == 2.0:
-        r0, r1 = radius_at(p, 0.0), radius_at(p, h)
-        return geometry.convex_loft(
-            [geometry.ellipse_ring([0, 0, 0], r0, r0 * ratio), geometry.ellipse_ring([0, 0, h], r1, r1 * ratio)]
-        )
-    heights = np.linspace(0.0, h, 9)
+    """The body: a convex loft of its outline (a superellipse, an ellipse without `squareness`) at its bottom and
+    top, and for the wider family's bodies (a belly or a box outline) at 7 heights between."""
+    h, ratio, exponent = p["height"], p["oval_ratio"], p.get("squareness", 2.0)
+    heights = np.linspace(0.0, h, 9) if p.get("bulge", 0.0) or exponent != 2.0 else (0.0, h)
     return geometry.convex_loft(
-        [
-            geometry.superellipse_ring([0, 0, z], radius_at(p, z), radius_at(p, z) * ratio, p["squareness"])
-            for z in heights
-        ]
+        [geometry.superellipse_ring([0, 0, z], radius_at(p, z), radius_at(p, z) * ratio, exponent) for z in heights]
     )
 
 
