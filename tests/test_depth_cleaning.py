@@ -9,10 +9,25 @@ from pydrake.math import RigidTransform, RotationMatrix
 from diagrams.generation.objects import catalog
 from diagrams.generation.objects.library import load_info
 from systems.messages import ObjectEstimate
-from systems.perception.depth_cleaning import dense_inliers, flying_pixels
+from systems.perception.depth_cleaning import AGREE_M, AGREE_PER_M2, dense_inliers, flying_pixels
 from systems.perception.shape_registrar import ShapeRegistrar, shape_space_file
 from systems.shape_space.registration import Registrar, visible_from
 from systems.shape_space.space import ShapeSpace
+
+
+def test_flying_pixels_agree_in_float32_exactly_where_float64_would():
+    """One image row of groups (b, b, c, far): the second b agrees with the first for sure, and with c, a few
+    float32 steps either side of b's agreement tolerance, or not; so it is a flying pixel exactly where c
+    disagrees. The float32 path counts every pair as the tolerance's float64 definition does."""
+    rng = np.random.default_rng(0)
+    b = rng.uniform(0.3, 5.0, 2000).astype(np.float32)
+    tolerance = AGREE_M + AGREE_PER_M2 * np.square(b, dtype=float)
+    c = (b + rng.choice([-1, 1], b.shape) * tolerance).astype(np.float32)
+    c = (c.view(np.int32) + rng.integers(-2, 3, c.shape).astype(np.int32)).view(np.float32)
+    depth = np.stack([b, b, c, b + 1.0], axis=1).reshape(1, -1)
+    c_agrees = np.abs(c.astype(float) - b.astype(float)) <= tolerance
+    assert 0.2 < c_agrees.mean() < 0.8
+    np.testing.assert_array_equal(flying_pixels(depth)[0, 1::4], ~c_agrees)
 
 
 def test_flying_pixels_between_two_surfaces_are_found_and_a_steep_surface_is_kept():

@@ -36,10 +36,16 @@ STRAY_RATIO = 3.0
 def flying_pixels(depth: np.ndarray) -> np.ndarray:
     """H x W bool: the pixels with a depth (finite, > 0; m) that fewer than MIN_AGREEING of their 8 neighbours
     agree with."""
-    z = np.where(np.isfinite(depth) & (depth > 0), depth, np.nan).astype(float)
+    z = np.where(np.isfinite(depth) & (depth > 0), depth, np.nan).astype(np.float32)
     padded = np.pad(z, 1, constant_values=np.nan)
     height, width = z.shape
-    tolerance = AGREE_M + AGREE_PER_M2 * z**2
+    # In float32, as the depth image is (half the time of float64): two neighbours' difference is exact wherever it
+    # can come near the tolerance (Sterbenz), and the tolerance, a float64, is rounded down to the float32 below it,
+    # so every comparison is the float64 one's.
+    exact = AGREE_M + AGREE_PER_M2 * np.square(z, dtype=float)
+    tolerance = exact.astype(np.float32)
+    bits = tolerance.view(np.int32)  # (positive floats: one less in their bits is the next float32 below)
+    np.subtract(bits, tolerance > exact, out=bits, casting="unsafe")
     agreeing = np.zeros(z.shape, np.uint8)
     difference, agrees = np.empty_like(z), np.empty(z.shape, bool)  # (in place: a frame is 0.2 M pixels)
     with np.errstate(invalid="ignore"):  # NaN neighbours (holes, the border) never agree

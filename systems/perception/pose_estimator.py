@@ -113,9 +113,13 @@ class NearestPointField:
 
     def query(self, query_points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(distance, template index) of each query point (N x 3)."""
-        cell = np.clip(np.rint((query_points - self.lower) / GRID_CELL).astype(int), 0, self.shape - 1)
-        index = self.index[cell[:, 0], cell[:, 1], cell[:, 2]]
-        return np.linalg.norm(query_points - self.points[index], axis=1), index
+        cell = np.rint((query_points - self.lower) / GRID_CELL).astype(int)
+        np.maximum(cell, 0, out=cell)
+        np.minimum(cell, self.shape - 1, out=cell)
+        index = self.index.ravel()[(cell[:, 0] * self.shape[1] + cell[:, 1]) * self.shape[2] + cell[:, 2]]
+        offset = query_points - self.points[index]
+        offset *= offset
+        return np.sqrt(offset.sum(axis=1)), index  # (the Euclidean norm as numpy's, in fewer calls)
 
 
 @functools.cache
@@ -152,18 +156,25 @@ def fit_yaw_translation(points_W, yaw, xy, z, field: NearestPointField, iteratio
     Returns (yaw, xy, mean distance of all the points in metres).
     """
 
+    in_O = np.empty_like(points_W)  # (filled in place: the small arrays' calls are most of the time)
+    in_O[:, 2] = points_W[:, 2] - z
+    planar_W = points_W[:, :2]
+
     def nearest(yaw, xy):
-        in_O = np.column_stack([(points_W[:, :2] - xy) @ _rotation_2d(yaw), points_W[:, 2] - z])
+        in_O[:, :2] = (planar_W - xy) @ _rotation_2d(yaw)
         return field.query(in_O)
 
     for _ in range(iterations):
         distance, index = nearest(yaw, xy)
         used = distance < inlier_m
-        if not used.any():
+        if used.all():
+            a, b = field.points[index, :2], planar_W
+        elif used.any():
+            a, b = field.points[index[used], :2], planar_W[used]
+        else:
             break
         # Best rotation + translation taking the matched template points (in O) to the observations (in W).
-        a, b = field.points[index[used], :2], points_W[used, :2]
-        a_mean, b_mean = a.mean(axis=0), b.mean(axis=0)
+        a_mean, b_mean = a.sum(axis=0) / len(a), b.sum(axis=0) / len(b)  # (numpy's mean, in fewer calls)
         H = (a - a_mean).T @ (b - b_mean)
         yaw = np.arctan2(H[0, 1] - H[1, 0], H[0, 0] + H[1, 1])
         xy = b_mean - _rotation_2d(yaw) @ a_mean
