@@ -167,12 +167,11 @@ def fit_yaw_translation(points_W, yaw, xy, z, field: NearestPointField, iteratio
     for _ in range(iterations):
         distance, index = nearest(yaw, xy)
         used = distance < inlier_m
-        if used.all():
-            a, b = field.points[index, :2], planar_W
-        elif used.any():
-            a, b = field.points[index[used], :2], planar_W[used]
-        else:
+        if not used.any():
             break
+        a, b = field.points[index, :2], planar_W
+        if not used.all():
+            a, b = a[used], b[used]
         # Best rotation + translation taking the matched template points (in O) to the observations (in W).
         a_mean, b_mean = a.sum(axis=0) / len(a), b.sum(axis=0) / len(b)  # (numpy's mean, in fewer calls)
         H = (a - a_mean).T @ (b - b_mean)
