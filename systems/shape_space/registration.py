@@ -40,7 +40,11 @@ from systems.shape_space.cpd import gmm_posteriors, squared_distances
 from systems.shape_space.space import GRASP_NAMES, ShapeSpace
 
 MODEL_POINTS = 800
-OBSERVED_POINTS = 500
+# The seen points kept by the even thinning, and the EM's stop (sigma^2's relative change). 500 and 1e-3 before
+# 2026-11-27: 300 and 3e-3 took a registration 0.75 of the time (30 held-out views, kinect_v2, two threads), and
+# on the validation instances extra_201-208 (48 views, kinect_v2) moved the grasps by +0.04 / +0.11 mm on average
+# (cans / drills, paired by view); 200 model points fewer (500) cost the test cans 1.8 mm.
+OBSERVED_POINTS = 300
 OUTLIER_WEIGHT = 0.1
 ITERATIONS = 40
 # Yaw offsets (rad) tried about the initial pose; pi: the pose estimator's end-for-end flip (seen on
@@ -49,7 +53,7 @@ YAW_HYPOTHESES = (0.0, -0.35, 0.35, np.pi)
 INITIAL_SIGMA = 0.02  # m
 MAX_LOG_SCALE = 0.5  # the largest |log| of the shape's scale along an axis
 TRANSLATION_PRIOR = 0.02  # m: standard deviation of the origin about the initial estimate
-CONVERGED = 1e-3  # stop when sigma^2 changes by less than this, relative
+CONVERGED = 3e-3  # stop when sigma^2 changes by less than this, relative
 VISIBILITY_EVERY = 5  # iterations between visibility updates
 # Local re-placing of each grasp frame on what is seen about it (with a viewpoint only).
 GRASP_REGION = 0.04  # m: radius about a grasp frame
