@@ -209,9 +209,10 @@ def registration_trials(
     return rows
 
 
-def folder_spaces(annotation: str, directory: Path) -> dict:
+def folder_spaces(annotation: str, directory: Path, scaled_copies: int = 0) -> dict:
     """Builds each category's space through the user's path: its 8 training meshes exported to a folder, with
-    only the canonical model (their medoid) annotated ("canonical") or all of them ("all"), into `directory`.
+    only the canonical model (their medoid) annotated ("canonical") or all of them ("all"), into `directory`
+    (with scaled_copies stretched copies of each, build_shape_space.py's --scaled-copies).
     Returns how far the propagated grasp frames were from the true ones, per category (errors in m and rad)."""
     propagation = {}
     for category in catalog.CATEGORIES:
@@ -227,7 +228,7 @@ def folder_spaces(annotation: str, directory: Path) -> dict:
         poses_file = directory / f"{category}_poses.yaml"
         poses_file.write_text(yaml.safe_dump(spec))
         logging.info("%s: 8 training meshes, annotated: %s", category, annotation)
-        space = build_from_folder(folder, poses_file, category)
+        space = build_from_folder(folder, poses_file, category, scaled_copies=scaled_copies)
         space.save(directory / shape_space_file(category).name)
         errors = [  # the folder keeps the generated models' shared frame: C is every model's O
             pose_errors(poses[name], true_grasps(category, Path(model).stem)[name])
@@ -322,6 +323,12 @@ def main():
         help="your own meshes of --category instead (each with <name>.info.yaml beside it: the true grasps)",
     )
     parser.add_argument("--category", choices=tuple(catalog.CATEGORIES), help="the category of --object-files")
+    parser.add_argument(
+        "--scaled-copies",
+        type=int,
+        default=0,
+        help="with --annotation: stretched copies of each of the 8 meshes in the spaces (build_shape_space.py's)",
+    )
     add_sensor_option(parser, default="kinect_v2")
     parser.add_argument("--json", type=Path)
     args = parser.parse_args()
@@ -331,7 +338,7 @@ def main():
     space_dir, propagation = args.space_dir, {}
     if args.annotation:
         space_dir = Path(tempfile.mkdtemp(prefix="folder_spaces_"))
-        propagation = folder_spaces(args.annotation, space_dir)
+        propagation = folder_spaces(args.annotation, space_dir, args.scaled_copies)
     categories = (args.category,) if args.category else tuple(catalog.CATEGORIES)
     rows = registration_trials(
         args.trials,
@@ -345,6 +352,7 @@ def main():
     cpd_rows = cpd_comparison(args.cpd_sizes)
     results = {"trials": args.trials, "seed": args.seed, "instances": args.instances, "sensor": args.sensor}
     results["annotation"] = args.annotation or "generated (48 models, all annotated)"
+    results["scaled_copies"] = args.scaled_copies if args.annotation else 0
     results["propagation"] = propagation
     if args.object_files:
         results["instances"] = [str(path) for path in args.object_files]
@@ -382,7 +390,8 @@ def main():
     ):
         values = results[key]
         print(f"{key + ' [trials]':37s}" + "".join(f" {values[c]:13d}" for c in categories) + f"  {target}")
-    print(f"(sensor: {args.sensor}; annotated models: {results['annotation']})")
+    copies = f", {args.scaled_copies} stretched copies of each" if results["scaled_copies"] else ""
+    print(f"(sensor: {args.sensor}; annotated models: {results['annotation']}{copies})")
     header = ("CPD points", "ours s", "pycpd s", "speedup", "ours err mm", "pycpd err mm")
     print("\n" + " ".join(f"{h:>12s}" for h in header))
     for r in cpd_rows:

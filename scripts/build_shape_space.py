@@ -147,14 +147,30 @@ def parse_poses(spec: dict, poses_file: Path, model: str = "the canonical model"
 
 
 def build_from_folder(
-    folder: Path, poses_file: Path, category: str, components: int = 8, align: str = "none", landmarks: bool = True
+    folder: Path,
+    poses_file: Path,
+    category: str,
+    components: int = 8,
+    align: str = "none",
+    landmarks: bool = True,
+    scaled_copies: int = 0,
 ):
-    """The shape space of a folder of models (see the module's doc); models without poses get propagated ones."""
+    """The shape space of a folder of models (see the module's doc); models without poses get propagated ones.
+    scaled_copies: stretched copies of each model beside it (build_shape_space)."""
     clouds, poses, canonical = folder_instances(folder, poses_file)
     if align == "none":
         for warning in frame_warnings(clouds, canonical):
             logging.warning("warning: %s; if the models do not share one frame, pass --align vertical", warning)
-    return build_shape_space(category, clouds, poses, components, canonical=canonical, align=align, landmarks=landmarks)
+    return build_shape_space(
+        category,
+        clouds,
+        poses,
+        components,
+        canonical=canonical,
+        align=align,
+        landmarks=landmarks,
+        scaled_copies=scaled_copies,
+    )
 
 
 def pose_entries(poses: dict[str, RigidTransform]) -> dict:
@@ -224,6 +240,12 @@ def main():
     )
     parser.add_argument("--components", type=int, default=8, help="latent dimensions (the paper: 8)")
     parser.add_argument(
+        "--scaled-copies",
+        type=int,
+        default=0,
+        help="with --folder: stretched copies of each model beside it (a few cans: 4; see docs/shape_space.md)",
+    )
+    parser.add_argument(
         "--no-landmarks",
         action="store_true",
         help="plain CPD fields carry the canonical poses: other models' poses are neither used nor propagated",
@@ -237,7 +259,13 @@ def main():
         if not args.poses:
             parser.error("--folder needs --poses")
         space = build_from_folder(
-            args.folder, args.poses, args.category, args.components, args.align, landmarks=not args.no_landmarks
+            args.folder,
+            args.poses,
+            args.category,
+            args.components,
+            args.align,
+            landmarks=not args.no_landmarks,
+            scaled_copies=args.scaled_copies,
         )
     else:
         clouds, poses = generated_instances(args.category, args.extra, args.wide)

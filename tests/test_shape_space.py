@@ -14,7 +14,7 @@ from systems.shape_space import registration
 from systems.shape_space.cpd import deformable_cpd, gmm_posteriors, rigid_cpd, squared_distances
 from systems.shape_space.pca_em import pca_em
 from systems.shape_space.registration import Registrar, evenly_thinned, grasp_shift, visible_from
-from systems.shape_space.space import POSE_NAMES, ShapeSpace, build_shape_space
+from systems.shape_space.space import POSE_NAMES, ShapeSpace, build_shape_space, scaled_copy
 
 
 @pytest.fixture(scope="module")
@@ -130,6 +130,33 @@ def test_shape_space_round_trips_through_its_file(box_space, tmp_path):
     assert loaded.canonical_name == space.canonical_name and loaded.latent_size == 4
     with pytest.raises(FileNotFoundError, match="build_shape_space.py"):
         ShapeSpace.load(tmp_path / "missing.npz")
+
+
+def test_scaled_copies_let_a_few_models_span_a_proportion_they_lack():
+    """Three boxes that differ only in length: without scaled copies no latent shape is taller, with them a taller
+    box is fitted and the grasp on its lid follows it (measured 7 mm off; 40 mm without)."""
+    sizes = [(0.10, 0.06, 0.08), (0.12, 0.06, 0.08), (0.14, 0.06, 0.08)]
+    clouds = {f"box_{i}": box_family(*size) for i, size in enumerate(sizes)}
+    lid = RigidTransform(RotationMatrix.MakeXRotation(np.pi), [0.0, 0.0, 0.16])
+    poses = {"box_1": {pose: lid for pose in POSE_NAMES}}  # one annotated: the others' lids are propagated
+    taller = box_family(0.12, 0.06, 0.10, count=1500)  # its lid at z = 0.20
+    errors = {}
+    for copies in (0, 4):
+        space = build_shape_space("box", clouds, poses, 2, canonical_points=300, beta=0.08, scaled_copies=copies)
+        assert space.pca.components.shape[0] == 2
+        result = Registrar(space).register(taller, RigidTransform())
+        errors[copies] = abs(result.grasp_poses_W["left_grasp"].translation()[2] - 0.20)
+    assert errors[0] > 0.03 and errors[4] < 0.01, errors
+
+
+def test_a_scaled_copy_stands_where_its_model_stood_and_keeps_its_grasp_axes():
+    points = box_family(0.1, 0.06, 0.08) + [0.3, -0.2, 0.0]
+    grasp = RigidTransform(RotationMatrix.MakeXRotation(2.0), [0.3, -0.2, 0.16])
+    copy, grasps = scaled_copy(points, {"left_grasp": grasp}, np.array([1.2, 0.9, 1.5]), np.array([0.3, -0.2, 0.0]))
+    np.testing.assert_allclose(copy.min(axis=0)[2], 0.0, atol=1e-12)  # on the table still
+    np.testing.assert_allclose(np.ptp(copy, axis=0), np.ptp(points, axis=0) * [1.2, 0.9, 1.5], rtol=1e-9)
+    np.testing.assert_allclose(grasps["left_grasp"].translation(), [0.3, -0.2, 0.24], atol=1e-12)
+    np.testing.assert_array_equal(grasps["left_grasp"].rotation().matrix(), grasp.rotation().matrix())
 
 
 @pytest.mark.parametrize("bad", [np.zeros((0, 3)), np.zeros((3, 3)), np.full((100, 3), np.nan), np.zeros((50, 2))])

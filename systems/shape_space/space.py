@@ -36,6 +36,10 @@ LANDMARK_PROBE = 0.02
 # than the fields' own beta, whose smoothing blurs thin parts (drill handles: 8.8 -> 4.5 mm from the
 # true surface with 0.02).
 SURFACE_WARP_WIDTH = 0.02
+# The spread (standard deviation of the log) of the stretches that scaled copies of a few models get, per axis of C,
+# and the seed they are drawn from (build_shape_space(scaled_copies=...)).
+SCALED_COPY_SIGMA = 0.1
+SCALED_COPY_SEED = 0
 
 
 @dataclass
@@ -201,6 +205,7 @@ def build_shape_space(
     target_points: int = 2000,
     grasp_weight: float = 10.0,
     initial_sigma: float = 0.02,
+    scaled_copies: int = 0,
 ) -> ShapeSpace:
     """Builds the space from surface clouds (each in its own O frame) of a category's instances.
 
@@ -233,6 +238,8 @@ def build_shape_space(
             the surface (37 mm RMS field between two copies of one drill) and the latent components
             learnt that noise (2 cm -> 10 mm, and the unseen test drills' fields warp the canonical surface
             to 2.0-2.2 mm Chamfer instead of 4.1-4.3 mm).
+        scaled_copies: beside each instance, this many copies of it stretched along C's axes (scaled_copy), each
+            a sample of its own: a few models then still span the proportions a category varies in.
     """
     if len(clouds) < 2:
         raise ValueError(f"a shape space needs at least 2 instances, got {len(clouds)}")
@@ -245,38 +252,67 @@ def build_shape_space(
     source = thinned(surface, canonical_points)
     canonical_grasps = control_poses[canonical]
     canonical_stars = _stars(canonical_grasps, FRAME_PROBE)
-    samples, propagated = [], {}
-    bar = tqdm(clouds.items(), total=len(clouds), unit="model", desc=f"{category}: CPD to each", dynamic_ncols=True)
-    for name, cloud in bar:
-        if name == canonical:
-            samples.append(np.zeros(source.size + canonical_stars.size))
-            continue
-        sample = thinned(cloud, target_points)
-        X_CF = alignment(sample, source, align)  # the model's frame F in the canonical's C
-        cloud_C = X_CF.multiply(cloud.T).T  # all of it: the propagation's ICP fits onto it
-        target = X_CF.multiply(sample.T).T
-        options = {"beta": beta, "lam": lam, "w": 0.05, "max_iterations": 150, "initial_sigma2": initial_sigma**2}
-        fit = functools.partial(deformable_cpd, source, target, **options)
-        grasps_C = None  # the model's grasp frames, X_CG
-        if landmarks and name in control_poses:
-            grasps_C = {n: X_CF @ X_FG for n, X_FG in control_poses[name].items()}
-        elif landmarks and propagate:
-            grasps_C = propagated[name] = propagated_poses(surface, canonical_grasps, fit(), cloud_C)
+    options = {"beta": beta, "lam": lam, "w": 0.05, "max_iterations": 150, "initial_sigma2": initial_sigma**2}
+
+    def sample_of(name: str, target: np.ndarray, grasps_C: dict | None, fit) -> np.ndarray:
+        """A PCA sample: the field (fit) from the canonical points onto target (C), and the grasp stars' moves."""
         if grasps_C is None:  # the field carries the canonical frames
             result = fit()
             stars = result.warp(canonical_stars)
         else:  # the frames guide the field (handle onto handle) and are learnt beside it
             result = fit(landmarks=(_stars(canonical_grasps, LANDMARK_PROBE), _stars(grasps_C, LANDMARK_PROBE)))
             stars = _stars(grasps_C, FRAME_PROBE)
-        bar.set_postfix_str(
-            f"{name}: {result.iterations} iterations, Chamfer {1000 * chamfer(result.transformed, target):.1f} mm"
-        )
-        field = (result.transformed - source).ravel()
-        samples.append(np.concatenate([field, grasp_weight * (stars - canonical_stars).ravel()]))
-    pca = pca_em(np.array(samples), min(components, len(clouds) - 1))
+        chamfer_mm = 1000 * chamfer(result.transformed, target)
+        bar.set_postfix_str(f"{name}: {result.iterations} iterations, Chamfer {chamfer_mm:.1f} mm")
+        bar.update()
+        return np.concatenate([(result.transformed - source).ravel(), grasp_weight * (stars - canonical_stars).ravel()])
+
+    samples, propagated = [], {}
+    rng = np.random.default_rng(SCALED_COPY_SEED)
+    foot = np.array([*surface[:, :2].mean(axis=0), surface[:, 2].min()])  # the copies' fixed point, in C
+    total = len(clouds) * (1 + scaled_copies) - 1
+    bar = tqdm(total=total, unit="model", desc=f"{category}: CPD to each", dynamic_ncols=True)
+    for name, cloud in clouds.items():
+        if name == canonical:
+            samples.append(np.zeros(source.size + canonical_stars.size))
+            cloud_C, given = surface, canonical_grasps
+        else:
+            X_CF = alignment(thinned(cloud, target_points), source, align)  # the model's frame F in the canonical's C
+            cloud_C = X_CF.multiply(cloud.T).T  # all of it: the propagation's ICP fits onto it
+            given = {n: X_CF @ X_FG for n, X_FG in control_poses[name].items()} if name in control_poses else None
+        versions = [] if name == canonical else [(name, cloud_C, given)]
+        for k in range(scaled_copies):
+            scale = np.exp(rng.normal(0.0, SCALED_COPY_SIGMA, 3))
+            versions.append((f"{name} stretched {k + 1}", *scaled_copy(cloud_C, given, scale, foot)))
+        for version, points_C, grasps_C in versions:
+            target = thinned(points_C, target_points)
+            fit = functools.partial(deformable_cpd, source, target, **options)
+            if not landmarks:
+                grasps_C = None
+            elif grasps_C is None and propagate:  # carried from the canonical, each copy on its own
+                grasps_C = propagated_poses(surface, canonical_grasps, fit(), points_C)
+                if version == name:
+                    propagated[name] = grasps_C
+            samples.append(sample_of(version, target, grasps_C, fit))
+    bar.close()
+    pca = pca_em(np.array(samples), min(components, len(samples) - 1))
     return ShapeSpace(
         category, canonical, source, pca, beta, canonical_grasps, list(clouds), surface, grasp_weight, propagated
     )
+
+
+def scaled_copy(
+    points_C: np.ndarray, grasps_C: dict[str, RigidTransform] | None, scale: np.ndarray, foot: np.ndarray
+) -> tuple[np.ndarray, dict[str, RigidTransform] | None]:
+    """A model (N x 3, in C) stretched by `scale` (3,) along C's axes about `foot` (3, in C: under the canonical
+    model's centroid, on the table), and its grasp frames with it, where given: their origins move with the
+    surface, their axes stay (as the registrar's scale treats them)."""
+    stretched = foot + scale * (points_C - foot)
+    if grasps_C is None:
+        return stretched, None
+    return stretched, {
+        n: RigidTransform(X.rotation(), foot + scale * (X.translation() - foot)) for n, X in grasps_C.items()
+    }
 
 
 ALIGNMENTS = ("none", "vertical", "rigid")
