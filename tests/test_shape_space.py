@@ -152,11 +152,15 @@ def test_scaled_copies_let_a_few_models_span_a_proportion_they_lack():
 def test_a_scaled_copy_stands_where_its_model_stood_and_keeps_its_grasp_axes():
     points = box_family(0.1, 0.06, 0.08) + [0.3, -0.2, 0.0]
     grasp = RigidTransform(RotationMatrix.MakeXRotation(2.0), [0.3, -0.2, 0.16])
-    copy, grasps = scaled_copy(points, {"left_grasp": grasp}, np.array([1.2, 0.9, 1.5]), np.array([0.3, -0.2, 0.0]))
+    pregrasp = grasp @ RigidTransform([0.0, 0.0, -0.1])
+    poses = {"left_grasp": grasp, "left_pregrasp": pregrasp, "right_grasp": grasp, "right_pregrasp": pregrasp}
+    copy, grasps = scaled_copy(points, poses, np.array([1.2, 0.9, 1.5]), np.array([0.3, -0.2, 0.0]))
     np.testing.assert_allclose(copy.min(axis=0)[2], 0.0, atol=1e-12)  # on the table still
     np.testing.assert_allclose(np.ptp(copy, axis=0), np.ptp(points, axis=0) * [1.2, 0.9, 1.5], rtol=1e-9)
     np.testing.assert_allclose(grasps["left_grasp"].translation(), [0.3, -0.2, 0.24], atol=1e-12)
     np.testing.assert_array_equal(grasps["left_grasp"].rotation().matrix(), grasp.rotation().matrix())
+    X_GP = grasps["left_grasp"].InvertAndCompose(grasps["left_pregrasp"])  # the approach as annotated
+    np.testing.assert_allclose(X_GP.GetAsMatrix4(), RigidTransform([0.0, 0.0, -0.1]).GetAsMatrix4(), atol=1e-12)
 
 
 @pytest.mark.parametrize("bad", [np.zeros((0, 3)), np.zeros((3, 3)), np.full((100, 3), np.nan), np.zeros((50, 2))])

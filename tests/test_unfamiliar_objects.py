@@ -16,8 +16,8 @@ from systems.categories import wider_shape_space_file
 from systems.messages import DepthView
 from systems.perception.shape_registrar import registrar_of, scale_prior, shape_space_file
 from systems.shape_space import registration
-from systems.shape_space.registration import MIN_GRASP_SUPPORT, Registrar, Registration, grasp_support, scaled_poses
-from systems.shape_space.space import GRASP_NAMES, ShapeSpace
+from systems.shape_space.registration import MIN_GRASP_SUPPORT, Registrar, Registration, grasp_support
+from systems.shape_space.space import GRASP_NAMES, ShapeSpace, scaled_poses
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "scripts"))

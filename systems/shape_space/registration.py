@@ -37,7 +37,7 @@ from systems.messages import DepthView
 from systems.parallel import parallel_map
 from systems.perception.depth_cleaning import dense_inliers
 from systems.shape_space.cpd import gmm_posteriors, squared_distances
-from systems.shape_space.space import GRASP_NAMES, ShapeSpace
+from systems.shape_space.space import GRASP_NAMES, ShapeSpace, scaled_poses
 
 MODEL_POINTS = 800
 # The seen points kept by the even thinning, and the EM's stop (sigma^2's relative change). 500 and 1e-3 before
@@ -146,18 +146,6 @@ class Registration:
                     f"{100 * MIN_GRASP_SUPPORT:.0f}% expected)"
                 )
         return ""
-
-
-def scaled_poses(poses_O: dict[str, RigidTransform], scale: np.ndarray) -> dict[str, RigidTransform]:
-    """Control poses (X_OG, O) of a shape scaled by `scale` (3,) along O's axes: each grasp frame's origin scaled,
-    its axes kept; each pre-grasp keeps its pose relative to its grasp."""
-    out = {}
-    for name in GRASP_NAMES:
-        X_OG = poses_O[name]
-        X_GP = X_OG.InvertAndCompose(poses_O[name.replace("grasp", "pregrasp")])
-        out[name] = RigidTransform(X_OG.rotation(), X_OG.translation() * scale)
-        out[name.replace("grasp", "pregrasp")] = out[name] @ X_GP
-    return {name: out[name] for name in poses_O}
 
 
 def _skew_columns(v: np.ndarray) -> np.ndarray:

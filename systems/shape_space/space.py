@@ -301,18 +301,30 @@ def build_shape_space(
     )
 
 
+def scaled_poses(
+    poses_O: dict[str, RigidTransform], scale: np.ndarray, about: np.ndarray | None = None
+) -> dict[str, RigidTransform]:
+    """Control poses (X_OG, O) of a shape scaled by `scale` (3,) along O's axes about the point `about` (3, O):
+    each grasp frame's origin scaled, its axes kept; each pre-grasp keeps its pose relative to its grasp. About O's
+    origin by default."""
+    about = np.zeros(3) if about is None else about
+    out = {}
+    for name in GRASP_NAMES:
+        X_OG = poses_O[name]
+        X_GP = X_OG.InvertAndCompose(poses_O[name.replace("grasp", "pregrasp")])
+        out[name] = RigidTransform(X_OG.rotation(), about + scale * (X_OG.translation() - about))
+        out[name.replace("grasp", "pregrasp")] = out[name] @ X_GP
+    return {name: out[name] for name in poses_O}
+
+
 def scaled_copy(
-    points_C: np.ndarray, grasps_C: dict[str, RigidTransform] | None, scale: np.ndarray, foot: np.ndarray
+    points_C: np.ndarray, poses_C: dict[str, RigidTransform] | None, scale: np.ndarray, foot: np.ndarray
 ) -> tuple[np.ndarray, dict[str, RigidTransform] | None]:
     """A model (N x 3, in C) stretched by `scale` (3,) along C's axes about `foot` (3, in C: under the canonical
-    model's centroid, on the table), and its grasp frames with it, where given: their origins move with the
-    surface, their axes stay (as the registrar's scale treats them)."""
+    model's centroid, on the table), and its control poses with it where given (scaled_poses, as the registrar's
+    scale treats them)."""
     stretched = foot + scale * (points_C - foot)
-    if grasps_C is None:
-        return stretched, None
-    return stretched, {
-        n: RigidTransform(X.rotation(), foot + scale * (X.translation() - foot)) for n, X in grasps_C.items()
-    }
+    return stretched, None if poses_C is None else scaled_poses(poses_C, scale, foot)
 
 
 ALIGNMENTS = ("none", "vertical", "rigid")
