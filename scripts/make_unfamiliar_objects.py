@@ -5,7 +5,7 @@ python scripts/make_unfamiliar_objects.py --out tuning --split tune     # stretc
 python scripts/evaluate.py --category drill --object-files held_out/drill/*.obj --scenario_text "{object: {mass: 1.6}}"
 
 Two splits, apart on purpose:
-- held_out: six designs per category that no generator makes (docs/registration.md shows them): a box-bodied
+- held_out: six designs per category that no generator makes (docs/shape_space.md shows them): a box-bodied
   jerrycan, a bulbous can, a tall slim can with its spout at the foot, a squat can with a wide arch, a can with one
   handle from the lid round to the back, a bucket widening upwards; a long hammer drill, a compact drill with a
   thick grip, a drill whose side handle slopes down, a corded drill (no battery: a heel and a cable), a drill whose
