@@ -17,16 +17,11 @@ canonical model); every test trimmer gets `<name>.info.yaml` beside it (its true
 never for the pick.
 """
 
-import argparse
-from pathlib import Path
-
 import numpy as np
-import yaml
-from build_shape_space import pose_entries
-from pydrake.common.yaml import yaml_dump_typed
+import user_model_folder
 
 from diagrams.generation.objects import geometry
-from diagrams.generation.objects.instance import ObjectInstance, Part, export_obj, make_grasp
+from diagrams.generation.objects.instance import ObjectInstance, Part, make_grasp
 
 CATEGORY = "trimmer"
 # The hands come down onto the handles tilted this far from vertical (rad): the left one from the blade's side
@@ -111,27 +106,5 @@ def build(name: str, p: dict[str, float]) -> ObjectInstance:
     return ObjectInstance(CATEGORY, name, p, parts, p["mass"], grasps)
 
 
-def main():
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--out", type=Path, required=True, help="folder to write train/ and test/ into")
-    parser.add_argument("--train", type=int, default=8, help="training trimmers (the first one annotated)")
-    parser.add_argument("--test", type=int, default=3, help="test trimmers, with their true grasps beside them")
-    parser.add_argument("--seed", type=int, default=2018)
-    args = parser.parse_args()
-    for split, count in (("train", args.train), ("test", args.test)):
-        folder = args.out / split
-        folder.mkdir(parents=True, exist_ok=True)
-        for i in range(count):
-            rng = np.random.default_rng([args.seed, ("train", "test").index(split), i])
-            instance = build(f"{CATEGORY}_{split}_{i}", sample_parameters(rng))
-            export_obj(instance.visual_mesh(), folder / f"{instance.name}.obj")
-            if split == "test":
-                (folder / f"{instance.name}.info.yaml").write_text(yaml_dump_typed(instance.info()))
-            elif i == 0:
-                poses = {"canonical": f"{instance.name}.obj", "poses": pose_entries(instance.info().control_poses())}
-                (folder / "poses.yaml").write_text(yaml.safe_dump(poses, sort_keys=False))
-            print(f"wrote {folder / instance.name}.obj ({instance.mass:.2f} kg)")
-
-
 if __name__ == "__main__":
-    main()
+    user_model_folder.main(__doc__, CATEGORY, sample_parameters, build)
