@@ -334,6 +334,10 @@ def main():
     args = parser.parse_args()
     if bool(args.object_files) != bool(args.category):
         parser.error("--object-files and --category go together")
+    if args.scaled_copies and not args.annotation:
+        parser.error("--scaled-copies needs --annotation (it builds the spaces from the training meshes)")
+    if args.scaled_copies < 0:
+        parser.error(f"--scaled-copies must be 0 or more, got {args.scaled_copies}")
     sensor = sensor_model(args.sensor)
     space_dir, propagation = args.space_dir, {}
     if args.annotation:
@@ -352,7 +356,7 @@ def main():
     cpd_rows = cpd_comparison(args.cpd_sizes)
     results = {"trials": args.trials, "seed": args.seed, "instances": args.instances, "sensor": args.sensor}
     results["annotation"] = args.annotation or "generated (48 models, all annotated)"
-    results["scaled_copies"] = args.scaled_copies if args.annotation else 0
+    results["scaled_copies"] = args.scaled_copies
     results["propagation"] = propagation
     if args.object_files:
         results["instances"] = [str(path) for path in args.object_files]

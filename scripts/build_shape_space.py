@@ -256,6 +256,10 @@ def main():
         "--out", type=Path, help="default: models/shape_space_<category>.npz (and a figure of it beside, .png)"
     )
     args = parser.parse_args()
+    if args.scaled_copies and not args.folder:
+        parser.error("--scaled-copies needs --folder (the generated spaces have enough models)")
+    if args.scaled_copies < 0:
+        parser.error(f"--scaled-copies must be 0 or more, got {args.scaled_copies}")
     start = time.perf_counter()
     if args.folder:
         if not args.poses:

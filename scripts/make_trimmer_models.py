@@ -59,9 +59,8 @@ def _rear_loop(y0: float, grip_length: float, top: float, bottom: float, samples
     down = np.column_stack([np.zeros(samples), np.full(samples, far), np.linspace(top - r, bottom + r, samples)])
     corner_bottom = geometry.arc([0.0, far + r, bottom + r], r, np.pi, 1.5 * np.pi, "yz", 6)
     lower = np.column_stack([np.zeros(samples), np.linspace(far + r, y0, samples), np.full(samples, bottom)])
-    path = np.vstack([upper, corner_top[1:], down[1:], corner_bottom[1:], lower[1:]])
-    keep = np.r_[True, np.linalg.norm(np.diff(path, axis=0), axis=1) > 1e-6]
-    return path[keep]
+    # (Each piece after the first without its first point: the one the piece before ended on.)
+    return np.vstack([upper, corner_top[1:], down[1:], corner_bottom[1:], lower[1:]])
 
 
 def build(name: str, p: dict[str, float]) -> ObjectInstance:

@@ -149,6 +149,13 @@ def test_scaled_copies_let_a_few_models_span_a_proportion_they_lack():
     assert errors[0] > 0.03 and errors[4] < 0.01, errors
 
 
+def test_a_negative_number_of_scaled_copies_is_refused():
+    clouds = {f"box_{i}": box_family(0.1 + 0.02 * i, 0.06, 0.08) for i in range(2)}
+    poses = {"box_0": {pose: RigidTransform([0.0, 0.0, 0.16]) for pose in POSE_NAMES}}
+    with pytest.raises(ValueError, match="scaled_copies must be 0 or more"):
+        build_shape_space("box", clouds, poses, 1, scaled_copies=-1)
+
+
 def test_a_scaled_copy_stands_where_its_model_stood_and_keeps_its_grasp_axes():
     points = box_family(0.1, 0.06, 0.08) + [0.3, -0.2, 0.0]
     grasp = RigidTransform(RotationMatrix.MakeXRotation(2.0), [0.3, -0.2, 0.16])

@@ -243,6 +243,8 @@ def build_shape_space(
     """
     if len(clouds) < 2:
         raise ValueError(f"a shape space needs at least 2 instances, got {len(clouds)}")
+    if scaled_copies < 0:
+        raise ValueError(f"scaled_copies must be 0 or more, got {scaled_copies}")
     if canonical is None:
         with_poses = {n: thinned(c, target_points) for n, c in clouds.items() if n in control_poses}
         if not with_poses:
@@ -253,6 +255,8 @@ def build_shape_space(
     canonical_grasps = control_poses[canonical]
     canonical_stars = _stars(canonical_grasps, FRAME_PROBE)
     options = {"beta": beta, "lam": lam, "w": 0.05, "max_iterations": 150, "initial_sigma2": initial_sigma**2}
+    total = len(clouds) * (1 + scaled_copies) - 1  # every model and copy but the canonical itself
+    bar = tqdm(total=total, unit="model", desc=f"{category}: CPD to each", dynamic_ncols=True)
 
     def sample_of(name: str, target: np.ndarray, grasps_C: dict | None, fit) -> np.ndarray:
         """A PCA sample: the field (fit) from the canonical points onto target (C), and the grasp stars' moves."""
@@ -270,8 +274,6 @@ def build_shape_space(
     samples, propagated = [], {}
     rng = np.random.default_rng(SCALED_COPY_SEED)
     foot = np.array([*surface[:, :2].mean(axis=0), surface[:, 2].min()])  # the copies' fixed point, in C
-    total = len(clouds) * (1 + scaled_copies) - 1
-    bar = tqdm(total=total, unit="model", desc=f"{category}: CPD to each", dynamic_ncols=True)
     for name, cloud in clouds.items():
         if name == canonical:
             samples.append(np.zeros(source.size + canonical_stars.size))
