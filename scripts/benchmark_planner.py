@@ -210,6 +210,8 @@ def _reasons(dropped: list) -> dict:
     for problem in dropped:
         if problem.reason.startswith("no IK"):
             kind = problem.reason.split(":")[0]
+        elif "joint limits" in problem.reason:
+            kind = "start or goal outside the joint limits"
         elif "sphere model" in problem.reason:
             kind = "start or goal not clear in the sphere model"
         else:

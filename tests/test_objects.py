@@ -53,6 +53,13 @@ def test_collision_pieces_are_convex_and_cover_the_object(generated):
 
 def test_grasp_frames_sit_on_the_handles(generated):
     instance, mesh = generated
+    # wide_0's can has 40 sliver triangles (under 1e-9 m^2); trimesh's ray test for inside divides by their area
+    # (a RuntimeWarning, silenced here).
+    with np.errstate(divide="ignore", invalid="ignore"):
+        _grasp_frames_sit_on_the_handles(instance, mesh)
+
+
+def _grasp_frames_sit_on_the_handles(instance, mesh):
     for side, grasp in instance.grasps.items():
         X_OG = grasp.grasp.GetDeterministicValue()
         point = X_OG.translation()[None, :]

@@ -87,6 +87,15 @@ def test_held_problems_are_feasible_at_start_and_goal(motions):
         assert np.linalg.norm(problem.X_WO_goal.translation() - problem.X_WO.translation()) > 0.15  # a carry
 
 
+@pytest.mark.parametrize(("family", "index", "end"), [("turn", 134, "start"), ("reach", 322, "goal")])
+def test_an_ik_answer_beyond_a_joint_limit_drops_the_problem(motions, family, index, end):
+    """Tuning turn 134 started 1.4e-7 rad and tuning reach 322 ended 1.4e-9 rad beyond a joint limit (SNOPT's
+    answers), where no planner may start or arrive: both are dropped, not kept as problems nobody can solve."""
+    problem = make_problem(motions, family, "tune", index)
+    assert isinstance(problem, Dropped), problem
+    assert problem.reason.startswith(f"the {end} is outside the joint limits"), problem.reason
+
+
 @pytest.mark.parametrize("category", ["watering_can", "drill"])
 def test_the_carried_spheres_hold_the_objects_collision_pieces(category):
     """The planners' carried object: every point of a dense sample of the collision pieces' surfaces lies within a

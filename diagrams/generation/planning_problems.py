@@ -69,6 +69,7 @@ ARM_GAP_M = 0.09  # a box stands at least this far from those points at start an
 TABLE_HALF_SIZE = (0.4, 0.6)  # m, the table top's half extent in its frame
 # Arms under the table top, the torso straight (a reach's start where the straight line collides).
 BELOW_TABLE = np.array([0, 0.15, 0, -0.1, 0, 0, 0, 0, -0.15, 0, -0.1, 0, 0, 0.0, 0.0])
+LIMIT_TOLERANCE_RAD = 1e-9  # a start or goal may lie this far beyond a joint limit (as STOMP and check_path allow)
 DENSE_STEP_RAD = 0.01  # the dense checks: no joint turns more than this between two checked states
 MAX_GOAL_JOINT_CHANGE = 2.0  # rad: a held move's goal no further from its start in any joint (its branch)
 CHECK_POINTS = 1000  # the held object's surface points the checks move with the hands
@@ -200,6 +201,8 @@ def held_problem(
     q_start, q_goal = start.q, _on_constraints(motions, start.q, goal.q, orientation)
     if q_goal is None:
         return "no IK at the goal: off the closure or orientation constraint"
+    if reason := _outside_the_limits(world, q_start, q_goal):
+        return reason
     X_GO = world.grasp_frame_poses(q_start)["left"].InvertAndCompose(X_WO)
     check_world = PlanningWorld(MakeRobotScene(scenario, held_object=model, X_GO=X_GO, boxes=boxes))
     if reason := _too_near(check_world, q_start, q_goal, MIN_CLEARANCE_M):
@@ -308,6 +311,16 @@ def _held_boxes(
     return boxes
 
 
+def _outside_the_limits(world: PlanningWorld, q_start: np.ndarray, q_goal: np.ndarray) -> str:
+    """Why the start or goal lies beyond a joint limit by more than LIMIT_TOLERANCE_RAD (IK's answers can end a
+    little beyond one, where no planner may start or arrive), or ''."""
+    for name, q in (("start", q_start), ("goal", q_goal)):
+        beyond = np.maximum(world.lower - q, q - world.upper).max()
+        if beyond > LIMIT_TOLERANCE_RAD:
+            return f"the {name} is outside the joint limits (by {beyond:.1e} rad)"
+    return ""
+
+
 def _too_near(world: PlanningWorld, q_start: np.ndarray, q_goal: np.ndarray, clearance: float) -> str:
     """Why the start or goal is nearer than `clearance` (m) to a collision (the nearest pair's bodies), or ''."""
     for name, q in (("start", q_start), ("goal", q_goal)):
@@ -379,6 +392,8 @@ def _reach(motions, rng, scenario, model, X_WO, points_W, index, split) -> Plann
     goal = motions.ik.solve(targets, initial_positions(scenario), restarts=4)
     if not goal.success:
         return dataclasses.replace(dropped, reason=f"no IK at the goal: {goal.message}")
+    if reason := _outside_the_limits(motions.world, q_start, goal.q):
+        return dataclasses.replace(dropped, reason=reason)
     check_world = PlanningWorld(MakeRobotScene(scenario, obstacle=model, X_WO=X_WO, boxes=boxes))
     if reason := _too_near(check_world, q_start, goal.q, REACH_MIN_CLEARANCE_M):
         return dataclasses.replace(dropped, reason=reason)
@@ -447,7 +462,9 @@ def check_path(problem: PlanningProblem, path: np.ndarray) -> dict:
     path = np.asarray(path, float)
     states = dense_states(path)
     ends = np.allclose(path[0], problem.q_start, atol=1e-6) and np.allclose(path[-1], problem.q_goal, atol=1e-6)
-    within = bool(np.all(states >= world.lower - 1e-9) and np.all(states <= world.upper + 1e-9))
+    within = bool(
+        np.all(states >= world.lower - LIMIT_TOLERANCE_RAD) and np.all(states <= world.upper + LIMIT_TOLERANCE_RAD)
+    )
     clearance = min(world.clearance(q) for q in states)
     row = {"min_clearance_m": float(clearance), "states_checked": len(states)}
     valid = ends and within and clearance > 0
