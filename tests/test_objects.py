@@ -56,23 +56,19 @@ def test_grasp_frames_sit_on_the_handles(generated):
     # wide_0's can has 40 sliver triangles (under 1e-9 m^2); trimesh's ray test for inside divides by their area
     # (a RuntimeWarning, silenced here).
     with np.errstate(divide="ignore", invalid="ignore"):
-        _grasp_frames_sit_on_the_handles(instance, mesh)
-
-
-def _grasp_frames_sit_on_the_handles(instance, mesh):
-    for side, grasp in instance.grasps.items():
-        X_OG = grasp.grasp.GetDeterministicValue()
-        point = X_OG.translation()[None, :]
-        # G lies on a handle's centre line: inside the solid, about one handle radius from its surface.
-        depth = trimesh.proximity.signed_distance(mesh, point)[0]
-        assert 0.008 < depth < 0.025, f"{side} grasp point is {depth:.4f} m inside the surface"
-        # The fingers close along y_G: both sides of the handle along y_G are free space.
-        y = X_OG.rotation().matrix()[:, 1]
-        for sign in (1, -1):
-            outside = trimesh.proximity.signed_distance(mesh, point + sign * 0.03 * y)[0]
-            assert outside < 0, f"{side} finger region at {sign:+d} y_G is inside the object"
-        X_OP = grasp.pregrasp.GetDeterministicValue()
-        assert np.linalg.norm(X_OP.translation() - X_OG.translation()) == pytest.approx(0.1)
+        for side, grasp in instance.grasps.items():
+            X_OG = grasp.grasp.GetDeterministicValue()
+            point = X_OG.translation()[None, :]
+            # G lies on a handle's centre line: inside the solid, about one handle radius from its surface.
+            depth = trimesh.proximity.signed_distance(mesh, point)[0]
+            assert 0.008 < depth < 0.025, f"{side} grasp point is {depth:.4f} m inside the surface"
+            # The fingers close along y_G: both sides of the handle along y_G are free space.
+            y = X_OG.rotation().matrix()[:, 1]
+            for sign in (1, -1):
+                outside = trimesh.proximity.signed_distance(mesh, point + sign * 0.03 * y)[0]
+                assert outside < 0, f"{side} finger region at {sign:+d} y_G is inside the object"
+            X_OP = grasp.pregrasp.GetDeterministicValue()
+            assert np.linalg.norm(X_OP.translation() - X_OG.translation()) == pytest.approx(0.1)
 
 
 def test_object_rests_stably_on_its_base(generated):

@@ -38,7 +38,7 @@ from systems.planning.closure import ClosureConstraint, OrientationConstraint, d
 from systems.planning.obstacles import Obstacles
 from systems.planning.pick_motions import PickMotions, PlannerConfig
 from systems.planning.stomp import Stomp
-from systems.planning.world import SIDES, PlanningWorld
+from systems.planning.world import LIMIT_TOLERANCE_RAD, SIDES, PlanningWorld
 
 # The planning core the problems are drawn with: SNOPT's IK, as when the families were first drawn (the batched IK
 # finds other, equally valid starts and goals: problem k would change).
@@ -69,7 +69,6 @@ ARM_GAP_M = 0.09  # a box stands at least this far from those points at start an
 TABLE_HALF_SIZE = (0.4, 0.6)  # m, the table top's half extent in its frame
 # Arms under the table top, the torso straight (a reach's start where the straight line collides).
 BELOW_TABLE = np.array([0, 0.15, 0, -0.1, 0, 0, 0, 0, -0.15, 0, -0.1, 0, 0, 0.0, 0.0])
-LIMIT_TOLERANCE_RAD = 1e-9  # a start or goal may lie this far beyond a joint limit (as STOMP and check_path allow)
 DENSE_STEP_RAD = 0.01  # the dense checks: no joint turns more than this between two checked states
 MAX_GOAL_JOINT_CHANGE = 2.0  # rad: a held move's goal no further from its start in any joint (its branch)
 CHECK_POINTS = 1000  # the held object's surface points the checks move with the hands
@@ -315,8 +314,7 @@ def _outside_the_limits(world: PlanningWorld, q_start: np.ndarray, q_goal: np.nd
     """Why the start or goal lies beyond a joint limit by more than LIMIT_TOLERANCE_RAD (IK's answers can end a
     little beyond one, where no planner may start or arrive), or ''."""
     for name, q in (("start", q_start), ("goal", q_goal)):
-        beyond = np.maximum(world.lower - q, q - world.upper).max()
-        if beyond > LIMIT_TOLERANCE_RAD:
+        if (beyond := world.beyond_limits(q)) > LIMIT_TOLERANCE_RAD:
             return f"the {name} is outside the joint limits (by {beyond:.1e} rad)"
     return ""
 
@@ -462,9 +460,7 @@ def check_path(problem: PlanningProblem, path: np.ndarray) -> dict:
     path = np.asarray(path, float)
     states = dense_states(path)
     ends = np.allclose(path[0], problem.q_start, atol=1e-6) and np.allclose(path[-1], problem.q_goal, atol=1e-6)
-    within = bool(
-        np.all(states >= world.lower - LIMIT_TOLERANCE_RAD) and np.all(states <= world.upper + LIMIT_TOLERANCE_RAD)
-    )
+    within = world.beyond_limits(states) <= LIMIT_TOLERANCE_RAD
     clearance = min(world.clearance(q) for q in states)
     row = {"min_clearance_m": float(clearance), "states_checked": len(states)}
     valid = ends and within and clearance > 0

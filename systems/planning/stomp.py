@@ -50,7 +50,7 @@ from systems.planning.closure import (
 from systems.planning.hand_constraints import HandConstraints, bounded_step
 from systems.planning.kinematics import Payload, joint_torques, relative_pose
 from systems.planning.obstacles import Obstacles, placed
-from systems.planning.world import PlanningWorld
+from systems.planning.world import LIMIT_TOLERANCE_RAD, PlanningWorld
 
 TERMS = ("collision", "limits", "torque", "duration", "closure", "orientation")
 # Each term's unit, so that 1 means as much in each: the collision margin of shortfall (m, summed over the
@@ -440,7 +440,7 @@ class Stomp:
         if initial_path is not None:
             theta = _resample(np.asarray(initial_path, float), n)
         for q, name in ((q_start, "start"), (q_goal, "goal")):
-            if np.any(q < self.lower - 1e-9) or np.any(q > self.upper + 1e-9):
+            if self.world.beyond_limits(q) > LIMIT_TOLERANCE_RAD:
                 return StompResult(
                     False, theta, 0, 0.0, np.nan, f"the {name} configuration is outside the joint limits"
                 )

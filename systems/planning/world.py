@@ -38,6 +38,8 @@ PERCEIVED_SCENE_MARGIN = 0.005
 # The scene's distance field's grid, m (systems/planning/obstacles.py: DistanceField; scene_cloud.VOXEL_M, the hidden
 # cubes' side).
 SCENE_CELL_M = 0.01
+# rad: a configuration may lie this far beyond a joint limit and still count as within it (IK's answers at a limit).
+LIMIT_TOLERANCE_RAD = 1e-9
 
 
 @dataclass
@@ -140,6 +142,10 @@ class PlanningWorld:
             # Between surface samples the nearest sample is up to about half their spacing too far.
             obstacles.add_points(self.scene.object_surface_W, inflation=0.5 * self.scene.object_surface_spacing)
         return obstacles
+
+    def beyond_limits(self, q_arms: np.ndarray) -> float:
+        """How far (rad) the planned joints of q_arms (... x n) lie beyond their limits at most; <= 0 within."""
+        return float(np.max(np.maximum(self.lower - q_arms, q_arms - self.upper)))
 
     def full_positions(self, q_arms: np.ndarray) -> np.ndarray:
         """The plant's positions: q_default with the arm joints at q_arms."""
