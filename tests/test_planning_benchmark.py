@@ -150,10 +150,25 @@ def test_a_reach_stuck_under_the_table_restarts_from_the_hands_cartesian_vias(mo
     problem = make_problem(motions, "reach", "tune", 70)
     assert isinstance(problem, PlanningProblem) and problem.boxes, problem
     config = StompConfig(seed=problem.index, max_iterations=300, time_limit_s=60.0)
+    config = dataclasses.replace(config, sampled_restart_draws=0)  # the vias alone (the sampled path: below)
     without = Stomp(motions.world, dataclasses.replace(config, hand_via_heights=()))
     assert not without.plan(problem.q_start, problem.q_goal, problem.obstacles).success
     result = Stomp(motions.world, config).plan(problem.q_start, problem.q_goal, problem.obstacles)
     assert result.success and result.iterations > config.restart_after, result.message
+    assert check_path(problem, result.trajectory)["valid"]
+
+
+def test_a_reach_stuck_past_every_restart_is_solved_from_a_path_rrt_connect_samples(motions):
+    """Tuning reach 378: STOMP from its first trajectories and from the hands' Cartesian vias is still in collision
+    after 300 iterations; at its first restart a path RRT-Connect samples in the sphere model solves it."""
+    problem = make_problem(motions, "reach", "tune", 378)
+    assert isinstance(problem, PlanningProblem), problem
+    config = StompConfig(seed=problem.index, max_iterations=300, time_limit_s=60.0)
+    without = Stomp(motions.world, dataclasses.replace(config, sampled_restart_draws=0))
+    assert not without.plan(problem.q_start, problem.q_goal, problem.obstacles).success
+    result = Stomp(motions.world, config).plan(problem.q_start, problem.q_goal, problem.obstacles)
+    assert result.success and result.iterations == config.restart_after, result.message
+    assert "sampled" in result.message
     assert check_path(problem, result.trajectory)["valid"]
 
 

@@ -22,9 +22,10 @@ Cost terms per keyframe (STOMP-New's):
 Each term is counted in its unit (TERM_UNITS: 2 cm of clearance shortfall, a joint at its
 limit, a joint at its effort limit, a second, a transition at the threshold) times a weight.
 Unconstrained plans (reaches) whose straight line is not a solution start from the least colliding of it
-and paths through random joint-space via points; when stuck they restart from paths that move both hands
-through Cartesian via points (back towards the robot and up above the goal, across, down to it: out from
-under the table and over what stands at its edge), least colliding first, then from the other joint-space ones.
+and paths through random joint-space via points; when stuck they restart first from a path RRT-Connect samples
+in the sphere model (returned at once where it is a solution), then from paths that move both hands through
+Cartesian via points (back towards the robot and up above the goal, across, down to it: out from under the
+table and over what stands at its edge), least colliding first, then from the other joint-space ones.
 
 With hand constraints (systems/planning/hand_constraints.py), the sampling respects them:
 the noise of each rollout lies in the constraints' tangent space at the current trajectory,
@@ -50,6 +51,7 @@ from systems.planning.closure import (
 from systems.planning.hand_constraints import HandConstraints, bounded_step
 from systems.planning.kinematics import Payload, joint_torques, relative_pose
 from systems.planning.obstacles import Obstacles, placed
+from systems.planning.rrt_connect import RrtConfig, rrt_connect
 from systems.planning.world import LIMIT_TOLERANCE_RAD, PlanningWorld
 
 TERMS = ("collision", "limits", "torque", "duration", "closure", "orientation")
@@ -95,6 +97,9 @@ class StompConfig:
     via_candidates: int = 128  # random via points tried for the first trajectory of an unconstrained plan
     via_std: float = 1.0  # rad
     restart_after: int = 100  # iterations without a solution before an unconstrained plan starts again from the next
+    # An unconstrained plan stuck at its first restart first tries a path RRT-Connect samples in the sphere model
+    # (systems/planning/rrt_connect.py), this many random draws at most (0: none).
+    sampled_restart_draws: int = 1000
     projection_steps: int = 3  # Gauss-Newton steps projecting each update onto the hand constraints
     rollout_projection_steps: int = 2  # ... and each rollout, before it is scored
     # m: with hand constraints, first trajectories with the held object moved this much up and sideways along the
@@ -173,6 +178,23 @@ def _resample(path: np.ndarray, n: int) -> np.ndarray:
         return np.repeat(path[:1], n, axis=0)
     targets = np.linspace(0.0, length[-1], n)
     return np.column_stack([np.interp(targets, length, path[:, j]) for j in range(path.shape[1])])
+
+
+def _keyframes_through(path: np.ndarray, n: int) -> np.ndarray:
+    """n configurations along the piecewise-linear path (K x n, K <= n: each of its corners one of them; the
+    segments given keyframes by their joint-space length, at least one each). With more corners than n, evenly
+    spaced by length (_resample)."""
+    if len(path) > n:
+        return _resample(path, n)
+    lengths = np.linalg.norm(np.diff(path, axis=0), axis=1)
+    intervals = np.ones(len(lengths), int)
+    for _ in range(n - 1 - len(lengths)):  # the next interval to the segment whose intervals are longest
+        intervals[np.argmax(lengths / intervals)] += 1
+    pieces = [
+        a + np.linspace(0.0, 1.0, k + 1)[:-1, None] * (b - a)
+        for a, b, k in zip(path[:-1], path[1:], intervals, strict=True)
+    ]
+    return np.concatenate([*pieces, path[-1:]])
 
 
 def _through(start: np.ndarray, vias: np.ndarray, goal: np.ndarray, n: int) -> np.ndarray:
@@ -512,6 +534,13 @@ class Stomp:
             if starts and iteration % config.restart_after == 0:  # stuck: start again from the next first trajectory
                 if iteration == config.restart_after:  # (made only when needed: about 15 ms)
                     starts[:0] = self._hand_via_trajectories(theta, obstacles)
+                    sampled = self._sampled_trajectory(theta, obstacles, rng, config, iteration, start)
+                    if sampled is not None:
+                        feasible, clearance = self._feasible(sampled, obstacles, closure, orientation)
+                        if feasible:
+                            elapsed, clearance = time.perf_counter() - start, float(clearance.min())
+                            return StompResult(True, sampled, iteration, elapsed, clearance, "collision-free (sampled)")
+                        starts.insert(0, sampled)
                 theta, std = starts.pop(0), config.noise_std
                 kept, kept_terms = kept[:0], kept_terms[:0]
             if iteration >= config.max_iterations or elapsed > config.time_limit_s:
@@ -523,6 +552,27 @@ class Stomp:
                     float(clearance.min()),
                     f"no collision-free trajectory after {iteration} iterations ({elapsed:.2f} s)",
                 )
+
+    def _sampled_trajectory(self, theta, obstacles: Obstacles, rng, config, iteration: int, start: float):
+        """A trajectory (N x n, theta[0] to theta[-1]) along a path RRT-Connect found clear in the sphere model
+        (by required_clearance), its corners kept as keyframes where there are few enough; None where it found
+        none (within its draws or the plan's time), or where the plan has no iterations left to use it (a first
+        look) or asked for none (sampled_restart_draws 0). `start`: the plan's start (time.perf_counter())."""
+        if iteration >= config.max_iterations or not config.sampled_restart_draws:
+            return None
+        required = config.required_clearance
+        deadline = start + config.time_limit_s
+        path = rrt_connect(
+            theta[0],
+            theta[-1],
+            lambda q: self.clearance(q, obstacles) > required,
+            self.lower,
+            self.upper,
+            rng,
+            RrtConfig(max_draws=config.sampled_restart_draws),
+            deadline,
+        )
+        return None if path is None else _keyframes_through(path, len(theta))
 
     def _hand_via_trajectories(self, theta: np.ndarray, obstacles: Obstacles) -> list[np.ndarray]:
         """Trajectories to restart from (each N x n, from theta[0] to theta[-1]), least in collision first, that
