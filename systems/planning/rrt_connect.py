@@ -3,9 +3,10 @@ path for STOMP to start again from where it is stuck in a reach (its noise draws
 the table past boxes at its edge can need a path no local move finds).
 
 Every state and segment is judged by a caller's batched test (STOMP's sphere model), segments at states no joint
-turns more than `check_step_rad` apart, so each extension and each shortcut costs one batch. The tree grows by
-`step_rad` at most per extension (the largest joint change); random draws come from the caller's generator and the
-work is bounded by draws, never by the clock, so a seed gives one path (the deadline only stops it early).
+turns more than `check_step_rad` apart, so each extension and each shortcut costs two batches at most. The tree
+grows by `step_rad` at most per extension (the largest joint change); random draws come from the caller's
+generator and the work is bounded by draws, never by the clock, so a seed gives one path (the deadline only stops
+it early).
 """
 
 import time
