@@ -2,10 +2,11 @@
 
 A pick runs one stage at a time, and the numerics inside each stage run on one thread (campaign.SINGLE_THREADED:
 threaded reductions round differently from run to run). Where a stage holds pieces that do not depend on each
-other (the segmenter's image and its mirror image, the registration's yaw hypotheses), those pieces run on
-THREADS threads at once, each piece computed alone and single-threaded as before and collected in order: the
-answer is the same as one after the other, whatever the machine's load. Only code that releases Python's global
-lock gains (torch, numpy's larger operations, scipy's qhull and k-d tree queries); open3d's calls hold it.
+other (the segmenter's image and its mirror image, the registration's yaw hypotheses, the reach's sphere-model
+scene and its first IK goal), those pieces run on THREADS threads at once, each piece computed alone and
+single-threaded as before and collected in order: the answer is the same as one after the other, whatever the
+machine's load. Only code that releases Python's global lock gains (torch, numpy's larger operations, scipy's
+qhull and k-d tree queries); open3d's calls hold it.
 """
 
 import threading
@@ -31,3 +32,13 @@ def parallel_map(function: Callable, items: Iterable) -> list:
     if _executor is None:
         _executor = ThreadPoolExecutor(THREADS, thread_name_prefix=_NAME)
     return list(_executor.map(function, items))
+
+
+def parallel_calls(*functions: Callable) -> list:
+    """[f() for f in functions], on up to THREADS threads as parallel_map's items (e.g. two pieces of different
+    kinds), the results in the functions' order."""
+    return parallel_map(_call, functions)
+
+
+def _call(function: Callable):
+    return function()

@@ -29,6 +29,7 @@ from pydrake.common.eigen_geometry import AngleAxis
 from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.trajectories import PiecewisePolynomial
 
+from systems.parallel import parallel_calls
 from systems.planning.closure import ClosureConstraint, OrientationConstraint, deviations, orientation_deviations
 from systems.planning.hand_constraints import MAX_STEP, bounded_step, rotation_error
 from systems.planning.ik import DualArmIk, IkResult
@@ -157,10 +158,15 @@ class PickMotions:
             counts = {side: len((alternatives or {}).get(side, [RigidTransform()])) for side in SIDES}
             if any(len(approach_to[side]) != counts[side] for side in SIDES):
                 raise ValueError(f"approach_to needs one grasp per alternative per side ({counts})")
-        obstacles = self.world.planning_obstacles(obstacle_points_W, self.where_the_robot_is_not(scene_W, q_start))
+        forwards = self._reach_goals(q_start, targets_W, alternatives)
+        # The sphere model's scene (its distance fields) and the first IK goal need nothing of each other: side by side.
+        obstacles, first = parallel_calls(
+            lambda: self.world.planning_obstacles(obstacle_points_W, self.where_the_robot_is_not(scene_W, q_start)),
+            lambda: next(forwards, None),
+        )
+        forwards = itertools.chain([first] if first is not None else [], forwards)
         # Straight segments are checked with Drake's geometry, and with the sphere model where anything is points.
         checked = obstacles if obstacle_points_W is not None or scene_W is not None else None
-        forwards = self._reach_goals(q_start, targets_W, alternatives)
         backwards = self._goals_from_the_grasps(q_start, targets_W, alternatives, approach_to) if approach_to else ()
         failure, at_the_grasps = None, ""  # at_the_grasps: why the goals found backwards failed, if they did
         screened = []  # (goal, choice, whether found backwards): STOMP's first look at them found no path
