@@ -37,8 +37,4 @@ def parallel_map(function: Callable, items: Iterable) -> list:
 def parallel_calls(*functions: Callable) -> list:
     """[f() for f in functions], on up to THREADS threads as parallel_map's items (e.g. two pieces of different
     kinds), the results in the functions' order."""
-    return parallel_map(_call, functions)
-
-
-def _call(function: Callable):
-    return function()
+    return parallel_map(lambda function: function(), functions)

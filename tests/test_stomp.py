@@ -7,9 +7,10 @@ import pytest
 from scipy.spatial import cKDTree
 
 from diagrams.generation.objects.library import resolve_object
-from diagrams.planning_scene import make_pick_motions, make_planning_world, true_grasp_poses
+from diagrams.planning_scene import make_pick_motions, make_planning_world, object_surface_W, true_grasp_poses
 from diagrams.scenario import initial_positions
 from diagrams.station import object_pose_on_table
+from systems.planning import pick_motions
 from systems.planning.ik import DualArmIk
 from systems.planning.kinematics import Payload, joint_torques
 from systems.planning.obstacles import DistanceField, Obstacles
@@ -202,3 +203,20 @@ def test_obstacles_are_arguments_not_state(planning):
     assert len(world.planning_obstacles().fields) == 1  # the welded object's surface alone
     with pytest.raises(dataclasses.FrozenInstanceError):
         motions.stomp.config.seed = 1  # a planner's settings are given when it is built
+
+
+def test_a_reach_whose_scene_is_built_beside_its_first_ik_goal_is_the_reach_built_one_after_the_other(
+    scenario, monkeypatch
+):
+    """The reach builds the sphere model's scene (the object as seen) beside its first IK goal: the same keyframes,
+    to the bit, as with the two one after the other (from under the table: a path STOMP plans)."""
+    model = resolve_object(scenario.object)
+    points, _ = object_surface_W(model, object_pose_on_table(scenario, model), 2000)
+    poses = true_grasp_poses(scenario)
+    pregrasps = {side: poses[f"{side}_pregrasp"] for side in ("left", "right")}
+    motions = make_pick_motions(scenario)
+    beside = motions.reach(BELOW_TABLE, pregrasps, points).keyframes
+    monkeypatch.setattr(pick_motions, "parallel_calls", lambda *functions: [f() for f in functions])
+    after = motions.reach(BELOW_TABLE, pregrasps, points).keyframes
+    assert len(beside) > 2  # (a path STOMP planned, not the straight move alone)
+    np.testing.assert_array_equal(beside, after)
