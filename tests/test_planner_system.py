@@ -10,10 +10,11 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.sensors import ImageRgba8U
 from pydrake.trajectories import PiecewisePolynomial
 
-from diagrams.planning_scene import make_pick_motions, true_grasp_poses
+from diagrams.planning_scene import grasp_configuration, make_pick_motions, true_grasp_poses
 from diagrams.scenario import initial_positions
 from systems.messages import GraspPoses, HandCommand, PlanRequest, PlanResult
 from systems.perception.camera_latch import CameraLatch
+from systems.planning import stomp_planner
 from systems.planning.plan_telemetry import PlanTelemetry
 from systems.planning.stomp_planner import StompPlanner
 from systems.robot_io.hand_command import HandCommandSource
@@ -102,6 +103,26 @@ def test_planner_reports_an_unreachable_goal(planner, scenario):
     Simulator(planner, context).AdvanceTo(LATENCY_S + 0.02)
     plan = planner.GetOutputPort("plan").Eval(context)
     assert not plan.success and "no collision-free IK solution" in plan.message
+
+
+def test_a_back_off_beyond_reach_ends_where_the_arms_stop_and_an_approach_does_not(planner, scenario, monkeypatch):
+    """A retreat (back_off) whose whole line is out of reach (made 45 cm here) plans the part the arms reach along
+    it; an approach to grasps the arms reach only part of the way to fails."""
+    monkeypatch.setattr(stomp_planner, "RETREAT_M", 0.45)
+    q_grasp = grasp_configuration(scenario, planner.motions)
+    start = planner.motions.world.grasp_frame_poses(q_grasp)
+    back_off = PlanRequest(id=7, phase="back_off", q_start=q_grasp, path="straight", targets="retreat")
+    context = _planner_context(planner, back_off, GraspPoses(False))
+    plan = planner.plan(back_off, 0.0, context)
+    assert plan.success, plan.message
+    end = planner.motions.world.grasp_frame_poses(plan.trajectory.value(plan.trajectory.end_time()).ravel())
+    for side in ("left", "right"):
+        moved = start[side].InvertAndCompose(end[side]).translation()  # in G: back along z_G only
+        assert -0.45 + 0.01 < moved[2] <= -0.45 / 3 + 0.002 and np.abs(moved[:2]).max() < 0.002
+    far = {f"{side}_grasp": X @ RigidTransform([0.0, 0.0, -0.45]) for side, X in start.items()}
+    approach = PlanRequest(id=8, phase="approach", q_start=q_grasp, path="straight", targets="grasp")
+    plan = planner.plan(approach, 0.0, _planner_context(planner, approach, GraspPoses(True, far)))
+    assert not plan.success and "IK failed" in plan.message
 
 
 def _line(q0, q1, t0, t1):

@@ -43,6 +43,26 @@ def test_a_straight_retreat_is_a_line_of_tracked_keyframes(scenario):
             assert (reached[side].rotation().inverse() @ start[side].rotation()).IsNearlyIdentity(0.03)
 
 
+def test_a_back_off_beyond_reach_goes_as_far_as_the_arms_reach_along_its_line(scenario):
+    """An approach is the whole line or nothing; a back-off (min_steps) ends where the arms stop reaching along it,
+    on the line, and still fails where not even its first step can be reached."""
+    motions = make_pick_motions(scenario)
+    q = grasp_configuration(scenario, motions)
+    start = motions.world.grasp_frame_poses(q)
+    targets = {side: X @ RigidTransform([0.0, 0.0, -0.8]) for side, X in start.items()}  # 80 cm back: too far
+    with pytest.raises(PlanningError, match="IK failed"):
+        motions.straight(q, targets, steps=8)
+    keyframes = motions.straight(q, targets, steps=8, min_steps=1)
+    assert 2 <= len(keyframes) < 9
+    for k, keyframe in enumerate(keyframes):
+        reached = motions.world.grasp_frame_poses(keyframe)
+        for side in SIDES:
+            expected = start[side].translation() + k / 8 * (targets[side].translation() - start[side].translation())
+            np.testing.assert_allclose(reached[side].translation(), expected, atol=0.002)
+    with pytest.raises(PlanningError, match="step 1 of 1"):
+        motions.straight(q, targets, steps=1, min_steps=1)
+
+
 def test_a_free_move_with_no_path_from_where_it_starts_rises_first(scenario, monkeypatch):
     """Home from beside the object: where no path leaves the start (made so here), both hands go straight up
     RISE_M and the path starts from there."""

@@ -306,7 +306,13 @@ class PickMotions:
                 return False
         return not any(self.world.in_collision(q) for q in states)
 
-    def straight(self, q_start: np.ndarray, targets_W: dict[str, RigidTransform], steps: int = APPROACH_STEPS):
+    def straight(
+        self,
+        q_start: np.ndarray,
+        targets_W: dict[str, RigidTransform],
+        steps: int = APPROACH_STEPS,
+        min_steps: int | None = None,
+    ):
         """Keyframes moving each hand's origin along a straight line to its target, its orientation kept as
         at q_start (the IK branch kept: no half turns, no restarts).
 
@@ -314,6 +320,9 @@ class PickMotions:
         along arcs between keyframes). Where that stalls, each keyframe is tracked from the one before with the
         torso too, and where that stalls, SNOPT solves it from there (then from the nearest seeds), as long as the
         arms stay on their branch (a jump would leave the line between keyframes).
+
+        min_steps: where a later step fails, the keyframes of the steps before it are the move, as long as there
+        are at least this many (a back-off goes as far as the arms reach); None: the whole line or nothing.
 
         Raises:
             PlanningError: naming the step whose IK failed.
@@ -345,10 +354,16 @@ class PickMotions:
                 continue
             torso = [q[self.world.torso]] if self.world.torso is not None else None  # where it stands: no jump
             result = self.ik.solve(targets, q, min_distance=None, allow_half_turn=False, restarts=4, torso_yaws=torso)
+            failure = None
             if not result.success:
-                raise PlanningError(f"step {step} of {steps}: IK failed ({result.message})")
-            if np.abs(result.q - q).max() > MAX_STRAIGHT_STEP:
-                raise PlanningError(f"step {step} of {steps}: the arms would change their IK branch")
+                failure = f"step {step} of {steps}: IK failed ({result.message})"
+            elif np.abs(result.q - q).max() > MAX_STRAIGHT_STEP:
+                failure = f"step {step} of {steps}: the arms would change their IK branch"
+            if failure and min_steps is not None and step - 1 >= min_steps:
+                logging.warning("straight move: %s; ending after step %d", failure, step - 1)
+                break
+            if failure:
+                raise PlanningError(failure)
             keyframes.append(result.q)
             q = result.q
         return np.stack(keyframes)

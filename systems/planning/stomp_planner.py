@@ -33,7 +33,7 @@ from systems.planning.world import SIDES
 # The reconstruction, thinned to about this many points, is the reach's obstacle: the margin about it
 # (world.PERCEIVED_SHAPE_MARGIN) was set for a cloud this dense, and planning cost grows with it.
 OBSTACLE_POINTS = 2000
-RETREAT_M = 0.1  # m: how far the hands back off an object they let go of
+RETREAT_M = 0.1  # m: how far the hands back off an object they let go of (or as far along it as they reach)
 # Where a pre-grasp is out of reach, pre-grasps this share of the way out from the grasp are tried in turn: the
 # approach is then shorter (its straight line still ends at the grasp).
 PREGRASP_STANDOFFS = (1.0, 0.5)
@@ -140,8 +140,10 @@ class StompPlanner(LeafSystem):
                         request, context, targets, cloud, self._thinned(cloud), scene
                     )
                     min_segment = STOMP_SEGMENT_S if len(keyframes) > 3 else SPARSE_SEGMENT_S
-                else:
-                    keyframes, min_segment = motions.straight(request.q_start, targets), SPARSE_SEGMENT_S
+                else:  # a back-off goes as far as the arms reach along it (the approach all the way or not at all)
+                    partial = 1 if request.targets == Targets.RETREAT else None
+                    keyframes = motions.straight(request.q_start, targets, min_steps=partial)
+                    min_segment = SPARSE_SEGMENT_S
             trajectory = time_parameterise(keyframes, motions.world.velocity_limits, start_s, min_segment)
             if held is not None:
                 t_dev, o_dev = motions.closure_deviations(trajectory, held)
