@@ -359,11 +359,11 @@ class PickMotions:
                 failure = f"step {step} of {steps}: IK failed ({result.message})"
             elif np.abs(result.q - q).max() > MAX_STRAIGHT_STEP:
                 failure = f"step {step} of {steps}: the arms would change their IK branch"
-            if failure and min_steps is not None and step - 1 >= min_steps:
+            if failure is not None:
+                if min_steps is None or step - 1 < min_steps:
+                    raise PlanningError(failure)
                 logging.warning("straight move: %s; ending after step %d", failure, step - 1)
                 break
-            if failure:
-                raise PlanningError(failure)
             keyframes.append(result.q)
             q = result.q
         return np.stack(keyframes)
