@@ -113,6 +113,11 @@ class Registration:
     wider: bool = False  # fitted in the category's wider shape space (Registrar's `wider`)
 
     @property
+    def unconfirmed(self) -> bool:
+        """A grasp the camera cannot confirm (its surface out of view or hidden) rests on the shape prior alone."""
+        return any(share is None for share in self.grasp_support.values())
+
+    @property
     def poor_fit(self) -> str:
         """Why the fit cannot be trusted ("" when it can)."""
         if self.inlier_share < MIN_INLIER_SHARE:
@@ -336,9 +341,12 @@ class Registrar:
                 raise ValueError(f"the viewpoint must be 3 finite numbers (m, in W), got {viewpoint_W!r}")
         X = evenly_thinned(observed, OBSERVED_POINTS)
         registration = self._register(X, observed, X_WO_initial, viewpoint_W, view, None)
-        if registration.poor_fit and self.scale_prior is not None:
-            # Beyond the latent space only where it does not fit: a shape it does fit keeps its latent fit exactly.
-            registration = self._register(X, observed, X_WO_initial, viewpoint_W, view, self.scale_prior)
+        if self.scale_prior is not None and (registration.poor_fit or registration.unconfirmed):
+            # Beyond the latent space only where it does not fit, or where a grasp rests on its prior alone (the
+            # camera cannot see it): a shape it fits with both grasps seen keeps its latent fit exactly.
+            scaled = self._register(X, observed, X_WO_initial, viewpoint_W, view, self.scale_prior)
+            if registration.poor_fit or not (scaled.poor_fit or scaled.unconfirmed):
+                registration = scaled
         if registration.poor_fit and self.wider is not None:
             wider = self.wider._register(X, observed, X_WO_initial, viewpoint_W, view, None)
             wider.wider = True
@@ -353,11 +361,21 @@ class Registrar:
             X0 = RigidTransform(RotationMatrix.MakeZRotation(offset)) @ X_WO_initial
             starts.append(RigidTransform(X0.rotation(), X_WO_initial.translation()))  # turned about the origin
         # The hypotheses are independent: fitted at once on the cores (the same fits as one after the other).
-        best = None
-        for result in parallel_map(lambda X0: self._fit(X, X0, viewpoint_W, scale_prior), starts):
-            if best is None or result[4] < best[4]:
-                best = result
-        R, t, z, scale, error, iterations = best
+        fits = parallel_map(lambda X0: self._fit(X, X0, viewpoint_W, scale_prior), starts)
+        if scale_prior is None:  # the latent fit: the hypothesis nearest the seen points
+            return self._registration(min(fits, key=lambda fit: fit[4]), X, observed, viewpoint_W, view, None)
+        # Beyond the latent space a stretched shape can lie nearer the points end for end (tall cans: the flipped
+        # fit hides a grasp behind the body): the nearest of the hypotheses judged sound wins (else the nearest).
+        judged = []
+        for fit in sorted(fits, key=lambda fit: fit[4]):
+            judged.append(self._registration(fit, X, observed, viewpoint_W, view, scale_prior))
+            if not judged[-1].poor_fit:
+                return judged[-1]
+        return judged[0]
+
+    def _registration(self, fit, X, observed, viewpoint_W, view, scale_prior) -> Registration:
+        """One hypothesis's fit made a Registration: its grasps placed on what was seen, and judged."""
+        R, t, z, scale, error, iterations = fit
         X_WO = RigidTransform(RotationMatrix(R), t)
         shape_O = self.space.reconstruct(z)
         shape_W = X_WO.multiply((shape_O if scale_prior is None else shape_O * scale).T).T
