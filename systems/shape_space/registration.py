@@ -366,12 +366,14 @@ class Registrar:
             return self._registration(min(fits, key=lambda fit: fit[4]), X, observed, viewpoint_W, view, None)
         # Beyond the latent space a stretched shape can lie nearer the points end for end (tall cans: the flipped
         # fit hides a grasp behind the body): the nearest of the hypotheses judged sound wins (else the nearest).
-        judged = []
+        nearest = None
         for fit in sorted(fits, key=lambda fit: fit[4]):
-            judged.append(self._registration(fit, X, observed, viewpoint_W, view, scale_prior))
-            if not judged[-1].poor_fit:
-                return judged[-1]
-        return judged[0]
+            registration = self._registration(fit, X, observed, viewpoint_W, view, scale_prior)
+            if not registration.poor_fit:
+                return registration
+            if nearest is None:
+                nearest = registration
+        return nearest
 
     def _registration(self, fit, X, observed, viewpoint_W, view, scale_prior) -> Registration:
         """One hypothesis's fit made a Registration: its grasps placed on what was seen, and judged."""
