@@ -14,9 +14,20 @@ python scripts/benchmark_registration.py --trials 30 --json registration.json
 python scripts/benchmark_registration.py --trials 48 --instances extra_101 extra_102 ... --cpd-sizes  # others
 python scripts/benchmark_registration.py --trials 30 --no-noise --cpd-sizes                          # perfect depth
 python scripts/benchmark_registration.py --trials 18 --annotation canonical --cpd-sizes  # the user's path, 1 annotated
+
+With --pick-frames the views are instead the first frames that evaluate.py's campaign of the same objects, yaws,
+seed and --scenario_text would see, pick by pick (the object's mass changes how it settles, so the frame): the
+station's camera and sensor model, the segmenter's mask, the pose estimator and the paper's +-0.2 rad registration
+yaw noise. Each pick is simulated only until perception latches that frame (a few seconds instead of a whole pick),
+and the benchmark's registrar (--space-dir) registers it:
+
+python scripts/benchmark_registration.py --pick-frames --category watering_can --object-files cans/*.obj \
+    --scenario_text "{object: {mass: 0.9}}"
+python scripts/benchmark_registration.py --pick-frames --trials 3 --json F   # the test instances, as evaluate.py
 """
 
 import argparse
+import dataclasses
 import logging
 import shutil
 import tempfile
@@ -29,14 +40,18 @@ import trimesh
 import yaml
 from build_shape_space import build_from_folder, pose_entries, sample_mesh
 from json_report import write_json
-from scenario_options import add_sensor_option
+from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
+from scenario_options import add_sensor_option, with_sensor
 from scipy.spatial import cKDTree
 
+from diagrams.autonomous_pick import PERCEIVE_AT_S, MakePickDiagram
+from diagrams.evaluation import PAPER_YAWS, file_objects, make_trials
 from diagrams.generation.objects import catalog
-from diagrams.generation.objects.library import generated_instance_directory, load_info, mesh_to_sdf
+from diagrams.generation.objects.library import generated_instance_directory, load_info, mesh_to_sdf, resolve_object
 from diagrams.generation.synthetic_scenes import SyntheticScene
 from diagrams.perception import MakePoseEstimator
-from diagrams.scenario import load_scenario
+from diagrams.scenario import Scenario, load_scenario, overlay_scenario
+from diagrams.station import object_pose_on_table
 from systems.messages import Segmentation
 from systems.perception.rgbd_noise import RgbdNoiseParameters, noisy_depth, sensor_model
 from systems.perception.shape_registrar import registrar_of, shape_space_file, wider_shape_space_file
@@ -59,6 +74,7 @@ METRICS = (
 # pick would go on with it).
 COUNTS = ("flipped", "poor_fit", "grasp_off", "handed_on_off")
 GRASP_OFF_M = 0.02
+FRAME_POLL_S = 0.01  # s: the pick's simulation steps while it waits for its first frame
 
 
 def true_grasps(category: str, instance: str):
@@ -92,6 +108,59 @@ def space_files(category: str, space_dir: Path | None) -> tuple[Path, Path | Non
     if space_dir is None:
         return shape_space_file(category), wider_shape_space_file(category)
     return space_dir / shape_space_file(category).name, wider_shape_space_file(category, space_dir)
+
+
+def judged_row(result, X_WO_initial, X_WO_true, true: dict, mesh: trimesh.Trimesh) -> dict:
+    """A registration judged on ground truth: its grasps against the true control poses (`true`, X_OG by name), its
+    reconstruction against the true surface (`mesh`, in O), its initial and final pose against X_WO_true."""
+    rotation_error = pose_errors(result.X_WO, X_WO_true)[1]  # (over 90 deg: registered end for end)
+    reconstructed_O = X_WO_true.inverse().multiply(result.reconstructed_W.T).T
+    errors = {name: pose_errors(result.grasp_poses_W[name], X_WO_true @ X_OG) for name, X_OG in true.items()}
+    row = {
+        "xyz": X_WO_true.translation().tolist(),  # where the object stood (W, m)
+        "initial_translation_error_m": pose_errors(X_WO_initial, X_WO_true)[0],
+        "initial_yaw_error_rad": pose_errors(X_WO_initial, X_WO_true)[1],
+        "grasp_translation_error_m": float(np.mean([e[0] for e in errors.values()])),
+        "grasp_angle_error_rad": float(np.mean([e[1] for e in errors.values()])),
+        "grasp_frame_translation_error_m": float(np.mean([errors[n][0] for n in ("left_grasp", "right_grasp")])),
+        "grasp_frame_errors_m": {n: errors[n][0] for n in ("left_grasp", "right_grasp")},
+        "chamfer_m": chamfer_to_mesh(reconstructed_O, mesh),
+        "rotation_error_rad": rotation_error,
+        "flipped": rotation_error > np.pi / 2,
+        "poor_fit": bool(result.poor_fit),
+        "inlier_share": result.inlier_share,
+        "grasp_support": {name: share for name, share in result.grasp_support.items()},
+    }
+    # Across its handle (off the true handle's axis x_G) a grasp misses; along it, it may still hold.
+    across = [handle_offsets(result.grasp_poses_W[n], X_WO_true @ true[n])[1] for n in ("left_grasp", "right_grasp")]
+    row["grasp_across_handle_m"] = dict(zip(("left_grasp", "right_grasp"), across, strict=True))
+    row["grasp_across_handle_max_m"] = max(across)
+    row["grasp_off"] = max(errors[n][0] for n in ("left_grasp", "right_grasp")) > GRASP_OFF_M
+    row["handed_on_off"] = row["grasp_off"] and not row["poor_fit"]
+    return row
+
+
+def log_row(trial: int, row: dict, result) -> None:
+    logging.info(
+        "%2d %-12s %s  grasp %.1f mm %.1f deg  chamfer %.1f mm  %.2f s%s",
+        trial,
+        row["category"],
+        row["instance"],
+        1000 * row["grasp_translation_error_m"],
+        np.degrees(row["grasp_angle_error_rad"]),
+        1000 * row["chamfer_m"],
+        row["registration_s"],
+        ("  FLIPPED" if row["flipped"] else "") + ("  " + result.poor_fit if result.poor_fit else ""),
+    )
+    frames, across = row["grasp_frame_errors_m"], row["grasp_across_handle_m"]
+    logging.info(
+        "   inliers %.0f%%; grasp frames %.1f / %.1f mm (across the handle %.1f / %.1f mm)",
+        100 * result.inlier_share,
+        1000 * frames["left_grasp"],
+        1000 * frames["right_grasp"],
+        1000 * across["left_grasp"],
+        1000 * across["right_grasp"],
+    )
 
 
 def registration_trials(
@@ -157,56 +226,74 @@ def registration_trials(
 
         if (category, instance) not in meshes:
             meshes[(category, instance)] = trimesh.load(truth[(category, instance)][1] / "visual.obj", force="mesh")
-        rotation_error = pose_errors(result.X_WO, X_WO_true)[1]  # (over 90 deg: registered end for end)
-        reconstructed_O = X_WO_true.inverse().multiply(result.reconstructed_W.T).T
-        true = truth[(category, instance)][0]
-        errors = {name: pose_errors(result.grasp_poses_W[name], X_WO_true @ X_OG) for name, X_OG in true.items()}
-        row = {
-            "category": category,
-            "instance": instance,
-            "yaw": float(yaw),
-            "xyz": X_WO_true.translation().tolist(),  # where the object stood (W, m)
-            "registration_s": seconds,
-            "initial_translation_error_m": pose_errors(estimate.X_WO, X_WO_true)[0],
-            "initial_yaw_error_rad": pose_errors(estimate.X_WO, X_WO_true)[1],
-            "grasp_translation_error_m": float(np.mean([e[0] for e in errors.values()])),
-            "grasp_angle_error_rad": float(np.mean([e[1] for e in errors.values()])),
-            "grasp_frame_translation_error_m": float(np.mean([errors[n][0] for n in ("left_grasp", "right_grasp")])),
-            "chamfer_m": chamfer_to_mesh(reconstructed_O, meshes[(category, instance)]),
-            "rotation_error_rad": rotation_error,
-            "flipped": rotation_error > np.pi / 2,
-            "poor_fit": bool(result.poor_fit),
-            "inlier_share": result.inlier_share,
-            "grasp_support": {name: share for name, share in result.grasp_support.items()},
-        }
-        # Across its handle (off the true handle's axis x_G) a grasp misses; along it, it may still hold.
-        across = [
-            handle_offsets(result.grasp_poses_W[n], X_WO_true @ true[n])[1] for n in ("left_grasp", "right_grasp")
-        ]
-        row["grasp_across_handle_max_m"] = max(across)
-        row["grasp_off"] = max(errors[n][0] for n in ("left_grasp", "right_grasp")) > GRASP_OFF_M
-        row["handed_on_off"] = row["grasp_off"] and not row["poor_fit"]
-        rows.append(row)
-        logging.info(
-            "%2d %-12s %s  grasp %.1f mm %.1f deg  chamfer %.1f mm  %.2f s%s",
-            trial,
-            category,
-            instance,
-            1000 * row["grasp_translation_error_m"],
-            np.degrees(row["grasp_angle_error_rad"]),
-            1000 * row["chamfer_m"],
-            seconds,
-            ("  FLIPPED" if row["flipped"] else "") + ("  " + result.poor_fit if result.poor_fit else ""),
-        )
-        logging.info(
-            "   inliers %.0f%%; grasp frames %.1f / %.1f mm (across the handle %.1f / %.1f mm)",
-            100 * result.inlier_share,
-            1000 * errors["left_grasp"][0],
-            1000 * errors["right_grasp"][0],
-            1000 * across[0],
-            1000 * across[1],
-        )
+        row = judged_row(result, estimate.X_WO, X_WO_true, truth[(category, instance)][0], meshes[(category, instance)])
+        rows.append({"category": category, "instance": instance, "yaw": float(yaw), "registration_s": seconds, **row})
+        log_row(trial, rows[-1], result)
     return rows
+
+
+def pick_frame_trials(
+    base: Scenario, category: str, objects: dict[str, dict], trials: int, yaws, space_dir: Path | None = None
+):
+    """One row per pick of evaluate.py's campaign (make_trials: every object at every yaw, `trials` each, pick n
+    with the seed base.random_seed + n): the registration of the first frame the autonomous pick itself takes
+    (the station's camera and sensor model, the segmenter's mask, the pose estimator, the paper's registration
+    yaw noise), without running the pick past it. objects: evaluate.py's (file_objects, or instances)."""
+    registrar = registrar_of(category, *space_files(category, space_dir))
+    rows, meshes = [], {}
+    for n, trial in enumerate(make_trials(base, category, objects, trials, yaws)):
+        scenario = trial.scenario
+        estimate = first_pick_frame(scenario)
+        if not estimate.found:
+            raise RuntimeError(f"{trial.name} at yaw {trial.yaw:+.2f}: the pick's perception found nothing")
+        if scenario.object.file:
+            path = Path(scenario.object.file)
+            true, mesh_file = load_info(path.with_suffix(".info.yaml")).control_poses(), path
+        else:
+            true = true_grasps(category, scenario.object.instance)
+            mesh_file = generated_instance_directory(category, scenario.object.instance) / "visual.obj"
+        if mesh_file not in meshes:
+            meshes[mesh_file] = trimesh.load(mesh_file, force="mesh")
+        X_WO_true = object_pose_on_table(scenario, resolve_object(scenario.object))
+        start = time.perf_counter()
+        result = registrar.register(estimate.points_W, estimate.X_WO, estimate.viewpoint_W, estimate.view)
+        seconds = time.perf_counter() - start
+        row = judged_row(result, estimate.X_WO, X_WO_true, true, meshes[mesh_file])
+        rows.append(
+            {
+                "category": category,
+                "instance": trial.name,
+                "yaw": trial.yaw,
+                "seed": scenario.random_seed,
+                "registration_s": seconds,
+                **row,
+            }
+        )
+        log_row(n, rows[-1], result)
+    return rows
+
+
+def first_pick_frame(scenario: Scenario):
+    """The ObjectEstimate the autonomous pick's registrar is given for its first frame (after the registration yaw
+    noise): the pick diagram simulated until perception has latched that frame."""
+    diagram = MakePickDiagram(scenario)
+    simulator = Simulator(diagram)
+    ApplySimulatorConfig(scenario.simulator_config, simulator)
+    perception = diagram.GetSubsystemByName("perception")
+    registrar = perception.GetSubsystemByName("shape_registrar")
+    context = simulator.get_mutable_context()
+    frame_id = perception.GetOutputPort("frame_id")
+    t = 0.0
+    logging.disable(logging.WARNING)  # (the pick's own supervisor reports its registration of the frame too)
+    try:
+        while frame_id.Eval(perception.GetMyContextFromRoot(context))[0] < 1:
+            if t > PERCEIVE_AT_S + 1.0:
+                raise RuntimeError("the pick's perception latched no frame")
+            t += FRAME_POLL_S
+            simulator.AdvanceTo(t)
+    finally:
+        logging.disable(logging.NOTSET)
+    return registrar.GetInputPort("estimate").Eval(registrar.GetMyContextFromRoot(context))
 
 
 def folder_spaces(annotation: str, directory: Path, scaled_copies: int = 0) -> dict:
@@ -299,15 +386,29 @@ def cpd_comparison(sizes, beta: float = 0.1, lam: float = 2.0, iterations: int =
 def main():
     logging.basicConfig(level=logging.INFO, format="%(message)s")
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--trials", type=int, default=30)
-    parser.add_argument("--seed", type=int, default=7)
+    parser.add_argument(
+        "--trials", type=int, help="rendered views in all (default 30); with --pick-frames, per object and yaw (1)"
+    )
+    parser.add_argument(
+        "--seed", type=int, help="default 7; with --pick-frames, the scenario's (as evaluate.py: pick n has seed + n)"
+    )
+    parser.add_argument(
+        "--pick-frames",
+        action="store_true",
+        help="register the first frames the autonomous picks of evaluate.py's campaign would see (the station's "
+        "camera, the segmenter's mask, the paper's +-0.2 rad yaw noise) instead of rendered views with true masks",
+    )
+    parser.add_argument("--yaws", type=float, nargs="+", default=list(PAPER_YAWS), help="with --pick-frames (rad)")
+    parser.add_argument(
+        "--scenario_text", default="", help="with --pick-frames: YAML overlaid on the scenario, as evaluate.py's"
+    )
     parser.add_argument(
         "--instances",
         nargs="+",
         default=list(TEST_INSTANCES),
         help="instances of each category, taken in turn (e.g. extra_101 extra_102: generated on first use)",
     )
-    parser.add_argument("--cpd-sizes", type=int, nargs="*", default=[500, 1000, 2000])
+    parser.add_argument("--cpd-sizes", type=int, nargs="*", help="default 500 1000 2000; none with --pick-frames")
     parser.add_argument("--space-dir", type=Path, help="read shape_space_<category>.npz from here (default: models/)")
     parser.add_argument(
         "--annotation",
@@ -338,23 +439,51 @@ def main():
         parser.error("--scaled-copies needs --annotation (it builds the spaces from the training meshes)")
     if args.scaled_copies < 0:
         parser.error(f"--scaled-copies must be 0 or more, got {args.scaled_copies}")
+    if args.trials is not None and args.trials < 1:
+        parser.error(f"--trials must be 1 or more, got {args.trials}")
+    if args.cpd_sizes is None:
+        args.cpd_sizes = [] if args.pick_frames else [500, 1000, 2000]
     sensor = sensor_model(args.sensor)
     space_dir, propagation = args.space_dir, {}
     if args.annotation:
         space_dir = Path(tempfile.mkdtemp(prefix="folder_spaces_"))
         propagation = folder_spaces(args.annotation, space_dir, args.scaled_copies)
     categories = (args.category,) if args.category else tuple(catalog.CATEGORIES)
-    rows = registration_trials(
-        args.trials,
-        args.seed,
-        args.instances,
-        categories,
-        space_dir=space_dir,
-        sensor=sensor,
-        files=args.object_files,
-    )
+    if args.pick_frames:
+        args.trials = args.trials or 1
+        try:
+            base = with_sensor(overlay_scenario(load_scenario(), args.scenario_text, "--scenario_text"), args.sensor)
+        except ValueError as error:
+            parser.error(str(error))
+        if args.seed is not None:
+            base = dataclasses.replace(base, random_seed=args.seed)
+        args.seed = base.random_seed
+        if args.object_files:
+            objects = file_objects(args.object_files)
+        else:
+            objects = {name: {"instance": name, "file": ""} for name in args.instances}
+        rows = [
+            row
+            for category in categories
+            for row in pick_frame_trials(base, category, objects, args.trials, args.yaws, space_dir)
+        ]
+    else:
+        args.trials = args.trials or 30
+        args.seed = 7 if args.seed is None else args.seed
+        rows = registration_trials(
+            args.trials,
+            args.seed,
+            args.instances,
+            categories,
+            space_dir=space_dir,
+            sensor=sensor,
+            files=args.object_files,
+        )
     cpd_rows = cpd_comparison(args.cpd_sizes)
     results = {"trials": args.trials, "seed": args.seed, "instances": args.instances, "sensor": args.sensor}
+    results["views"] = "the picks' first frames (segmenter's masks)" if args.pick_frames else "rendered, true masks"
+    if args.pick_frames:
+        results["yaws"] = args.yaws
     results["annotation"] = args.annotation or "generated (48 models, all annotated)"
     results["scaled_copies"] = args.scaled_copies
     results["propagation"] = propagation
@@ -395,7 +524,11 @@ def main():
         values = results[key]
         print(f"{key + ' [trials]':37s}" + "".join(f" {values[c]:13d}" for c in categories) + f"  {target}")
     copies = f", {args.scaled_copies} stretched copies of each" if results["scaled_copies"] else ""
-    print(f"(sensor: {args.sensor}; annotated models: {results['annotation']}{copies})")
+    print(f"(sensor: {args.sensor}; views: {results['views']}; annotated models: {results['annotation']}{copies})")
+    if not cpd_rows:
+        if args.json:
+            write_json(args.json, results)
+        return
     header = ("CPD points", "ours s", "pycpd s", "speedup", "ours err mm", "pycpd err mm")
     print("\n" + " ".join(f"{h:>12s}" for h in header))
     for r in cpd_rows:
