@@ -238,14 +238,20 @@ def pick_frame_trials(
     """One row per pick of evaluate.py's campaign (make_trials: every object at every yaw, `trials` each, pick n
     with the seed base.random_seed + n): the registration of the first frame the autonomous pick itself takes
     (the station's camera and sensor model, the segmenter's mask, the pose estimator, the paper's registration
-    yaw noise), without running the pick past it. objects: evaluate.py's (file_objects, or instances)."""
+    yaw noise), without running the pick past it. objects: evaluate.py's (file_objects, or instances). A frame in
+    which perception finds no object is a row with "found": False and the reason (the pick would stop there)."""
     registrar = registrar_of(category, *space_files(category, space_dir))
     rows, meshes = [], {}
     for n, trial in enumerate(make_trials(base, category, objects, trials, yaws)):
         scenario = trial.scenario
         estimate = first_pick_frame(scenario)
+        named = {"category": category, "instance": trial.name, "yaw": trial.yaw, "seed": scenario.random_seed}
         if not estimate.found:
-            raise RuntimeError(f"{trial.name} at yaw {trial.yaw:+.2f}: the pick's perception found nothing")
+            logging.warning(
+                "%2d %s at yaw %+.2f: perception found no object (%s)", n, trial.name, trial.yaw, estimate.message
+            )
+            rows.append({**named, "found": False, "message": estimate.message})
+            continue
         if scenario.object.file:
             path = Path(scenario.object.file)
             true, mesh_file = load_info(path.with_suffix(".info.yaml")).control_poses(), path
@@ -259,16 +265,7 @@ def pick_frame_trials(
         result = registrar.register(estimate.points_W, estimate.X_WO, estimate.viewpoint_W, estimate.view)
         seconds = time.perf_counter() - start
         row = judged_row(result, estimate.X_WO, X_WO_true, true, meshes[mesh_file])
-        rows.append(
-            {
-                "category": category,
-                "instance": trial.name,
-                "yaw": trial.yaw,
-                "seed": scenario.random_seed,
-                "registration_s": seconds,
-                **row,
-            }
-        )
+        rows.append({**named, "found": True, "registration_s": seconds, **row})
         log_row(n, rows[-1], result)
     return rows
 
@@ -398,7 +395,7 @@ def main():
         help="register the first frames the autonomous picks of evaluate.py's campaign would see (the station's "
         "camera, the segmenter's mask, the paper's +-0.2 rad yaw noise) instead of rendered views with true masks",
     )
-    parser.add_argument("--yaws", type=float, nargs="+", default=list(PAPER_YAWS), help="with --pick-frames (rad)")
+    parser.add_argument("--yaws", type=float, nargs="+", help="with --pick-frames (rad; default the paper's three)")
     parser.add_argument(
         "--scenario_text", default="", help="with --pick-frames: YAML overlaid on the scenario, as evaluate.py's"
     )
@@ -423,7 +420,11 @@ def main():
         nargs="+",
         help="your own meshes of --category instead (each with <name>.info.yaml beside it: the true grasps)",
     )
-    parser.add_argument("--category", choices=tuple(catalog.CATEGORIES), help="the category of --object-files")
+    parser.add_argument(
+        "--category",
+        choices=tuple(catalog.CATEGORIES),
+        help="the category of --object-files; with --pick-frames alone, the one category of --instances",
+    )
     parser.add_argument(
         "--scaled-copies",
         type=int,
@@ -433,12 +434,14 @@ def main():
     add_sensor_option(parser, default="kinect_v2")
     parser.add_argument("--json", type=Path)
     args = parser.parse_args()
-    if bool(args.object_files) != bool(args.category):
-        parser.error("--object-files and --category go together")
+    if bool(args.object_files) != bool(args.category) and not (args.pick_frames and args.category):
+        parser.error("--object-files and --category go together (--category alone with --pick-frames)")
     if args.scaled_copies and not args.annotation:
         parser.error("--scaled-copies needs --annotation (it builds the spaces from the training meshes)")
     if args.scaled_copies < 0:
         parser.error(f"--scaled-copies must be 0 or more, got {args.scaled_copies}")
+    if not args.pick_frames and (args.yaws or args.scenario_text):
+        parser.error("--yaws and --scenario_text go with --pick-frames")
     if args.trials is not None and args.trials < 1:
         parser.error(f"--trials must be 1 or more, got {args.trials}")
     if args.cpd_sizes is None:
@@ -450,7 +453,7 @@ def main():
         propagation = folder_spaces(args.annotation, space_dir, args.scaled_copies)
     categories = (args.category,) if args.category else tuple(catalog.CATEGORIES)
     if args.pick_frames:
-        args.trials = args.trials or 1
+        args.trials, args.yaws = args.trials or 1, args.yaws or list(PAPER_YAWS)
         try:
             base = with_sensor(overlay_scenario(load_scenario(), args.scenario_text, "--scenario_text"), args.sensor)
         except ValueError as error:
@@ -489,6 +492,10 @@ def main():
     results["propagation"] = propagation
     if args.object_files:
         results["instances"] = [str(path) for path in args.object_files]
+    results["not_found"] = {
+        c: sum(1 for r in rows if r["category"] == c and not r.get("found", True)) for c in categories
+    }
+    all_rows, rows = rows, [r for r in rows if r.get("found", True)]
     for category in categories:
         subset = [r for r in rows if r["category"] == category]
         for key in METRICS:
@@ -501,7 +508,7 @@ def main():
     if 1000 in by_size:
         results["cpd_speedup_vs_pycpd_1000"] = by_size[1000]["speedup"]
     results["cpd"] = cpd_rows
-    results["rows"] = rows
+    results["rows"] = all_rows
 
     print(f"\n{'metric (median)':37s}" + "".join(f" {c:>13s}" for c in categories) + "  target")
     for key, scale, unit, target in (
@@ -520,6 +527,7 @@ def main():
         ("poor_fit", "(named failures)"),
         ("grasp_off", f"(a grasp over {100 * GRASP_OFF_M:.0f} cm off)"),
         ("handed_on_off", "0 (such a grasp not named)"),
+        ("not_found", "(perception found no object: not registered)"),
     ):
         values = results[key]
         print(f"{key + ' [trials]':37s}" + "".join(f" {values[c]:13d}" for c in categories) + f"  {target}")

@@ -10,6 +10,7 @@ from diagrams.evaluation import make_trials
 from diagrams.generation.objects.library import resolve_object
 from diagrams.scenario import load_scenario
 from diagrams.station import object_pose_on_table
+from systems.messages import ObjectEstimate
 from systems.perception.pose_noise import draw_yaw_offset
 from systems.perception.shape_registrar import registrar_of, shape_space_file, wider_shape_space_file
 
@@ -49,3 +50,12 @@ def test_pick_frame_trials_judge_every_pick_of_the_campaign():
     (row,) = rows
     assert row["instance"] == "test_1" and row["seed"] == 0 and row["yaw"] == 0.0
     assert not row["poor_fit"] and row["grasp_translation_error_m"] < 0.015 and row["chamfer_m"] < 0.01
+
+
+def test_a_frame_in_which_perception_finds_nothing_is_a_row_with_its_reason(monkeypatch):
+    import benchmark_registration
+
+    nothing = ObjectEstimate(False, message="no")
+    monkeypatch.setattr(benchmark_registration, "first_pick_frame", lambda scenario: nothing)
+    rows = pick_frame_trials(load_scenario(), "drill", {"test_1": {"instance": "test_1", "file": ""}}, 1, [0.0, 0.25])
+    assert [(row["yaw"], row["found"], row["message"]) for row in rows] == [(0.0, False, "no"), (0.25, False, "no")]
