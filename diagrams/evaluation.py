@@ -75,7 +75,9 @@ def make_trials(
     yaws=PAPER_YAWS,
     yaw_noise: float = PAPER_YAW_NOISE,
 ) -> list[Trial]:
-    """Every object at every yaw, `trials` times; trial n of the list gets the seed base.random_seed + n."""
+    """Every object at every yaw, `trials` times; trial n of the list gets the seed base.random_seed + n. A user's
+    model file (changes["file"]) is of the category the user gave: perception registers it so and reports what the
+    network made of it (requested_category), as `pick.py --object C --object-file F` does."""
     if trials < 1:
         raise ValueError(f"trials must be >= 1, got {trials}")
     catalog.presentation_yaw(category)  # a clear error for an unknown category
@@ -85,7 +87,10 @@ def make_trials(
             for index in range(trials):
                 scenario = replace_object(base, category=category, yaw=float(yaw), **changes)
                 scenario = dataclasses.replace(
-                    scenario, random_seed=base.random_seed + len(out), registration_yaw_noise=yaw_noise
+                    scenario,
+                    random_seed=base.random_seed + len(out),
+                    registration_yaw_noise=yaw_noise,
+                    requested_category=category if changes.get("file") else base.requested_category,
                 )
                 out.append(Trial(name, float(yaw), index, scenario))
     return out

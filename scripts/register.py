@@ -79,12 +79,15 @@ def main(argv=None) -> int:
         "X_WO": result.X_WO.GetAsMatrix4().tolist(),
         "latent": result.latent.tolist(),
         "scale": result.scale.tolist(),
+        "poor_fit": result.poor_fit,
         "grasp_poses_W": {name: X.GetAsMatrix4().tolist() for name, X in result.grasp_poses_W.items()},
         "fit_error_m": result.fit_error_m,
         "registration_s": seconds,
     }
     print(f"registered to {space.category} in {seconds:.2f} s, mean fit error {1000 * result.fit_error_m:.1f} mm")
     print(f"X_WO translation {np.round(result.X_WO.translation(), 4).tolist()}")
+    if result.poor_fit:
+        print(f"warning: {result.poor_fit}: its grasps cannot be trusted")
     if args.reconstruction:
         cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(result.reconstructed_W))
         o3d.io.write_point_cloud(str(args.reconstruction), cloud)

@@ -33,6 +33,17 @@ def test_the_wilson_interval_of_27_successes_in_27():
     assert 0.55 < low < 0.58 and 0.97 < high < 0.99
 
 
+def test_a_users_model_files_are_picked_as_the_category_the_user_gave_generated_instances_as_the_network_says(
+    scenario,
+):
+    """evaluate.py --category C --object-files F: C is the user's word for F, as pick.py --object C --object-file F."""
+    files = make_trials(scenario, "drill", {"mine": {"file": "/models/mine.obj"}}, 1, (0.0, 0.25))
+    assert [trial.scenario.requested_category for trial in files] == ["drill", "drill"]
+    assert [trial.scenario.random_seed for trial in files] == [scenario.random_seed, scenario.random_seed + 1]
+    (generated,) = lift_trials(scenario, 1)
+    assert generated.scenario.requested_category == scenario.requested_category == ""
+
+
 def test_ray_and_one_process_give_the_same_records_seed_by_seed(scenario, tmp_path):
     """4 picks as Ray tasks on a local Ray with 2 workers, and one at a time: the same records."""
     trials = lift_trials(scenario, 4)

@@ -97,11 +97,20 @@ def _registrar(category: str) -> Registrar:
     return registrar_of(category, shape_space_file(category), wider_shape_space_file(category), symmetric)
 
 
-def registrar_of(category: str, space_file: Path, wider_file: Path | None = None, symmetric: bool = False) -> Registrar:
-    """The category's registrar: its space, the scale beyond it, and last its wider space (where there is one)."""
+def registrar_of(
+    category: str,
+    space_file: Path,
+    wider_file: Path | None = None,
+    symmetric: bool = False,
+    part_prior: float | None = None,
+) -> Registrar:
+    """The category's registrar: its space, the scale beyond it, and last its wider space (where there is one); with
+    part_prior (m), each handle's own offset between the scale and the wider space (Registrar's; not the pick's)."""
     wider = Registrar(ShapeSpace.load(wider_file), half_turn_symmetric=symmetric) if wider_file else None
     space = ShapeSpace.load(space_file)
-    return Registrar(space, half_turn_symmetric=symmetric, scale_prior=scale_prior(category), wider=wider)
+    return Registrar(
+        space, half_turn_symmetric=symmetric, scale_prior=scale_prior(category), wider=wider, part_prior=part_prior
+    )
 
 
 # How far (the standard deviation of its log) a category's shape may be scaled along each axis beyond its latent
