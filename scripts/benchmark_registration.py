@@ -18,8 +18,9 @@ python scripts/benchmark_registration.py --trials 18 --annotation canonical --cp
 With --pick-frames the views are instead the first frames that evaluate.py's campaign of the same objects, yaws,
 seed and --scenario_text would see, pick by pick (the object's mass changes how it settles, so the frame): the
 station's camera and sensor model, the segmenter's mask, the pose estimator and the paper's +-0.2 rad registration
-yaw noise. Each pick is simulated only until perception latches that frame (a few seconds instead of a whole pick),
-and the benchmark's registrar (--space-dir) registers it:
+yaw noise. Each pick is simulated only until perception latches that frame (a few seconds instead of a whole pick;
+the pick registers it once itself on the way), and the frame is registered to the category perception gave it, as
+the pick does, with the benchmark's spaces (--space-dir, --part-prior):
 
 python scripts/benchmark_registration.py --pick-frames --category watering_can --object-files cans/*.obj \
     --scenario_text "{object: {mass: 0.9}}"

@@ -325,17 +325,18 @@ class Registrar:
         self.mean_shape = (space.canonical_points + mean_field)[self.model_index]
         self.B = np.transpose(components[:, self.model_index, :], (1, 2, 0))  # m x 3 x q
         self.inverse_variances = 1.0 / np.maximum(space.pca.variances, 1e-12)
-        space.reconstruct(np.zeros(space.latent_size))  # its one-off precomputation now, not in the first register()
-        # Each point's weight in each grasp's handle part (PART_RADIUS about the grasp frames of the mean shape): the
-        # model points (m x 2) and the dense surface the registration returns (K x 2).
-        zero = space.control_poses_at(np.zeros(space.latent_size))
-        grasps_O = np.array([zero[name].translation() for name in GRASP_NAMES])
+        surface_O = space.reconstruct(np.zeros(space.latent_size))  # its one-off precomputation now, not in register()
+        if part_prior is not None:
+            # Each point's weight in each grasp's handle part (PART_RADIUS about the grasp frames of the mean shape):
+            # the model points (m x 2) and the dense surface the registration returns (K x 2).
+            zero = space.control_poses_at(np.zeros(space.latent_size))
+            grasps_O = np.array([zero[name].translation() for name in GRASP_NAMES])
 
-        def part_weights(points_O):
-            return np.exp(-np.sum((points_O[:, None, :] - grasps_O) ** 2, axis=2) / (2 * PART_RADIUS**2))
+            def part_weights(points_O):
+                return np.exp(-np.sum((points_O[:, None, :] - grasps_O) ** 2, axis=2) / (2 * PART_RADIUS**2))
 
-        self.part_weights = part_weights(self.mean_shape)
-        self.surface_part_weights = part_weights(space.reconstruct(np.zeros(space.latent_size)))
+            self.part_weights = part_weights(self.mean_shape)
+            self.surface_part_weights = part_weights(surface_O)
 
     def register(
         self,
@@ -462,7 +463,8 @@ class Registrar:
         moved_parts = slice(scaled.stop, scaled.stop + (3 * len(GRASP_NAMES) if part_prior else 0))
         parts = np.zeros((len(GRASP_NAMES), 3))  # each handle part's offset in O, m
         t0 = t.copy()
-        shape_O = self.mean_shape  # the model in O at (z, scale), m x 3
+        scaled_O = self.mean_shape  # the model in O at (z, scale), m x 3
+        shape_O = scaled_O  # (and the handle parts' offsets)
         RS = shape_O @ R.T  # the model in O turned into W's axes, m x 3 (z = 0)
         model = RS + t
         # The mixture's centroids: the model points visible from the viewpoint (all without one). Only
@@ -503,9 +505,8 @@ class Registrar:
                 d_translation,
                 R @ (scale[:, None] * B_rows),
             ]
-            if scale_prior:  # d(R S y)/d(log s_k) = R[:, k] s_k y_k (y without the parts' offsets)
-                scaled_O = shape_O[rows] - (self.part_weights[rows] @ parts if part_prior else 0)
-                blocks.append(R[None, :, :] * scaled_O[:, None, :])
+            if scale_prior:  # d(R S y)/d(log s_k) = R[:, k] s_k y_k
+                blocks.append(R[None, :, :] * scaled_O[rows][:, None, :])
             if part_prior:  # d s_m / d(offset of part k) = w_mk R
                 blocks += [R[None, :, :] * self.part_weights[rows, k][:, None, None] for k in range(len(GRASP_NAMES))]
             J = np.concatenate(blocks, axis=2).reshape(3 * len(rows), -1)  # (3 rows) x (parameters)
@@ -532,9 +533,8 @@ class Registrar:
                 log_scale = np.clip(log_scale + step[scaled], -MAX_LOG_SCALE, MAX_LOG_SCALE)
             if part_prior:
                 parts = parts + step[moved_parts].reshape(parts.shape)
-            shape_O = (self.mean_shape + self.B @ z) * np.exp(log_scale)
-            if part_prior:
-                shape_O = shape_O + self.part_weights @ parts
+            scaled_O = (self.mean_shape + self.B @ z) * np.exp(log_scale)
+            shape_O = scaled_O + self.part_weights @ parts if part_prior else scaled_O
             RS = shape_O @ R.T
             model = RS + t
             squared = squared_distances(model[rows] - centre, X32)
