@@ -64,6 +64,19 @@ def latch_offset(scenario: Scenario, look: bool = False) -> float:
     return (0.25 if look else 0.5) * step
 
 
+def MakeSegmenter(scenario: Scenario, weights: Path | None = None, category: str | None = None) -> Segmenter:
+    """A Segmenter with the scenario's depth camera and table top, told the scenario's requested category (or
+    `category`); weights None: the one that knows every taught category (categories.active_segmenter)."""
+    intrinsics, X_BC = depth_camera(scenario)
+    return Segmenter(
+        weights or categories.active_segmenter(),
+        category=scenario.requested_category if category is None else category,
+        intrinsics=intrinsics,
+        X_BC=X_BC,
+        table_top_z=scenario.table_xyz[2] + TABLE_HEIGHT,
+    )
+
+
 def MakePoseEstimator(scenario: Scenario) -> PoseEstimator:
     """A PoseEstimator with the intrinsics and mounting of the scenario's depth camera and the catalog's priors."""
     intrinsics, X_BC = depth_camera(scenario)
@@ -100,12 +113,7 @@ def MakePerception(
     builder = DiagramBuilder()
     dof = robot_spheres.kinematics.dof if robot_spheres is not None else 14
     latch = builder.AddNamedSystem("camera_latch", CameraLatch(robot_positions=dof, offset_s=latch_offset(scenario)))
-    segmenter = Segmenter(
-        weights or categories.active_segmenter(),
-        category=scenario.requested_category,
-        intrinsics=depth_camera(scenario)[0],
-    )
-    builder.AddNamedSystem("segmenter", segmenter)
+    segmenter = builder.AddNamedSystem("segmenter", MakeSegmenter(scenario, weights))
     pose_estimator = builder.AddNamedSystem("pose_estimator", MakePoseEstimator(scenario))
     registrar = builder.AddNamedSystem("shape_registrar", ShapeRegistrar())
     collector = builder.AddNamedSystem("perception_result", PerceptionResultCollector())
@@ -113,6 +121,7 @@ def MakePerception(
         builder.ExportInput(latch.GetInputPort(port), port)
     builder.Connect(latch.GetOutputPort("color_image"), segmenter.GetInputPort("color_image"))
     builder.Connect(latch.GetOutputPort("depth_image"), segmenter.GetInputPort("depth_image"))
+    builder.Connect(latch.GetOutputPort("camera_pose"), segmenter.GetInputPort("camera_pose"))
     builder.Connect(segmenter.GetOutputPort("segmentation"), pose_estimator.GetInputPort("segmentation"))
     builder.Connect(latch.GetOutputPort("depth_image"), pose_estimator.GetInputPort("depth_image"))
     builder.Connect(latch.GetOutputPort("camera_pose"), pose_estimator.GetInputPort("camera_pose"))

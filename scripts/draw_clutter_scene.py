@@ -44,7 +44,10 @@ def main():
     segmenter_context = segmenter.GetMyContextFromRoot(context)
     labels = segmenter.GetOutputPort("labels").Eval(segmenter_context)
     chosen = segmenter.GetOutputPort("segmentation").Eval(segmenter_context)
-    instances = object_instances(labels, depth, segmenter.classes, segmenter.min_pixels, segmenter.intrinsics)
+    table_view = segmenter.table_view(latch.GetOutputPort("camera_pose").Eval(latch_context))
+    instances = object_instances(
+        labels, depth, segmenter.classes, segmenter.min_pixels, segmenter.intrinsics, table_view
+    )
     scene = perception.GetOutputPort("scene_cloud_W").Eval(seen_context)
     reconstruction = perception.GetOutputPort("reconstructed_cloud_W").Eval(seen_context)
     planner = diagram.GetSubsystemByName("stomp_planner")

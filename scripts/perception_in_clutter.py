@@ -18,7 +18,7 @@ import numpy as np
 from pydrake.common.value import AbstractValue
 
 from diagrams.generation.clutter_scenes import clutter_scene
-from diagrams.perception import MakePoseEstimator
+from diagrams.perception import MakePoseEstimator, MakeSegmenter
 from diagrams.scenario import CLUTTER_SHAPES, Scenario, clutter_name
 from diagrams.station import settled_frame
 from systems.messages import GraspPoses
@@ -41,6 +41,7 @@ def _perceive(segmenter, pose_estimator, rgb, depth, X_WB):
     context = segmenter.CreateDefaultContext()
     segmenter.GetInputPort("color_image").FixValue(context, rgb)
     segmenter.GetInputPort("depth_image").FixValue(context, depth)
+    segmenter.GetInputPort("camera_pose").FixValue(context, AbstractValue.Make(X_WB))
     start = time.perf_counter()
     segmentation = segmenter.GetOutputPort("segmentation").Eval(context)
     segmentation_s = time.perf_counter() - start
@@ -66,7 +67,7 @@ def run(base: Scenario, weights, tables: int, empty_tables: int, split: str = "r
     intrinsics = pose_estimator.intrinsics
     rows, empty_rows = [], []
     for category in CATEGORIES:
-        segmenter = Segmenter(weights, category=category, intrinsics=intrinsics)
+        segmenter = MakeSegmenter(base, weights, category)
         for k in range(tables):
             scenario = clutter_scene(base, category, k, split)
             frame = settled_frame(scenario)
@@ -101,14 +102,17 @@ def run(base: Scenario, weights, tables: int, empty_tables: int, split: str = "r
             )
     segmenter = Segmenter(weights)
     registrar = ShapeRegistrar(list(CATEGORIES))
-    named = {category: Segmenter(weights, category=category, intrinsics=intrinsics) for category in CATEGORIES}
+    named = {category: MakeSegmenter(base, weights, category) for category in CATEGORIES}
     for k in range(empty_tables):
         table = clutter_scene(base, CATEGORIES[k % 2], k, split)
         shapes = [other for other in table.clutter if other.kind in CLUTTER_SHAPES]
         table = dataclasses.replace(table, object=dataclasses.replace(table.object, present=False), clutter=shapes)
         frame = settled_frame(table)
         labels = segmenter.segment(frame.rgb)
-        instances = object_instances(labels, frame.depth, segmenter.classes, segmenter.min_pixels, intrinsics)
+        table_view = named[CATEGORIES[0]].table_view(frame.X_WB)
+        instances = object_instances(
+            labels, frame.depth, segmenter.classes, segmenter.min_pixels, intrinsics, table_view
+        )
         rgb, depth = _to_images(frame)
         grasped = {c: _perceived_grasps(named[c], pose_estimator, registrar, rgb, depth, frame.X_WB) for c in named}
         detections = [c for c, grasps in grasped.items() if grasps.found]

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from pydrake.common.value import AbstractValue
-from pydrake.math import RigidTransform
+from pydrake.math import RigidTransform, RollPitchYaw
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource
@@ -24,7 +24,7 @@ from systems.messages import Segmentation
 from systems.perception import segmentation_network
 from systems.perception import segmenter as segmenter_module
 from systems.perception.depth_cleaning import flying_pixels
-from systems.perception.instances import named_object, object_instances
+from systems.perception.instances import TableView, named_object, object_instances
 from systems.perception.segmenter import DEFAULT_WEIGHTS, Segmenter, dominant_object
 from systems.perception.segmenter_training import intersection_over_union, predict_labels, train
 from systems.perception.shape_registrar import scale_prior, shape_space_file
@@ -118,6 +118,30 @@ def test_two_objects_one_in_front_of_the_other_are_two_and_the_nearest_of_the_na
     # Without depth (or intrinsics), the two cans are one region.
     assert len(object_instances(labels, None, CLASSES, min_pixels=100)) == 2
     assert not named_object([], CLASSES, "drill", labels.shape).found
+
+
+def test_an_upper_part_that_self_occlusion_cut_off_joins_its_object_where_the_table_is_known():
+    """Seen from 1 m straight above the table top: a drill's battery pack standing on the table (its top 2 cm up)
+    and its barrel floating 8 cm up, a 6 cm depth step apart where they meet in the image, are two instances
+    without the table and one drill with it. A can's face sloping down to the table, with a piece floating 6 cm up
+    beside its lowest edge, farther from the camera than the can (the base of another object the can may hide):
+    the piece stays apart."""
+    labels = np.zeros((120, 160), np.uint8)
+    depth = np.full(labels.shape, 1.0, np.float32)  # the table top
+    labels[60:100, 20:60], depth[60:100, 20:60] = 2, 0.98  # the battery pack
+    labels[30:60, 20:60], depth[30:60, 20:60] = 2, 0.92  # the barrel
+    labels[20:100, 90:130] = 1
+    depth[20:100, 90:130] = np.linspace(0.80, 0.99, 80)[:, None]  # the can's sloping face, 20 cm to 1 cm up
+    labels[100:120, 90:140], depth[100:120, 90:140] = 1, 0.94  # the floating piece beside its lowest edge
+    intrinsics = CameraInfo(160, 120, 0.3)
+    down = TableView(RigidTransform(RollPitchYaw(np.pi, 0, 0), [0, 0, 1.0]), top_z=0.0)
+    assert np.allclose(down.heights(np.array([[0.1, 0.2, 0.92]])), 0.08)
+    apart = object_instances(labels, depth, CLASSES, min_pixels=100, intrinsics=intrinsics)
+    assert sorted(i.pixel_count for i in apart) == [1000, 1200, 1600, 3200]
+    joined = object_instances(labels, depth, CLASSES, min_pixels=100, intrinsics=intrinsics, table=down)
+    assert sorted(i.pixel_count for i in joined) == [1000, 2800, 3200]
+    drill = named_object(joined, CLASSES, "drill", labels.shape)
+    assert drill.pixel_count == 2800 and drill.mask[40, 40] and drill.mask[80, 40]
 
 
 def test_dominant_object_reports_nothing_found():

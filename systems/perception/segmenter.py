@@ -8,6 +8,7 @@ import cv2
 import numpy as np
 import torch
 from pydrake.common.value import AbstractValue
+from pydrake.math import RigidTransform
 from pydrake.systems.framework import LeafSystem
 from pydrake.systems.sensors import CameraInfo, ImageDepth32F, ImageRgba8U
 from torch.nn import functional as F
@@ -16,7 +17,7 @@ from systems.messages import Segmentation
 from systems.parallel import parallel_map
 from systems.paths import MODELS_DIR
 from systems.perception import segmentation_network
-from systems.perception.instances import named_object, object_instances
+from systems.perception.instances import TableView, named_object, object_instances
 
 DEFAULT_WEIGHTS = MODELS_DIR / "segmenter.pt"
 # The network also on the mirror image, its scores summed (see Segmenter.segment).
@@ -71,16 +72,19 @@ class Segmenter(LeafSystem):
         input_ports:
         - color_image
         - depth_image (optional)
+        - camera_pose (optional)
         output_ports:
         - labels
         - segmentation
 
     Inputs ``color_image`` (ImageRgba8U from the camera) and, optionally, ``depth_image`` (ImageDepth32F, m, the
-    same view). Outputs ``labels`` (H x W uint8 class ids at the camera's resolution: 0 background, then
-    ``classes``) and ``segmentation`` (a Segmentation of the object to pick; its compute_s counts the network too).
+    same view) and ``camera_pose`` (RigidTransform X_WB of the camera body, as the PoseEstimator's). Outputs
+    ``labels`` (H x W uint8 class ids at the camera's resolution: 0 background, then ``classes``) and
+    ``segmentation`` (a Segmentation of the object to pick; its compute_s counts the network too).
     Without a named category that is the dominant object, the largest region of one class (dominant_object).
     With one, it is the nearest object the network labelled that category, objects cut apart in 3D where the depth
-    image and the intrinsics are given (systems/perception/instances.py: a cluttered table).
+    image and the intrinsics are given (systems/perception/instances.py: a cluttered table), and where the camera's
+    pose and the table top are given too, an object's upper part that self-occlusion cut off joins it.
 
     Args:
         weights: the network's (its classes come with it).
@@ -90,6 +94,9 @@ class Segmenter(LeafSystem):
             (instances.named_object).
         intrinsics: the depth camera's: with them and a depth image, objects are cut apart in 3D
             (instances.object_instances); without, each connected region of object pixels is one.
+        X_BC: the depth sensor in the camera body (with camera_pose: the depth camera's pose).
+        table_top_z: the table top's height in W, m: with it and a camera_pose, a floating cluster joins the
+            standing object below it (instances.TableView).
         flip: also run the network on the mirror image and sum the two score maps (test-time flip: twice the
             network's time).
 
@@ -104,6 +111,8 @@ class Segmenter(LeafSystem):
         category: str = "",
         intrinsics: CameraInfo | None = None,
         flip: bool = TEST_TIME_FLIP,
+        X_BC: RigidTransform | None = None,
+        table_top_z: float | None = None,
     ):
         super().__init__()
         self.model, metadata = segmentation_network.load(weights)
@@ -111,12 +120,14 @@ class Segmenter(LeafSystem):
         self.model = self.model.to(memory_format=torch.channels_last)
         self.classes = tuple(metadata["classes"])
         self.min_pixels, self.category, self.intrinsics, self.flip = min_pixels, category, intrinsics, flip
+        self.X_BC, self.table_top_z = X_BC or RigidTransform(), table_top_z
         if category:
             check_category(category, self.classes)
         # One inference now: torch's first call is several times slower than the next ones.
         self.segment(np.zeros((*segmentation_network.INPUT_SIZE[::-1], 3), np.uint8))
         self.color_image_port = self.DeclareAbstractInputPort("color_image", AbstractValue.Make(ImageRgba8U()))
         self.depth_image_port = self.DeclareAbstractInputPort("depth_image", AbstractValue.Make(ImageDepth32F()))
+        self.camera_pose_port = self.DeclareAbstractInputPort("camera_pose", AbstractValue.Make(RigidTransform()))
         # Computed from the image alone (not from time): an image that does not change is segmented once.
         inputs = {self.all_input_ports_ticket()}
         self.labels_port = self.DeclareAbstractOutputPort(
@@ -152,6 +163,13 @@ class Segmenter(LeafSystem):
         with torch.no_grad():  # (in the calling thread: torch's gradient mode is per thread)
             return self.model(x.contiguous(memory_format=torch.channels_last))
 
+    def table_view(self, X_WB: RigidTransform | None) -> TableView | None:
+        """The table top as the depth camera sees it from the camera body's pose X_WB (None without a table top or
+        a pose)."""
+        if self.table_top_z is None or X_WB is None:
+            return None
+        return TableView(X_WB @ self.X_BC, self.table_top_z)
+
     def _calc_labels(self, context, output):
         image = self.color_image_port.Eval(context)
         output.set_value(self.segment(np.asarray(image.data)))
@@ -165,7 +183,9 @@ class Segmenter(LeafSystem):
                 depth = np.asarray(self.depth_image_port.Eval(context).data)[:, :, 0]
                 if depth.shape != labels.shape:
                     raise ValueError(f"depth image {depth.shape} and colour image {labels.shape} differ in size")
-            instances = object_instances(labels, depth, self.classes, self.min_pixels, self.intrinsics)
+            X_WB = self.camera_pose_port.Eval(context) if self.camera_pose_port.HasValue(context) else None
+            table = self.table_view(X_WB)
+            instances = object_instances(labels, depth, self.classes, self.min_pixels, self.intrinsics, table)
             segmentation = named_object(instances, self.classes, self.category, labels.shape)
         else:
             segmentation = dominant_object(labels, self.classes, self.min_pixels)
