@@ -86,6 +86,21 @@ def _colliding_configuration(world) -> np.ndarray:
     raise AssertionError("no colliding sample found")
 
 
+def test_the_least_clear_share_of_each_transition_is_where_the_dense_check_finds_it(planning):
+    """What a held move's collision cost watches after its restart: per transition, the share of the way of the
+    least clear of the states the dense check looks at (from under the table: some of them collide)."""
+    motions, q_goal = planning
+    stomp, obstacles = motions.stomp, motions.world.planning_obstacles()
+    theta = np.linspace(BELOW_TABLE, q_goal, 16)
+    shares = stomp._least_clear_along(theta, obstacles)
+    assert shares.shape == (15,) and np.all((shares > 0) & (shares < 1))
+    for k, share in enumerate(shares):
+        steps = max(4, int(np.ceil(np.abs(theta[k + 1] - theta[k]).max() / stomp.config.segment_step_rad)))
+        along = np.arange(1, steps) / steps
+        clearance = stomp.clearance((1 - along)[:, None] * theta[k] + along[:, None] * theta[k + 1], obstacles, True)
+        assert share == pytest.approx(along[np.argmin(clearance)])
+
+
 def test_cost_terms_match_hand_computation(planning):
     motions, q_goal = planning
     world, stomp = motions.world, motions.stomp
