@@ -165,15 +165,23 @@ def _rate_cell(rate: float, attempts: int) -> str:
 def print_tables(summary: dict, category: str, trials: int, yaw_noise: float):
     yaws = next(iter(summary["per_instance"].values()))["per_yaw"].keys()
     print(f"\nSuccess rate ({category}, {trials} trial(s) per yaw, yaw noise +-{yaw_noise:.2f} rad), Table II form")
-    print(f"{'object':<16}{'success (attempts)':>20}" + "".join(f"{'yaw ' + y:>12}" for y in yaws) + f"{'paper':>8}")
+    width = max(16, 2 + max(len(name) for name in summary["per_instance"]))
+    print(
+        f"{'object':<{width}}{'success (attempts)':>20}" + "".join(f"{'yaw ' + y:>12}" for y in yaws) + f"{'paper':>8}"
+    )
     for name, row in summary["per_instance"].items():
         paper = PAPER_CAN_SUCCESS.get(name) if category == "watering_can" else None
         cells = "".join(f"{100 * rate:>11.0f}%" for rate in row["per_yaw"].values())
         paper_cell = f"{100 * paper:>7.0f}%" if paper is not None else f"{'-':>8}"
-        print(f"{name:<16}{_rate_cell(row['success_rate'], row['attempts']):>20}{cells}{paper_cell}")
+        print(f"{name:<{width}}{_rate_cell(row['success_rate'], row['attempts']):>20}{cells}{paper_cell}")
     low, high = summary["success_rate_ci95"]
-    print(f"{'all':<16}{_rate_cell(summary['success_rate'], summary['trials']):>20}   95 % Wilson interval "
+    print(f"{'all':<{width}}{_rate_cell(summary['success_rate'], summary['trials']):>20}   95 % Wilson interval "
           f"{100 * low:.0f}-{100 * high:.0f} %")  # fmt: skip
+    always = summary.get("always_lifted", [])
+    print(
+        f"objects lifted in every pick: {len(always)}/{len(summary['per_instance'])}"
+        + (f" ({', '.join(always)})" if always else "")
+    )
 
     print("\nRuntime and success per component; paper Table III form (paper: real robot)")
     print(f"{'component':<46}{'runtime [s]':>18}{'median':>9}{'success':>10}{'paper [s]':>11}")

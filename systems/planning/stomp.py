@@ -103,8 +103,8 @@ class StompConfig:
     # it least clear (a turn stalled with every keyframe and middle clear and a segment 1-4 cm deep at 0.4 of its
     # way); 0: neither. Tuning range, the 15 turns of the first 200 that STOMP left unsolved at 300 iterations, now
     # 600 at most: 0.2 / 0.4 / 0.6 / 0.8 / 1.2 / 1.6 / 2.4 rad solved 5 / 6 / 8 / 8 / 9 / 7 / 5; the noise alone
-    # (0.4, nothing watched) 6, the noise with every transition's quarter points 6. A plan solved within
-    # restart_after iterations is unchanged.
+    # (0.4, nothing watched) 6, the noise with every transition's quarter points 6; restarting at 50 iterations
+    # solved no more, no sooner (docs/planning.md). A plan solved within restart_after iterations is unchanged.
     held_restart_noise_std: float = 1.2
     # An unconstrained plan stuck at its first restart first tries a path RRT-Connect samples in the sphere model
     # (systems/planning/rrt_connect.py), this many random draws at most (0: none).
