@@ -229,7 +229,7 @@ def summarize(records: list[dict]) -> dict:
     """Success per object (and per yaw), per pipeline component, and the stage times' statistics.
 
     Returns a dict with success_rate, per_instance[name] = {success_rate, successes, attempts,
-    per_yaw}, always_lifted (the objects every pick of which succeeded, at every yaw), components[c] =
+    per_yaw}, always_succeeded (the objects every pick of which succeeded), components[c] =
     {success_rate, reached} (of the trials that reached c, the share that passed it), and
     stages[f"{stage}_s_{mean|std|median}"] over the trials that timed it.
     """
@@ -304,7 +304,7 @@ def summarize(records: list[dict]) -> dict:
         "release_turn_rad_max": max(released, default=float("nan")),
         "trials": len(records),
         "per_instance": per_instance,
-        "always_lifted": [name for name, row in per_instance.items() if row["successes"] == row["attempts"]],
+        "always_succeeded": [name for name, row in per_instance.items() if row["successes"] == row["attempts"]],
         "components": components,
         "stages": stages,
     }

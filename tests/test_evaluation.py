@@ -104,7 +104,7 @@ def test_summary_counts_success_per_object_yaw_and_component():
     assert summary["per_instance"]["a"]["success_rate"] == pytest.approx(2 / 3)
     assert summary["per_instance"]["a"]["per_yaw"] == {"+0.25": 1.0, "+0.00": 0.5}
     assert summary["per_instance"]["b"]["attempts"] == 3 and summary["per_instance"]["b"]["successes"] == 1
-    assert summary["always_lifted"] == [] and summarize(records[:2] + records[5:])["always_lifted"] == ["a", "b"]
+    assert summary["always_succeeded"] == [] and summarize(records[:2] + records[5:])["always_succeeded"] == ["a", "b"]
     components = summary["components"]
     assert list(components) == list(COMPONENTS)
     assert components["segmentation"] == {"success_rate": pytest.approx(5 / 6), "reached": 6}
