@@ -41,6 +41,7 @@ import trimesh
 import yaml
 from build_shape_space import build_from_folder, pose_entries, sample_mesh
 from json_report import write_json
+from pydrake.math import RigidTransform
 from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 from scenario_options import add_sensor_option, with_sensor
 from scipy.spatial import cKDTree
@@ -48,12 +49,12 @@ from scipy.spatial import cKDTree
 from diagrams.autonomous_pick import PERCEIVE_AT_S, MakePickDiagram
 from diagrams.evaluation import PAPER_YAWS, file_objects, make_trials
 from diagrams.generation.objects import catalog
-from diagrams.generation.objects.library import generated_instance_directory, load_info, mesh_to_sdf, resolve_object
+from diagrams.generation.objects.library import generated_instance_directory, load_info, mesh_to_sdf
 from diagrams.generation.synthetic_scenes import SyntheticScene
 from diagrams.perception import MakePoseEstimator
+from diagrams.pick_simulation import object_body, station_plant
 from diagrams.scenario import Scenario, load_scenario, overlay_scenario
-from diagrams.station import object_pose_on_table
-from systems.messages import Segmentation
+from systems.messages import ObjectEstimate, Segmentation
 from systems.perception.rgbd_noise import RgbdNoiseParameters, noisy_depth, sensor_model
 from systems.perception.shape_registrar import registrar_of, shape_space_file, wider_shape_space_file
 from systems.shape_space.cpd import deformable_cpd, thinned
@@ -253,18 +254,18 @@ def pick_frame_trials(
     rows, meshes = [], {}
     for n, trial in enumerate(make_trials(base, category, objects, trials, yaws)):
         scenario = trial.scenario
-        estimate = first_pick_frame(scenario)
-        named = {"category": category, "instance": trial.name, "yaw": trial.yaw, "seed": scenario.random_seed}
+        estimate, X_WO_true = first_pick_frame(scenario)
+        pick = {"category": category, "instance": trial.name, "yaw": trial.yaw, "seed": scenario.random_seed}
         if not estimate.found:
             logging.warning(
                 "%2d %s at yaw %+.2f: perception found no object (%s)", n, trial.name, trial.yaw, estimate.message
             )
-            rows.append({**named, "found": False, "message": estimate.message})
+            rows.append({**pick, "found": False, "message": estimate.message})
             continue
         if estimate.category not in registrars:  # (a taught category the network knows: no space here)
             message = f"perceived as {estimate.category!r}, a category this benchmark has no space for"
             logging.warning("%2d %s at yaw %+.2f: %s", n, trial.name, trial.yaw, message)
-            rows.append({**named, "found": False, "message": message})
+            rows.append({**pick, "found": False, "message": message})
             continue
         if scenario.object.file:
             path = Path(scenario.object.file)
@@ -274,21 +275,21 @@ def pick_frame_trials(
             mesh_file = generated_instance_directory(category, scenario.object.instance) / "visual.obj"
         if mesh_file not in meshes:
             meshes[mesh_file] = trimesh.load(mesh_file, force="mesh")
-        X_WO_true = object_pose_on_table(scenario, resolve_object(scenario.object))
         start = time.perf_counter()
         result = registrars[estimate.category].register(
             estimate.points_W, estimate.X_WO, estimate.viewpoint_W, estimate.view
         )
         seconds = time.perf_counter() - start
         row = judged_row(result, estimate.X_WO, X_WO_true, true, meshes[mesh_file])
-        rows.append({**named, "found": True, "perceived_category": estimate.category, "registration_s": seconds, **row})
+        rows.append({**pick, "found": True, "perceived_category": estimate.category, "registration_s": seconds, **row})
         log_row(n, rows[-1], result)
     return rows
 
 
-def first_pick_frame(scenario: Scenario):
+def first_pick_frame(scenario: Scenario) -> tuple[ObjectEstimate, RigidTransform]:
     """The ObjectEstimate the autonomous pick's registrar is given for its first frame (after the registration yaw
-    noise): the pick diagram simulated until perception has latched that frame."""
+    noise), and the object's true pose X_WO then (as it settled): the pick diagram simulated until perception has
+    latched that frame."""
     diagram = MakePickDiagram(scenario)
     simulator = Simulator(diagram)
     ApplySimulatorConfig(scenario.simulator_config, simulator)
@@ -306,7 +307,9 @@ def first_pick_frame(scenario: Scenario):
             simulator.AdvanceTo(t)
     finally:
         logging.disable(logging.NOTSET)
-    return registrar.GetInputPort("estimate").Eval(registrar.GetMyContextFromRoot(context))
+    plant = station_plant(diagram)
+    X_WO = object_body(plant).EvalPoseInWorld(plant.GetMyContextFromRoot(context))
+    return registrar.GetInputPort("estimate").Eval(registrar.GetMyContextFromRoot(context)), X_WO
 
 
 def folder_spaces(annotation: str, directory: Path, scaled_copies: int = 0) -> dict:

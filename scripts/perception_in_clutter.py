@@ -23,7 +23,6 @@ from diagrams.scenario import CLUTTER_SHAPES, Scenario, clutter_name
 from diagrams.station import settled_frame
 from systems.messages import GraspPoses
 from systems.perception.instances import object_instances
-from systems.perception.segmenter import Segmenter
 from systems.perception.shape_registrar import ShapeRegistrar
 
 CATEGORIES = ("watering_can", "drill")
@@ -64,7 +63,6 @@ def _perceived_grasps(segmenter, pose_estimator, registrar, rgb, depth, X_WB) ->
 def run(base: Scenario, weights, tables: int, empty_tables: int, split: str = "report") -> dict:
     """The benchmark's rows and summary (see the module docstring)."""
     pose_estimator = MakePoseEstimator(base)
-    intrinsics = pose_estimator.intrinsics
     rows, empty_rows = [], []
     for category in CATEGORIES:
         segmenter = MakeSegmenter(base, weights, category)
@@ -100,7 +98,7 @@ def run(base: Scenario, weights, tables: int, empty_tables: int, split: str = "r
                 f"{row.get('translation_error_m', float('nan')):.3f} m",
                 segmentation.message,
             )
-    segmenter = Segmenter(weights)
+    segmenter = MakeSegmenter(base, weights, category="")  # (no category: the network's instances alone)
     registrar = ShapeRegistrar(list(CATEGORIES))
     named = {category: MakeSegmenter(base, weights, category) for category in CATEGORIES}
     for k in range(empty_tables):
@@ -109,10 +107,10 @@ def run(base: Scenario, weights, tables: int, empty_tables: int, split: str = "r
         table = dataclasses.replace(table, object=dataclasses.replace(table.object, present=False), clutter=shapes)
         frame = settled_frame(table)
         labels = segmenter.segment(frame.rgb)
-        table_view = named[CATEGORIES[0]].table_view(frame.X_WB)
         instances = object_instances(
-            labels, frame.depth, segmenter.classes, segmenter.min_pixels, intrinsics, table_view
-        )
+            labels, frame.depth, segmenter.classes, segmenter.min_pixels, segmenter.intrinsics,
+            segmenter.table_view(frame.X_WB),
+        )  # fmt: skip
         rgb, depth = _to_images(frame)
         grasped = {c: _perceived_grasps(named[c], pose_estimator, registrar, rgb, depth, frame.X_WB) for c in named}
         detections = [c for c, grasps in grasped.items() if grasps.found]

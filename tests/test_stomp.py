@@ -11,6 +11,7 @@ from diagrams.planning_scene import make_pick_motions, make_planning_world, obje
 from diagrams.scenario import initial_positions
 from diagrams.station import object_pose_on_table
 from systems.planning import pick_motions
+from systems.planning.closure import ClosureConstraint
 from systems.planning.ik import DualArmIk
 from systems.planning.kinematics import Payload, joint_torques
 from systems.planning.obstacles import DistanceField, Obstacles
@@ -99,6 +100,14 @@ def test_the_least_clear_share_of_each_transition_is_where_the_dense_check_finds
         along = np.arange(1, steps) / steps
         clearance = stomp.clearance((1 - along)[:, None] * theta[k] + along[:, None] * theta[k + 1], obstacles, True)
         assert share == pytest.approx(along[np.argmin(clearance)])
+    # A held move's cost then also counts each transition's collision there, at the keyframe it leads to.
+    closure = (ClosureConstraint(), stomp.end_effectors.relative(theta[:1])[0])
+    plain = stomp._cost_terms(theta[None], obstacles, closure)[0, :, TERMS.index("collision")]
+    watched = stomp._cost_terms(theta[None], obstacles, closure, watched=shares)[0, :, TERMS.index("collision")]
+    between = (1 - shares)[:, None] * theta[:-1] + shares[:, None] * theta[1:]
+    shortfall = stomp._clearances(between, obstacles, held=True)[1]
+    assert shortfall.sum() > 0 and watched[0] == plain[0]
+    np.testing.assert_allclose(watched[1:] - plain[1:], shortfall, rtol=1e-9, atol=1e-12)
 
 
 def test_cost_terms_match_hand_computation(planning):

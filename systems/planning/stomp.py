@@ -520,7 +520,7 @@ class Stomp:
         std = config.noise_std if constraints is None else config.constrained_noise_std
         kept = np.empty((0, n, self.dof))
         kept_terms = np.empty((0, n, len(TERMS)))
-        watched = None  # each transition's least clear share of the way (watched from a held move's restart on)
+        watching = False  # each transition's least clear share of the way (from a held move's restart on)
         iteration = 0
         while True:
             iteration += 1
@@ -536,8 +536,7 @@ class Stomp:
             if constraints is not None and config.rollout_projection_steps:
                 interior = constraints.project(rollouts[:, 1:-1].reshape(-1, self.dof), config.rollout_projection_steps)
                 rollouts[:, 1:-1] = interior.reshape(config.rollouts, free, self.dof)
-            if watched is not None:
-                watched = self._least_clear_along(theta, obstacles)
+            watched = self._least_clear_along(theta, obstacles) if watching else None
             terms = self._cost_terms(rollouts, obstacles, closure, orientation, payload, watched)
             all_rollouts = np.concatenate([rollouts, kept])
             all_terms = np.concatenate([terms, kept_terms])
@@ -567,7 +566,7 @@ class Stomp:
                 theta, std = starts.pop(0), config.noise_std
                 kept, kept_terms = kept[:0], kept_terms[:0]
             if constraints is not None and config.held_restart_noise_std and iteration % config.restart_after == 0:
-                std, watched = config.held_restart_noise_std, np.full(n - 1, 0.5)
+                std, watching = config.held_restart_noise_std, True
                 kept, kept_terms = kept[:0], kept_terms[:0]
             if iteration >= config.max_iterations or elapsed > config.time_limit_s:
                 return StompResult(
