@@ -139,6 +139,27 @@ def test_cost_terms_match_hand_computation(planning):
     assert not terms[:, [TERMS.index("closure"), TERMS.index("orientation")]].any()  # no hand constraint asked
 
 
+def test_batched_sphere_centres_and_the_broad_phase_agree_with_one_sphere_at_a_time(planning):
+    """A batch's sphere centres are each body's pose times the sphere's centre, and every sphere pair within the
+    margin in some configuration of the batch passes the broad phase."""
+    motions, q_goal = planning
+    stomp = motions.stomp
+    rng = np.random.default_rng(4)
+    q = np.clip(q_goal + 0.8 * rng.standard_normal((24, stomp.dof)), stomp.lower, stomp.upper)
+    poses = stomp.kinematics.body_poses(q)
+    spheres = stomp.spheres
+    centres = spheres.centres_W(poses)
+    X_WB = poses[:, spheres.body]  # B x S x 4 x 4: each sphere's body
+    expected = np.einsum("bsij,sj->bsi", X_WB[..., :3, :3], spheres.centre_B) + X_WB[..., :3, 3]
+    np.testing.assert_allclose(centres, expected, atol=1e-12)
+    gaps = np.linalg.norm(centres[:, stomp.pair_a] - centres[:, stomp.pair_b], axis=2) - (
+        spheres.radius[stomp.pair_a] + spheres.radius[stomp.pair_b]
+    )
+    within = np.nonzero((gaps < stomp.config.margin).any(axis=0))[0]
+    assert len(within) > 0
+    assert set(within) <= set(stomp._near_sphere_pairs(poses))
+
+
 def test_a_held_payload_loads_the_arms_as_its_weight_would(planning):
     """Two point masses in the hands cost the arms the torque of their weight through the hands' Jacobians."""
     motions, q_goal = planning

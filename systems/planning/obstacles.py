@@ -146,7 +146,9 @@ class Obstacles:
         clearances = bound[:, carried.cluster_of]
         b, m = np.nonzero(clearances < margin)
         if len(b):  # each near sphere alone at its own pose
-            points = placed(carried.points_B[m, None, :], X_WB[b])[:, 0]
+            X = np.ascontiguousarray(X_WB[:, :3])[b]  # N x 3 x 4
+            x = carried.points_B[m]
+            points = X[..., 0] * x[:, 0, None] + X[..., 1] * x[:, 1, None] + X[..., 2] * x[:, 2, None] + X[..., 3]
             clearances[b, m] = self.distance(points) - carried.radius
         return clearances
 

@@ -49,6 +49,7 @@ from systems.planning.closure import (
     transition_costs,
 )
 from systems.planning.hand_constraints import HandConstraints, bounded_step
+from systems.planning.heap import keep_freed_heap
 from systems.planning.kinematics import Payload, joint_torques, relative_pose
 from systems.planning.obstacles import Obstacles, placed
 from systems.planning.rrt_connect import RrtConfig, rrt_connect
@@ -238,6 +239,7 @@ class Stomp:
             that decide which sphere pairs count. The scene to plan in is each plan's argument.
         config: fixed for this planner's life (default StompConfig()).
         """
+        keep_freed_heap()
         self.world = world
         self.end_effectors = world.end_effectors
         self.velocity_limits, self.effort_limits = world.velocity_limits, world.effort_limits
@@ -317,11 +319,15 @@ class Stomp:
 
     def _near_sphere_pairs(self, body_poses: np.ndarray) -> np.ndarray:
         """Indices of the sphere pairs whose bodies' bounding spheres come within the margin in any configuration."""
-        poses = body_poses[:, self.bound_body, :3]  # B x bodies x 3 x 4
-        centres = np.einsum("bkij,kj->bki", poses[..., :3], self.bound_centre) + poses[..., 3]
+        X = body_poses[:, self.bound_body, :3].swapaxes(0, 1)  # bodies x B x 3 x 4 (body_poses' own layout)
+        c = self.bound_centre[:, None, None]
+        centres = X[..., 0] * c[..., 0] + X[..., 1] * c[..., 1] + X[..., 2] * c[..., 2] + X[..., 3]  # bodies x B x 3
         i, j = self.body_pairs[:, 0], self.body_pairs[:, 1]
-        squared = np.square(centres[:, i] - centres[:, j]).sum(axis=-1)
-        close = (squared < (self.bound_radius[i] + self.bound_radius[j] + self.config.margin) ** 2).any(axis=0)
+        difference = centres[i] - centres[j]
+        difference *= difference
+        squared = difference[..., 0] + difference[..., 1] + difference[..., 2]
+        reach = self.bound_radius[i] + self.bound_radius[j] + self.config.margin
+        close = (squared < (reach**2)[:, None]).any(axis=1)
         return np.nonzero(close[self.pair_group])[0]
 
     def _cost_terms(
