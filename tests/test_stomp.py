@@ -140,8 +140,9 @@ def test_cost_terms_match_hand_computation(planning):
 
 
 def test_batched_sphere_centres_and_the_broad_phase_agree_with_one_sphere_at_a_time(planning):
-    """A batch's sphere centres are each body's pose times the sphere's centre, and every sphere pair within the
-    margin in some configuration of the batch passes the broad phase."""
+    """A batch's sphere centres are each body's pose times the sphere's centre, every sphere pair within the
+    margin in some configuration of the batch passes the broad phase, and the scene's broad phase (bodies'
+    bounding spheres) leaves every clearance below the margin exact."""
     motions, q_goal = planning
     stomp = motions.stomp
     rng = np.random.default_rng(4)
@@ -157,7 +158,20 @@ def test_batched_sphere_centres_and_the_broad_phase_agree_with_one_sphere_at_a_t
     )
     within = np.nonzero((gaps < stomp.config.margin).any(axis=0))[0]
     assert len(within) > 0
-    assert set(within) <= set(stomp._near_sphere_pairs(poses))
+    assert set(within) <= set(stomp._near_sphere_pairs(stomp._body_bounds(poses)))
+    # Against a box among the arms: every sphere's clearance to it exact below the margin, the shortfall as if each
+    # sphere were placed alone.
+    X_WB = np.eye(4)
+    X_WB[:3, 3] = centres[:, spheres.group == 1].mean(axis=(0, 1))
+    scene = Obstacles().add_box(X_WB, [0.3, 0.3, 0.3])
+    to_box = scene.distance(centres) - spheres.radius
+    all_gaps = np.concatenate([to_box, np.where(gaps < stomp.config.margin, gaps, np.inf)], axis=1)
+    smallest, shortfall = stomp._clearances(q, scene, poses)
+    assert (to_box < 0).any() and (to_box > stomp.config.margin).any()
+    np.testing.assert_allclose(shortfall, np.maximum(stomp.config.margin - all_gaps, 0).sum(axis=1), rtol=1e-5)
+    exact = all_gaps.min(axis=1)
+    np.testing.assert_allclose(smallest[exact < stomp.config.margin], exact[exact < stomp.config.margin], atol=1e-6)
+    assert np.all(smallest[exact >= stomp.config.margin] >= stomp.config.margin - 1e-9)
 
 
 def test_a_held_payload_loads_the_arms_as_its_weight_would(planning):
