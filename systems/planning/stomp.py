@@ -505,22 +505,25 @@ class Stomp:
                 return StompResult(
                     False, theta, 0, 0.0, np.nan, f"the {name} configuration is outside the joint limits"
                 )
-        end_clearance = self.clearance(np.stack([q_start, q_goal]), obstacles, held=closure_constraint is not None)
-        if np.any(end_clearance < 0):
-            which = "start" if end_clearance[0] < 0 else "goal"
-            return StompResult(False, theta, 0, 0.0, float(end_clearance.min()), f"the {which} configuration collides")
         closure = orientation = constraints = None
+        if closure_constraint is not None or orientation_constraint is not None:
+            hands_start = self.end_effectors.poses(q_start[None])
         if closure_constraint is not None:
-            closure = (closure_constraint, self.end_effectors.relative(q_start[None])[0])
+            closure = (closure_constraint, relative_pose(*hands_start)[0])
         if orientation_constraint is not None:
-            orientation = (orientation_constraint, [X[0, :3, :3] for X in self.end_effectors.poses(q_start[None])])
+            orientation = (orientation_constraint, [X[0, :3, :3] for X in hands_start])
         if closure or orientation:
             upright_only = orientation_constraint is not None and orientation_constraint.upright_only
             constraints = self.constraints(
                 closure[1] if closure else None, orientation[1] if orientation else None, upright_only
             )
             theta[1:-1] = constraints.project(theta[1:-1], config.projection_steps)
-        feasible, clearance = self._feasible(theta, obstacles, closure, orientation)
+        keyframe_clearance = self.clearance(theta, obstacles, held=closure is not None)  # the ends' among them
+        if keyframe_clearance[0] < 0 or keyframe_clearance[-1] < 0:
+            which = "start" if keyframe_clearance[0] < 0 else "goal"
+            end_clearance = float(keyframe_clearance[[0, -1]].min())
+            return StompResult(False, theta, 0, 0.0, end_clearance, f"the {which} configuration collides")
+        feasible, clearance = self._feasible(theta, obstacles, closure, orientation, keyframe_clearance)
         starts = []  # first trajectories to restart from, best first (unconstrained plans)
         if not feasible and initial_path is None and constraints is None:
             starts = self._initial_trajectories(theta, obstacles, rng)
@@ -782,11 +785,12 @@ class Stomp:
             feasible, clearance = self._feasible(best, obstacles, closure, orientation)
         return best, feasible, clearance
 
-    def _feasible(self, theta, obstacles, closure, orientation) -> tuple[bool, np.ndarray]:
+    def _feasible(self, theta, obstacles, closure, orientation, clearance=None) -> tuple[bool, np.ndarray]:
         """Whether the trajectory is a solution (clear of collision at and between its keyframes, within the
-        hand constraints densely), and its keyframes' clearances."""
+        hand constraints densely), and its keyframes' clearances (`clearance` if already computed)."""
         held = closure is not None
-        clearance = self.clearance(theta, obstacles, held)
+        if clearance is None:
+            clearance = self.clearance(theta, obstacles, held)
         ok = clearance.min() > self.config.required_clearance
         if ok and (closure is not None or orientation is not None):  # both from one batch of hand poses
             hands = self.dense_hand_poses(theta)
