@@ -115,7 +115,6 @@ class BatchedKinematics:
         # (L x L: path[l, k] when k is l or one of its ancestors, roots excluded).
         self._parent = parent
         self._arm_dof = arm_dof
-        self._roots = np.nonzero(parent < 0)[0]
         self._path = np.zeros((len(self.links), len(self.links)))
         for i in range(len(self.links)):
             j = i
