@@ -177,7 +177,7 @@ def print_tables(summary: dict, category: str, trials: int, yaw_noise: float):
     low, high = summary["success_rate_ci95"]
     print(f"{'all':<{width}}{_rate_cell(summary['success_rate'], summary['trials']):>20}   95 % Wilson interval "
           f"{100 * low:.0f}-{100 * high:.0f} %")  # fmt: skip
-    always = summary.get("always_succeeded", [])
+    always = summary["always_succeeded"]
     print(
         f"objects with every pick a success: {len(always)}/{len(summary['per_instance'])}"
         + (f" ({', '.join(always)})" if always else "")

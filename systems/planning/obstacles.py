@@ -79,6 +79,17 @@ def placed(points_B: np.ndarray, X_WB: np.ndarray) -> np.ndarray:
     return points_B @ np.swapaxes(X_WB[:, :3, :3], 1, 2) + X_WB[:, None, :3, 3]
 
 
+def placed_each(points_B: np.ndarray, X_WB: np.ndarray) -> np.ndarray:
+    """Each point (... x 3, m, in its body's frame) where its own pose X_WB (... x 3 x 4, or ... x 4 x 4) puts it:
+    ... x 3, as three multiply-adds (numpy's stacks of 3 x 3 products are slow)."""
+    return (
+        X_WB[..., :3, 0] * points_B[..., 0, None]
+        + X_WB[..., :3, 1] * points_B[..., 1, None]
+        + X_WB[..., :3, 2] * points_B[..., 2, None]
+        + X_WB[..., :3, 3]
+    )
+
+
 def covering_centres(points: np.ndarray, radius: float, most: int) -> np.ndarray:
     """Sphere centres among the points (N x 3, m) such that every point lies within `radius` (m) of one: farthest
     point sampling from the first point, stopped once the farthest is that near (or at `most` centres)."""
@@ -146,9 +157,7 @@ class Obstacles:
         clearances = bound[:, carried.cluster_of]
         b, m = np.nonzero(clearances < margin)
         if len(b):  # each near sphere alone at its own pose
-            X = np.ascontiguousarray(X_WB[:, :3])[b]  # N x 3 x 4
-            x = carried.points_B[m]
-            points = X[..., 0] * x[:, 0, None] + X[..., 1] * x[:, 1, None] + X[..., 2] * x[:, 2, None] + X[..., 3]
+            points = placed_each(carried.points_B[m], np.ascontiguousarray(X_WB[:, :3])[b])
             clearances[b, m] = self.distance(points) - carried.radius
         return clearances
 

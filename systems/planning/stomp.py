@@ -51,7 +51,7 @@ from systems.planning.closure import (
 from systems.planning.hand_constraints import HandConstraints, bounded_step
 from systems.planning.heap import keep_freed_heap
 from systems.planning.kinematics import Payload, joint_torques, relative_pose
-from systems.planning.obstacles import Obstacles, placed
+from systems.planning.obstacles import Obstacles, placed, placed_each
 from systems.planning.rrt_connect import RrtConfig, rrt_connect
 from systems.planning.world import LIMIT_TOLERANCE_RAD, PlanningWorld
 
@@ -296,8 +296,8 @@ class Stomp:
     ) -> tuple[np.ndarray, np.ndarray]:
         """(smallest clearance, summed shortfall below the margin over all spheres and pairs) per configuration;
         with `held`, the hand-to-hand pairs left out. Exact below the margin; a sphere whose body's bounding sphere
-        is farther than the margin from the scene counts at that bound (at least the margin: 9 in 10 of a turn's
-        spheres)."""
+        is farther than the margin from the scene counts at that bound (at least the margin; 9 in 10 of the
+        sphere-states of noisy trajectories about a report turn's straight line)."""
         shape = q.shape[:-1]
         if poses is None:
             poses = self.kinematics.body_poses(q.reshape(-1, self.dof))
@@ -328,9 +328,8 @@ class Stomp:
 
     def _body_bounds(self, body_poses: np.ndarray) -> np.ndarray:
         """The centres (bodies x B x 3, m, in W) of the bodies' bounding spheres (radii bound_radius)."""
-        X = body_poses[:, self.bound_body, :3].swapaxes(0, 1)  # bodies x B x 3 x 4 (body_poses' own layout)
-        c = self.bound_centre[:, None, None]
-        return X[..., 0] * c[..., 0] + X[..., 1] * c[..., 1] + X[..., 2] * c[..., 2] + X[..., 3]
+        X_WB = body_poses[:, self.bound_body, :3].swapaxes(0, 1)  # bodies x B x 3 x 4 (body_poses' own layout)
+        return placed_each(self.bound_centre[:, None], X_WB)
 
     def _near_sphere_pairs(self, bounds: np.ndarray) -> np.ndarray:
         """Indices of the sphere pairs whose bodies' bounding spheres (centres bodies x B x 3, _body_bounds) come
