@@ -41,9 +41,14 @@ objects: env
 segmenter: env
 	$(PY) scripts/generate_segmentation_data.py --jobs 2
 	$(PY) scripts/generate_segmentation_data.py --jobs 2 --crowded --frames 400 --seed 2 --out data/segmentation/crowded.npz
+	$(PY) scripts/generate_segmentation_data.py --jobs 2 --split wide --frames 400 --seed 3 --out data/segmentation/wide.npz
 	$(PY) scripts/train_segmenter.py --data data/segmentation/train.npz --out data/segmentation/segmenter_single.pt
 	$(PY) scripts/train_segmenter.py --data data/segmentation/train.npz data/segmentation/crowded.npz \
-		--init data/segmentation/segmenter_single.pt --epochs 10 --learning-rate 5e-4
+		--init data/segmentation/segmenter_single.pt --epochs 10 --learning-rate 5e-4 \
+		--out data/segmentation/segmenter_crowded.pt
+	$(PY) scripts/train_segmenter.py \
+		--data data/segmentation/train.npz data/segmentation/crowded.npz data/segmentation/wide.npz \
+		--init data/segmentation/segmenter_crowded.pt --epochs 10 --learning-rate 5e-4
 
 benchmark-perception: env
 	$(PY) scripts/benchmark_perception.py --scenes 60 --json perception.json

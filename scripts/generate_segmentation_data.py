@@ -5,6 +5,8 @@ python scripts/generate_segmentation_data.py --frames 400 --split test --out /tm
 python scripts/generate_segmentation_data.py --jobs 2                # scenes rendered in 2 worker processes
 python scripts/generate_segmentation_data.py --ray auto --frames 8000  # each scene a task on a Ray cluster
 python scripts/generate_segmentation_data.py --no-noise              # the renderer's colour, no sensor model
+python scripts/generate_segmentation_data.py --split wide --frames 400 --seed 3 --out data/segmentation/wide.npz
+                                                                     # the wider family's training members
 
 Every scene draws from a random stream of its own ([seed, scene number]), so the frames are the same whether
 they are rendered here, in worker processes or on Ray.
@@ -28,7 +30,12 @@ def main():
     parser.add_argument(
         "--frames-per-scene", type=int, default=segmentation_data.FRAMES_PER_SCENE, help="frames per random background"
     )
-    parser.add_argument("--split", choices=("train", "test"), default="train", help="which object instances")
+    parser.add_argument(
+        "--split",
+        choices=("train", "test", "wide"),
+        default="train",
+        help="which object instances (wide: the wider family's training members, wide_0..15)",
+    )
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--out", type=Path, default=segmentation_data.DEFAULT_DATASET)
     parser.add_argument("--jobs", type=int, default=1, help="worker processes (or a local Ray's CPUs with --ray)")

@@ -3,6 +3,10 @@
 python scripts/train_segmenter.py                       # renders data/segmentation/train.npz first if missing
 python scripts/train_segmenter.py --data data/segmentation/train.npz data/segmentation/crowded.npz   # both sets
 python scripts/train_segmenter.py --epochs 2 --out /tmp/seg.pt
+python scripts/train_segmenter.py --data train.npz crowded.npz wide.npz --init W.pt --epochs 10 --learning-rate 5e-4
+
+Training frames may hold the training instances (train_*) and the wider family's training members (WIDE_TRAINING);
+the validation frames hold the test instances and the wider family's validation members (WIDE_VALIDATION).
 """
 
 import argparse
@@ -16,7 +20,7 @@ import torch
 from scenario_options import add_sensor_option, with_sensor
 
 from diagrams.generation import segmentation_data
-from diagrams.generation.synthetic_scenes import CLASSES
+from diagrams.generation.synthetic_scenes import CLASSES, WIDE_TRAINING, WIDE_VALIDATION
 from diagrams.paths import MODELS_DIR
 from diagrams.scenario import load_scenario
 from systems.perception import segmentation_network, segmenter_training
@@ -57,8 +61,10 @@ def main():
         )
     parts = [segmentation_data.load(path) for path in args.data]
     data = {key: np.concatenate([part[key] for part in parts]) for key in ("rgb", "labels", "instances")}
-    if any(not name.split("/")[1].startswith("train") for row in data["instances"] for name in row.split(",") if name):
-        raise SystemExit(f"{args.data} hold non-training instances; refusing to train on them")
+    names = {name.split("/")[1] for row in data["instances"] for name in row.split(",") if name}
+    unseen = sorted(name for name in names if not name.startswith("train") and name not in WIDE_TRAINING)
+    if unseen:
+        raise SystemExit(f"{args.data} hold instances kept for validation or tests ({unseen[:4]}); refusing to train")
 
     start = time.perf_counter()
     if args.init:
@@ -74,14 +80,23 @@ def main():
         )
     train_s = time.perf_counter() - start
 
-    logging.info("validating on %d frames of unseen (test) instances, and as many crowded ones", VALIDATION_FRAMES)
+    logging.info(
+        "validating on %d frames each: unseen (test) instances, crowded ones, the wider family's", VALIDATION_FRAMES
+    )
     seed = segmentation_data.VALIDATION_SEED
     metadata = segmenter_training.training_record(
         CLASSES, args.epochs, args.seed, len(data["rgb"]), scenario.camera_noise.preset, train_s, history
     )
     metadata |= {"initial_weights": str(args.init) if args.init else "", "learning_rate": args.learning_rate}
-    for key, crowded in (("validation", False), ("validation_crowded", True)):
-        validation = segmentation_data.generate(scenario, VALIDATION_FRAMES, 20, "test", seed, crowded=crowded)
+    sets = {
+        "validation": (False, None),
+        "validation_crowded": (True, None),
+        "validation_wide": (False, WIDE_VALIDATION),
+    }
+    for key, (crowded, instances) in sets.items():
+        validation = segmentation_data.generate(
+            scenario, VALIDATION_FRAMES, 20, "test", seed, crowded=crowded, instances=instances
+        )
         metadata[key] = {
             "frames": VALIDATION_FRAMES,
             "seed": seed,

@@ -16,7 +16,7 @@ from pydrake.systems.sensors import CameraInfo
 from diagrams.generation import segmentation_data
 from diagrams.generation.objects.instance import export_obj
 from diagrams.generation.objects.library import resolve_object
-from diagrams.generation.synthetic_scenes import CLASSES, SyntheticScene
+from diagrams.generation.synthetic_scenes import CLASSES, WIDE_TRAINING, WIDE_VALIDATION, SyntheticScene
 from diagrams.perception import MakePerception, MakePoseEstimator
 from diagrams.scenario import initial_positions, load_scenario, replace_object
 from diagrams.station import MakeStation, object_pose_on_table, true_label_image
@@ -354,10 +354,19 @@ def test_tiny_training_run_reduces_loss():
     assert history[-1] < 0.8 * history[0]
 
 
-def test_shipped_weights_reproduce_recorded_validation_iou():
+def test_wide_split_frames_hold_only_the_wider_familys_training_members():
+    data = segmentation_data.generate(load_scenario(), frames=4, frames_per_scene=4, split="wide", seed=5)
+    names = {name.split("/")[1] for row in data["instances"] for name in row.split(",") if name}
+    assert names and names <= set(WIDE_TRAINING)
+
+
+@pytest.mark.parametrize("key, instances", [("validation", None), ("validation_wide", WIDE_VALIDATION)])
+def test_shipped_weights_reproduce_recorded_validation_iou(key, instances):
     model, metadata = segmentation_network.load(DEFAULT_WEIGHTS)
-    recorded = metadata["validation"]
-    frames = segmentation_data.generate(load_scenario(), recorded["frames"], 20, "test", recorded["seed"])
+    recorded = metadata[key]
+    frames = segmentation_data.generate(
+        load_scenario(), recorded["frames"], 20, "test", recorded["seed"], instances=instances
+    )
     iou = intersection_over_union(predict_labels(model, frames["rgb"]), frames["labels"], len(CLASSES))
     np.testing.assert_allclose(iou, [recorded["iou"][c] for c in CLASSES], atol=0.01)
     assert min(iou) > 0.75  # jittered cameras: objects are often cut by the image border here

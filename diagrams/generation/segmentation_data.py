@@ -43,15 +43,23 @@ class SceneJob:
     frames: int
     classes: tuple[str, ...] = CLASSES  # label ids: background, then the categories placed
     crowded: bool = False  # cluttered tables (SyntheticScene's `crowded`)
+    instances: tuple[str, ...] | None = None  # these generated instances instead of the split's
 
 
 def scene_jobs(
-    scenario: Scenario, frames: int, frames_per_scene: int, split: str, seed: int, classes=CLASSES, crowded=False
+    scenario: Scenario,
+    frames: int,
+    frames_per_scene: int,
+    split: str,
+    seed: int,
+    classes=CLASSES,
+    crowded=False,
+    instances: tuple[str, ...] | None = None,
 ) -> list[SceneJob]:
     """`frames` frames as ceil(frames / frames_per_scene) scenes, each with a random stream of its own."""
     starts = range(0, frames, frames_per_scene)
     return [
-        SceneJob(scenario, split, seed, k, min(frames_per_scene, frames - s), tuple(classes), crowded)
+        SceneJob(scenario, split, seed, k, min(frames_per_scene, frames - s), tuple(classes), crowded, instances)
         for k, s in enumerate(starts)
     ]
 
@@ -59,7 +67,10 @@ def scene_jobs(
 def render_scene(job: SceneJob) -> dict[str, np.ndarray]:
     """The job's frames, the same wherever they are rendered: every draw comes from the stream [seed, index]."""
     rng = np.random.default_rng([job.seed, job.index])
-    scene = SyntheticScene(job.scenario, rng, split=job.split, classes=job.classes, crowded=job.crowded)
+    instances = list(job.instances) if job.instances else None
+    scene = SyntheticScene(
+        job.scenario, rng, split=job.split, classes=job.classes, crowded=job.crowded, instances=instances
+    )
     sensor = job.scenario.camera_noise
     # The sensor's noise from a stream of its own: the scenes are those rendered without it.
     parameters = sensor_model(sensor.preset, sensor.overrides)
@@ -97,15 +108,16 @@ def generate(
     run_jobs: Callable[[list[SceneJob]], Iterable[tuple[int, dict[str, np.ndarray]]]] = render_here,
     classes=CLASSES,
     crowded: bool = False,
+    instances: tuple[str, ...] | None = None,
 ) -> dict[str, np.ndarray]:
-    """Renders `frames` frames from ceil(frames / frames_per_scene) random scenes of `split`'s instances (cluttered
-    tables where `crowded`).
+    """Renders `frames` frames from ceil(frames / frames_per_scene) random scenes of `split`'s instances, or of the
+    named generated `instances` (cluttered tables where `crowded`).
 
     run_jobs: renders the scene jobs, yielding (job number, frames) in any order (e.g. on worker processes or
         Ray); the dataset is the same whichever renders it.
     classes: the label ids (background first); their categories are the ones placed.
     """
-    jobs = scene_jobs(scenario, frames, frames_per_scene, split, seed, classes, crowded)
+    jobs = scene_jobs(scenario, frames, frames_per_scene, split, seed, classes, crowded, instances)
     parts = [None] * len(jobs)
     with tqdm(total=frames, unit="frame", desc=f"rendering {split} frames", dynamic_ncols=True) as bar:
         for n, part in run_jobs(jobs):

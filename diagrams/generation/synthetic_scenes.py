@@ -42,6 +42,10 @@ from systems import categories
 CLASSES = ("background", *categories.GENERATED)
 PARKED = RigidTransform([0.0, 0.0, -10.0])  # where unused bodies wait, out of every view
 CROWDED_OBJECTS = 3  # at most this many objects in a frame of a crowded scene
+# The wider family's members the segmenter learns from (split "wide"; the wider shape space is built from
+# wide_0..39), and those it is validated on (the wider shape space's validation range too).
+WIDE_TRAINING = tuple(f"wide_{i}" for i in range(16))
+WIDE_VALIDATION = tuple(f"wide_{i}" for i in range(100, 108))
 
 
 @dataclass
@@ -55,15 +59,20 @@ class Frame:
 
 
 def category_models(category: str, split: str, instances: list[str] | None = None) -> list[tuple[str, Path]]:
-    """(name, model file) of the category's instances of a split, or the named generated instances; a taught
-    category's training models whatever the split (it has no other)."""
+    """(name, model file) of the category's instances of a split ("train", "test", or "wide": WIDE_TRAINING), or
+    the named generated instances; a taught category's training models whatever the split (it has no other)."""
     if category not in catalog.CATEGORIES:
         folder = categories.category_directory(category) / "training"
         models = [(path.stem, path) for path in sorted(folder.glob("*.sdf"))]
         if not models:
             raise FileNotFoundError(f"{folder} holds no models: teach {category!r} again with scripts/add_category.py")
         return models
-    names = instances or [n for n in catalog.instance_names(category) if n.startswith(split)]
+    if instances:
+        names = instances
+    elif split == "wide":
+        names = WIDE_TRAINING
+    else:
+        names = [n for n in catalog.instance_names(category) if n.startswith(split)]
     return [(name, generated_instance_directory(category, name) / "model.sdf") for name in names]
 
 
@@ -112,7 +121,7 @@ class SyntheticScene:
         """Args:
         scenario: robot, camera and nominal table placement.
         rng: the source of every random draw.
-        split: whose instances ("train" or "test"; a taught category has its training models only).
+        split: whose instances ("train", "test" or "wide"; a taught category has its training models only).
         cameras: how many camera poses to choose from per frame.
         classes: the label images' class names by id, background first: the categories placed.
         camera_jitter: perturb the cameras about the chest mount (else all sit at the nominal pose).
