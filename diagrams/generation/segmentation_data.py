@@ -67,9 +67,8 @@ def scene_jobs(
 def render_scene(job: SceneJob) -> dict[str, np.ndarray]:
     """The job's frames, the same wherever they are rendered: every draw comes from the stream [seed, index]."""
     rng = np.random.default_rng([job.seed, job.index])
-    instances = list(job.instances) if job.instances else None
     scene = SyntheticScene(
-        job.scenario, rng, split=job.split, classes=job.classes, crowded=job.crowded, instances=instances
+        job.scenario, rng, split=job.split, classes=job.classes, crowded=job.crowded, instances=job.instances
     )
     sensor = job.scenario.camera_noise
     # The sensor's noise from a stream of its own: the scenes are those rendered without it.

@@ -10,6 +10,7 @@ Class ids of the label images: 0 background, then CLASSES' order.
 """
 
 import re
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -58,7 +59,7 @@ class Frame:
     objects: list[tuple[str, str, RigidTransform]]
 
 
-def category_models(category: str, split: str, instances: list[str] | None = None) -> list[tuple[str, Path]]:
+def category_models(category: str, split: str, instances: Sequence[str] | None = None) -> list[tuple[str, Path]]:
     """(name, model file) of the category's instances of a split ("train", "test", or "wide": WIDE_TRAINING), or
     the named generated instances; a taught category's training models whatever the split (it has no other)."""
     if category not in catalog.CATEGORIES:
@@ -114,7 +115,7 @@ class SyntheticScene:
         cameras: int = 3,
         classes=CLASSES,
         camera_jitter: bool = True,
-        instances: list[str] | None = None,
+        instances: Sequence[str] | None = None,
         models: dict[str, list[tuple[str, Path]]] | None = None,
         crowded: bool = False,
     ):

@@ -242,7 +242,7 @@ def joint_axes(kinematics: "BatchedKinematics", poses: np.ndarray) -> tuple[np.n
     return positions, np.einsum("bjik,jk->bji", X_WB[..., :3], kinematics.joint_axis_B)
 
 
-def _rotated(R: np.ndarray, v: np.ndarray) -> np.ndarray:
+def rotated(R: np.ndarray, v: np.ndarray) -> np.ndarray:
     """R v for rotations (... x 3 x 3) and vectors (... x 3) (numpy's sums over short axes are slow)."""
     return R[..., :, 0] * v[..., 0, None] + R[..., :, 1] * v[..., 1, None] + R[..., :, 2] * v[..., 2, None]
 
@@ -290,9 +290,9 @@ def joint_torques(
     """
     parent, arm_dof = kinematics._parent, kinematics._arm_dof
     carried = kinematics.carried.astype(float)  # n x L
+    positions, axes = (x.swapaxes(0, 1) for x in joint_axes(kinematics, poses))  # n x B x 3
     poses = poses.swapaxes(0, 1)  # L x B x 4 x 4
     R, origin = poses[..., :3, :3], poses[..., :3, 3]
-    positions, axes = (x.swapaxes(0, 1) for x in joint_axes(kinematics, poses.swapaxes(0, 1)))  # n x B x 3
     qd, qdd = qd.T[..., None], qdd.T[..., None]  # n x B x 1
     spin = axes * qd
 
@@ -320,19 +320,19 @@ def joint_torques(
     )
     increment[~moving] = 0.0
     accel = summed(kinematics._path, increment) - kinematics.gravity  # of each body's origin, W
-    offset = _rotated(R, kinematics.coms_B[:, None, :])
+    offset = rotated(R, kinematics.coms_B[:, None, :])
     com = origin + offset
     com_accel = accel + _cross(alpha, offset) + _cross(omega, _cross(omega, offset))
     force = kinematics.masses[:, None, None] * com_accel
     # Euler's equation in each body's frame, turned back into W.
     omega_B, alpha_B = _rotated_back(R, omega), _rotated_back(R, alpha)
     inertia = kinematics.inertias_B[:, None]  # L x 1 x 3 x 3
-    moment_B = _rotated(inertia, alpha_B) + _cross(omega_B, _rotated(inertia, omega_B))
-    moment = _rotated(R, moment_B) + _cross(com, force)  # about W's origin
+    moment_B = rotated(inertia, alpha_B) + _cross(omega_B, rotated(inertia, omega_B))
+    moment = rotated(R, moment_B) + _cross(com, force)  # about W's origin
     total_force, total_moment = summed(carried, force), summed(carried, moment)  # n x B x 3
     if payload is not None:
         s = payload.slots
-        offset = _rotated(R[s], payload.points_B[:, None, :])
+        offset = rotated(R[s], payload.points_B[:, None, :])
         w = omega[s]
         mass_accel = accel[s] + _cross(alpha[s], offset) + _cross(w, _cross(w, offset))
         point_force = payload.masses[:, None, None] * mass_accel

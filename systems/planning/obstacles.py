@@ -11,6 +11,7 @@ from scipy.ndimage import distance_transform_edt, map_coordinates
 from scipy.spatial import cKDTree
 
 from systems.parallel import THREADS
+from systems.planning.kinematics import rotated
 
 # m: a scene's distance field (many points) is exact this near them: the hands' spheres (0.031 m) plus STOMP's
 # required clearance; the arms' larger spheres are judged on the transform's values (within 8.7 mm at 1 cm cells)
@@ -81,13 +82,8 @@ def placed(points_B: np.ndarray, X_WB: np.ndarray) -> np.ndarray:
 
 def placed_each(points_B: np.ndarray, X_WB: np.ndarray) -> np.ndarray:
     """Each point (... x 3, m, in its body's frame) where its own pose X_WB (... x 3 x 4, or ... x 4 x 4) puts it:
-    ... x 3, as three multiply-adds (numpy's stacks of 3 x 3 products are slow)."""
-    return (
-        X_WB[..., :3, 0] * points_B[..., 0, None]
-        + X_WB[..., :3, 1] * points_B[..., 1, None]
-        + X_WB[..., :3, 2] * points_B[..., 2, None]
-        + X_WB[..., :3, 3]
-    )
+    ... x 3 (kinematics.rotated: numpy's stacks of 3 x 3 products are slow)."""
+    return rotated(X_WB[..., :3, :3], points_B) + X_WB[..., :3, 3]
 
 
 def covering_centres(points: np.ndarray, radius: float, most: int) -> np.ndarray:
