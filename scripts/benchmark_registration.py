@@ -39,7 +39,7 @@ import numpy as np
 import pycpd
 import trimesh
 import yaml
-from build_shape_space import build_from_folder, pose_entries, sample_mesh
+from build_shape_space import build_from_folder, folder_copies, pose_entries, sample_mesh
 from json_report import write_json
 from pydrake.math import RigidTransform
 from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
@@ -312,11 +312,12 @@ def first_pick_frame(scenario: Scenario) -> tuple[ObjectEstimate, RigidTransform
     return registrar.GetInputPort("estimate").Eval(registrar.GetMyContextFromRoot(context)), X_WO
 
 
-def folder_spaces(annotation: str, directory: Path, scaled_copies: int = 0) -> dict:
+def folder_spaces(annotation: str, directory: Path, scaled_copies: int | None = None) -> dict:
     """Builds each category's space through the user's path: its 8 training meshes exported to a folder, with
     only the canonical model (their medoid) annotated ("canonical") or all of them ("all"), into `directory`
-    (with scaled_copies stretched copies of each, build_shape_space.py's --scaled-copies).
-    Returns how far the propagated grasp frames were from the true ones, per category (errors in m and rad)."""
+    (with scaled_copies stretched copies of each, build_shape_space.py's --scaled-copies; None: its default).
+    Returns, per category, how many copies of each mesh it got and how far the propagated grasp frames were from
+    the true ones (errors in m and rad)."""
     propagation = {}
     for category in catalog.CATEGORIES:
         folder = directory / category
@@ -331,8 +332,10 @@ def folder_spaces(annotation: str, directory: Path, scaled_copies: int = 0) -> d
         poses_file = directory / f"{category}_poses.yaml"
         poses_file.write_text(yaml.safe_dump(spec))
         logging.info("%s: 8 training meshes, annotated: %s", category, annotation)
-        space = build_from_folder(folder, poses_file, category, scaled_copies=scaled_copies)
+        copies = folder_copies(category) if scaled_copies is None else scaled_copies
+        space = build_from_folder(folder, poses_file, category, scaled_copies=copies)
         space.save(directory / shape_space_file(category).name)
+        propagation[category] = {"scaled_copies": copies}
         errors = [  # the folder keeps the generated models' shared frame: C is every model's O
             pose_errors(poses[name], true_grasps(category, Path(model).stem)[name])
             for model, poses in space.propagated.items()
@@ -340,7 +343,7 @@ def folder_spaces(annotation: str, directory: Path, scaled_copies: int = 0) -> d
         ]
         if errors:
             translation, angle = np.array(errors).T
-            propagation[category] = {
+            propagation[category] |= {
                 "models": len(space.propagated),
                 "translation_m_median": float(np.median(translation)),
                 "translation_m_max": float(translation.max()),
@@ -453,17 +456,17 @@ def main():
     parser.add_argument(
         "--scaled-copies",
         type=int,
-        default=0,
-        help="with --annotation: stretched copies of each of the 8 meshes in the spaces (build_shape_space.py's)",
+        help="with --annotation: stretched copies of each of the 8 meshes in the spaces (default: "
+        "build_shape_space.py's for a folder)",
     )
     add_sensor_option(parser, default="kinect_v2")
     parser.add_argument("--json", type=Path)
     args = parser.parse_args()
     if bool(args.object_files) != bool(args.category) and not (args.pick_frames and args.category):
         parser.error("--object-files and --category go together (--category alone with --pick-frames)")
-    if args.scaled_copies and not args.annotation:
+    if args.scaled_copies is not None and not args.annotation:
         parser.error("--scaled-copies needs --annotation (it builds the spaces from the training meshes)")
-    if args.scaled_copies < 0:
+    if args.scaled_copies is not None and args.scaled_copies < 0:
         parser.error(f"--scaled-copies must be 0 or more, got {args.scaled_copies}")
     if not args.pick_frames and (args.yaws or args.scenario_text):
         parser.error("--yaws and --scenario_text go with --pick-frames")
@@ -516,7 +519,7 @@ def main():
     if args.pick_frames:
         results["yaws"] = args.yaws
     results["annotation"] = args.annotation or "generated (48 models, all annotated)"
-    results["scaled_copies"] = args.scaled_copies
+    results["scaled_copies"] = {c: p["scaled_copies"] for c, p in propagation.items()}
     results["part_prior_m"] = args.part_prior
     results["propagation"] = propagation
     if args.object_files:
@@ -560,7 +563,7 @@ def main():
     ):
         values = results[key]
         print(f"{key + ' [trials]':37s}" + "".join(f" {values[c]:13d}" for c in categories) + f"  {target}")
-    copies = f", {args.scaled_copies} stretched copies of each" if results["scaled_copies"] else ""
+    copies = "".join(f", {c}: {n} stretched copies of each" for c, n in results["scaled_copies"].items() if n)
     print(f"(sensor: {args.sensor}; views: {results['views']}; annotated models: {results['annotation']}{copies})")
     if not cpd_rows:
         if args.json:

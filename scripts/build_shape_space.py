@@ -29,9 +29,11 @@ canonical model (systems/shape_space/propagation.py: the canonical surface about
 placed by ICP and a local CPD): one annotated model is enough. A folder of 6 cans, 4
 components, grasps transferred to an unseen can: 13-21 mm with the canonical's poses alone
 (12-37 mm where the fields carry them), 8-10 mm with all six models' poses (see
-tests/test_build_shape_space_cli.py). --scaled-copies N adds N copies of each model stretched along its
-axes: with 8 cans (one annotated) 4 copies took unseen cans' grasps from 12.9 to 9.3 mm, but drills' from 9.0
-to 10.3 mm (docs/shape_space.md, "Stretched copies of a few models").
+tests/test_build_shape_space_cli.py). A folder's models are also each copied FOLDER_SCALED_COPIES times,
+stretched along their axes as far as the registrar lets the category's shape scale beyond its space (its scale
+prior), unless that is under MIN_COPY_SPREAD (drills: none); --scaled-copies N sets the number. With 8 cans (one
+annotated) the copies took unseen cans' grasps from 12.9 to 8.8 mm (docs/shape_space.md, "Stretched copies of a
+few models").
 """
 
 import argparse
@@ -48,6 +50,7 @@ from pydrake.math import RigidTransform, RollPitchYaw
 from diagrams.generation.objects import catalog
 from diagrams.generation.objects.library import generated_instance_directory, load_info
 from diagrams.paths import MODELS_DIR
+from systems.perception.shape_registrar import scale_prior
 from systems.shape_space.densify import densified
 from systems.shape_space.space import ALIGNMENTS, POSE_NAMES, build_shape_space
 from systems.shape_space.units import check_metres
@@ -58,6 +61,13 @@ CLOUD_SUFFIXES = {".pcd", ".ply"}
 # A canonical model with fewer points than this (a sparse scan) is densified: its points are the surface
 # every reconstruction warps.
 DENSE_POINTS = 4000
+# A folder's few models are each copied this often, stretched along C's axes with the spread of the category's scale
+# prior (the registrar's: how far its shape may scale beyond its space), unless that spread is below MIN_COPY_SPREAD:
+# such copies nearly repeat their model. 8 training meshes, one annotated, kinect_v2, validation range extra_201-208
+# (24 views per category): cans (0.2) 12.4 -> 9.7 mm grasps, Chamfer 5.3 -> 5.8 mm, grasps over 2 cm off handed on
+# 9 -> 2; drills (0.03) 7.9 -> 8.1 mm, Chamfer 3.8 -> 4.2 mm (and with 0.1, the earlier fixed spread, 7.8 -> 9.8 mm).
+FOLDER_SCALED_COPIES = 4
+MIN_COPY_SPREAD = 0.05
 # Centres of extent farther apart than this share of the canonical's size suggest models in different frames.
 FRAME_OFFSET_WARNING = 0.25
 
@@ -155,10 +165,17 @@ def build_from_folder(
     components: int = 8,
     align: str = "none",
     landmarks: bool = True,
-    scaled_copies: int = 0,
+    scaled_copies: int | None = None,
 ):
     """The shape space of a folder of models (see the module's doc); models without poses get propagated ones.
-    scaled_copies: stretched copies of each model beside it (build_shape_space)."""
+    scaled_copies: stretched copies of each model beside it (build_shape_space, with the spread of the category's
+    scale prior); None: folder_copies(category)."""
+    if scaled_copies is None:
+        scaled_copies = folder_copies(category)
+    if scaled_copies:
+        logging.info(
+            "%s: %d stretched copies of each model (spread %.2f)", category, scaled_copies, scale_prior(category)
+        )
     clouds, poses, canonical = folder_instances(folder, poses_file)
     if align == "none":
         for warning in frame_warnings(clouds, canonical):
@@ -172,7 +189,14 @@ def build_from_folder(
         align=align,
         landmarks=landmarks,
         scaled_copies=scaled_copies,
+        copy_spread=scale_prior(category),
     )
+
+
+def folder_copies(category: str) -> int:
+    """How many stretched copies of each of a folder's models its space gets by default: FOLDER_SCALED_COPIES, none
+    where the category's scale prior is below MIN_COPY_SPREAD."""
+    return FOLDER_SCALED_COPIES if scale_prior(category) >= MIN_COPY_SPREAD else 0
 
 
 def pose_entries(poses: dict[str, RigidTransform]) -> dict:
@@ -244,8 +268,8 @@ def main():
     parser.add_argument(
         "--scaled-copies",
         type=int,
-        default=0,
-        help="with --folder: stretched copies of each model beside it (a few cans: 4; see docs/shape_space.md)",
+        help=f"with --folder: stretched copies of each model beside it (default {FOLDER_SCALED_COPIES}, none where "
+        f"the category's scale prior is under {MIN_COPY_SPREAD}: drills; see docs/shape_space.md)",
     )
     parser.add_argument(
         "--no-landmarks",
@@ -256,9 +280,9 @@ def main():
         "--out", type=Path, help="default: models/shape_space_<category>.npz (and a figure of it beside, .png)"
     )
     args = parser.parse_args()
-    if args.scaled_copies and not args.folder:
+    if args.scaled_copies is not None and not args.folder:
         parser.error("--scaled-copies needs --folder (the generated spaces have enough models)")
-    if args.scaled_copies < 0:
+    if args.scaled_copies is not None and args.scaled_copies < 0:
         parser.error(f"--scaled-copies must be 0 or more, got {args.scaled_copies}")
     start = time.perf_counter()
     if args.folder:

@@ -18,7 +18,7 @@ from systems.shape_space.space import ShapeSpace
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "scripts"))
-from build_shape_space import pose_entries  # noqa: E402
+from build_shape_space import FOLDER_SCALED_COPIES, folder_copies, pose_entries  # noqa: E402
 
 MODELS = [f"train_{i}" for i in range(6)]
 
@@ -43,10 +43,13 @@ def folder(tmp_path_factory):
 
 
 def build(folder: Path, spec: dict, tmp_path: Path, *options: str) -> subprocess.CompletedProcess:
-    """Runs the script on `folder`, its models in frames of their own (--align vertical) unless `options` say."""
+    """Runs the script on `folder`, its models in frames of their own (--align vertical) unless `options` say;
+    without the stretched copies a folder gets by default (five times the fields: their effect is measured by
+    benchmark_registration.py --annotation, and tests/test_shape_space.py tests them on boxes)."""
     (tmp_path / "poses.yaml").write_text(yaml.safe_dump(spec))
     command = [sys.executable, "scripts/build_shape_space.py", "--category", "my_cans", "--folder", str(folder)]
     command += ["--poses", str(tmp_path / "poses.yaml"), "--components", "4", "--out", str(tmp_path / "space.npz")]
+    command += ["--scaled-copies", "0"]
     command += list(options) or ["--align", "vertical"]
     return subprocess.run(command, cwd=REPO, capture_output=True, text=True, timeout=600)
 
@@ -122,3 +125,11 @@ def test_a_folder_left_in_frames_of_their_own_is_flagged_when_not_aligned(folder
     run = build(models, spec, tmp_path, "--align", "none")
     assert run.returncode == 0, run.stderr
     assert "pass --align vertical" in run.stderr, run.stderr
+
+
+def test_a_folder_gets_stretched_copies_where_its_category_varies_in_proportion():
+    """By default each model of a folder is copied, stretched by the category's scale prior: cans (0.2) and a
+    category of the user's own (0.1) get copies; drills (0.03: copies would nearly repeat their models) none."""
+    assert folder_copies("watering_can") == FOLDER_SCALED_COPIES > 0
+    assert folder_copies("my_cans") == FOLDER_SCALED_COPIES
+    assert folder_copies("drill") == 0

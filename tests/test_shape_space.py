@@ -154,6 +154,8 @@ def test_a_negative_number_of_scaled_copies_is_refused():
     poses = {"box_0": {pose: RigidTransform([0.0, 0.0, 0.16]) for pose in POSE_NAMES}}
     with pytest.raises(ValueError, match="scaled_copies must be 0 or more"):
         build_shape_space("box", clouds, poses, 1, scaled_copies=-1)
+    with pytest.raises(ValueError, match="copy_spread must be positive"):
+        build_shape_space("box", clouds, poses, 1, scaled_copies=2, copy_spread=0.0)
 
 
 def test_a_scaled_copy_stands_where_its_model_stood_and_keeps_its_grasp_axes():

@@ -121,6 +121,7 @@ def registrar_of(
 # 5.1 mm, but the looks that track a held can from its scaled shape let it turn 3.5 deg (median of 18 places)
 # as the hands let go, against 1.9 deg. Drills vary less in their proportions than in their handles: fitted on
 # every drill, 0.2 moved the stretched drills' grasps 6.9 -> 9.9 mm, 0.03 to 8.4 mm.
+# The same spread stretches the copies of a folder's models in its space (build_shape_space.py's folder_copies).
 SCALE_PRIORS = {"watering_can": 0.2, "drill": 0.03}
 TAUGHT_SCALE_PRIOR = 0.1  # a taught category's
 

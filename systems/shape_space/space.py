@@ -36,8 +36,8 @@ LANDMARK_PROBE = 0.02
 # than the fields' own beta, whose smoothing blurs thin parts (drill handles: 8.8 -> 4.5 mm from the
 # true surface with 0.02).
 SURFACE_WARP_WIDTH = 0.02
-# The spread (standard deviation of the log) of the stretches that scaled copies of a few models get, per axis of C,
-# and the seed they are drawn from (build_shape_space(scaled_copies=...)).
+# The default spread (standard deviation of the log) of the stretches that scaled copies of a few models get, per axis
+# of C, and the seed they are drawn from (build_shape_space(scaled_copies=..., copy_spread=...)).
 SCALED_COPY_SIGMA = 0.1
 SCALED_COPY_SEED = 0
 
@@ -206,6 +206,7 @@ def build_shape_space(
     grasp_weight: float = 10.0,
     initial_sigma: float = 0.02,
     scaled_copies: int = 0,
+    copy_spread: float = SCALED_COPY_SIGMA,
 ) -> ShapeSpace:
     """Builds the space from surface clouds (each in its own O frame) of a category's instances.
 
@@ -240,11 +241,15 @@ def build_shape_space(
             to 2.0-2.2 mm Chamfer instead of 4.1-4.3 mm).
         scaled_copies: beside each instance, this many copies of it stretched along C's axes (scaled_copy), each
             a sample of its own: a few models then still span the proportions a category varies in.
+        copy_spread: the standard deviation of the log of each copy's stretch per axis (drawn from a fixed seed:
+            the same draws scaled).
     """
     if len(clouds) < 2:
         raise ValueError(f"a shape space needs at least 2 instances, got {len(clouds)}")
     if scaled_copies < 0:
         raise ValueError(f"scaled_copies must be 0 or more, got {scaled_copies}")
+    if scaled_copies and not copy_spread > 0:
+        raise ValueError(f"copy_spread must be positive, got {copy_spread}")
     if canonical is None:
         with_poses = {n: thinned(c, target_points) for n, c in clouds.items() if n in control_poses}
         if not with_poses:
@@ -284,7 +289,7 @@ def build_shape_space(
             given = {n: X_CF @ X_FG for n, X_FG in control_poses[name].items()} if name in control_poses else None
         versions = [] if name == canonical else [(name, cloud_C, given)]
         for k in range(scaled_copies):
-            scale = np.exp(rng.normal(0.0, SCALED_COPY_SIGMA, 3))
+            scale = np.exp(rng.normal(0.0, copy_spread, 3))
             versions.append((f"{name} stretched {k + 1}", *scaled_copy(cloud_C, given, scale, foot)))
         for version, points_C, grasps_C in versions:
             target = thinned(points_C, target_points)
