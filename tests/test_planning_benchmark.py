@@ -144,6 +144,27 @@ def test_the_dense_checker_rejects_a_box_in_the_way_and_a_broken_closure(motions
     assert not first.success and first.iterations == 0, first.message
 
 
+@pytest.mark.parametrize(("family", "index", "coarse_solves"), [("carry", 0, True), ("set_down", 1, False)])
+def test_a_held_move_is_drawn_with_fewer_keyframes_first(motions, family, index, coarse_solves):
+    """Tuning carry 0: its first trajectory with first_keyframes keyframes is a solution, returned with `keyframes`
+    keyframes along that path (the exact judge passes it). Tuning set-down 1: no coarse first trajectory solves it,
+    and the plan is the one made without the coarse attempt."""
+    problem = make_problem(motions, family, "tune", index)
+    assert isinstance(problem, PlanningProblem), problem
+    config = StompConfig(seed=problem.index, max_iterations=0)
+    plans = {
+        first: Stomp(motions.world, dataclasses.replace(config, first_keyframes=first)).plan(
+            problem.q_start, problem.q_goal, problem.obstacles, ClosureConstraint(), problem.orientation
+        )
+        for first in (0, config.first_keyframes)
+    }
+    coarse, full = plans[config.first_keyframes], plans[0]
+    assert coarse.success and full.success and coarse.iterations == 0, coarse.message
+    assert coarse.trajectory.shape == full.trajectory.shape == (config.keyframes, len(problem.q_start))
+    assert np.allclose(coarse.trajectory, full.trajectory) != coarse_solves
+    assert check_path(problem, coarse.trajectory)["valid"]
+
+
 def test_a_reach_stuck_under_the_table_restarts_from_the_hands_cartesian_vias(motions):
     """Tuning reach 70: from under the table past a box at its edge. From its joint-space first trajectories STOMP
     stays in collision; restarted from paths that take both hands back, up and across, it gets out."""

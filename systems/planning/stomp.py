@@ -133,6 +133,16 @@ class StompConfig:
     detour_checks: int = 4
     detour_proxy_points: int = 64
     detour_moved_steps: int = 3
+    # A held move's first trajectories (the projected straight line, then the detours) are drawn first with this
+    # many keyframes: every check is per keyframe or per segment, and a held move's first trajectory is mostly
+    # already a solution. Where one is, the plan is that path, given `keyframes` keyframes along it (each coarse
+    # keyframe one of them); where none is, the plan starts again with `keyframes` (the same plan as without).
+    # Tuning range (turn and carry 60, set-down, lift and reach 40; 300 iterations at most), 10 against 0 (off): the
+    # same problems solved with the same iterations, medians carry 6.2 -> 5.1 ms, set-down 6.6 -> 5.6, lift 6.2 ->
+    # 5.6; a problem the coarse drawing does not solve pays it (up to 20 ms). The first trajectory alone with 10, 8
+    # keyframes solved 52, 51 of the first 60 carries against 54 with 16. The pick's played cubic (60 carries,
+    # set-downs, lifts) left the closure no more often (2, 0, 2 plans against 3, 1, 4).
+    first_keyframes: int = 10
 
 
 @dataclass
@@ -516,6 +526,21 @@ class Stomp:
             constraints = self.constraints(
                 closure[1] if closure else None, orientation[1] if orientation else None, upright_only
             )
+            if initial_path is None and 2 < config.first_keyframes < n:
+                coarse = self._coarse_first_trajectory(
+                    q_start, q_goal, obstacles, closure, orientation, constraints, payload
+                )
+                if coarse is not None:  # (a solution at 0 iterations)
+                    path, clearance = coarse
+                    elapsed = time.perf_counter() - start
+                    return StompResult(
+                        True,
+                        _keyframes_through(path, n),
+                        0,
+                        elapsed,
+                        float(clearance.min()),
+                        "collision-free as first drawn",
+                    )
             theta[1:-1] = constraints.project(theta[1:-1], config.projection_steps)
         keyframe_clearance = self.clearance(theta, obstacles, held=closure is not None)  # the ends' among them
         if keyframe_clearance[0] < 0 or keyframe_clearance[-1] < 0:
@@ -681,8 +706,27 @@ class Stomp:
         )
         return [candidates[i] for i in np.argsort(shortfall, kind="stable")]
 
+    def _coarse_first_trajectory(
+        self, q_start, q_goal, obstacles, closure, orientation, constraints, payload
+    ) -> tuple[np.ndarray, np.ndarray] | None:
+        """A held move's first trajectory with config.first_keyframes keyframes (the projected straight line, else
+        one of the ranked detours: not the costlier search among all of them) and its keyframes' clearances, where
+        it is a solution; else None."""
+        s = np.linspace(0.0, 1.0, self.config.first_keyframes)[:, None]
+        theta = (1 - s) * q_start + s * q_goal
+        theta[1:-1] = constraints.project(theta[1:-1], self.config.projection_steps)
+        clearance = self.clearance(theta, obstacles, held=closure is not None)
+        if min(clearance[0], clearance[-1]) < 0:
+            return None  # (the plan with every keyframe says which end collides)
+        feasible, clearance = self._feasible(theta, obstacles, closure, orientation, clearance)
+        if not feasible and self.config.detour_heights:
+            theta, feasible, clearance = self._detour_trajectory(
+                theta, obstacles, closure, orientation, constraints, payload, cheapest=False
+            )
+        return (theta, clearance) if feasible else None
+
     def _detour_trajectory(
-        self, theta, obstacles, closure, orientation, constraints, payload
+        self, theta, obstacles, closure, orientation, constraints, payload, cheapest: bool = True
     ) -> tuple[np.ndarray, bool, np.ndarray]:
         """A detour of theta to start from, whether it is a solution, and its keyframes' clearances: the held object
         moved up by each of detour_heights and sideways (across its straight path) by each of detour_sideways, as
@@ -692,7 +736,8 @@ class Stomp:
 
         Within each stage, the detours the held part would take clear of the scene (moved rigidly) are built and
         checked first, the smallest first (_ranked_detour). Where none of those is a solution, the cheapest in
-        STOMP's cost of theta and all detours (_cheapest_detour), built stage by stage until one is a solution."""
+        STOMP's cost of theta and all detours (_cheapest_detour), built stage by stage until one is a solution; without
+        `cheapest`, theta itself."""
         travel = self.end_effectors.poses(theta[[0, -1]])[0][:, :3, 3]
         across = np.cross([0.0, 0.0, 1.0], travel[1] - travel[0])
         across /= max(np.linalg.norm(across), 1e-9)
@@ -702,6 +747,8 @@ class Stomp:
             found = self._ranked_detour(theta, obstacles, closure, orientation, constraints, moves, across, held_part)
             if found is not None:
                 return found
+        if not cheapest:
+            return theta, False, None
         return self._cheapest_detour(theta, obstacles, closure, orientation, constraints, payload, stages, across)
 
     def _detour_stages(self) -> list[list[tuple[float, float]]]:
