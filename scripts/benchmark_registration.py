@@ -312,12 +312,11 @@ def first_pick_frame(scenario: Scenario) -> tuple[ObjectEstimate, RigidTransform
     return registrar.GetInputPort("estimate").Eval(registrar.GetMyContextFromRoot(context)), X_WO
 
 
-def folder_spaces(annotation: str, directory: Path, scaled_copies: int | None = None) -> dict:
+def folder_spaces(annotation: str, directory: Path, scaled_copies: dict[str, int]) -> dict:
     """Builds each category's space through the user's path: its 8 training meshes exported to a folder, with
     only the canonical model (their medoid) annotated ("canonical") or all of them ("all"), into `directory`
-    (with scaled_copies stretched copies of each, build_shape_space.py's --scaled-copies; None: its default).
-    Returns, per category, how many copies of each mesh it got and how far the propagated grasp frames were from
-    the true ones (errors in m and rad)."""
+    (with scaled_copies[category] stretched copies of each, build_shape_space.py's --scaled-copies).
+    Returns how far the propagated grasp frames were from the true ones, per category (errors in m and rad)."""
     propagation = {}
     for category in catalog.CATEGORIES:
         folder = directory / category
@@ -332,10 +331,8 @@ def folder_spaces(annotation: str, directory: Path, scaled_copies: int | None = 
         poses_file = directory / f"{category}_poses.yaml"
         poses_file.write_text(yaml.safe_dump(spec))
         logging.info("%s: 8 training meshes, annotated: %s", category, annotation)
-        copies = folder_copies(category) if scaled_copies is None else scaled_copies
-        space = build_from_folder(folder, poses_file, category, scaled_copies=copies)
+        space = build_from_folder(folder, poses_file, category, scaled_copies=scaled_copies[category])
         space.save(directory / shape_space_file(category).name)
-        propagation[category] = {"scaled_copies": copies}
         errors = [  # the folder keeps the generated models' shared frame: C is every model's O
             pose_errors(poses[name], true_grasps(category, Path(model).stem)[name])
             for model, poses in space.propagated.items()
@@ -343,7 +340,7 @@ def folder_spaces(annotation: str, directory: Path, scaled_copies: int | None = 
         ]
         if errors:
             translation, angle = np.array(errors).T
-            propagation[category] |= {
+            propagation[category] = {
                 "models": len(space.propagated),
                 "translation_m_median": float(np.median(translation)),
                 "translation_m_max": float(translation.max()),
@@ -477,10 +474,11 @@ def main():
     if args.cpd_sizes is None:
         args.cpd_sizes = [] if args.pick_frames else [500, 1000, 2000]
     sensor = sensor_model(args.sensor)
-    space_dir, propagation = args.space_dir, {}
+    space_dir, propagation, copies = args.space_dir, {}, {}
     if args.annotation:
         space_dir = Path(tempfile.mkdtemp(prefix="folder_spaces_"))
-        propagation = folder_spaces(args.annotation, space_dir, args.scaled_copies)
+        copies = {c: folder_copies(c) if args.scaled_copies is None else args.scaled_copies for c in catalog.CATEGORIES}
+        propagation = folder_spaces(args.annotation, space_dir, copies)
     categories = (args.category,) if args.category else tuple(catalog.CATEGORIES)
     if args.pick_frames:
         args.trials, args.yaws = args.trials or 1, args.yaws or list(PAPER_YAWS)
@@ -519,7 +517,7 @@ def main():
     if args.pick_frames:
         results["yaws"] = args.yaws
     results["annotation"] = args.annotation or "generated (48 models, all annotated)"
-    results["scaled_copies"] = {c: p["scaled_copies"] for c, p in propagation.items()}
+    results["scaled_copies"] = copies
     results["part_prior_m"] = args.part_prior
     results["propagation"] = propagation
     if args.object_files:

@@ -170,12 +170,11 @@ def build_from_folder(
     """The shape space of a folder of models (see the module's doc); models without poses get propagated ones.
     scaled_copies: stretched copies of each model beside it (build_shape_space, with the spread of the category's
     scale prior); None: folder_copies(category)."""
+    spread = scale_prior(category)
     if scaled_copies is None:
         scaled_copies = folder_copies(category)
     if scaled_copies:
-        logging.info(
-            "%s: %d stretched copies of each model (spread %.2f)", category, scaled_copies, scale_prior(category)
-        )
+        logging.info("%s: %d stretched copies of each model (spread %.2f)", category, scaled_copies, spread)
     clouds, poses, canonical = folder_instances(folder, poses_file)
     if align == "none":
         for warning in frame_warnings(clouds, canonical):
@@ -189,7 +188,7 @@ def build_from_folder(
         align=align,
         landmarks=landmarks,
         scaled_copies=scaled_copies,
-        copy_spread=scale_prior(category),
+        copy_spread=spread,
     )
 
 

@@ -18,6 +18,7 @@ from systems.shape_space.space import ShapeSpace
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "scripts"))
+import build_shape_space  # noqa: E402
 from build_shape_space import FOLDER_SCALED_COPIES, folder_copies, pose_entries  # noqa: E402
 
 MODELS = [f"train_{i}" for i in range(6)]
@@ -127,9 +128,22 @@ def test_a_folder_left_in_frames_of_their_own_is_flagged_when_not_aligned(folder
     assert "pass --align vertical" in run.stderr, run.stderr
 
 
-def test_a_folder_gets_stretched_copies_where_its_category_varies_in_proportion():
+@pytest.mark.parametrize(
+    ("category", "copies", "spread"),
+    [("watering_can", FOLDER_SCALED_COPIES, 0.2), ("my_cans", FOLDER_SCALED_COPIES, 0.1), ("drill", 0, 0.03)],
+)
+def test_a_folder_gets_stretched_copies_where_its_category_varies_in_proportion(
+    folder, tmp_path, monkeypatch, category, copies, spread
+):
     """By default each model of a folder is copied, stretched by the category's scale prior: cans (0.2) and a
-    category of the user's own (0.1) get copies; drills (0.03: copies would nearly repeat their models) none."""
-    assert folder_copies("watering_can") == FOLDER_SCALED_COPIES > 0
-    assert folder_copies("my_cans") == FOLDER_SCALED_COPIES
-    assert folder_copies("drill") == 0
+    category of the user's own (0.1) get copies; drills (0.03: copies would nearly repeat their models) none. (What
+    the build is handed; the copies themselves are tested on boxes in tests/test_shape_space.py.)"""
+    models, poses = folder
+    spec = {"canonical": "train_0.obj", "poses": pose_entries(poses["train_0.obj"])}
+    poses_file = tmp_path / "poses.yaml"
+    poses_file.write_text(yaml.safe_dump(spec))
+    handed = {}
+    monkeypatch.setattr(build_shape_space, "build_shape_space", lambda *args, **options: handed.update(options))
+    build_shape_space.build_from_folder(models, poses_file, category, align="vertical")
+    assert folder_copies(category) == copies
+    assert handed["scaled_copies"] == copies and handed["copy_spread"] == spread

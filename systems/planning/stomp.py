@@ -714,8 +714,7 @@ class Stomp:
         """A held move's first trajectory with config.first_keyframes keyframes (the projected straight line, else
         one of the ranked detours: not the costlier search among all of them) and its keyframes' clearances, where
         it is a solution; else None."""
-        s = np.linspace(0.0, 1.0, self.config.first_keyframes)[:, None]
-        theta = (1 - s) * q_start + s * q_goal
+        theta = np.linspace(q_start, q_goal, self.config.first_keyframes)
         theta[1:-1] = constraints.project(theta[1:-1], self.config.projection_steps)
         clearance = self.clearance(theta, obstacles, held=closure is not None)
         if min(clearance[0], clearance[-1]) < 0:
