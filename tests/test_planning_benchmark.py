@@ -165,6 +165,32 @@ def test_a_held_move_is_drawn_with_fewer_keyframes_first(motions, family, index,
     assert check_path(problem, coarse.trajectory)["valid"]
 
 
+def test_a_trajectory_checked_at_once_gets_the_verdict_of_the_check_in_steps(motions):
+    """A likely solution (the first ranked detour) is checked in one sphere-model batch, its keyframes and the
+    states between them: the same verdict as the keyframes, then the middles, then the rest, and the same keyframe
+    clearances below the margin. Tuning set-down 1: its plan (a solution) and its projected straight line (not)."""
+    problem = make_problem(motions, "set_down", "tune", 1)
+    assert isinstance(problem, PlanningProblem), problem
+    stomp = Stomp(motions.world, StompConfig(seed=problem.index, max_iterations=0))
+    solution = stomp.plan(problem.q_start, problem.q_goal, problem.obstacles, ClosureConstraint(), problem.orientation)
+    X_WE = stomp.end_effectors.poses(problem.q_start[None])
+    closure = (ClosureConstraint(), stomp.end_effectors.relative(problem.q_start[None])[0])
+    orientation = (problem.orientation, [X[0, :3, :3] for X in X_WE])
+    straight = np.linspace(problem.q_start, problem.q_goal, 16)
+    straight[1:-1] = stomp.project(
+        straight[1:-1], closure[1], orientation[1], upright_only=problem.orientation.upright_only
+    )
+    for theta, solves in ((solution.trajectory, True), (straight, False)):
+        (in_steps, clearance), (at_once, clearance_at_once) = (
+            stomp._feasible(theta, problem.obstacles, closure, orientation, at_once=at_once)
+            for at_once in (False, True)
+        )
+        assert in_steps == at_once == solves
+        below = clearance < stomp.config.margin
+        assert below.any()
+        np.testing.assert_array_equal(clearance_at_once[below], clearance[below])
+
+
 def test_a_reach_stuck_under_the_table_restarts_from_the_hands_cartesian_vias(motions):
     """Tuning reach 70: from under the table past a box at its edge. From its joint-space first trajectories STOMP
     stays in collision; restarted from paths that take both hands back, up and across, it gets out."""

@@ -86,11 +86,13 @@ class HandConstraints:
         the offset's (weighted OFFSET_WEIGHT: the constraints come first), each joint change at most MAX_STEP,
         then `steps` // 2 plain projection steps."""
         q = np.atleast_2d(q).copy()
-        target = self.end_effectors.poses(q)[0][:, :3, 3] + offsets_W
+        target = None
         for _ in range(steps):
             poses, jacobians = self.end_effectors.jacobians(q)
             error, jacobian = self.error_and_jacobian_from(poses, jacobians)
             X1, J1 = poses[0], jacobians[0]
+            if target is None:  # (from the poses at the given q)
+                target = X1[:, :3, 3] + offsets_W
             error = np.concatenate([error, OFFSET_WEIGHT * (X1[:, :3, 3] - target)], axis=1)
             jacobian = np.concatenate([jacobian, OFFSET_WEIGHT * J1[:, 3:]], axis=1)
             q = bounded_step(q, error, jacobian, self.lower, self.upper, MAX_STEP)

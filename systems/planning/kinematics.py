@@ -494,8 +494,11 @@ class EndEffectors:
         self.kinematics = kinematics
         self.positions = [kinematics.position_of_body[frame.body().index()] for frame in frames]
         self.X_BE = [frame.GetFixedPoseInBodyFrame().GetAsMatrix4() for frame in frames]
-        # n x 1 per frame: 1 for the joints that move it
-        self._moved_by = [kinematics.carried[:, position].astype(float)[:, None] for position in self.positions]
+        self._X_BE = np.array(self.X_BE)  # 2 x 4 x 4
+        # 2 x n x 1: 1 for the joints that move each frame
+        self._moved_by = np.array(
+            [kinematics.carried[:, position].astype(float)[:, None] for position in self.positions]
+        )
 
     def poses(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(X_WE1, X_WE2), each B x 4 x 4."""
@@ -511,14 +514,11 @@ class EndEffectors:
         J_w = a_j, J_v = a_j x (p_E - p_j) if it carries E, else not at all."""
         body = self.kinematics.body_poses(q)
         positions, axes = joint_axes(self.kinematics, body)
-        poses, jacobians = [], []
-        for slot, X_BE, moved_by in zip(self.positions, self.X_BE, self._moved_by, strict=True):
-            X = body[:, slot] @ X_BE
-            J_w = axes * moved_by
-            J_v = _cross(J_w, X[:, None, :3, 3] - positions)
-            poses.append(X)
-            jacobians.append(np.concatenate([J_w, J_v], axis=2).transpose(0, 2, 1))
-        return tuple(poses), tuple(jacobians)
+        X = body[:, self.positions] @ self._X_BE  # B x 2 x 4 x 4: both hands in one product
+        J_w = axes[:, None] * self._moved_by  # B x 2 x n x 3
+        J_v = _cross(J_w, X[:, :, None, :3, 3] - positions[:, None])
+        J = np.concatenate([J_w, J_v], axis=3).transpose(0, 1, 3, 2)  # B x 2 x 6 x n
+        return (X[:, 0], X[:, 1]), (J[:, 0], J[:, 1])
 
     def relative(self, q: np.ndarray) -> np.ndarray:
         """X_E1E2 (B x 4 x 4): the right end-effector's pose seen from the left one's."""

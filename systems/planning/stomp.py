@@ -145,6 +145,11 @@ class StompConfig:
     # keyframes solved 52, 51 of the first 60 carries against 54 with 16. The pick's played cubic (60 carries,
     # set-downs, lifts) left the closure no more often (2, 0, 2 plans against 3, 1, 4).
     first_keyframes: int = 10
+    # Gauss-Newton steps projecting that coarse straight line (the full plan's: projection_steps). After 2 its
+    # keyframes are within 3e-6 of the constraints (m, rad; median 3e-7, two tuning turns' first trajectories), far
+    # inside the dense check's t_max and o_max that every plan passes; the third step reaches 1e-12 and costs about
+    # 5 % of a set-down's first trajectory.
+    first_projection_steps: int = 2
 
 
 @dataclass
@@ -159,19 +164,27 @@ class HeldPart:
     cluster_of: np.ndarray
 
     def __post_init__(self):
-        _, self.cluster_of = np.unique(self.cluster_of, return_inverse=True)  # (labels 0..C-1, none empty)
+        present = np.zeros(self.cluster_of.max() + 1, bool)
+        present[self.cluster_of] = True
+        self.cluster_of = (np.cumsum(present) - 1)[self.cluster_of]  # (labels 0..C-1 in their order, none empty)
         members = np.zeros((self.cluster_of.max() + 1, len(self.radii)))
         members[self.cluster_of, np.arange(len(self.radii))] = 1.0
         self.cluster_centres = (members / members.sum(axis=1, keepdims=True)) @ self.centres  # K x C x 3
         reach = np.linalg.norm(self.centres - self.cluster_centres[:, self.cluster_of], axis=2) + self.radii
-        self.cluster_radii = np.zeros(self.cluster_centres.shape[:2])  # K x C: each keyframe's spheres lie within
-        np.maximum.at(self.cluster_radii.T, self.cluster_of, reach.T)
+        # The spheres cluster by cluster (`_order`), each cluster's run of `_count` starting at `_start`.
+        self._order = np.argsort(self.cluster_of, kind="stable")
+        self._count = np.bincount(self.cluster_of)
+        self._start = np.cumsum(self._count) - self._count
+        self.cluster_radii = np.maximum.reduceat(reach[:, self._order], self._start, axis=1)  # K x C: spheres within
 
     def gaps(self, obstacles: Obstacles, offsets: np.ndarray, margin: float) -> np.ndarray:
         """Clearances (T x K x P, m) of the spheres moved by each of T offsets per keyframe (T x K x 3, m, in W):
         exact below `margin` (m); elsewhere at least `margin` (that, or exact)."""
         bound = obstacles.distance(self.cluster_centres[None] + offsets[:, :, None]) - self.cluster_radii
-        t, k, p = np.nonzero(bound[:, :, self.cluster_of] < margin)
+        t, k, c = np.nonzero(bound < margin)  # the clusters near the scene, then each of their spheres
+        count = self._count[c]
+        run = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count - self._start[c], count)
+        t, k, p = np.repeat(t, count), np.repeat(k, count), self._order[run]
         gaps = np.full((len(offsets),) + self.centres.shape[:2], margin)
         gaps[t, k, p] = obstacles.distance(self.centres[k, p] + offsets[t, k]) - self.radii[p]
         return gaps
@@ -715,7 +728,7 @@ class Stomp:
         one of the ranked detours: not the costlier search among all of them) and its keyframes' clearances, where
         it is a solution; else None."""
         theta = np.linspace(q_start, q_goal, self.config.first_keyframes)
-        theta[1:-1] = constraints.project(theta[1:-1], self.config.projection_steps)
+        theta[1:-1] = constraints.project(theta[1:-1], self.config.first_projection_steps)
         clearance = self.clearance(theta, obstacles, held=closure is not None)
         if min(clearance[0], clearance[-1]) < 0:
             return None  # (the plan with every keyframe says which end collides)
@@ -739,11 +752,13 @@ class Stomp:
         checked first, the smallest first (_ranked_detour). Where none of those is a solution, the cheapest in
         STOMP's cost of theta and all detours (_cheapest_detour), built stage by stage until one is a solution; without
         `cheapest`, theta itself."""
-        travel = self.end_effectors.poses(theta[[0, -1]])[0][:, :3, 3]
-        across = np.cross([0.0, 0.0, 1.0], travel[1] - travel[0])
+        poses = self.kinematics.body_poses(theta)
+        travel = self.end_effectors.from_body_poses(poses[[0, -1]])[0][:, :3, 3]
+        along = travel[1] - travel[0]
+        across = np.array([-along[1], along[0], 0.0])  # e_z x along
         across /= max(np.linalg.norm(across), 1e-9)
         stages = self._detour_stages()
-        held_part = self._held_part(theta[1:-1], obstacles)
+        held_part = self._held_part(poses[1:-1], obstacles)
         for moves in stages:
             found = self._ranked_detour(theta, obstacles, closure, orientation, constraints, moves, across, held_part)
             if found is not None:
@@ -770,10 +785,9 @@ class Stomp:
         profiles = np.array([np.minimum(1.0, ramp * np.sin(np.pi * s)) for ramp in self.config.detour_ramps])
         return (profiles[:, None, :, None] * offsets[None, :, None, :]).reshape(-1, n - 2, 3)
 
-    def _held_part(self, keyframes: np.ndarray, obstacles: Obstacles) -> HeldPart:
-        """The spheres that move with the held object at the keyframes: the hands' and a subset of the carried
-        ones."""
-        poses = self.kinematics.body_poses(keyframes)
+    def _held_part(self, poses: np.ndarray, obstacles: Obstacles) -> HeldPart:
+        """The spheres that move with the held object with the bodies at `poses` (the keyframes', as
+        BatchedKinematics.body_poses): the hands' and a subset of the carried ones."""
         centres, radii = self.spheres.centres_W(poses)[:, self.hand_sphere], self.spheres.radius[self.hand_sphere]
         cluster_of = self.spheres.body[self.hand_sphere]  # a hand's spheres: one cluster per body
         if obstacles.carried is not None:
@@ -796,10 +810,11 @@ class Stomp:
         shortfall = np.maximum(self.config.margin - gaps, 0.0).sum(axis=(1, 2))
         size = np.linalg.norm(targets, axis=-1).mean(axis=1)
         order = np.lexsort((np.where(shortfall > 0, shortfall, size), shortfall > 0))
-        for i in order[: self.config.detour_checks]:
+        for rank, i in enumerate(order[: self.config.detour_checks]):
             candidate = theta.copy()
             candidate[1:-1] = constraints.moved(theta[1:-1], targets[i], self.config.detour_moved_steps)
-            feasible, clearance = self._feasible(candidate, obstacles, closure, orientation)
+            # The first is mostly a solution: checked at once. The others, keyframes first (they may collide).
+            feasible, clearance = self._feasible(candidate, obstacles, closure, orientation, at_once=rank == 0)
             if feasible:
                 return candidate, True, clearance
         return None
@@ -832,17 +847,27 @@ class Stomp:
             feasible, clearance = self._feasible(best, obstacles, closure, orientation)
         return best, feasible, clearance
 
-    def _feasible(self, theta, obstacles, closure, orientation, clearance=None) -> tuple[bool, np.ndarray]:
+    def _feasible(
+        self, theta, obstacles, closure, orientation, clearance=None, at_once: bool = False
+    ) -> tuple[bool, np.ndarray]:
         """Whether the trajectory is a solution (clear of collision at and between its keyframes, within the
-        hand constraints densely), and its keyframes' clearances (`clearance` if already computed)."""
+        hand constraints densely), and its keyframes' clearances (`clearance` if already computed). With
+        `at_once`, the keyframes and the states between them are checked in one batch (a likely solution: one
+        sphere-model call instead of three)."""
         held = closure is not None
-        if clearance is None:
+        between = None
+        if clearance is None and at_once:
+            both = self.clearance(np.concatenate([theta, self._segment_states(theta)[0]]), obstacles, held)
+            clearance, between = both[: len(theta)], both[len(theta) :]
+        elif clearance is None:
             clearance = self.clearance(theta, obstacles, held)
         ok = clearance.min() > self.config.required_clearance
         if ok and (closure is not None or orientation is not None):  # both from one batch of hand poses
             hands = self.dense_hand_poses(theta)
             ok = closure is None or self.closure_within_limits(theta, closure, hands=hands)[0]
             ok = ok and (orientation is None or self.orientation_within_limits(theta, orientation, hands=hands)[0])
+        if between is not None:
+            return bool(ok and between.min() > self.config.required_clearance), clearance
         return bool(ok and self._segments_clear(theta, obstacles, held)), clearance
 
     def _least_clear_along(self, theta: np.ndarray, obstacles: Obstacles) -> np.ndarray:
