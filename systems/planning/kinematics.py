@@ -493,8 +493,7 @@ class EndEffectors:
         """
         self.kinematics = kinematics
         self.positions = [kinematics.position_of_body[frame.body().index()] for frame in frames]
-        self.X_BE = [frame.GetFixedPoseInBodyFrame().GetAsMatrix4() for frame in frames]
-        self._X_BE = np.array(self.X_BE)  # 2 x 4 x 4
+        self.X_BE = np.array([frame.GetFixedPoseInBodyFrame().GetAsMatrix4() for frame in frames])  # 2 x 4 x 4
         # 2 x n x 1: 1 for the joints that move each frame
         self._moved_by = np.array(
             [kinematics.carried[:, position].astype(float)[:, None] for position in self.positions]
@@ -514,7 +513,7 @@ class EndEffectors:
         J_w = a_j, J_v = a_j x (p_E - p_j) if it carries E, else not at all."""
         body = self.kinematics.body_poses(q)
         positions, axes = joint_axes(self.kinematics, body)
-        X = body[:, self.positions] @ self._X_BE  # B x 2 x 4 x 4: both hands in one product
+        X = body[:, self.positions] @ self.X_BE  # B x 2 x 4 x 4: both hands in one product
         J_w = axes[:, None] * self._moved_by  # B x 2 x n x 3
         J_v = _cross(J_w, X[:, :, None, :3, 3] - positions[:, None])
         J = np.concatenate([J_w, J_v], axis=3).transpose(0, 1, 3, 2)  # B x 2 x 6 x n

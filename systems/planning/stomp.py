@@ -167,14 +167,14 @@ class HeldPart:
         present = np.zeros(self.cluster_of.max() + 1, bool)
         present[self.cluster_of] = True
         self.cluster_of = (np.cumsum(present) - 1)[self.cluster_of]  # (labels 0..C-1 in their order, none empty)
-        members = np.zeros((self.cluster_of.max() + 1, len(self.radii)))
-        members[self.cluster_of, np.arange(len(self.radii))] = 1.0
-        self.cluster_centres = (members / members.sum(axis=1, keepdims=True)) @ self.centres  # K x C x 3
-        reach = np.linalg.norm(self.centres - self.cluster_centres[:, self.cluster_of], axis=2) + self.radii
         # The spheres cluster by cluster (`_order`), each cluster's run of `_count` starting at `_start`.
         self._order = np.argsort(self.cluster_of, kind="stable")
         self._count = np.bincount(self.cluster_of)
         self._start = np.cumsum(self._count) - self._count
+        members = np.zeros((len(self._count), len(self.radii)))
+        members[self.cluster_of, np.arange(len(self.radii))] = 1.0
+        self.cluster_centres = (members / self._count[:, None]) @ self.centres  # K x C x 3: each cluster's mean
+        reach = np.linalg.norm(self.centres - self.cluster_centres[:, self.cluster_of], axis=2) + self.radii
         self.cluster_radii = np.maximum.reduceat(reach[:, self._order], self._start, axis=1)  # K x C: spheres within
 
     def gaps(self, obstacles: Obstacles, offsets: np.ndarray, margin: float) -> np.ndarray:
