@@ -4,7 +4,7 @@ held part's along the detours (systems/planning/stomp.py)."""
 import numpy as np
 from pydrake.math import RigidTransform, RollPitchYaw
 
-from systems.planning.obstacles import CLUSTER_RADIUS, CarriedPoints, Obstacles, clusters
+from systems.planning.obstacles import CLUSTER_RADIUS, CarriedPoints, Groups, Obstacles, clusters
 from systems.planning.stomp import HeldPart
 
 
@@ -64,3 +64,25 @@ def test_the_held_parts_clearances_along_detours_are_exact_wherever_they_count()
     shortfall = np.maximum(margin - gaps, 0.0).sum(axis=(1, 2))
     np.testing.assert_array_equal(shortfall, np.maximum(margin - exact, 0.0).sum(axis=(1, 2)))
     assert len(part.cluster_centres[0]) < len(part_B) / 2
+
+
+def test_groups_expand_to_every_member_of_the_chosen_groups_in_each_row():
+    """Groups.expand gives the (row, member) pairs that np.nonzero gives on the groups' mask spread to members."""
+    rng = np.random.default_rng(5)
+    group_of = rng.integers(0, 7, 50)
+    chosen = rng.random((9, 7)) < 0.3  # rows x groups
+    rows, members = Groups(group_of, 7).expand(*np.nonzero(chosen))
+    expected = np.nonzero(chosen[:, group_of])
+    assert sorted(zip(rows, members, strict=True)) == sorted(zip(*expected, strict=True))
+    assert np.all(np.diff(rows) >= 0)  # row by row, as np.nonzero
+
+
+def test_a_box_added_after_a_query_counts_in_the_next():
+    """The boxes' float32 arrays are made again when the list grows or is replaced (they are kept between calls)."""
+    point = np.array([[0.0, 0.0, 0.25]])
+    scene = Obstacles().add_box(np.eye(4), [0.2, 0.2, 0.2])  # its top 0.15 m below the point
+    assert np.isclose(scene.distance(point)[0], 0.15, atol=1e-6)
+    scene.add_box(RigidTransform([0.0, 0.0, 0.45]).GetAsMatrix4(), [0.2, 0.2, 0.2])  # its bottom 0.1 m above it
+    assert np.isclose(scene.distance(point)[0], 0.1, atol=1e-6)
+    scene.boxes = scene.boxes[:1]
+    assert np.isclose(scene.distance(point)[0], 0.15, atol=1e-6)

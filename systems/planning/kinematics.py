@@ -174,7 +174,10 @@ class BatchedKinematics:
         stored link by link, L x B x 4 x 4: each depth's links are placed on their parents' poses in one product)."""
         q = np.atleast_2d(q)[:, self._driven_dof].T  # D x B
         batch = q.shape[1]
-        factors = np.stack([np.ones_like(q), np.sin(q), 1.0 - np.cos(q)], axis=2)  # D x B x 3
+        factors = np.empty(q.shape + (3,))  # D x B x 3
+        factors[..., 0] = 1.0
+        np.sin(q, out=factors[..., 1])
+        np.subtract(1.0, np.cos(q), out=factors[..., 2])
         joints = (factors @ self._rodrigues).reshape(len(q), batch, 4, 4)  # each driven link's X_PB
         poses = np.empty((len(self.links), batch, 4, 4))
         if len(self._still):
@@ -232,7 +235,11 @@ def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """a x b over the last axis (np.cross is slow on many small arrays)."""
     a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
     b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
-    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape), np.result_type(a, b))
+    np.subtract(a1 * b2, a2 * b1, out=out[..., 0])
+    np.subtract(a2 * b0, a0 * b2, out=out[..., 1])
+    np.subtract(a0 * b1, a1 * b0, out=out[..., 2])
+    return out
 
 
 def joint_axes(kinematics: "BatchedKinematics", poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -73,6 +73,23 @@ class CarriedPoints:
         offsets = np.linalg.norm(self.points_B - self.cluster_centres_B[self.cluster_of], axis=1)
         np.maximum.at(reach, self.cluster_of, offsets)
         self.cluster_radii = reach + self.radius  # K, m: each cluster's spheres lie within
+        self.clusters = Groups(self.cluster_of, len(chosen))
+
+
+class Groups:
+    """Items (spheres) by the group (cluster, body) each belongs to, to pick out every member of a few groups."""
+
+    def __init__(self, group_of: np.ndarray, groups: int):
+        self.members = np.argsort(group_of, kind="stable")  # group by group: members[first[g]:first[g] + count[g]]
+        self.count = np.bincount(group_of, minlength=groups)
+        self.first = np.cumsum(self.count) - self.count
+
+    def expand(self, rows: np.ndarray, groups: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(row, member) of every member of group groups[i] in row rows[i], for all i (each row's in order when
+        the pairs are, as np.nonzero gives them)."""
+        count = self.count[groups]
+        start = np.repeat(self.first[groups] - (np.cumsum(count) - count), count)  # each one's offset in members
+        return np.repeat(rows, count), self.members[start + np.arange(len(start))]
 
 
 def placed(points_B: np.ndarray, X_WB: np.ndarray) -> np.ndarray:
@@ -118,6 +135,7 @@ class Obstacles:
 
     def __init__(self):
         self.boxes: list[tuple[np.ndarray, np.ndarray]] = []  # (X_BW 4x4, half sizes)
+        self._box_arrays = (None, 0, None, None)  # (the list, its length, X_BW and half sizes as float32 arrays)
         self.fields: list[DistanceField] = []
         self.carried: CarriedPoints | None = None
 
@@ -151,11 +169,21 @@ class Obstacles:
         carried = self.carried
         bound = self.distance(placed(carried.cluster_centres_B, X_WB)) - carried.cluster_radii  # B x K
         clearances = bound[:, carried.cluster_of]
-        b, m = np.nonzero(clearances < margin)
-        if len(b):  # each near sphere alone at its own pose
+        b, m = carried.clusters.expand(*np.nonzero(bound < margin))
+        if len(b):  # each near cluster's spheres alone at their own pose
             points = placed_each(carried.points_B[m], np.ascontiguousarray(X_WB[:, :3])[b])
             clearances[b, m] = self.distance(points) - carried.radius
         return clearances
+
+    def _float32_boxes(self) -> tuple[np.ndarray, np.ndarray]:
+        """The boxes' X_BW (boxes x 4 x 4) and half sizes (boxes x 3 x 1) in float32, made again only when the box
+        list changed (boxes are appended, or the list replaced)."""
+        listed, length, X_BW, half = self._box_arrays
+        if listed is not self.boxes or length != len(self.boxes):
+            X_BW = np.array([X for X, _ in self.boxes], np.float32)
+            half = np.array([half for _, half in self.boxes], np.float32)[:, :, None]
+            self._box_arrays = (self.boxes, len(self.boxes), X_BW, half)
+        return X_BW, half
 
     def distance(self, centres: np.ndarray, cap: float = 0.3) -> np.ndarray:
         """Distance (m, negative inside a box) from each point (... x 3) to the nearest obstacle, capped at `cap`.
@@ -168,11 +196,11 @@ class Obstacles:
         points = flat.T.astype(np.float32)  # 3 x N
         nearest = np.full(len(flat), cap, np.float32)
         if self.boxes:  # every box at once: excess (boxes x 3 x N) of each point beyond each box's faces
-            X_BW = np.array([X for X, _ in self.boxes], np.float32)
+            X_BW, half = self._float32_boxes()
             excess = X_BW[:, :3, :3] @ points
             excess += X_BW[:, :3, 3, None]
             np.abs(excess, out=excess)
-            excess -= np.array([half for _, half in self.boxes], np.float32)[:, :, None]
+            excess -= half
             largest = np.maximum(np.maximum(excess[:, 0], excess[:, 1]), excess[:, 2])
             np.maximum(excess, 0.0, out=excess)
             excess *= excess

@@ -51,7 +51,7 @@ from systems.planning.closure import (
 from systems.planning.hand_constraints import HandConstraints, bounded_step
 from systems.planning.heap import keep_freed_heap
 from systems.planning.kinematics import Payload, joint_torques, relative_pose
-from systems.planning.obstacles import Obstacles, placed, placed_each
+from systems.planning.obstacles import Groups, Obstacles, placed, placed_each
 from systems.planning.rrt_connect import RrtConfig, rrt_connect
 from systems.planning.world import LIMIT_TOLERANCE_RAD, PlanningWorld
 
@@ -167,24 +167,21 @@ class HeldPart:
         present = np.zeros(self.cluster_of.max() + 1, bool)
         present[self.cluster_of] = True
         self.cluster_of = (np.cumsum(present) - 1)[self.cluster_of]  # (labels 0..C-1 in their order, none empty)
-        # The spheres cluster by cluster (`_order`), each cluster's run of `_count` starting at `_start`.
-        self._order = np.argsort(self.cluster_of, kind="stable")
-        self._count = np.bincount(self.cluster_of)
-        self._start = np.cumsum(self._count) - self._count
-        members = np.zeros((len(self._count), len(self.radii)))
+        clusters = self._clusters = Groups(self.cluster_of, self.cluster_of.max() + 1)
+        members = np.zeros((len(clusters.count), len(self.radii)))
         members[self.cluster_of, np.arange(len(self.radii))] = 1.0
-        self.cluster_centres = (members / self._count[:, None]) @ self.centres  # K x C x 3: each cluster's mean
+        self.cluster_centres = (members / clusters.count[:, None]) @ self.centres  # K x C x 3: each cluster's mean
         reach = np.linalg.norm(self.centres - self.cluster_centres[:, self.cluster_of], axis=2) + self.radii
-        self.cluster_radii = np.maximum.reduceat(reach[:, self._order], self._start, axis=1)  # K x C: spheres within
+        # K x C: each cluster's spheres lie within
+        self.cluster_radii = np.maximum.reduceat(reach[:, clusters.members], clusters.first, axis=1)
 
     def gaps(self, obstacles: Obstacles, offsets: np.ndarray, margin: float) -> np.ndarray:
         """Clearances (T x K x P, m) of the spheres moved by each of T offsets per keyframe (T x K x 3, m, in W):
         exact below `margin` (m); elsewhere at least `margin` (that, or exact)."""
         bound = obstacles.distance(self.cluster_centres[None] + offsets[:, :, None]) - self.cluster_radii
         t, k, c = np.nonzero(bound < margin)  # the clusters near the scene, then each of their spheres
-        count = self._count[c]
-        run = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count - self._start[c], count)
-        t, k, p = np.repeat(t, count), np.repeat(k, count), self._order[run]
+        near, p = self._clusters.expand(np.arange(len(c)), c)
+        t, k = t[near], k[near]
         gaps = np.full((len(offsets),) + self.centres.shape[:2], margin)
         gaps[t, k, p] = obstacles.distance(self.centres[k, p] + offsets[t, k]) - self.radii[p]
         return gaps
@@ -294,6 +291,7 @@ class Stomp:
         )
         self.bound_body = bodies
         self.sphere_bound = np.searchsorted(bodies, spheres.body)  # each sphere's body's bounding sphere
+        self.bound_spheres = Groups(self.sphere_bound, len(bodies))
         slot = {b: i for i, b in enumerate(bodies)}
         body_pairs = np.array(
             [(slot[spheres.body[a]], slot[spheres.body[b]]) for a, b in zip(self.pair_a, self.pair_b, strict=True)]
@@ -332,7 +330,7 @@ class Stomp:
         bounds = self._body_bounds(poses)
         to_scene = (obstacles.distance(bounds) - self.bound_radius[:, None]).T  # B x bodies
         scene_gaps = to_scene[:, self.sphere_bound]  # B x S: lower bounds
-        b, k = np.nonzero(scene_gaps < margin)
+        b, k = self.bound_spheres.expand(*np.nonzero(to_scene < margin))  # the spheres of the bodies near the scene
         scene_gaps[b, k] = obstacles.distance(centres[b, k]) - radius[k]
         gaps = [scene_gaps]
         if obstacles.carried is not None:
