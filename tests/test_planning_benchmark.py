@@ -28,7 +28,7 @@ from diagrams.scenario import load_scenario, replace_object
 from systems.planning.closure import ClosureConstraint, deviations
 from systems.planning.obstacles import covering_centres
 from systems.planning.pick_motions import CARRIED_MOST_SPHERES, CARRIED_RADIUS
-from systems.planning.stomp import Stomp, StompConfig
+from systems.planning.stomp import DETOUR_BATCH, HeldPart, Stomp, StompConfig
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
 from planner_peers import OmplConfig, ompl_plan  # noqa: E402
@@ -189,6 +189,49 @@ def test_a_trajectory_checked_at_once_gets_the_verdict_of_the_check_in_steps(mot
         below = clearance < stomp.config.margin
         assert below.any()
         np.testing.assert_array_equal(clearance_at_once[below], clearance[below])
+
+
+def test_detours_scored_a_few_at_a_time_are_built_in_the_order_of_the_ranking_of_all(motions, monkeypatch):
+    """The held part's clearances along a stage's detours are found smallest detour first, DETOUR_BATCH at a time,
+    until one is clear; where that one is no solution the rest are scored, and the detours built are those of the
+    ranking over all of them, in its order. Tuning set-down 21: no clear detour among the smallest 8, the smallest
+    clear one among the next 8 is no solution, and a later one is."""
+    problem = make_problem(motions, "set_down", "tune", 21)
+    assert isinstance(problem, PlanningProblem), problem
+    stomp = Stomp(motions.world, StompConfig(seed=problem.index, max_iterations=0))
+    stages, built, scored = [], [], []
+    ranked, through, gaps = Stomp._ranked_detour, Stomp._detour_through, HeldPart.gaps
+
+    def ranked_first_stage(self, theta, obstacles, closure, orientation, constraints, moves, across, held_part):
+        stages.append((theta, obstacles, moves, across, held_part))
+        return ranked(self, theta, obstacles, closure, orientation, constraints, moves, across, held_part)
+
+    def recording_through(self, theta, obstacles, closure, orientation, constraints, target, at_once):
+        if len(stages) == 1:
+            built.append((target, at_once))
+        return through(self, theta, obstacles, closure, orientation, constraints, target, at_once)
+
+    def recording_gaps(self, obstacles, offsets, margin):
+        if len(stages) == 1:
+            scored.append(len(offsets))
+        return gaps(self, obstacles, offsets, margin)
+
+    monkeypatch.setattr(Stomp, "_ranked_detour", ranked_first_stage)
+    monkeypatch.setattr(Stomp, "_detour_through", recording_through)
+    monkeypatch.setattr(HeldPart, "gaps", recording_gaps)
+    result = stomp.plan(problem.q_start, problem.q_goal, problem.obstacles, ClosureConstraint(), problem.orientation)
+    assert result.success and result.iterations == 0, result.message
+    theta, obstacles, moves, across, held_part = stages[0]
+    targets = stomp._detour_targets(moves, across, len(theta))
+    assert scored == [DETOUR_BATCH, DETOUR_BATCH, len(targets) - 2 * DETOUR_BATCH]
+    shortfall = np.maximum(stomp.config.margin - gaps(held_part, obstacles, targets, stomp.config.margin), 0.0)
+    shortfall = shortfall.sum(axis=(1, 2))
+    size = np.linalg.norm(targets, axis=-1).mean(axis=1)
+    order = np.lexsort((np.where(shortfall > 0, shortfall, size), shortfall > 0))
+    assert 2 <= len(built) <= stomp.config.detour_checks
+    for rank, (target, at_once) in enumerate(built):
+        np.testing.assert_array_equal(target, targets[order[rank]])
+        assert at_once == (rank == 0)
 
 
 def test_a_reach_stuck_under_the_table_restarts_from_the_hands_cartesian_vias(motions):

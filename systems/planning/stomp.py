@@ -61,6 +61,7 @@ TERMS = ("collision", "limits", "torque", "duration", "closure", "orientation")
 # and a transition at the closure's and orientation's thresholds.
 TERM_UNITS = np.array([0.02, 1.0, 1.0, 1.0, 1.0, 1.0])
 HAND_VIA_STEP_RAD = 0.3  # the largest joint change of one Gauss-Newton step towards a hand via point
+DETOUR_BATCH = 8  # detours whose held part's clearances are found at once, smallest first (_ranked_detour)
 
 
 @dataclass(frozen=True)
@@ -800,22 +801,51 @@ class Stomp:
     def _ranked_detour(self, theta, obstacles, closure, orientation, constraints, moves, across, held_part):
         """The first solution (theta, True, clearances) among the detour_checks detours of the moves that the held
         part, moved rigidly along each, takes clearest of the scene (all above the margin, the smallest detour
-        first; then the least shortfall), or None."""
+        first; then the least shortfall), or None.
+
+        The held part's clearances along the detours are found smallest detour first, DETOUR_BATCH at a time, until
+        one is clear: that one, the first in the ranking, is mostly a solution, and then the rest are not needed."""
         targets = self._detour_targets(moves, across, len(theta))
         if not len(targets):
             return None
-        gaps = held_part.gaps(obstacles, targets, self.config.margin)
-        shortfall = np.maximum(self.config.margin - gaps, 0.0).sum(axis=(1, 2))
+        margin = self.config.margin
         size = np.linalg.norm(targets, axis=-1).mean(axis=1)
+        by_size = np.argsort(size, kind="stable")
+        shortfall = np.full(len(targets), np.inf)
+        done, first = 0, None
+        while done < len(targets) and first is None:
+            batch = by_size[done : done + DETOUR_BATCH]
+            gaps = held_part.gaps(obstacles, targets[batch], margin)
+            shortfall[batch] = np.maximum(margin - gaps, 0.0).sum(axis=(1, 2))
+            done += len(batch)
+            clear = batch[shortfall[batch] == 0.0]
+            first = clear[0] if len(clear) else None
+        checked = None
+        if first is not None and done < len(targets):  # the smallest clear detour, before the rest are scored
+            found = self._detour_through(theta, obstacles, closure, orientation, constraints, targets[first], True)
+            if found is not None:
+                return found
+            rest = by_size[done:]
+            gaps = held_part.gaps(obstacles, targets[rest], margin)
+            shortfall[rest] = np.maximum(margin - gaps, 0.0).sum(axis=(1, 2))
+            checked = first  # (the first in the ranking below)
         order = np.lexsort((np.where(shortfall > 0, shortfall, size), shortfall > 0))
         for rank, i in enumerate(order[: self.config.detour_checks]):
-            candidate = theta.copy()
-            candidate[1:-1] = constraints.moved(theta[1:-1], targets[i], self.config.detour_moved_steps)
+            if i == checked:
+                continue
             # The first is mostly a solution: checked at once. The others, keyframes first (they may collide).
-            feasible, clearance = self._feasible(candidate, obstacles, closure, orientation, at_once=rank == 0)
-            if feasible:
-                return candidate, True, clearance
+            found = self._detour_through(theta, obstacles, closure, orientation, constraints, targets[i], rank == 0)
+            if found is not None:
+                return found
         return None
+
+    def _detour_through(self, theta, obstacles, closure, orientation, constraints, target, at_once: bool):
+        """theta with the held object moved by the offsets `target` ((N - 2) x 3, m, in W) at its interior keyframes,
+        with True and its keyframes' clearances where it is a solution; else None."""
+        candidate = theta.copy()
+        candidate[1:-1] = constraints.moved(theta[1:-1], target, self.config.detour_moved_steps)
+        feasible, clearance = self._feasible(candidate, obstacles, closure, orientation, at_once=at_once)
+        return (candidate, True, clearance) if feasible else None
 
     def _cheapest_detour(self, theta, obstacles, closure, orientation, constraints, payload, stages, across):
         """The cheapest (in STOMP's cost) of theta and the detours, stage by stage and ramp by ramp until the cheapest
