@@ -225,7 +225,7 @@ def test_detours_scored_a_few_at_a_time_are_built_in_the_order_of_the_ranking_of
     targets = stomp._detour_targets(moves, across, len(theta))
     assert scored == [DETOUR_BATCH, DETOUR_BATCH, len(targets) - 2 * DETOUR_BATCH]
     shortfall = np.maximum(stomp.config.margin - gaps(held_part, obstacles, targets, stomp.config.margin), 0.0)
-    shortfall = shortfall.sum(axis=(1, 2))
+    shortfall = shortfall.sum(axis=(1, 2))  # (not HeldPart.shortfall: the ranking over all, written out)
     size = np.linalg.norm(targets, axis=-1).mean(axis=1)
     order = np.lexsort((np.where(shortfall > 0, shortfall, size), shortfall > 0))
     assert 2 <= len(built) <= stomp.config.detour_checks

@@ -69,11 +69,10 @@ class CarriedPoints:
     def __post_init__(self):
         chosen, self.cluster_of = clusters(self.points_B, CLUSTER_RADIUS)  # cluster_of: M, each sphere's cluster
         self.cluster_centres_B = self.points_B[chosen]  # K x 3, m
-        reach = np.zeros(len(chosen))
-        offsets = np.linalg.norm(self.points_B - self.cluster_centres_B[self.cluster_of], axis=1)
-        np.maximum.at(reach, self.cluster_of, offsets)
-        self.cluster_radii = reach + self.radius  # K, m: each cluster's spheres lie within
         self.clusters = Groups(self.cluster_of, len(chosen))
+        offsets = np.linalg.norm(self.points_B - self.cluster_centres_B[self.cluster_of], axis=1)
+        reach = np.maximum.reduceat(offsets[self.clusters.members], self.clusters.first)
+        self.cluster_radii = reach + self.radius  # K, m: each cluster's spheres lie within
 
 
 class Groups:

@@ -187,6 +187,10 @@ class HeldPart:
         gaps[t, k, p] = obstacles.distance(self.centres[k, p] + offsets[t, k]) - self.radii[p]
         return gaps
 
+    def shortfall(self, obstacles: Obstacles, offsets: np.ndarray, margin: float) -> np.ndarray:
+        """Each offset's (T x K x 3, as gaps) summed shortfall below `margin` (T, m): 0 where clear by the margin."""
+        return np.maximum(margin - self.gaps(obstacles, offsets, margin), 0.0).sum(axis=(1, 2))
+
 
 @dataclass
 class StompResult:
@@ -815,8 +819,7 @@ class Stomp:
         done, first = 0, None
         while done < len(targets) and first is None:
             batch = by_size[done : done + DETOUR_BATCH]
-            gaps = held_part.gaps(obstacles, targets[batch], margin)
-            shortfall[batch] = np.maximum(margin - gaps, 0.0).sum(axis=(1, 2))
+            shortfall[batch] = held_part.shortfall(obstacles, targets[batch], margin)
             done += len(batch)
             clear = batch[shortfall[batch] == 0.0]
             first = clear[0] if len(clear) else None
@@ -825,9 +828,7 @@ class Stomp:
             found = self._detour_through(theta, obstacles, closure, orientation, constraints, targets[first], True)
             if found is not None:
                 return found
-            rest = by_size[done:]
-            gaps = held_part.gaps(obstacles, targets[rest], margin)
-            shortfall[rest] = np.maximum(margin - gaps, 0.0).sum(axis=(1, 2))
+            shortfall[by_size[done:]] = held_part.shortfall(obstacles, targets[by_size[done:]], margin)
             checked = first  # (the first in the ranking below)
         order = np.lexsort((np.where(shortfall > 0, shortfall, size), shortfall > 0))
         for rank, i in enumerate(order[: self.config.detour_checks]):
