@@ -4,7 +4,7 @@ import numpy as np
 import open3d as o3d
 import pytest
 import trimesh
-from pydrake.math import RigidTransform, RotationMatrix
+from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 from scipy.spatial.transform import Rotation
 
 from diagrams.generation.objects import catalog
@@ -12,6 +12,7 @@ from diagrams.generation.objects.library import load_info
 from systems.perception.shape_registrar import shape_space_file
 from systems.shape_space import registration
 from systems.shape_space.cpd import deformable_cpd, gmm_posteriors, rigid_cpd, squared_distances
+from systems.shape_space.handle_centring import handle_centring
 from systems.shape_space.pca_em import pca_em
 from systems.shape_space.registration import Registrar, evenly_thinned, grasp_shift, visible_from
 from systems.shape_space.space import POSE_NAMES, ShapeSpace, build_shape_space, scaled_copy
@@ -336,6 +337,30 @@ def test_grasp_shift_moves_a_grasp_across_a_straight_handle_onto_the_seen_points
     # Too little seen about the grasp (a few points, or the handle 6 cm away): left where it is.
     np.testing.assert_array_equal(grasp_shift(origin, model, seen[:10]), np.zeros(3))
     np.testing.assert_array_equal(grasp_shift(origin, model, seen + [0.0, 0.06, 0.0]), np.zeros(3))
+
+
+def test_handle_centring_moves_a_grasp_across_its_handle_onto_the_one_seen_and_never_along_it():
+    """The fitted handle 19 mm beside the seen one (beyond grasp_shift's matches) and 2 cm along it, the whole scene
+    turned: the grasp moves across the handle onto the seen one, nothing along it; a fitted handle already on the
+    seen one, or one further off than the reach, stays."""
+    R = RotationMatrix(RollPitchYaw(0.3, -0.5, 1.2))
+    centre = np.array([0.7, 0.0, 0.8])
+
+    def turned(points):
+        return centre + (points - centre) @ R.matrix().T
+
+    seen = turned(handle_front(centre, seed=1))
+    offset = np.array([0.02, 0.015, -0.012])  # along, across, across (in G)
+    model = turned(handle_front(centre + offset, seed=2))
+    X_WG = RigidTransform(R, turned(centre + offset))
+    move_G = R.inverse().multiply(handle_centring(X_WG, model, seen))
+    assert move_G[0] == pytest.approx(0.0, abs=1e-12)
+    np.testing.assert_allclose(move_G[1:], -offset[1:], atol=0.003)
+    on_it = turned(handle_front(centre + [0.02, 0.0, 0.0], seed=2))
+    np.testing.assert_array_equal(handle_centring(RigidTransform(R, turned(centre + [0.02, 0, 0])), on_it, seen), 0)
+    far = np.array([0.0, 0.07, 0.0])
+    X_far = RigidTransform(R, turned(centre + far))
+    np.testing.assert_array_equal(handle_centring(X_far, turned(handle_front(centre + far, seed=2)), seen), 0)
 
 
 def arc_handle(centre, radius=0.06, count=3000, seed=0):

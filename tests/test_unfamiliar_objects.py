@@ -220,3 +220,29 @@ def test_a_held_out_can_the_latent_fit_calls_poor_is_registered_with_its_scale_i
     assert refined.poor_fit == "" and refined.inlier_share >= 0.8, (refined.poor_fit, refined.inlier_share)
     assert not np.allclose(refined.scale, 1.0)
     assert worst_grasp_error(refined) < 0.01, f"a grasp {1000 * worst_grasp_error(refined):.1f} mm off"
+
+
+def test_a_sound_hypothesis_replaces_the_nearest_only_about_as_near_the_points(monkeypatch):
+    """Beyond the latent space the nearest yaw hypothesis judged sound wins, unless it lies much further from the seen
+    points than the nearest (a can turned end for end, its rear grasp hidden): then the nearest, named poor."""
+    registrar = registrar_of("watering_can", shape_space_file("watering_can"))
+    monkeypatch.setattr(registration, "parallel_map", lambda function, items: [function(item) for item in items])
+
+    def judged(distances, sound):
+        """The fit of the scaled pass when the hypotheses' fits lie at these mean distances (m), those in `sound`
+        judged sound: which distance won."""
+        fits = iter(distances)
+        monkeypatch.setattr(registrar, "_fit", lambda *args: (None, None, None, None, next(fits), 0, None))
+
+        def made(fit, *args):
+            result = Registration(RigidTransform(), np.zeros(1), np.zeros((1, 3)), {}, fit[4], 0, 1.0)
+            result.inlier_share = 1.0 if fit[4] in sound else 0.0
+            return result
+
+        monkeypatch.setattr(registrar, "_registration", made)
+        return registrar._register(None, None, RigidTransform(), None, None, 0.2).fit_error_m
+
+    distances = [0.0100, 0.0104, 0.0150, 0.0108][: len(registrar.yaw_hypotheses)]
+    assert judged(distances, sound={0.0104, 0.0150}) == 0.0104  # within SOUND_FIT_MARGIN of the nearest
+    assert judged(distances, sound={0.0150}) == 0.0100  # 1.5 times as far: the nearest, poor
+    assert registration.SOUND_FIT_MARGIN * 0.0100 < 0.0150
