@@ -77,6 +77,33 @@ def test_stomp_rejects_bad_goals_and_keeps_its_time_limit(planning):
     assert timed_out.seconds < 0.5
 
 
+# Free by Drake's geometry, but the right upper arm's spheres overlap the torso's by 18 mm (found by seeded sampling
+# about where the robot stood after a reach at a held-out can, the torso turned): the robot can stand there.
+OVERLAPPING_SPHERES = np.array(
+    [1.605, 1.368, 1.542, -1.391, -0.742, -1.519, 0.148, 0.119, -0.024, 0.971, -2.469, 0.595, 1.256, -0.371, -0.173]
+)
+
+
+def test_a_plan_starts_where_the_robot_stands_though_its_own_spheres_overlap_there(planning, scenario):
+    """Where the sphere model is coarser than the robot (its own spheres overlapping at a configuration Drake's
+    geometry finds free), a plan from there is not refused: those pairs may come as near as they are at the start,
+    no nearer; the plan is free by Drake's geometry."""
+    motions, _ = planning
+    world, stomp = motions.world, motions.stomp
+    scene = world.planning_obstacles()
+    assert not world.in_collision(OVERLAPPING_SPHERES) and world.beyond_limits(OVERLAPPING_SPHERES) <= 0
+    assert stomp.clearance(OVERLAPPING_SPHERES[None], scene)[0] < -0.01
+    result = stomp.plan(OVERLAPPING_SPHERES, initial_positions(scenario), scene)
+    assert result.success, result.message
+    trajectory = result.trajectory
+    dense = np.concatenate([np.linspace(a, b, 20) for a, b in zip(trajectory[:-1], trajectory[1:], strict=True)])
+    standing = stomp._standing_start(OVERLAPPING_SPHERES, scene)
+    assert stomp.clearance(dense, standing).min() > 0  # no pair nearer than at the start
+    for q_from, q_to in zip(trajectory[:-1], trajectory[1:], strict=True):
+        assert motions.segment_is_free(q_from, q_to, max_step=0.01)
+    assert stomp._standing_start(initial_positions(scenario), scene) is scene  # a clear start: the scene itself
+
+
 def _colliding_configuration(world) -> np.ndarray:
     """A configuration in collision under Drake's exact check (found by seeded sampling)."""
     rng = np.random.default_rng(0)

@@ -137,11 +137,30 @@ class Obstacles:
         self._box_arrays = (None, 0, None, None)  # (the list, its length, X_BW and half sizes as float32 arrays)
         self.fields: list[DistanceField] = []
         self.carried: CarriedPoints | None = None
+        # How far (m, float32) each pair of the robot's own spheres (the planner's pairs, in its order) may overlap
+        # without counting as a collision; None: not at all.
+        self.self_overlap: np.ndarray | None = None
+
+    def _copy(self) -> "Obstacles":
+        scene = Obstacles()
+        scene.boxes, scene.fields, scene.carried, scene.self_overlap = (
+            self.boxes,
+            self.fields,
+            self.carried,
+            self.self_overlap,
+        )
+        return scene
 
     def carrying(self, carried: CarriedPoints) -> "Obstacles":
         """The same scene with the robot carrying `carried`."""
-        scene = Obstacles()
-        scene.boxes, scene.fields, scene.carried = self.boxes, self.fields, carried
+        scene = self._copy()
+        scene.carried = carried
+        return scene
+
+    def allowing_self_overlap(self, overlap: np.ndarray) -> "Obstacles":
+        """The same scene with the robot's own sphere pairs allowed to overlap by `overlap` (m, one per pair)."""
+        scene = self._copy()
+        scene.self_overlap = np.asarray(overlap, np.float32)
         return scene
 
     def add_box(self, X_WB: np.ndarray, size) -> "Obstacles":

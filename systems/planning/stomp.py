@@ -61,6 +61,9 @@ TERMS = ("collision", "limits", "torque", "duration", "closure", "orientation")
 # and a transition at the closure's and orientation's thresholds.
 TERM_UNITS = np.array([0.02, 1.0, 1.0, 1.0, 1.0, 1.0])
 HAND_VIA_STEP_RAD = 0.3  # the largest joint change of one Gauss-Newton step towards a hand via point
+# m: the robot's own sphere pairs nearer each other at a plan's start than the required clearance may come this much
+# nearer still along it (the float32 gaps along the plan against the float64 ones at the start)
+START_OVERLAP_SLACK = 1e-4
 DETOUR_BATCH = 8  # detours whose held part's clearances are found at once, smallest first (_ranked_detour)
 
 
@@ -313,6 +316,19 @@ class Stomp:
         )
         self.hand_sphere = np.isin(moved_by, list(hands))  # the spheres that move with a held object
 
+    def _standing_start(self, q_start: np.ndarray, obstacles: Obstacles) -> Obstacles:
+        """The scene a plan from q_start is judged in: where the robot's own spheres come nearer each other at
+        q_start than a plan's required clearance, or overlap (the sphere model is coarser than the robot, and the
+        robot stands there: a path to there was free by Drake's geometry), each such pair may come as near along
+        the plan as it is there, no nearer. Else `obstacles` itself."""
+        centres = self.spheres.centres_W(self.kinematics.body_poses(np.asarray(q_start, float)[None]))[0]
+        a, b = self.pair_a, self.pair_b
+        gap = np.linalg.norm(centres[a] - centres[b], axis=1) - self.spheres.radius[a] - self.spheres.radius[b]
+        short = self.config.required_clearance + START_OVERLAP_SLACK - gap
+        if short.max() <= 0.0:
+            return obstacles
+        return obstacles.allowing_self_overlap(np.maximum(short, 0.0))
+
     def clearance(self, q: np.ndarray, obstacles: Obstacles, held: bool = False, poses=None) -> np.ndarray:
         """Smallest clearance (m) of the sphere model at each configuration (... x n); with `held` (both hands
         hold one object), without the hand-to-hand pairs. `poses`: the tracked bodies' poses at q if known
@@ -349,7 +365,10 @@ class Stomp:
             difference = centres32[:, a] - centres32[:, b]
             difference *= difference
             distance = np.sqrt(difference[..., 0] + difference[..., 1] + difference[..., 2])
-            gaps.append(distance - (radius[a] + radius[b]).astype(np.float32))
+            gap = distance - (radius[a] + radius[b]).astype(np.float32)
+            if obstacles.self_overlap is not None:
+                gap += obstacles.self_overlap[near]
+            gaps.append(gap)
         gaps = np.concatenate(gaps, axis=1, dtype=np.float64)
         shortfall = np.maximum(margin - gaps, 0.0).sum(axis=1)
         return gaps.min(axis=1).reshape(shape), shortfall.reshape(shape)
@@ -532,6 +551,7 @@ class Stomp:
                 return StompResult(
                     False, theta, 0, 0.0, np.nan, f"the {name} configuration is outside the joint limits"
                 )
+        obstacles = self._standing_start(q_start, obstacles)
         closure = orientation = constraints = None
         if closure_constraint is not None or orientation_constraint is not None:
             hands_start = self.end_effectors.poses(q_start[None])
