@@ -43,6 +43,7 @@ from build_shape_space import build_from_folder, folder_copies, pose_entries, sa
 from json_report import write_json
 from pydrake.math import RigidTransform
 from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
+from pydrake.systems.framework import Context, Diagram
 from scenario_options import add_sensor_option, with_sensor
 from scipy.spatial import cKDTree
 
@@ -288,13 +289,20 @@ def pick_frame_trials(
 
 def first_pick_frame(scenario: Scenario) -> tuple[ObjectEstimate, RigidTransform]:
     """The ObjectEstimate the autonomous pick's registrar is given for its first frame (after the registration yaw
-    noise), and the object's true pose X_WO then (as it settled): the pick diagram simulated until perception has
-    latched that frame."""
+    noise), and the object's true pose X_WO then (as it settled)."""
+    diagram, context = pick_at_first_frame(scenario)
+    registrar = diagram.GetSubsystemByName("perception").GetSubsystemByName("shape_registrar")
+    plant = station_plant(diagram)
+    X_WO = object_body(plant).EvalPoseInWorld(plant.GetMyContextFromRoot(context))
+    return registrar.GetInputPort("estimate").Eval(registrar.GetMyContextFromRoot(context)), X_WO
+
+
+def pick_at_first_frame(scenario: Scenario) -> tuple[Diagram, Context]:
+    """The pick diagram and its context, simulated until perception has latched its first frame."""
     diagram = MakePickDiagram(scenario)
     simulator = Simulator(diagram)
     ApplySimulatorConfig(scenario.simulator_config, simulator)
     perception = diagram.GetSubsystemByName("perception")
-    registrar = perception.GetSubsystemByName("shape_registrar")
     context = simulator.get_mutable_context()
     frame_id = perception.GetOutputPort("frame_id")
     t = 0.0
@@ -307,9 +315,7 @@ def first_pick_frame(scenario: Scenario) -> tuple[ObjectEstimate, RigidTransform
             simulator.AdvanceTo(t)
     finally:
         logging.disable(logging.NOTSET)
-    plant = station_plant(diagram)
-    X_WO = object_body(plant).EvalPoseInWorld(plant.GetMyContextFromRoot(context))
-    return registrar.GetInputPort("estimate").Eval(registrar.GetMyContextFromRoot(context)), X_WO
+    return diagram, context  # (the context keeps its simulator alive)
 
 
 def folder_spaces(annotation: str, directory: Path, scaled_copies: dict[str, int]) -> dict:

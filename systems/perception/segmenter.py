@@ -18,6 +18,7 @@ from systems.parallel import parallel_map
 from systems.paths import MODELS_DIR
 from systems.perception import segmentation_network
 from systems.perception.instances import TableView, named_object, object_instances
+from systems.perception.object_completion import completed_mask
 
 DEFAULT_WEIGHTS = MODELS_DIR / "segmenter.pt"
 # The network also on the mirror image, its scores summed (see Segmenter.segment).
@@ -84,7 +85,9 @@ class Segmenter(LeafSystem):
     Without a named category that is the dominant object, the largest region of one class (dominant_object).
     With one, it is the nearest object the network labelled that category, objects cut apart in 3D where the depth
     image and the intrinsics are given (systems/perception/instances.py: a cluttered table), and where the camera's
-    pose and the table top are given too, an object's upper part that self-occlusion cut off joins it.
+    pose and the table top are given too, an object's upper part that self-occlusion cut off joins it, and so do
+    the object's parts the network left unlabelled, found in 3D (systems/perception/object_completion.py; only of
+    an object the network labelled that category).
 
     Args:
         weights: the network's (its classes come with it).
@@ -170,6 +173,14 @@ class Segmenter(LeafSystem):
             return None
         return TableView(X_WB @ self.X_BC, self.table_top_z)
 
+    def _complete(self, segmentation: Segmentation, labels: np.ndarray, depth: np.ndarray, table: TableView):
+        """Adds the object's parts the network left unlabelled, found in 3D (object_completion), to its mask."""
+        mask = completed_mask(segmentation.mask, labels, depth, self.intrinsics, table)
+        added = int(np.count_nonzero(mask & ~segmentation.mask))
+        if added:
+            segmentation.mask, segmentation.pixel_count = mask, segmentation.pixel_count + added
+            segmentation.message += f", {added} px more of it in 3D"
+
     def _calc_labels(self, context, output):
         image = self.color_image_port.Eval(context)
         output.set_value(self.segment(np.asarray(image.data)))
@@ -177,19 +188,32 @@ class Segmenter(LeafSystem):
     def _calc_mask(self, context, output):
         started = time.perf_counter()
         labels = self.labels_port.Eval(context)
-        if self.category:
-            depth = None
-            if self.depth_image_port.HasValue(context):
-                depth = np.asarray(self.depth_image_port.Eval(context).data)[:, :, 0]
-                if depth.shape != labels.shape:
-                    raise ValueError(f"depth image {depth.shape} and colour image {labels.shape} differ in size")
-            X_WB = self.camera_pose_port.Eval(context) if self.camera_pose_port.HasValue(context) else None
-            table = self.table_view(X_WB)
-            instances = object_instances(labels, depth, self.classes, self.min_pixels, self.intrinsics, table)
-            segmentation = named_object(instances, self.classes, self.category, labels.shape)
-        else:
-            segmentation = dominant_object(labels, self.classes, self.min_pixels)
+        depth, X_WB = None, None
+        if self.depth_image_port.HasValue(context):
+            depth = np.asarray(self.depth_image_port.Eval(context).data)[:, :, 0]
+        if self.camera_pose_port.HasValue(context):
+            X_WB = self.camera_pose_port.Eval(context)
+        segmentation = self.object_of(labels, depth, X_WB)
         if segmentation.network_category and segmentation.network_category != self.category:
             logging.warning("segmentation: %s", segmentation.message)
         segmentation.compute_s = time.perf_counter() - started
         output.set_value(segmentation)
+
+    def object_of(
+        self, labels: np.ndarray, depth: np.ndarray | None = None, X_WB: RigidTransform | None = None
+    ) -> Segmentation:
+        """The object to pick in a labelled image (H x W class ids), as the class docstring says, from the depth
+        image (H x W, m) and the camera body's pose X_WB where given."""
+        if not self.category:
+            return dominant_object(labels, self.classes, self.min_pixels)
+        if depth is not None and depth.shape != labels.shape:
+            raise ValueError(f"depth image {depth.shape} and colour image {labels.shape} differ in size")
+        table = self.table_view(X_WB)
+        instances = object_instances(labels, depth, self.classes, self.min_pixels, self.intrinsics, table)
+        segmentation = named_object(instances, self.classes, self.category, labels.shape)
+        # (An object the network took for another category, taken as named, is a guess: on a table of other things
+        # it is a mislabelled patch of one of them, and completing it would make that thing the object.)
+        recognised = segmentation.found and segmentation.network_category == self.category
+        if recognised and depth is not None and self.intrinsics is not None and table is not None:
+            self._complete(segmentation, labels, depth, table)
+        return segmentation
