@@ -5,6 +5,7 @@ import dataclasses
 
 import numpy as np
 import pytest
+from pydrake.math import RigidTransform
 
 from diagrams.autonomous_pick import run_pick
 from diagrams.generation import clutter_scenes
@@ -14,7 +15,8 @@ from diagrams.perception import MakeSegmenter, depth_camera
 from diagrams.planning_scene import make_pick_motions, object_surface_W, true_grasp_poses
 from diagrams.scenario import ClutterObjectConfig, initial_positions, overlay_scenario, replace_object
 from diagrams.station import TABLE_HEIGHT, object_pose_on_table, settled_frame
-from systems.perception.instances import named_object, object_instances
+from systems.perception.instances import TableView, named_object, object_instances
+from systems.perception.object_completion import completed_mask
 from systems.perception.robot_spheres import RobotSpheres
 from systems.perception.scene_cloud import HIDDEN_DEPTH_M, SELF_MARGIN_M, TABLE_MARGIN_M, VOXEL_M, scene_points
 from systems.planning.obstacles import Obstacles
@@ -129,3 +131,17 @@ def test_completing_the_object_in_3d_takes_nothing_of_its_neighbours(scenario, c
     labelled = named_object(instances, segmenter.classes, category, labels.shape).mask
     added = segmenter.object_of(labels, frame.depth, frame.X_WB).mask & ~labelled
     assert np.count_nonzero(added & ~truth) <= 0.001 * np.count_nonzero(labelled)
+
+
+def test_completion_without_depth_leaves_the_mask_as_it_is(scenario):
+    """Depth holes where the object is (NaN, 0 or inf), or no depth at all: the network's mask stands, unchanged."""
+    intrinsics, X_BC = depth_camera(scenario)
+    mask = np.zeros((intrinsics.height(), intrinsics.width()), bool)
+    mask[200:260, 300:340] = True
+    table = TableView(RigidTransform([0.0, 0.0, 1.4]) @ X_BC, scenario.table_xyz[2] + TABLE_HEIGHT)
+    for hole in (np.nan, 0.0, np.inf):
+        depth = np.full(mask.shape, 0.8, np.float32)
+        depth[mask] = hole
+        assert np.array_equal(completed_mask(mask, mask.astype(np.uint8), depth, intrinsics, table), mask)
+    empty = np.zeros_like(mask)
+    assert np.array_equal(completed_mask(empty, empty.astype(np.uint8), depth, intrinsics, table), empty)

@@ -78,8 +78,8 @@ def completed_mask(mask: np.ndarray, labels: np.ndarray, depth: np.ndarray, intr
     low, high = points[own].min(axis=0) - NEAR_M, points[own].max(axis=0) + NEAR_M
     keep = np.all((points >= low) & (points <= high), axis=1) & (table.heights(points) >= ABOVE_TABLE_M)
     points, v, u, own = points[keep], v[keep], u[keep], own[keep]
-    if not own.any():
-        return mask
+    if not own.any() or np.count_nonzero(~own) < MIN_ADDED_SHARE * np.count_nonzero(mask):
+        return mask  # (too few other points about it to add MIN_ADDED_SHARE: an object seen whole, on its own)
     cells = np.floor((points - points.min(axis=0)) / VOXEL_M).astype(np.int64)
     grid = np.zeros(cells.max(axis=0) + 1, bool)
     grid[tuple(cells.T)] = True
