@@ -22,7 +22,6 @@ from diagrams.perception import MakePoseEstimator, MakeSegmenter
 from diagrams.scenario import CLUTTER_SHAPES, Scenario, clutter_name
 from diagrams.station import settled_frame
 from systems.messages import GraspPoses
-from systems.perception.instances import object_instances
 from systems.perception.shape_registrar import ShapeRegistrar
 
 CATEGORIES = ("watering_can", "drill")
@@ -107,10 +106,7 @@ def run(base: Scenario, weights, tables: int, empty_tables: int, split: str = "r
         table = dataclasses.replace(table, object=dataclasses.replace(table.object, present=False), clutter=shapes)
         frame = settled_frame(table)
         labels = segmenter.segment(frame.rgb)
-        instances = object_instances(
-            labels, frame.depth, segmenter.classes, segmenter.min_pixels, segmenter.intrinsics,
-            segmenter.table_view(frame.X_WB),
-        )  # fmt: skip
+        instances = segmenter.instances_of(labels, frame.depth, frame.X_WB)
         rgb, depth = _to_images(frame)
         grasped = {c: _perceived_grasps(named[c], pose_estimator, registrar, rgb, depth, frame.X_WB) for c in named}
         detections = [c for c, grasps in grasped.items() if grasps.found]

@@ -15,7 +15,7 @@ from diagrams.perception import MakeSegmenter, depth_camera
 from diagrams.planning_scene import make_pick_motions, object_surface_W, true_grasp_poses
 from diagrams.scenario import ClutterObjectConfig, initial_positions, overlay_scenario, replace_object
 from diagrams.station import TABLE_HEIGHT, object_pose_on_table, settled_frame
-from systems.perception.instances import TableView, named_object, object_instances
+from systems.perception.instances import TableView, named_object
 from systems.perception.object_completion import completed_mask
 from systems.perception.robot_spheres import RobotSpheres
 from systems.perception.scene_cloud import HIDDEN_DEPTH_M, SELF_MARGIN_M, TABLE_MARGIN_M, VOXEL_M, scene_points
@@ -124,10 +124,7 @@ def test_completing_the_object_in_3d_takes_nothing_of_its_neighbours(scenario, c
     truth = frame.labels == frame.object_label
     segmenter = MakeSegmenter(table)
     labels = segmenter.segment(frame.rgb)
-    instances = object_instances(
-        labels, frame.depth, segmenter.classes, segmenter.min_pixels, segmenter.intrinsics,
-        segmenter.table_view(frame.X_WB),
-    )  # fmt: skip
+    instances = segmenter.instances_of(labels, frame.depth, frame.X_WB)
     labelled = named_object(instances, segmenter.classes, category, labels.shape).mask
     added = segmenter.object_of(labels, frame.depth, frame.X_WB).mask & ~labelled
     assert np.count_nonzero(added & ~truth) <= 0.001 * np.count_nonzero(labelled)

@@ -18,7 +18,7 @@ from diagrams.pick_simulation import object_body, station_plant
 from diagrams.scenario import replace_object
 from systems.categories import wider_shape_space_file
 from systems.messages import DepthView
-from systems.perception.instances import named_object, object_instances
+from systems.perception.instances import named_object
 from systems.perception.shape_registrar import registrar_of, scale_prior, shape_space_file
 from systems.shape_space import registration
 from systems.shape_space.registration import MIN_GRASP_SUPPORT, Registrar, Registration, grasp_support
@@ -274,9 +274,7 @@ def test_a_drill_the_network_labels_in_pieces_is_completed_in_3d(held_out, scena
     camera = diagram.GetSubsystemByName("station").GetSubsystemByName("camera0.sensor")
     rendered = np.asarray(camera.label_image_output_port().Eval(camera.GetMyContextFromRoot(context)).data)[:, :, 0]
     truth = rendered == int(object_body(station_plant(diagram)).index())
-    instances = object_instances(
-        labels, depth, segmenter.classes, segmenter.min_pixels, segmenter.intrinsics, segmenter.table_view(X_WB)
-    )
+    instances = segmenter.instances_of(labels, depth, X_WB)
     labelled = named_object(instances, segmenter.classes, "drill", labels.shape).mask  # without the completion
     completed = segmenter.GetOutputPort("segmentation").Eval(segmenter_context).mask
 

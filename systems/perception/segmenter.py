@@ -17,7 +17,7 @@ from systems.messages import Segmentation
 from systems.parallel import parallel_map
 from systems.paths import MODELS_DIR
 from systems.perception import segmentation_network
-from systems.perception.instances import TableView, named_object, object_instances
+from systems.perception.instances import Instance, TableView, named_object, object_instances
 from systems.perception.object_completion import completed_mask
 
 DEFAULT_WEIGHTS = MODELS_DIR / "segmenter.pt"
@@ -199,6 +199,13 @@ class Segmenter(LeafSystem):
         segmentation.compute_s = time.perf_counter() - started
         output.set_value(segmentation)
 
+    def instances_of(
+        self, labels: np.ndarray, depth: np.ndarray | None = None, X_WB: RigidTransform | None = None
+    ) -> list[Instance]:
+        """The object instances in a labelled image, cut apart in 3D where the depth image and the camera body's pose
+        X_WB are given (instances.object_instances), before any is completed."""
+        return object_instances(labels, depth, self.classes, self.min_pixels, self.intrinsics, self.table_view(X_WB))
+
     def object_of(
         self, labels: np.ndarray, depth: np.ndarray | None = None, X_WB: RigidTransform | None = None
     ) -> Segmentation:
@@ -209,8 +216,7 @@ class Segmenter(LeafSystem):
         if depth is not None and depth.shape != labels.shape:
             raise ValueError(f"depth image {depth.shape} and colour image {labels.shape} differ in size")
         table = self.table_view(X_WB)
-        instances = object_instances(labels, depth, self.classes, self.min_pixels, self.intrinsics, table)
-        segmentation = named_object(instances, self.classes, self.category, labels.shape)
+        segmentation = named_object(self.instances_of(labels, depth, X_WB), self.classes, self.category, labels.shape)
         # (An object the network took for another category, taken as named, is a guess: on a table of other things
         # it is a mislabelled patch of one of them, and completing it would make that thing the object.)
         recognised = segmentation.found and segmentation.network_category == self.category
