@@ -14,9 +14,10 @@ above the table top near it (not flying pixels) fall into VOXEL_M cubes, and cub
     unlabelled points within GROW_M of a labelled one: where that adds at least MIN_ADDED_SHARE of it (less is the
     silhouette's edge, and an object the network labelled whole keeps the mask it had).
 
-What it may not do, and why (each seen on the tuning range's cluttered tables, with looser rules):
-  * join another object: two objects whose surfaces stand more than two cubes (1 cm) apart never touch as
-    cubes (the cluttered tables keep 1.5 cm between outlines); a flying pixel between them is left out;
+What it may not do, and why (the middle three each seen on the tuning range's cluttered tables, with looser rules):
+  * join another object: surfaces more than 1.8 cm apart (the diagonal of two cubes) never touch as cubes, and
+    nearer ones only where they face each other along a diagonal (the cluttered tables keep 1.5 cm between
+    outlines); a flying pixel between them is left out;
   * join a floating body farther from the camera, though the network labelled it: another object's housing,
     behind the instance and partly hidden by it, looks just so (a drill's side handle does too, and is left out);
   * complete a body the network labelled only in part (a cylinder it took partly for a can): MOSTLY_OWN;
