@@ -114,18 +114,9 @@ def _clusters(
     points = depth_to_points(depth, valid, intrinsics)  # (in the same pixel order)
     if not len(points):
         return np.zeros(regions.shape, np.int32)
-    cells = np.floor(points / VOXEL_M).astype(np.int64)
-    cells -= cells.min(axis=0)
-    grid = np.zeros(cells.max(axis=0) + 1, bool)
-    grid[tuple(cells.T)] = True
-    cluster_of_cell, _ = ndimage.label(grid, structure=ndimage.generate_binary_structure(3, CONNECTIVITY))
-    cluster = cluster_of_cell[tuple(cells.T)]  # per valid pixel
+    cluster = touching_cubes(points, VOXEL_M, CONNECTIVITY)  # per valid pixel
     sizes = np.bincount(cluster)
-    order = np.argsort(cluster, kind="stable")  # the pixels of cluster c: order[starts[c]:starts[c + 1]]
-    starts = np.concatenate([[0], np.cumsum(sizes)])
-
-    def members(c):
-        return order[starts[c] : starts[c + 1]]
+    members = grouped(cluster).__getitem__  # members(c): the pixels of cluster c
 
     # Large clusters: PIECE_SHARE of the largest one in their image region.
     region = regions[v, u]
@@ -160,6 +151,22 @@ def _clusters(
     rows, cols = rows[holes], cols[holes]
     owner_in[holes] = np.where(regions_in[rows, cols] == regions_in[holes], owner_in[rows, cols], 0)
     return owner
+
+
+def touching_cubes(points: np.ndarray, size: float, connectivity: int = 3) -> np.ndarray:
+    """Each point's cluster id (N, from 1): the points (N x 3, m) fall into cubes of side `size` (m), and cubes that
+    touch (share a face: connectivity 1, an edge: 2, a corner: 3) are one cluster."""
+    cells = np.floor(points / size).astype(np.int64)
+    cells -= cells.min(axis=0)
+    grid = np.zeros(cells.max(axis=0) + 1, bool)
+    grid[tuple(cells.T)] = True
+    cluster_of_cell, _ = ndimage.label(grid, structure=ndimage.generate_binary_structure(3, connectivity))
+    return cluster_of_cell[tuple(cells.T)]
+
+
+def grouped(ids: np.ndarray) -> list[np.ndarray]:
+    """The indices of each id's members, in order (ids: N non-negative ints; entry k: the indices where ids == k)."""
+    return np.split(np.argsort(ids, kind="stable"), np.cumsum(np.bincount(ids))[:-1])
 
 
 def _join_floating(large, home, members, points, table: TableView, final) -> None:

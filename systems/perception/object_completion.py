@@ -26,11 +26,10 @@ What it may not do, and why (the middle three each seen on the tuning range's cl
 """
 
 import numpy as np
-from scipy import ndimage
 from scipy.spatial import cKDTree
 
 from systems.perception.depth_cleaning import flying_pixels
-from systems.perception.instances import TableView
+from systems.perception.instances import TableView, grouped, touching_cubes
 from systems.perception.pose_estimator import depth_to_points
 
 VOXEL_M = 0.005  # m: points in touching cubes of this side are one body
@@ -77,16 +76,13 @@ def completed_mask(mask: np.ndarray, labels: np.ndarray, depth: np.ndarray, intr
     if not own.any():
         return mask
     low, high = points[own].min(axis=0) - NEAR_M, points[own].max(axis=0) + NEAR_M
-    keep = np.all((points >= low) & (points <= high), axis=1) & (table.heights(points) >= ABOVE_TABLE_M)
+    heights = table.heights(points)
+    keep = np.all((points >= low) & (points <= high), axis=1) & (heights >= ABOVE_TABLE_M)
     points, v, u, own = points[keep], v[keep], u[keep], own[keep]
     if not own.any() or np.count_nonzero(~own) < MIN_ADDED_SHARE * np.count_nonzero(mask):
         return mask  # (too few other points about it to add MIN_ADDED_SHARE: an object seen whole, on its own)
-    cells = np.floor((points - points.min(axis=0)) / VOXEL_M).astype(np.int64)
-    grid = np.zeros(cells.max(axis=0) + 1, bool)
-    grid[tuple(cells.T)] = True
-    body_of_cell, _ = ndimage.label(grid, structure=np.ones((3, 3, 3), bool))
-    body = body_of_cell[tuple(cells.T)]
-    in_bodies = np.isin(body, _object_bodies(body, own, points, table))
+    body = touching_cubes(points - points.min(axis=0), VOXEL_M)  # (cubes from the points' lowest corner, as measured)
+    in_bodies = np.isin(body, _object_bodies(body, own, points, heights[keep]))
     labelled = in_bodies & ((labels[v, u] > 0) | own)
     unlabelled = in_bodies & ~labelled
     if unlabelled.any():
@@ -100,32 +96,35 @@ def completed_mask(mask: np.ndarray, labels: np.ndarray, depth: np.ndarray, intr
     return completed
 
 
-def _object_bodies(body: np.ndarray, own: np.ndarray, points: np.ndarray, table: TableView) -> np.ndarray:
+def _object_bodies(body: np.ndarray, own: np.ndarray, points: np.ndarray, heights: np.ndarray) -> np.ndarray:
     """The ids of the object's bodies, as the module docstring says.
 
     Args:
-        body: each point's body id (0: none).
+        body: each point's body id (from 1).
         own: which points are the instance's.
         points: N x 3 in the camera frame, m.
+        heights: the points' heights above the table top, m.
     """
     sizes = np.bincount(body)
-    order = np.argsort(body, kind="stable")
-    starts = np.concatenate([[0], np.cumsum(sizes)])
-    members = {b: order[starts[b] : starts[b + 1]] for b in np.flatnonzero(sizes >= MIN_BODY_POINTS) if b}
+    members = {b: indices for b, indices in enumerate(grouped(body)) if b and sizes[b] >= MIN_BODY_POINTS}
     counts = np.bincount(body[own], minlength=len(sizes))
     group = {b for b in members if counts[b] >= SEED_SHARE * own.sum() and counts[b] >= MOSTLY_OWN * len(members[b])}
-    heights = table.heights(points)
     floating = {b for b in members if np.percentile(heights[members[b]], LOWEST_PERCENTILE) >= FLOAT_M}
     depth = {b: np.median(points[members[b], 2]) for b in members}
-    trees = {}
+    trees, gaps = {}, {}  # (a floating body, one of the object's) -> their gap, m: each measured once
+
+    def gap(b, g):
+        if (b, g) not in gaps:
+            tree = trees.setdefault(b, cKDTree(points[members[b]]))
+            gaps[b, g] = tree.query(points[members[g][::JOIN_STRIDE]])[0].min()
+        return gaps[b, g]
+
     changed = bool(group)
     while changed:
         changed = False
         for b in sorted(floating - group):
-            tree = trees.setdefault(b, cKDTree(points[members[b]]))
-            gaps = {g: tree.query(points[members[g][::JOIN_STRIDE]])[0].min() for g in group}
-            nearest = min(gaps, key=gaps.get)
-            if gaps[nearest] < JOIN_M and depth[b] < depth[nearest]:
+            nearest = min(group, key=lambda g: gap(b, g))
+            if gap(b, nearest) < JOIN_M and depth[b] < depth[nearest]:
                 group.add(b)
                 changed = True
     return np.array(sorted(group), int)
