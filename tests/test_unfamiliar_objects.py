@@ -119,6 +119,13 @@ def test_a_grasp_whose_handle_was_not_seen_where_the_fit_put_it_is_a_poor_fit():
     unconfirmed = registration({"left_grasp": 1.0, "right_grasp": None})
     unconfirmed.wider = True
     assert "cannot confirm the right grasp" in unconfirmed.poor_fit
+    # So in a fit beyond the latent space with the shape's scale, however little it scaled the shape: the registrar
+    # went beyond the latent space because its fit was poor, and that prior placed the unseen grasp.
+    scaled = registration({"left_grasp": 1.0, "right_grasp": None})
+    scaled.scaled, scaled.scale = True, np.array([1.02, 0.63, 1.0])
+    assert "cannot confirm the right grasp" in scaled.poor_fit and "beyond its latent space" in scaled.poor_fit
+    scaled.grasp_support = {"left_grasp": 1.0, "right_grasp": 0.9}  # both seen where the fit put them: sound
+    assert scaled.poor_fit == ""
 
 
 def test_a_fit_that_puts_surface_where_the_camera_saw_through_is_a_poor_fit():
