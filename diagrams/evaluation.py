@@ -46,6 +46,7 @@ class Trial:
     # Also run the ground-truth pick on the same scenario (whether the robot can do it at all), recorded as
     # the record's "oracle".
     with_oracle: bool = False
+    placement: str = "paper"  # "paper" (each object at each yaw) or "random" (random_placements)
 
 
 def generated_objects(category: str, split: str = "test") -> dict[str, dict]:
@@ -74,10 +75,12 @@ def make_trials(
     trials: int,
     yaws=PAPER_YAWS,
     yaw_noise: float = PAPER_YAW_NOISE,
+    with_ground_truth: bool = False,
 ) -> list[Trial]:
     """Every object at every yaw, `trials` times; trial n of the list gets the seed base.random_seed + n. A user's
     model file (changes["file"]) is of the category the user gave: perception registers it so and reports what the
-    network made of it (requested_category), as `pick.py --object C --object-file F` does."""
+    network made of it (requested_category), as `pick.py --object C --object-file F` does. with_ground_truth: each
+    trial also runs the ground-truth pick on its scenario (what the robot can do there with the true grasps)."""
     if trials < 1:
         raise ValueError(f"trials must be >= 1, got {trials}")
     catalog.presentation_yaw(category)  # a clear error for an unknown category
@@ -92,7 +95,7 @@ def make_trials(
                     registration_yaw_noise=yaw_noise,
                     requested_category=category if changes.get("file") else base.requested_category,
                 )
-                out.append(Trial(name, float(yaw), index, scenario))
+                out.append(Trial(name, float(yaw), index, scenario, with_oracle=with_ground_truth))
     return out
 
 
@@ -112,7 +115,7 @@ def random_placements(base: Scenario, category: str, count: int, yaw_noise: floa
         name = f"extra_{PLACEMENT_FIRST_INSTANCE + k}"
         scenario = replace_object(base, category=category, instance=name, file="", xy=xy, yaw=yaw)
         scenario = dataclasses.replace(scenario, random_seed=base.random_seed + k, registration_yaw_noise=yaw_noise)
-        out.append(Trial(name, yaw, 0, scenario, with_oracle=True))
+        out.append(Trial(name, yaw, 0, scenario, with_oracle=True, placement="random"))
     return out
 
 
@@ -164,6 +167,7 @@ def run_trial(trial: Trial) -> dict:
         "yaw_noise_rad": scenario.registration_yaw_noise,
         "sensor": scenario.camera_noise.preset,
         "name": trial.name,
+        "placement": trial.placement,
         "yaw": trial.yaw,
         "trial": trial.index,
         "seed": scenario.random_seed,
@@ -229,24 +233,13 @@ def summarize(records: list[dict]) -> dict:
     """Success per object (and per yaw), per pipeline component, and the stage times' statistics.
 
     Returns a dict with success_rate, per_instance[name] = {success_rate, successes, attempts,
-    per_yaw}, always_succeeded (the objects every pick of which succeeded), components[c] =
+    per_yaw}, always_succeeded (the objects every pick of which succeeded); where every record also holds the
+    ground-truth pick's outcome ("oracle"), the same two of those as ground_truth_per_instance and
+    ground_truth_always_succeeded; components[c] =
     {success_rate, reached} (of the trials that reached c, the share that passed it), and
     stages[f"{stage}_s_{mean|std|median}"] over the trials that timed it.
     """
-    per_instance = {}
-    for name in dict.fromkeys(r["name"] for r in records):
-        mine = [r for r in records if r["name"] == name]
-        per_yaw = {}
-        for yaw in dict.fromkeys(r["yaw"] for r in mine):
-            at_yaw = [r["success"] for r in mine if r["yaw"] == yaw]
-            per_yaw[f"{yaw:+.2f}"] = _rate(sum(at_yaw), len(at_yaw))
-        successes = sum(r["success"] for r in mine)
-        per_instance[name] = {
-            "success_rate": _rate(successes, len(mine)),
-            "successes": successes,
-            "attempts": len(mine),
-            "per_yaw": per_yaw,
-        }
+    per_instance = _per_instance(records, lambda r: r["success"])
     components = {}
     reached = [r for r in records if r["failed_stage"] != "setup"]
     for component in COMPONENTS:
@@ -267,6 +260,7 @@ def summarize(records: list[dict]) -> dict:
     moved = [m for r in cluttered for m in r.get("others_moved_m", [])]
     moving = sum(max(r.get("others_moved_m") or [0.0]) > OTHERS_MOVED_LIMIT_M for r in cluttered)
     doable = [r for r in oracle if r["oracle"]["success"]]
+    truth = _per_instance(records, lambda r: r["oracle"]["success"]) if oracle and len(oracle) == len(records) else None
     return {
         # Random placements (records with an "oracle"): the share the ground-truth pick does, and the share of
         # those the autonomous pick does.
@@ -304,7 +298,35 @@ def summarize(records: list[dict]) -> dict:
         "release_turn_rad_max": max(released, default=float("nan")),
         "trials": len(records),
         "per_instance": per_instance,
-        "always_succeeded": [name for name, row in per_instance.items() if row["successes"] == row["attempts"]],
+        "always_succeeded": _always_succeeded(per_instance),
+        **(
+            {"ground_truth_per_instance": truth, "ground_truth_always_succeeded": _always_succeeded(truth)}
+            if truth is not None
+            else {}
+        ),
         "components": components,
         "stages": stages,
     }
+
+
+def _per_instance(records: list[dict], succeeded) -> dict:
+    """{name: {success_rate, successes, attempts, per_yaw}} of the records, succeeded(record) saying which lifted."""
+    out = {}
+    for name in dict.fromkeys(r["name"] for r in records):
+        mine = [r for r in records if r["name"] == name]
+        per_yaw = {}
+        for yaw in dict.fromkeys(r["yaw"] for r in mine):
+            at_yaw = [bool(succeeded(r)) for r in mine if r["yaw"] == yaw]
+            per_yaw[f"{yaw:+.2f}"] = _rate(sum(at_yaw), len(at_yaw))
+        successes = sum(bool(succeeded(r)) for r in mine)
+        out[name] = {
+            "success_rate": _rate(successes, len(mine)),
+            "successes": successes,
+            "attempts": len(mine),
+            "per_yaw": per_yaw,
+        }
+    return out
+
+
+def _always_succeeded(per_instance: dict) -> list[str]:
+    return [name for name, row in per_instance.items() if row["successes"] == row["attempts"]]

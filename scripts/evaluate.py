@@ -91,6 +91,13 @@ def parse_args(argv=None):
     )
     parser.add_argument("--scenes", type=int, default=30, help="cluttered tables (--scene clutter)")
     parser.add_argument(
+        "--ground-truth",
+        dest="ground_truth",
+        action="store_true",
+        help="each pick also run with ground truth in place of perception (the true grasps: what the robot can do "
+        "there at all), tabled beside the autonomous one (--placement random always does)",
+    )
+    parser.add_argument(
         "--scene-split",
         dest="scene_split",
         choices=("report", "tune"),
@@ -136,6 +143,8 @@ def parse_args(argv=None):
         parser.error("--placement random draws its own yaws and unseen instances: no --yaws, --instances or files")
     if args.scene == "clutter" and (args.yaws or args.instances or args.object_files or args.placement != "paper"):
         parser.error("--scene clutter draws its own objects and places: no --yaws, --instances, files or --placement")
+    if args.ground_truth and args.scene == "clutter":
+        parser.error("--ground-truth is for one object on the table (the paper's or random placements)")
     args.yaws = args.yaws or list(PAPER_YAWS)
     if args.records is None and args.json is not None:
         args.records = args.json.with_suffix(".jsonl")
@@ -147,6 +156,9 @@ def parse_args(argv=None):
 def describe(record: dict) -> str:
     offset = record["registration_yaw_offset_rad"]
     head = f"{record['name']} yaw {record['yaw']:+.2f} #{record['trial']} (offset {offset:+.3f})"
+    if "oracle" in record:
+        truth = record["oracle"]
+        head += " [ground truth: " + ("lifted" if truth["success"] else f"FAILED at {truth['failed_stage']}") + "]"
     if record["success"] and record.get("place"):
         place = record["place"]
         off = f"{100 * place['error_m']:.1f} cm and {math.degrees(place['yaw_error_rad']):.1f} deg"
@@ -182,6 +194,8 @@ def print_tables(summary: dict, category: str, trials: int, yaw_noise: float):
         f"objects with every pick a success: {len(always)}/{len(summary['per_instance'])}"
         + (f" ({', '.join(always)})" if always else "")
     )
+    if "ground_truth_per_instance" in summary:
+        print_ground_truth(summary, width)
 
     print("\nRuntime and success per component; paper Table III form (paper: real robot)")
     print(f"{'component':<46}{'runtime [s]':>18}{'median':>9}{'success':>10}{'paper [s]':>11}")
@@ -201,6 +215,22 @@ def print_tables(summary: dict, category: str, trials: int, yaw_noise: float):
             f"{STAGE_LABELS[component]:<46}{runtime:>18}{median:>9}{100 * rate:>8.0f} %"
             + (f"{paper:>11.2f}" if paper else f"{'-':>11}")
         )
+
+
+def print_ground_truth(summary: dict, width: int):
+    """--ground-truth: the same scenes picked with the true grasps, in the same form, then the autonomous pick's share
+    of what ground truth lifted."""
+    truth = summary["ground_truth_per_instance"]
+    print("\nThe same scenes with ground truth in place of perception (what the robot can do there at all)")
+    for name, row in truth.items():
+        cells = "".join(f"{100 * rate:>11.0f}%" for rate in row["per_yaw"].values())
+        print(f"{name:<{width}}{_rate_cell(row['success_rate'], row['attempts']):>20}{cells}")
+    always = summary["ground_truth_always_succeeded"]
+    print(
+        f"ground truth: {100 * summary['oracle_success_rate']:.0f} % lifted; objects with every pick a success: "
+        f"{len(always)}/{len(truth)}" + (f" ({', '.join(always)})" if always else "")
+    )
+    print(f"the autonomous pick lifted {100 * summary['success_rate_given_oracle']:.0f} % of what ground truth lifted")
 
 
 def draw_figure(path: Path, summary: dict, records: list[dict], category: str):
@@ -277,7 +307,15 @@ def main(argv=None) -> int:
             trials = random_placements(base, args.category, args.trials, args.yaw_noise)
             objects = {trial.name: {} for trial in trials}
         else:
-            trials = make_trials(base, args.category, objects, args.trials, args.yaws, args.yaw_noise)
+            trials = make_trials(
+                base,
+                args.category,
+                objects,
+                args.trials,
+                args.yaws,
+                args.yaw_noise,
+                with_ground_truth=args.ground_truth,
+            )
     except (ValueError, FileNotFoundError) as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
@@ -401,7 +439,8 @@ def draw_map(path: Path, records: list[dict], category: str):
 def report(args, records: list[dict], first_seed: int):
     """Prints the tables; writes the JSON (with every record) and the figure."""
     summary = summarize(records)
-    placements = all("oracle" in r for r in records)
+    # (Records from before a record said its placement: random placements were those with a ground-truth pick.)
+    placements = all(r.get("placement", "random" if "oracle" in r else "paper") == "random" for r in records)
     if placements:
         print_placements(summary, records, args.category)
     elif any(r.get("clutter") for r in records):

@@ -147,6 +147,40 @@ def test_summary_of_random_placements_says_what_ground_truth_could_do():
     assert "oracle_success_rate" not in summarize([_record("a", 0.1, True)])  # the paper's placements
 
 
+def test_the_paper_placements_with_ground_truth_table_what_the_true_grasps_lift_beside_the_pick(
+    scenario, tmp_path, capsys
+):
+    """--ground-truth: every trial also runs the ground-truth pick; the summary and the tables give its lifts per
+    object and yaw, and the autonomous pick's share of them; the report stays the paper's form, not the map's."""
+    trials = make_trials(scenario, "drill", generated_objects("drill"), trials=1, with_ground_truth=True)
+    assert all(t.with_oracle and t.placement == "paper" for t in trials)
+    assert not any(t.with_oracle for t in make_trials(scenario, "drill", generated_objects("drill"), trials=1))
+    records = [
+        _record("a", 0.25, True),
+        _record("a", 0.0, False, "registration"),
+        _record("b", 0.25, False, "grasp"),
+        _record("b", 0.0, True),
+    ]
+    for record, truth in zip(records, (True, True, False, True), strict=True):
+        record |= {"placement": "paper", "trial": 0, "seed": 0, "registration_yaw_offset_rad": 0.0, "message": "m"}
+        record["oracle"] = {"success": truth, "failed_stage": "" if truth else "grasp", "message": ""}
+    summary = summarize(records)
+    assert summary["ground_truth_per_instance"]["b"]["per_yaw"] == {"+0.25": 0.0, "+0.00": 1.0}
+    assert summary["ground_truth_always_succeeded"] == ["a"] and summary["always_succeeded"] == []
+    assert summary["success_rate_given_oracle"] == pytest.approx(2 / 3)
+    assert "[ground truth: FAILED at grasp]" in evaluate.describe(records[2])
+    report = tmp_path / "truth.json"
+    args = evaluate.parse_args(["--ground-truth", "--category", "drill", "--trials", "1", "--json", str(report)])
+    evaluate.report(args, records, first_seed=0)
+    printed = capsys.readouterr().out
+    assert "Table II form" in printed and "Random placements" not in printed
+    assert "ground truth: 75 % lifted; objects with every pick a success: 1/2 (a)" in printed
+    assert "the autonomous pick lifted 67 % of what ground truth lifted" in printed
+    assert json.loads(report.read_text())["placement"] == "paper"
+    with pytest.raises(SystemExit):
+        evaluate.parse_args(["--ground-truth", "--scene", "clutter"])
+
+
 def test_evaluate_script_end_to_end(tmp_path, capsys):
     """One pick of one unseen can at one yaw, with the registration's yaw noise: tables, JSON and figure."""
     report = tmp_path / "evaluation.json"
