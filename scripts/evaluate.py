@@ -222,6 +222,8 @@ def print_ground_truth(summary: dict, width: int):
     of what ground truth lifted."""
     truth = summary["ground_truth_per_instance"]
     print("\nThe same scenes with ground truth in place of perception (what the robot can do there at all)")
+    yaws = next(iter(truth.values()))["per_yaw"].keys()
+    print(f"{'object':<{width}}{'lifted (attempts)':>20}" + "".join(f"{'yaw ' + y:>12}" for y in yaws))
     for name, row in truth.items():
         cells = "".join(f"{100 * rate:>11.0f}%" for rate in row["per_yaw"].values())
         print(f"{name:<{width}}{_rate_cell(row['success_rate'], row['attempts']):>20}{cells}")
