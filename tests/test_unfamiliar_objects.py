@@ -259,6 +259,10 @@ def test_a_sound_hypothesis_replaces_the_nearest_only_about_as_near_the_points(m
     assert judged(distances, sound={0.0104, 0.0150}) == 0.0104  # within SOUND_FIT_MARGIN of the nearest
     assert judged(distances, sound={0.0150}) == 0.0100  # 1.5 times as far: the nearest, poor
     assert registration.SOUND_FIT_MARGIN * 0.0100 < 0.0150
+    # Judged a batch at a time on the cores: the nearest sound one still wins, in whichever batch it lies.
+    assert len(registrar.yaw_hypotheses) == 4 and registration.THREADS == 2
+    assert judged([0.0103, 0.0100, 0.0102, 0.0101], sound={0.0102, 0.0103}) == 0.0102
+    assert judged([0.0103, 0.0100, 0.0102, 0.0101], sound={0.0101, 0.0102}) == 0.0101
 
 
 def test_a_drill_the_network_labels_in_pieces_is_completed_in_3d(held_out, scenario, tmp_path):

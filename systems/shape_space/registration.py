@@ -36,7 +36,7 @@ from scipy.spatial import ConvexHull, cKDTree
 from scipy.spatial.distance import cdist
 
 from systems.messages import DepthView
-from systems.parallel import parallel_map
+from systems.parallel import THREADS, parallel_map
 from systems.perception.depth_cleaning import dense_inliers
 from systems.shape_space.cpd import gmm_posteriors, squared_distances
 from systems.shape_space.handle_centring import handle_centring
@@ -409,15 +409,19 @@ class Registrar:
         # fit hides a grasp behind the body): the nearest of the hypotheses judged sound wins (else the nearest), if
         # it lies about as near the points as the nearest (SOUND_FIT_MARGIN).
         fits = sorted(fits, key=lambda fit: fit[4])
+        near = [fit for fit in fits if fit[4] <= SOUND_FIT_MARGIN * fits[0][4]]
+        # Judged nearest first, THREADS at a time on the cores (the same registration as one after the other).
         nearest = None
-        for fit in fits:
-            if fit[4] > SOUND_FIT_MARGIN * fits[0][4]:
-                break
-            registration = self._registration(fit, X, observed, viewpoint_W, view, scale_prior)
-            if not registration.poor_fit:
-                return registration
+        for start in range(0, len(near), THREADS):
+            judged = parallel_map(
+                lambda fit: self._registration(fit, X, observed, viewpoint_W, view, scale_prior),
+                near[start : start + THREADS],
+            )
+            sound = [registration for registration in judged if not registration.poor_fit]
+            if sound:
+                return sound[0]
             if nearest is None:
-                nearest = registration
+                nearest = judged[0]
         return nearest
 
     def _registration(self, fit, X, observed, viewpoint_W, view, scale_prior) -> Registration:
