@@ -339,5 +339,8 @@ class PickWatcher:
             outcome.failed_stage, outcome.message = status.failed_stage, status.message
         elif status.mode != Mode.DONE:
             outcome.success = False
-            outcome.message = f"stopped in mode {str(status.mode)!r} after {MAX_PICK_S} s"
+            outcome.message = (
+                f"stopped in mode {str(status.mode)!r} of attempt {status.attempt}: the pick's {MAX_PICK_S} s of "
+                "simulated time ran out"
+            )
         return outcome
