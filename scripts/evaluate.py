@@ -174,26 +174,33 @@ def _rate_cell(rate: float, attempts: int) -> str:
     return f"{100 * rate:.0f} % ({attempts})"
 
 
+def _per_yaw_header(title: str, width: int, per_instance: dict) -> str:
+    yaws = next(iter(per_instance.values()))["per_yaw"].keys()
+    return f"{'object':<{width}}{title:>20}" + "".join(f"{'yaw ' + y:>12}" for y in yaws)
+
+
+def _per_yaw_row(name: str, row: dict, width: int) -> str:
+    """One object's line of a Table II form table: its rate (attempts), then its rate at each yaw."""
+    cells = "".join(f"{100 * rate:>11.0f}%" for rate in row["per_yaw"].values())
+    return f"{name:<{width}}{_rate_cell(row['success_rate'], row['attempts']):>20}{cells}"
+
+
+def _always(always: list[str], objects: int) -> str:
+    return f"objects with every pick a success: {len(always)}/{objects}" + (f" ({', '.join(always)})" if always else "")
+
+
 def print_tables(summary: dict, category: str, trials: int, yaw_noise: float):
-    yaws = next(iter(summary["per_instance"].values()))["per_yaw"].keys()
     print(f"\nSuccess rate ({category}, {trials} trial(s) per yaw, yaw noise +-{yaw_noise:.2f} rad), Table II form")
     width = max(16, 2 + max(len(name) for name in summary["per_instance"]))
-    print(
-        f"{'object':<{width}}{'success (attempts)':>20}" + "".join(f"{'yaw ' + y:>12}" for y in yaws) + f"{'paper':>8}"
-    )
+    print(_per_yaw_header("success (attempts)", width, summary["per_instance"]) + f"{'paper':>8}")
     for name, row in summary["per_instance"].items():
         paper = PAPER_CAN_SUCCESS.get(name) if category == "watering_can" else None
-        cells = "".join(f"{100 * rate:>11.0f}%" for rate in row["per_yaw"].values())
         paper_cell = f"{100 * paper:>7.0f}%" if paper is not None else f"{'-':>8}"
-        print(f"{name:<{width}}{_rate_cell(row['success_rate'], row['attempts']):>20}{cells}{paper_cell}")
+        print(_per_yaw_row(name, row, width) + paper_cell)
     low, high = summary["success_rate_ci95"]
     print(f"{'all':<{width}}{_rate_cell(summary['success_rate'], summary['trials']):>20}   95 % Wilson interval "
           f"{100 * low:.0f}-{100 * high:.0f} %")  # fmt: skip
-    always = summary["always_succeeded"]
-    print(
-        f"objects with every pick a success: {len(always)}/{len(summary['per_instance'])}"
-        + (f" ({', '.join(always)})" if always else "")
-    )
+    print(_always(summary["always_succeeded"], len(summary["per_instance"])))
     if "ground_truth_per_instance" in summary:
         print_ground_truth(summary, width)
 
@@ -222,16 +229,11 @@ def print_ground_truth(summary: dict, width: int):
     of what ground truth lifted."""
     truth = summary["ground_truth_per_instance"]
     print("\nThe same scenes with ground truth in place of perception (what the robot can do there at all)")
-    yaws = next(iter(truth.values()))["per_yaw"].keys()
-    print(f"{'object':<{width}}{'lifted (attempts)':>20}" + "".join(f"{'yaw ' + y:>12}" for y in yaws))
+    print(_per_yaw_header("lifted (attempts)", width, truth))
     for name, row in truth.items():
-        cells = "".join(f"{100 * rate:>11.0f}%" for rate in row["per_yaw"].values())
-        print(f"{name:<{width}}{_rate_cell(row['success_rate'], row['attempts']):>20}{cells}")
-    always = summary["ground_truth_always_succeeded"]
-    print(
-        f"ground truth: {100 * summary['oracle_success_rate']:.0f} % lifted; objects with every pick a success: "
-        f"{len(always)}/{len(truth)}" + (f" ({', '.join(always)})" if always else "")
-    )
+        print(_per_yaw_row(name, row, width))
+    always = _always(summary["ground_truth_always_succeeded"], len(truth))
+    print(f"ground truth: {100 * summary['oracle_success_rate']:.0f} % lifted; {always}")
     print(f"the autonomous pick lifted {100 * summary['success_rate_given_oracle']:.0f} % of what ground truth lifted")
 
 

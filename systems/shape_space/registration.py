@@ -377,15 +377,16 @@ class Registrar:
         registration = self._register(X, observed, X_WO_initial, viewpoint_W, view, None)
         if self.scale_prior is not None and (registration.poor_fit or registration.unconfirmed):
             # Beyond the latent space only where it does not fit, or where a grasp rests on its prior alone (the
-            # camera cannot see it): a shape it fits with both grasps seen keeps its latent fit exactly.
+            # camera cannot see it): a shape it fits with both grasps seen keeps its latent fit exactly. (A scaled fit
+            # that is not poor has both grasps confirmed: see Registration.poor_fit.)
             scaled = self._register(X, observed, X_WO_initial, viewpoint_W, view, self.scale_prior)
-            if registration.poor_fit or not (scaled.poor_fit or scaled.unconfirmed):
+            if registration.poor_fit or not scaled.poor_fit:
                 registration = scaled
         if registration.poor_fit and self.scale_prior is not None and self.part_prior is not None:
             # Still poor: each grasp's handle may also move on its own. Taken only where sound with both grasps
             # confirmed by the camera (a handle moved where none was seen is not a handle).
             parts = self._register(X, observed, X_WO_initial, viewpoint_W, view, self.scale_prior, self.part_prior)
-            if not (parts.poor_fit or parts.unconfirmed):
+            if not parts.poor_fit:
                 registration = parts
         if registration.poor_fit and self.wider is not None:
             wider = self.wider._register(X, observed, X_WO_initial, viewpoint_W, view, None)
