@@ -48,7 +48,7 @@ def joint_torques(
     about its centre of mass, and each joint's torque the axial moment, about its axis, of the forces of
     everything it carries. Arrays are link-major (L x B x 3), as body_poses stores them.
     """
-    parent, arm_dof = kinematics._parent, kinematics._arm_dof
+    parent, arm_dof = kinematics.link_parent, kinematics.link_dof
     carried = kinematics.carried.astype(float)  # n x L
     positions, axes = (x.swapaxes(0, 1) for x in joint_axes(kinematics, poses))  # n x B x 3
     poses = poses.swapaxes(0, 1)  # L x B x 4 x 4
@@ -79,7 +79,7 @@ def joint_torques(
         + cross(omega, cross(omega, from_pivot))
     )
     increment[~moving] = 0.0
-    accel = summed(kinematics._path, increment) - kinematics.gravity  # of each body's origin, W
+    accel = summed(kinematics.link_path, increment) - kinematics.gravity  # of each body's origin, W
     offset = rotated(R, kinematics.coms_B[:, None, :])
     com = origin + offset
     com_accel = accel + cross(alpha, offset) + cross(omega, cross(omega, offset))

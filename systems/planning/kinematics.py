@@ -109,16 +109,16 @@ class BatchedKinematics:
             still_pose[i] = X_PF if up < 0 else still_pose[up] @ X_PF
         self._still_poses = np.array([still_pose[i] for i in self._still]).reshape(-1, 4, 4)
         self._groups = self._placing_groups([links[moved[links]] for links in by_depth], parent)
-        # For the inverse dynamics: each link's parent (-1 for a root), each driven link's coordinate (-1 for a
-        # fixed one), each coordinate's parent link, and which links lie on the path from a root to each link
-        # (L x L: path[l, k] when k is l or one of its ancestors, roots excluded).
-        self._parent = parent
-        self._arm_dof = arm_dof
-        self._path = np.zeros((len(self.links), len(self.links)))
+        # For the inverse dynamics (systems/planning/dynamics.py): each link's parent (-1 for a root), each driven
+        # link's coordinate (-1 for a fixed one), and which links lie on the path from a root to each link (L x L:
+        # link_path[l, k] when k is l or one of its ancestors, roots excluded).
+        self.link_parent = parent
+        self.link_dof = arm_dof
+        self.link_path = np.zeros((len(self.links), len(self.links)))
         for i in range(len(self.links)):
             j = i
             while parent[j] >= 0:
-                self._path[i, j] = 1.0
+                self.link_path[i, j] = 1.0
                 j = parent[j]
         # Each arm joint's origin and axis in its child's frame B: a revolute joint's frames F and M share their
         # origin and its axis, so both are fixed in B (X_BM = X_MB^-1).

@@ -27,9 +27,8 @@ from systems.planning.kinematics import BatchedKinematics, EndEffectors
 from systems.planning.obstacles import Obstacles
 from systems.planning.sphere_model import off_the_robot, robot_spheres
 
-# Clearance added around a perceived (reconstructed) object for reach planning, m. The reconstructions
-# are 2.8-4.1 mm off (Chamfer, single views); 1.5 cm around the accurate drills left STOMP's reach without a
-# path to the pre-grasp in its 2 s (unseen drills 17/24 picks; 1 cm: see the README's evaluation).
+# Clearance added around a perceived (reconstructed) object for reach planning, m: a reconstruction is a few
+# millimetres off, and a wider margin left reaches without a path to the pre-grasp in STOMP's time.
 PERCEIVED_SHAPE_MARGIN = 0.01
 # Clearance added around the scene as the camera saw it (measured points and hidden cubes' centres:
 # systems/perception/scene_cloud.py), m: an edge seen up to a pixel short (2-3 mm at a metre) and the distance
