@@ -37,7 +37,7 @@ from systems.pick_supervisor import PickSupervisor, lift_task, place_task
 from systems.pick_visualiser import PickVisualiser
 from systems.planning.pick_motions import PickMotions, PlannerConfig, PlanningError
 from systems.planning.plan_telemetry import PlanTelemetryRecorder
-from systems.planning.stomp import StompConfig
+from systems.planning.stomp_config import StompConfig
 from systems.planning.stomp_planner import StompPlanner
 from systems.robot_io.hand_command import HandCommandSource
 from systems.robot_io.trajectory_source import JointTrajectorySource

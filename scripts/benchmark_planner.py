@@ -59,16 +59,14 @@ REACH_PLANNERS = ("stomp", "stomp_first_trajectory", "ompl", "kto")
 def stomp_config(planner: str, seed: int) -> StompConfig:
     """The STOMP configuration of a planner (the pick's, or an ablation of it) for the problem's seed."""
     config = StompConfig(seed=seed, time_limit_s=TIME_LIMIT_S)
+    no_detours = dataclasses.replace(config.detours, heights=())
     if planner == "stomp_no_detours":
-        return dataclasses.replace(config, detour_heights=())
+        return dataclasses.replace(config, detours=no_detours)
     if planner == "stomp_no_projection":  # no detours either: they are projected
-        return dataclasses.replace(
-            config,
-            projection_steps=0,
-            rollout_projection_steps=0,
-            constrained_noise_std=NO_PROJECTION_NOISE,
-            detour_heights=(),
+        sampling = dataclasses.replace(
+            config.sampling, projection_steps=0, rollout_projection_steps=0, constrained_noise_std=NO_PROJECTION_NOISE
         )
+        return dataclasses.replace(config, sampling=sampling, detours=no_detours)
     if planner == "stomp_first_trajectory":
         return dataclasses.replace(config, max_iterations=0)
     return config

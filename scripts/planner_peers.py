@@ -144,7 +144,7 @@ def ompl_plan(problem: PlanningProblem, stomp: Stomp, time_limit_s: float, confi
         bounds.setHigh(i, float(upper[i]))
     space.setBounds(bounds)
     held = problem.held
-    required = stomp.config.required_clearance
+    required = stomp.config.costs.required_clearance
 
     kinematics = SingleStates(stomp)
 

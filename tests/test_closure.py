@@ -23,8 +23,10 @@ from systems.planning.closure import (
     transition_costs,
 )
 from systems.planning.hand_constraints import bounded_step
-from systems.planning.pick_motions import HELD_SPEED_M_S, HELD_TURN_SPEED_RAD_S, time_parameterise
-from systems.planning.stomp import Stomp, interpolate_segments
+from systems.planning.held_motions import HELD_SPEED_M_S, HELD_TURN_SPEED_RAD_S
+from systems.planning.pick_motions import time_parameterise
+from systems.planning.stomp import Stomp
+from systems.planning.stomp_checks import interpolate_segments
 
 
 def test_threshold_cost_below_at_and_beyond_the_maximum():
@@ -88,8 +90,8 @@ def test_stomp_lifts_with_the_closure_kept_densely(lift_problem):
     table = motions.world.table_obstacles()  # the object moves with the hands
     result = stomp.plan(q_grasp, goal, table, constraint)
     assert result.success, result.message
-    within, t_dev, o_dev = stomp.closure_within_limits(result.trajectory, (constraint, X_desired), steps=20)
-    assert within and t_dev < constraint.t_max and o_dev < constraint.o_max
+    check = stomp.checks.closure_within_limits(result.trajectory, (constraint, X_desired), steps=20)
+    assert check.within and check.translation_m < constraint.t_max and check.orientation_rad < constraint.o_max
     # Drake's exact check against robot and table (the object moves with the hands, so it is left out).
     without_object = make_pick_motions(scenario)
     for q_from, q_to in zip(result.trajectory[:-1], result.trajectory[1:], strict=True):
@@ -106,9 +108,9 @@ def test_stomp_bar_lift_keeps_closure_and_both_hand_orientations(lift_problem):
     closure, orientation = ClosureConstraint(), OrientationConstraint()
     result = stomp.plan(q_grasp, goal, table, closure, orientation)
     assert result.success, result.message
-    within, worst = stomp.orientation_within_limits(result.trajectory, (orientation, R_desired), steps=20)
+    within, worst = stomp.checks.orientation_within_limits(result.trajectory, (orientation, R_desired), steps=20)
     assert within and worst < orientation.o_max
-    assert stomp.closure_within_limits(result.trajectory, (closure, X_desired), steps=20)[0]
+    assert stomp.checks.closure_within_limits(result.trajectory, (closure, X_desired), steps=20).within
     # The hands really rise (the orientation is kept along a real motion).
     lift = stomp.end_effectors.poses(result.trajectory[[0, -1]])[0][:, 2, 3]
     assert lift[1] - lift[0] > 0.1
@@ -130,9 +132,9 @@ def test_the_closure_term_alone_keeps_the_closure_without_any_projection(lift_pr
     table = motions.world.table_obstacles()
     config = dataclasses.replace(
         motions.stomp.config,
-        projection_steps=0,
-        rollout_projection_steps=0,
-        constrained_noise_std=0.15,
+        sampling=dataclasses.replace(
+            motions.stomp.config.sampling, projection_steps=0, rollout_projection_steps=0, constrained_noise_std=0.15
+        ),
         seed=1,
         time_limit_s=30,
     )
@@ -141,10 +143,10 @@ def test_the_closure_term_alone_keeps_the_closure_without_any_projection(lift_pr
     without_term = stomp.plan(q_grasp, goal, table)
     closure = (ClosureConstraint(), X_desired)
     assert with_term.success, with_term.message
-    assert stomp.closure_within_limits(with_term.trajectory, closure, steps=20)[0]
+    assert stomp.checks.closure_within_limits(with_term.trajectory, closure, steps=20).within
     assert without_term.success and without_term.iterations == 0  # the straight line
-    within, t_dev, o_dev = stomp.closure_within_limits(without_term.trajectory, closure, steps=20)
-    assert not within, (t_dev, o_dev)
+    check = stomp.checks.closure_within_limits(without_term.trajectory, closure, steps=20)
+    assert not check.within, check
 
 
 def test_tangent_noise_and_projection_respect_the_constraints(lift_problem):
@@ -204,14 +206,14 @@ def test_a_held_move_does_not_count_the_gap_between_the_hands_the_grasp_made(sce
     scene, stomp = motions.world.table_obstacles(), motions.stomp
     assert not motions.world.in_collision(q)
     assert stomp.clearance(q, scene) < 0  # a free reach could not start here
-    assert stomp.clearance(q, scene, held=True) > stomp.config.required_clearance
+    assert stomp.clearance(q, scene, held=True) > stomp.config.costs.required_clearance
     held = motions.held_move(q, RigidTransform([0.0, 0.0, 0.12]), min_fraction=0.8)
     rise = [motions.world.grasp_frame_poses(held.keyframes[-1])[side].translation()[2] for side in ("left", "right")]
     start = [motions.world.grasp_frame_poses(q)[side].translation()[2] for side in ("left", "right")]
     assert np.min(np.subtract(rise, start)) > 0.8 * 0.12
     # The pairs left out are exactly those between the bodies that move with one hand (the hand, its fingers, the
     # last arm link) and those that move with the other.
-    plant, kinematics, spheres = motions.world.plant, motions.world.kinematics, stomp.spheres
+    plant, kinematics, spheres = motions.world.plant, motions.world.kinematics, motions.world.spheres
 
     def hand_of(sphere: int) -> str:
         body = plant.get_body(BodyIndex(kinematics.links[spheres.body[sphere]].body_index))
@@ -220,9 +222,9 @@ def test_a_held_move_does_not_count_the_gap_between_the_hands_the_grasp_made(sce
             body.name(), ""
         )
 
-    for a, b, left_out in zip(stomp.pair_a, stomp.pair_b, stomp.hand_to_hand, strict=True):
+    for a, b, left_out in zip(stomp.costs.pair_a, stomp.costs.pair_b, stomp.costs.hand_to_hand, strict=True):
         assert left_out == ({hand_of(a), hand_of(b)} == {"left", "right"})
-    assert stomp.hand_to_hand.sum() == 529  # 4 bodies move with each hand: hand base, 2 fingers, last arm link
+    assert stomp.costs.hand_to_hand.sum() == 529  # 4 bodies move with each hand: hand base, 2 fingers, last arm link
 
 
 def test_tilt_angle_ignores_turns_about_the_vertical_only():
@@ -313,14 +315,15 @@ def test_a_carry_over_a_box_starts_from_a_detour_clear_of_it(scenario):
     constraints = stomp.constraints(X_desired, orientation[1])
     straight[1:-1] = constraints.project(straight[1:-1], 3)
     assert stomp.clearance(straight, scene).min() < -0.01  # the can goes through the box
-    detour, solution, _ = stomp._detour_trajectory(
-        straight, scene, closure, orientation, constraints, motions.payload(q_start)
+    first_only = Stomp(motions.world, dataclasses.replace(stomp.config, max_iterations=0))
+    first = first_only.plan(
+        q_start, q_goal, scene, ClosureConstraint(), OrientationConstraint(), payload=motions.payload(q_start)
     )
-    assert solution
-    assert stomp.clearance(detour, scene).min() > stomp.config.required_clearance
+    assert first.success and first.iterations == 0, first.message  # the first trajectory: a detour, a solution
+    assert stomp.clearance(first.trajectory, scene).min() > stomp.config.costs.required_clearance
     result = stomp.plan(q_start, q_goal, scene, ClosureConstraint(), OrientationConstraint())
     assert result.success, result.message
     states = interpolate_segments(result.trajectory, 20)
     assert stomp.clearance(states, scene).min() > 0.0
-    within, t_dev, o_dev = stomp.closure_within_limits(result.trajectory, closure, steps=20)
-    assert within, (t_dev, o_dev)
+    check = stomp.checks.closure_within_limits(result.trajectory, closure, steps=20)
+    assert check.within, check

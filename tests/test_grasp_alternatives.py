@@ -15,7 +15,8 @@ from systems.planning.grasp_alternatives import (
     pregrasp_alternatives,
 )
 from systems.planning.ik import IkResult
-from systems.planning.pick_motions import SCREENING_ITERATIONS, PlanningError, _FirstLookFailed
+from systems.planning.pick_motions import PlanningError
+from systems.planning.reach_motions import SCREENING_ITERATIONS, _FirstLookFailed
 
 SIDES = ("left", "right")
 
@@ -97,7 +98,7 @@ def test_the_reach_looks_briefly_at_later_goals_before_giving_any_its_full_budge
     motions = make_pick_motions(scenario)
     q0 = initial_positions(scenario)
     goals = [IkResult(True, np.full_like(q0, k), choice={"left": k}) for k in range(4)]
-    monkeypatch.setattr(motions, "_reach_goals", lambda *args: iter(goals))
+    monkeypatch.setattr(motions.reaches, "_reach_goals", lambda *args: iter(goals))
     looks = []
 
     def reach_path(q_start, q_goal, obstacles, checked, max_iterations=None):
@@ -107,7 +108,7 @@ def test_the_reach_looks_briefly_at_later_goals_before_giving_any_its_full_budge
             return np.stack([q_start, q_goal])
         raise (PlanningError if max_iterations is None else _FirstLookFailed)(f"no path to goal {goal}")
 
-    monkeypatch.setattr(motions, "_reach_path", reach_path)
+    monkeypatch.setattr(motions.reaches, "_reach_path", reach_path)
     reach = motions.reach(q0, {})
     screen = SCREENING_ITERATIONS
     assert looks == [(0, None), (1, screen), (2, screen), (3, screen), (1, None), (2, None)]

@@ -6,7 +6,7 @@ import trimesh
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 
 from systems.perception.object_tracker import MAX_CORRECTION_RAD, SELF_MARGIN, refine_pose, track
-from systems.planning.kinematics import off_the_robot
+from systems.planning.sphere_model import off_the_robot
 
 
 def an_l_shaped_object(count=3000) -> np.ndarray:

@@ -1,11 +1,11 @@
 """The sphere model's scene (systems/planning/obstacles.py): a carried object's clearances by clusters, and the
-held part's along the detours (systems/planning/stomp.py)."""
+held part's along the detours (systems/planning/stomp_detours.py)."""
 
 import numpy as np
 from pydrake.math import RigidTransform, RollPitchYaw
 
 from systems.planning.obstacles import CLUSTER_RADIUS, CarriedPoints, Groups, Obstacles, clusters
-from systems.planning.stomp import HeldPart
+from systems.planning.stomp_detours import HeldPart
 
 
 def test_a_carried_objects_clearances_are_exact_wherever_they_count():

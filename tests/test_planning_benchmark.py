@@ -22,13 +22,18 @@ from diagrams.generation.planning_problems import (
     check_path,
     held_problem,
     make_problem,
+    start_hands,
 )
 from diagrams.planning_scene import make_pick_motions, object_collision_surface_W
 from diagrams.scenario import load_scenario, replace_object
 from systems.planning.closure import ClosureConstraint, deviations
+from systems.planning.held_motions import CARRIED_MOST_SPHERES, CARRIED_RADIUS
 from systems.planning.obstacles import covering_centres
-from systems.planning.pick_motions import CARRIED_MOST_SPHERES, CARRIED_RADIUS
-from systems.planning.stomp import DETOUR_BATCH, HeldPart, Stomp, StompConfig
+from systems.planning.stomp import Stomp
+from systems.planning.stomp_config import DetourConfig, FirstTrajectoryConfig, StompConfig
+from systems.planning.stomp_costs import StompProblem
+from systems.planning.stomp_detours import DETOUR_BATCH
+from systems.planning.stomp_starts import keyframes_through
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
 from planner_peers import OmplConfig, ompl_plan  # noqa: E402
@@ -110,7 +115,7 @@ def test_the_carried_spheres_hold_the_objects_collision_pieces(category):
     )
     dense, _ = trimesh.sample.sample_surface(pieces, 40000, seed=1)
     farthest = cKDTree(centres).query(dense)[0].max()
-    assert farthest <= CARRIED_RADIUS + StompConfig().required_clearance, farthest
+    assert farthest <= CARRIED_RADIUS + StompConfig().costs.required_clearance, farthest
 
 
 def test_the_dense_checker_rejects_a_box_in_the_way_and_a_broken_closure(motions):
@@ -137,7 +142,7 @@ def test_the_dense_checker_rejects_a_box_in_the_way_and_a_broken_closure(motions
     wrong_goal[-1] = wrong_goal[-2]
     assert not check_path(free, wrong_goal)["valid"]
     # The first-trajectory ablation: the straight line alone (no detours), nothing optimised.
-    config = StompConfig(max_iterations=0, detour_heights=())
+    config = StompConfig(max_iterations=0, detours=DetourConfig(heights=()))
     first = Stomp(motions.world, config).plan(
         blocked.q_start, blocked.q_goal, blocked.obstacles, ClosureConstraint(), blocked.orientation
     )
@@ -146,19 +151,19 @@ def test_the_dense_checker_rejects_a_box_in_the_way_and_a_broken_closure(motions
 
 @pytest.mark.parametrize(("family", "index", "coarse_solves"), [("carry", 0, True), ("set_down", 1, False)])
 def test_a_held_move_is_drawn_with_fewer_keyframes_first(motions, family, index, coarse_solves):
-    """Tuning carry 0: its first trajectory with first_keyframes keyframes is a solution, returned with `keyframes`
-    keyframes along that path (the exact judge passes it). Tuning set-down 1: no coarse first trajectory solves it,
-    and the plan is the one made without the coarse attempt."""
+    """Tuning carry 0: its first trajectory with first_trajectories.keyframes keyframes is a solution, returned with
+    `keyframes` keyframes along that path (the exact judge passes it). Tuning set-down 1: no coarse first trajectory
+    solves it, and the plan is the one made without the coarse attempt."""
     problem = make_problem(motions, family, "tune", index)
     assert isinstance(problem, PlanningProblem), problem
     config = StompConfig(seed=problem.index, max_iterations=0)
     plans = {
-        first: Stomp(motions.world, dataclasses.replace(config, first_keyframes=first)).plan(
+        first: Stomp(motions.world, dataclasses.replace(config, first_trajectories=FirstTrajectoryConfig(first))).plan(
             problem.q_start, problem.q_goal, problem.obstacles, ClosureConstraint(), problem.orientation
         )
-        for first in (0, config.first_keyframes)
+        for first in (0, config.first_trajectories.keyframes)
     }
-    coarse, full = plans[config.first_keyframes], plans[0]
+    coarse, full = plans[config.first_trajectories.keyframes], plans[0]
     assert coarse.success and full.success and coarse.iterations == 0, coarse.message
     assert coarse.trajectory.shape == full.trajectory.shape == (config.keyframes, len(problem.q_start))
     assert np.allclose(coarse.trajectory, full.trajectory) != coarse_solves
@@ -180,58 +185,50 @@ def test_a_trajectory_checked_at_once_gets_the_verdict_of_the_check_in_steps(mot
     straight[1:-1] = stomp.project(
         straight[1:-1], closure[1], orientation[1], upright_only=problem.orientation.upright_only
     )
+    held = StompProblem(problem.obstacles, closure, orientation)
     for theta, solves in ((solution.trajectory, True), (straight, False)):
-        (in_steps, clearance), (at_once, clearance_at_once) = (
-            stomp._feasible(theta, problem.obstacles, closure, orientation, at_once=at_once)
-            for at_once in (False, True)
-        )
-        assert in_steps == at_once == solves
-        below = clearance < stomp.config.margin
+        in_steps, at_once = (stomp.checks.check(theta, held, at_once=at_once) for at_once in (False, True))
+        assert in_steps.solution == at_once.solution == solves
+        below = in_steps.clearance < stomp.config.costs.margin
         assert below.any()
-        np.testing.assert_array_equal(clearance_at_once[below], clearance[below])
+        np.testing.assert_array_equal(at_once.clearance[below], in_steps.clearance[below])
 
 
-def test_detours_scored_a_few_at_a_time_are_built_in_the_order_of_the_ranking_of_all(motions, monkeypatch):
-    """The held part's clearances along a stage's detours are found smallest detour first, DETOUR_BATCH at a time,
-    until one is clear; where that one is no solution the rest are scored, and the detours built are those of the
-    ranking over all of them, in its order. Tuning set-down 21: no clear detour among the smallest 8, the smallest
-    clear one among the next 8 is no solution, and a later one is."""
+def test_a_held_move_starts_from_the_first_solution_in_the_ranking_of_its_detours(motions):
+    """A held move whose straight line is no solution starts from a detour: the first solution among the best
+    `checks` of the ranking over all of a stage's detours (those the held part, moved rigidly, keeps clear of the
+    scene, the smallest first; then the least shortfall), however few of their clearances were found. Tuning
+    set-down 21, drawn with first_trajectories.keyframes: no clear detour among the smallest DETOUR_BATCH, the
+    first in the ranking is no solution, and a later one is."""
     problem = make_problem(motions, "set_down", "tune", 21)
     assert isinstance(problem, PlanningProblem), problem
-    stomp = Stomp(motions.world, StompConfig(seed=problem.index, max_iterations=0))
-    stages, built, scored = [], [], []
-    ranked, through, gaps = Stomp._ranked_detour, Stomp._detour_through, HeldPart.gaps
-
-    def ranked_first_stage(self, theta, obstacles, closure, orientation, constraints, moves, across, held_part):
-        stages.append((theta, obstacles, moves, across, held_part))
-        return ranked(self, theta, obstacles, closure, orientation, constraints, moves, across, held_part)
-
-    def recording_through(self, theta, obstacles, closure, orientation, constraints, target, at_once):
-        if len(stages) == 1:
-            built.append((target, at_once))
-        return through(self, theta, obstacles, closure, orientation, constraints, target, at_once)
-
-    def recording_gaps(self, obstacles, offsets, margin):
-        if len(stages) == 1:
-            scored.append(len(offsets))
-        return gaps(self, obstacles, offsets, margin)
-
-    monkeypatch.setattr(Stomp, "_ranked_detour", ranked_first_stage)
-    monkeypatch.setattr(Stomp, "_detour_through", recording_through)
-    monkeypatch.setattr(HeldPart, "gaps", recording_gaps)
+    config = StompConfig(seed=problem.index, max_iterations=0)
+    stomp = Stomp(motions.world, config)
     result = stomp.plan(problem.q_start, problem.q_goal, problem.obstacles, ClosureConstraint(), problem.orientation)
     assert result.success and result.iterations == 0, result.message
-    theta, obstacles, moves, across, held_part = stages[0]
-    targets = stomp._detour_targets(moves, across, len(theta))
-    assert scored == [DETOUR_BATCH, DETOUR_BATCH, len(targets) - 2 * DETOUR_BATCH]
-    shortfall = np.maximum(stomp.config.margin - gaps(held_part, obstacles, targets, stomp.config.margin), 0.0)
-    shortfall = shortfall.sum(axis=(1, 2))  # (not HeldPart.shortfall: the ranking over all, written out)
+    # The coarse straight line as the plan draws it, and every detour of the first stage, ranked at once.
+    X_E1E2, R_WE = start_hands(motions.world.end_effectors, problem.q_start)
+    constraints = stomp.constraints(X_E1E2, R_WE, problem.orientation.upright_only)
+    obstacles = stomp.costs.standing_start(problem.q_start, problem.obstacles)
+    held = StompProblem(obstacles, (ClosureConstraint(), X_E1E2), (problem.orientation, R_WE), constraints)
+    theta = np.linspace(problem.q_start, problem.q_goal, config.first_trajectories.keyframes)
+    theta[1:-1] = constraints.project(theta[1:-1], config.first_trajectories.projection_steps)
+    assert not stomp.checks.check(theta, held).solution
+    detours = stomp.starts.detours
+    setting = detours.setting(theta, obstacles)
+    targets = detours.targets(detours.stages()[0], setting.across, len(theta))
+    shortfall = setting.held_part.shortfall(obstacles, targets, config.costs.margin)
     size = np.linalg.norm(targets, axis=-1).mean(axis=1)
-    order = np.lexsort((np.where(shortfall > 0, shortfall, size), shortfall > 0))
-    assert 2 <= len(built) <= stomp.config.detour_checks
-    for rank, (target, at_once) in enumerate(built):
-        np.testing.assert_array_equal(target, targets[order[rank]])
-        assert at_once == (rank == 0)
+    assert shortfall[np.argsort(size, kind="stable")[:DETOUR_BATCH]].min() > 0
+    built = []
+    for i in detours.ranking(shortfall, size)[: config.detours.checks]:
+        detour = theta.copy()
+        detour[1:-1] = constraints.moved(theta[1:-1], targets[i], config.detours.moved_steps)
+        built.append(detour)
+    solutions = [stomp.checks.check(detour, held).solution for detour in built]
+    assert not solutions[0] and any(solutions), solutions
+    expected = keyframes_through(built[solutions.index(True)], config.keyframes)
+    np.testing.assert_array_equal(result.trajectory, expected)
 
 
 def test_a_reach_stuck_under_the_table_restarts_from_the_hands_cartesian_vias(motions):
@@ -240,11 +237,12 @@ def test_a_reach_stuck_under_the_table_restarts_from_the_hands_cartesian_vias(mo
     problem = make_problem(motions, "reach", "tune", 70)
     assert isinstance(problem, PlanningProblem) and problem.boxes, problem
     config = StompConfig(seed=problem.index, max_iterations=300, time_limit_s=60.0)
-    config = dataclasses.replace(config, sampled_restart_draws=0)  # the vias alone (the sampled path: below)
-    without = Stomp(motions.world, dataclasses.replace(config, hand_via_heights=()))
+    config = dataclasses.replace(config, restarts=dataclasses.replace(config.restarts, sampled_draws=0))  # vias alone
+    no_vias = dataclasses.replace(config.restarts, hand_via_heights=())
+    without = Stomp(motions.world, dataclasses.replace(config, restarts=no_vias))
     assert not without.plan(problem.q_start, problem.q_goal, problem.obstacles).success
     result = Stomp(motions.world, config).plan(problem.q_start, problem.q_goal, problem.obstacles)
-    assert result.success and result.iterations > config.restart_after, result.message
+    assert result.success and result.iterations > config.restarts.after, result.message
     assert check_path(problem, result.trajectory)["valid"]
 
 
@@ -254,10 +252,12 @@ def test_a_reach_stuck_past_every_restart_is_solved_from_a_path_rrt_connect_samp
     problem = make_problem(motions, "reach", "tune", 378)
     assert isinstance(problem, PlanningProblem), problem
     config = StompConfig(seed=problem.index, max_iterations=300, time_limit_s=60.0)
-    without = Stomp(motions.world, dataclasses.replace(config, sampled_restart_draws=0))
+    without = Stomp(
+        motions.world, dataclasses.replace(config, restarts=dataclasses.replace(config.restarts, sampled_draws=0))
+    )
     assert not without.plan(problem.q_start, problem.q_goal, problem.obstacles).success
     result = Stomp(motions.world, config).plan(problem.q_start, problem.q_goal, problem.obstacles)
-    assert result.success and result.iterations == config.restart_after, result.message
+    assert result.success and result.iterations == config.restarts.after, result.message
     assert "sampled" in result.message
     assert check_path(problem, result.trajectory)["valid"]
 
@@ -268,7 +268,9 @@ def test_stomp_checks_between_keyframes_densely_enough_for_the_exact_judge(motio
     problem = make_problem(motions, "reach", "tune", 54)
     assert isinstance(problem, PlanningProblem), problem
     config = StompConfig(seed=problem.index, time_limit_s=60.0)
-    coarse = Stomp(motions.world, dataclasses.replace(config, segment_step_rad=10.0))
+    coarse = Stomp(
+        motions.world, dataclasses.replace(config, costs=dataclasses.replace(config.costs, segment_step_rad=10.0))
+    )
     result = coarse.plan(problem.q_start, problem.q_goal, problem.obstacles)
     assert result.success and not check_path(problem, result.trajectory)["valid"]
     result = Stomp(motions.world, config).plan(problem.q_start, problem.q_goal, problem.obstacles)

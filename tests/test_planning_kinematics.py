@@ -8,7 +8,9 @@ from pydrake.systems.framework import DiagramBuilder
 
 from diagrams.scenario import planned_joints
 from diagrams.station import AddCentauro
-from systems.planning.kinematics import EndEffectors, centauro_kinematics, gravity_torques, joint_torques
+from systems.planning.dynamics import gravity_torques, joint_torques
+from systems.planning.kinematics import EndEffectors
+from systems.planning.world import centauro_kinematics
 
 
 @pytest.fixture(scope="module")

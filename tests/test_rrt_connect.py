@@ -3,7 +3,7 @@
 import numpy as np
 
 from systems.planning.rrt_connect import RrtConfig, rrt_connect
-from systems.planning.stomp import _keyframes_through
+from systems.planning.stomp_starts import keyframes_through
 
 LOWER, UPPER = np.array([-1.0, -1.0]), np.array([1.0, 1.0])
 
@@ -53,7 +53,7 @@ def test_rrt_connect_gives_up_after_its_draws_where_no_path_exists():
 
 def test_the_keyframes_keep_the_paths_corners():
     path = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 3.0], [0.0, 3.0]])
-    theta = _keyframes_through(path, 16)
+    theta = keyframes_through(path, 16)
     assert theta.shape == (16, 2)
     for corner in path:
         assert np.any(np.all(theta == corner, axis=1))
@@ -64,4 +64,4 @@ def test_the_keyframes_keep_the_paths_corners():
     assert np.sum((theta[:, 0] == 1) & (theta[:, 1] > 0) & (theta[:, 1] < 3)) >= 8
     # more corners than keyframes: evenly spaced along the path instead
     zigzag = np.column_stack([np.arange(20.0), np.arange(20) % 2])
-    assert _keyframes_through(zigzag, 16).shape == (16, 2)
+    assert keyframes_through(zigzag, 16).shape == (16, 2)

@@ -10,12 +10,13 @@ from diagrams.generation.objects.library import resolve_object
 from diagrams.planning_scene import make_pick_motions, make_planning_world, object_surface_W, true_grasp_poses
 from diagrams.scenario import initial_positions
 from diagrams.station import object_pose_on_table
-from systems.planning import pick_motions
+from systems.planning import reach_motions
 from systems.planning.closure import ClosureConstraint
+from systems.planning.dynamics import Payload, joint_torques
 from systems.planning.ik import DualArmIk
-from systems.planning.kinematics import Payload, joint_torques
 from systems.planning.obstacles import DistanceField, Obstacles
-from systems.planning.stomp import TERMS, Stomp
+from systems.planning.stomp import Stomp
+from systems.planning.stomp_costs import TERMS, StompProblem
 
 # Both hands start under the table top, at its front edge: the straight move collides.
 BELOW_TABLE = np.array([0, 0.15, 0, -0.1, 0, 0, 0, 0, -0.15, 0, -0.1, 0, 0, 0.0, 0.0])  # the torso straight
@@ -63,13 +64,14 @@ def test_stomp_rejects_bad_goals_and_keeps_its_time_limit(planning):
     in_collision = motions.stomp.plan(BELOW_TABLE, colliding, scene)
     assert not in_collision.success and "goal configuration collides" in in_collision.message
 
+    config = motions.stomp.config
     config = dataclasses.replace(
-        motions.stomp.config,
+        config,
         time_limit_s=0.05,
         max_iterations=100_000,
-        noise_std=1e-4,
-        via_candidates=0,
-        restart_after=10**9,
+        sampling=dataclasses.replace(config.sampling, noise_std=1e-4),
+        first_trajectories=dataclasses.replace(config.first_trajectories, via_candidates=0),
+        restarts=dataclasses.replace(config.restarts, after=10**9),
     )
     # Almost no exploration from the colliding straight line (no via points): the time limit ends the search.
     timed_out = Stomp(world, config).plan(BELOW_TABLE, q_goal, scene)
@@ -97,11 +99,11 @@ def test_a_plan_starts_where_the_robot_stands_though_its_own_spheres_overlap_the
     assert result.success, result.message
     trajectory = result.trajectory
     dense = np.concatenate([np.linspace(a, b, 20) for a, b in zip(trajectory[:-1], trajectory[1:], strict=True)])
-    standing = stomp._standing_start(OVERLAPPING_SPHERES, scene)
+    standing = stomp.costs.standing_start(OVERLAPPING_SPHERES, scene)
     assert stomp.clearance(dense, standing).min() > 0  # no pair nearer than at the start
     for q_from, q_to in zip(trajectory[:-1], trajectory[1:], strict=True):
         assert motions.segment_is_free(q_from, q_to, max_step=0.01)
-    assert stomp._standing_start(initial_positions(scenario), scene) is scene  # a clear start: the scene itself
+    assert stomp.costs.standing_start(initial_positions(scenario), scene) is scene  # a clear start: the scene itself
 
 
 def _colliding_configuration(world) -> np.ndarray:
@@ -120,19 +122,20 @@ def test_the_least_clear_share_of_each_transition_is_where_the_dense_check_finds
     motions, q_goal = planning
     stomp, obstacles = motions.stomp, motions.world.planning_obstacles()
     theta = np.linspace(BELOW_TABLE, q_goal, 16)
-    shares = stomp._least_clear_along(theta, obstacles)
+    shares = stomp.checks.least_clear_along(theta, obstacles)
     assert shares.shape == (15,) and np.all((shares > 0) & (shares < 1))
     for k, share in enumerate(shares):
-        steps = max(4, int(np.ceil(np.abs(theta[k + 1] - theta[k]).max() / stomp.config.segment_step_rad)))
+        steps = max(4, int(np.ceil(np.abs(theta[k + 1] - theta[k]).max() / stomp.config.costs.segment_step_rad)))
         along = np.arange(1, steps) / steps
         clearance = stomp.clearance((1 - along)[:, None] * theta[k] + along[:, None] * theta[k + 1], obstacles, True)
         assert share == pytest.approx(along[np.argmin(clearance)])
     # A held move's cost then also counts each transition's collision there, at the keyframe it leads to.
     closure = (ClosureConstraint(), stomp.end_effectors.relative(theta[:1])[0])
-    plain = stomp._cost_terms(theta[None], obstacles, closure)[0, :, TERMS.index("collision")]
-    watched = stomp._cost_terms(theta[None], obstacles, closure, watched=shares)[0, :, TERMS.index("collision")]
+    held = StompProblem(obstacles, closure)
+    plain = stomp.costs.cost_terms(theta[None], held)[0, :, TERMS.index("collision")]
+    watched = stomp.costs.cost_terms(theta[None], held, watched=shares)[0, :, TERMS.index("collision")]
     between = (1 - shares)[:, None] * theta[:-1] + shares[:, None] * theta[1:]
-    shortfall = stomp._clearances(between, obstacles, held=True)[1]
+    shortfall = stomp.costs.clearances(between, obstacles, held=True)[1]
     assert shortfall.sum() > 0 and watched[0] == plain[0]
     np.testing.assert_allclose(watched[1:] - plain[1:], shortfall, rtol=1e-9, atol=1e-12)
 
@@ -142,24 +145,25 @@ def test_cost_terms_match_hand_computation(planning):
     world, stomp = motions.world, motions.stomp
     trajectory = np.linspace(BELOW_TABLE, q_goal, stomp.config.keyframes)[None]
     free_space = Obstacles()
-    terms = stomp._cost_terms(trajectory, free_space)[0]
-    np.testing.assert_allclose(terms[:, TERMS.index("collision")], stomp._clearances(trajectory, free_space)[1][0])
+    terms = stomp.costs.cost_terms(trajectory, StompProblem(free_space))[0]
+    np.testing.assert_allclose(terms[:, TERMS.index("collision")], stomp.costs.clearances(trajectory, free_space)[1][0])
     # q_l: zero a limit margin inside the limits, growing to 1 per joint at a limit.
     to_limit = np.minimum(trajectory[0] - world.lower, world.upper - trajectory[0])
-    expected = (np.clip(1 - to_limit / stomp.config.limit_margin, 0, None) ** 2).sum(axis=1)
+    expected = (np.clip(1 - to_limit / stomp.config.costs.limit_margin, 0, None) ** 2).sum(axis=1)
     np.testing.assert_allclose(terms[:, TERMS.index("limits")], expected)
-    at_limit = stomp._cost_terms(np.repeat(world.upper[None, None], 3, axis=1), free_space)[0, :, TERMS.index("limits")]
+    at_limit = stomp.costs.cost_terms(np.repeat(world.upper[None, None], 3, axis=1), StompProblem(free_space))
+    at_limit = at_limit[0, :, TERMS.index("limits")]
     np.testing.assert_allclose(at_limit, len(world.upper))  # 1 per planned joint (15: the arms and the torso)
     # Torques: inverse dynamics along the keyframes' timing, each step at least segment_s (at rest at both ends).
     steps = np.diff(trajectory[0], axis=0)
-    seconds = np.maximum(stomp.config.segment_s, (np.abs(steps) / world.velocity_limits).max(axis=1))
+    seconds = np.maximum(stomp.config.costs.segment_s, (np.abs(steps) / world.velocity_limits).max(axis=1))
     velocity = np.zeros_like(trajectory[0])
     velocity[1:-1] = 0.5 * (steps[:-1] / seconds[:-1, None] + steps[1:] / seconds[1:, None])
     acceleration = np.zeros_like(velocity)
     acceleration[1:] = np.diff(velocity, axis=0) / seconds[:, None]
-    poses = stomp.kinematics.body_poses(trajectory[0])
-    load = np.abs(joint_torques(stomp.kinematics, poses, velocity, acceleration)) / world.effort_limits
-    expected = (load**2).sum(axis=1) + stomp.config.torque_limit_penalty * np.maximum(load - 1, 0).sum(axis=1)
+    poses = stomp.costs.kinematics.body_poses(trajectory[0])
+    load = np.abs(joint_torques(stomp.costs.kinematics, poses, velocity, acceleration)) / world.effort_limits
+    expected = (load**2).sum(axis=1) + stomp.config.costs.torque_limit_penalty * np.maximum(load - 1, 0).sum(axis=1)
     np.testing.assert_allclose(terms[:, TERMS.index("torque")], expected, rtol=1e-9)
     np.testing.assert_allclose(terms[1:, TERMS.index("duration")], (np.abs(steps) / world.velocity_limits).max(axis=1))
     assert terms[0, TERMS.index("duration")] == 0
@@ -174,31 +178,33 @@ def test_batched_sphere_centres_and_the_broad_phase_agree_with_one_sphere_at_a_t
     stomp = motions.stomp
     rng = np.random.default_rng(4)
     q = np.clip(q_goal + 0.8 * rng.standard_normal((24, stomp.dof)), stomp.lower, stomp.upper)
-    poses = stomp.kinematics.body_poses(q)
-    spheres = stomp.spheres
+    poses = stomp.costs.kinematics.body_poses(q)
+    spheres = stomp.costs.spheres
     centres = spheres.centres_W(poses)
     X_WB = poses[:, spheres.body]  # B x S x 4 x 4: each sphere's body
     expected = np.einsum("bsij,sj->bsi", X_WB[..., :3, :3], spheres.centre_B) + X_WB[..., :3, 3]
     np.testing.assert_allclose(centres, expected, atol=1e-12)
-    gaps = np.linalg.norm(centres[:, stomp.pair_a] - centres[:, stomp.pair_b], axis=2) - (
-        spheres.radius[stomp.pair_a] + spheres.radius[stomp.pair_b]
+    gaps = np.linalg.norm(centres[:, stomp.costs.pair_a] - centres[:, stomp.costs.pair_b], axis=2) - (
+        spheres.radius[stomp.costs.pair_a] + spheres.radius[stomp.costs.pair_b]
     )
-    within = np.nonzero((gaps < stomp.config.margin).any(axis=0))[0]
+    within = np.nonzero((gaps < stomp.config.costs.margin).any(axis=0))[0]
     assert len(within) > 0
-    assert set(within) <= set(stomp._near_sphere_pairs(stomp._body_bounds(poses)))
+    assert set(within) <= set(stomp.costs.near_sphere_pairs(stomp.costs.body_bounds(poses)))
     # Against a box among the arms: every sphere's clearance to it exact below the margin, the shortfall as if each
     # sphere were placed alone.
     X_WB = np.eye(4)
     X_WB[:3, 3] = centres[:, spheres.group == 1].mean(axis=(0, 1))
     scene = Obstacles().add_box(X_WB, [0.3, 0.3, 0.3])
     to_box = scene.distance(centres) - spheres.radius
-    all_gaps = np.concatenate([to_box, np.where(gaps < stomp.config.margin, gaps, np.inf)], axis=1)
-    smallest, shortfall = stomp._clearances(q, scene, poses)
-    assert (to_box < 0).any() and (to_box > stomp.config.margin).any()
-    np.testing.assert_allclose(shortfall, np.maximum(stomp.config.margin - all_gaps, 0).sum(axis=1), rtol=1e-5)
+    all_gaps = np.concatenate([to_box, np.where(gaps < stomp.config.costs.margin, gaps, np.inf)], axis=1)
+    smallest, shortfall = stomp.costs.clearances(q, scene, poses)
+    assert (to_box < 0).any() and (to_box > stomp.config.costs.margin).any()
+    np.testing.assert_allclose(shortfall, np.maximum(stomp.config.costs.margin - all_gaps, 0).sum(axis=1), rtol=1e-5)
     exact = all_gaps.min(axis=1)
-    np.testing.assert_allclose(smallest[exact < stomp.config.margin], exact[exact < stomp.config.margin], atol=1e-6)
-    assert np.all(smallest[exact >= stomp.config.margin] >= stomp.config.margin - 1e-9)
+    np.testing.assert_allclose(
+        smallest[exact < stomp.config.costs.margin], exact[exact < stomp.config.costs.margin], atol=1e-6
+    )
+    assert np.all(smallest[exact >= stomp.config.costs.margin] >= stomp.config.costs.margin - 1e-9)
 
 
 def test_a_held_payload_loads_the_arms_as_its_weight_would(planning):
@@ -302,7 +308,7 @@ def test_a_reach_whose_scene_is_built_beside_its_first_ik_goal_is_the_reach_buil
     pregrasps = {side: poses[f"{side}_pregrasp"] for side in ("left", "right")}
     motions = make_pick_motions(scenario)
     beside = motions.reach(BELOW_TABLE, pregrasps, points).keyframes
-    monkeypatch.setattr(pick_motions, "parallel_calls", lambda *functions: [f() for f in functions])
+    monkeypatch.setattr(reach_motions, "parallel_calls", lambda *functions: [f() for f in functions])
     after = motions.reach(BELOW_TABLE, pregrasps, points).keyframes
     assert len(beside) > 2  # (a path STOMP planned, not the straight move alone)
     np.testing.assert_array_equal(beside, after)

@@ -6,7 +6,8 @@ import pytest
 from pydrake.math import RigidTransform
 
 from diagrams.planning_scene import grasp_configuration, make_pick_motions
-from systems.planning.pick_motions import APPROACH_STEPS, RISE_M, PickMotions, PlanningError
+from systems.planning.reach_motions import RISE_M, ReachMotions
+from systems.planning.straight_motions import APPROACH_STEPS, PlanningError
 
 SIDES = ("left", "right")
 
@@ -70,14 +71,14 @@ def test_a_free_move_with_no_path_from_where_it_starts_rises_first(scenario, mon
     q = grasp_configuration(scenario, motions)
     home = q.copy()
     home[:7] += 0.2  # somewhere else for the left arm
-    original = PickMotions._reach_path
+    original = ReachMotions._reach_path
 
     def no_path_from_the_grasp(self, q_from, q_to, obstacles, checked):
         if np.allclose(q_from, q):
             raise PlanningError("no path from here")
         return original(self, q_from, q_to, obstacles, checked)
 
-    monkeypatch.setattr(PickMotions, "_reach_path", no_path_from_the_grasp)
+    monkeypatch.setattr(ReachMotions, "_reach_path", no_path_from_the_grasp)
     keyframes = motions.reach_configuration(q, home)
     np.testing.assert_array_equal(keyframes[0], q)
     np.testing.assert_allclose(keyframes[-1], home)
@@ -89,6 +90,6 @@ def test_a_free_move_with_no_path_from_where_it_starts_rises_first(scenario, mon
     def no_path(*args):
         raise PlanningError("none")
 
-    monkeypatch.setattr(PickMotions, "_reach_path", no_path)
+    monkeypatch.setattr(ReachMotions, "_reach_path", no_path)
     with pytest.raises(PlanningError, match="none; from 0.15 m higher: none"):
         motions.reach_configuration(q, home)

@@ -347,7 +347,7 @@ def _too_near_for_the_planners(motions: PickMotions, obstacles: Obstacles, q_sta
     stomp = motions.stomp
     clearance = stomp.clearance(np.stack([q_start, q_goal]), obstacles, held)
     for name, value in zip(("start", "goal"), clearance, strict=True):
-        if value <= stomp.config.required_clearance:
+        if value <= stomp.config.costs.required_clearance:
             return f"the {name} is {1000 * value:.0f} mm from a collision in the planners' sphere model"
     return ""
 
@@ -436,7 +436,7 @@ def projected_straight_line(problem: PlanningProblem, stomp: Stomp) -> np.ndarra
     if problem.held:
         X_E1E2, R_WE = start_hands(stomp.end_effectors, problem.q_start)
         constraints = stomp.constraints(X_E1E2, R_WE, problem.orientation.upright_only)
-        theta[1:-1] = constraints.project(theta[1:-1], stomp.config.projection_steps)
+        theta[1:-1] = constraints.project(theta[1:-1], stomp.config.sampling.projection_steps)
     return theta
 
 

@@ -39,7 +39,7 @@ from scipy.spatial import cKDTree
 from systems.messages import ObjectEstimate
 from systems.perception.depth_cleaning import flying_pixels
 from systems.perception.pose_estimator import depth_to_points, fit_yaw_translation, voxel_thin
-from systems.planning.kinematics import off_the_robot
+from systems.planning.sphere_model import off_the_robot
 
 CROP_MARGIN = 0.03  # m
 SUPPORT_CLEARANCE = 0.01  # m: points lower than this over the object's origin are the table

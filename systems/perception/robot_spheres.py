@@ -4,7 +4,8 @@ import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import LeafSystem
 
-from systems.planning.kinematics import BatchedKinematics, SphereModel
+from systems.planning.kinematics import BatchedKinematics
+from systems.planning.sphere_model import SphereModel
 
 
 class RobotSpheres(LeafSystem):

@@ -31,7 +31,7 @@ from systems.messages import Segmentation
 from systems.parallel import THREADS
 from systems.perception.depth_cleaning import flying_pixels
 from systems.perception.pose_estimator import depth_to_points, voxel_thin
-from systems.planning.kinematics import off_the_robot
+from systems.planning.sphere_model import off_the_robot
 
 SEEN_SPACING_M = 0.005
 VOXEL_M = 0.01

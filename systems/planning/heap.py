@@ -4,11 +4,9 @@ glibc's malloc serves allocations above its mmap threshold (128 KiB at first) by
 them when they are freed, and gives the freed top of its heap back to the system beyond its trim threshold; the
 next large temporaries then fault their pages in again. A STOMP iteration allocates and frees arrays of 16 rollouts
 x 16 keyframes x hundreds of spheres and sphere pairs many times over. keep_freed_heap() serves allocations up to
-MMAP_THRESHOLD_BYTES from the heap and keeps up to TRIM_THRESHOLD_BYTES of it freed for reuse (mallopt). Two
-report-range turns (57 and 249), in a process where OMPL and KTO had run (as scripts/benchmark_planner.py runs
-them): 2.17 and 2.08 s with only a 64 MiB top pad (M_TOP_PAD, which also fixes the mmap threshold at 128 KiB),
-1.93 and 1.88 s with this; in a fresh process 1.98 / 1.92 and 1.96 / 1.88 s (a throwaway script, one run each).
-Elsewhere than glibc nothing changes.
+MMAP_THRESHOLD_BYTES from the heap and keeps up to TRIM_THRESHOLD_BYTES of it freed for reuse (mallopt): long
+plans run faster, most in a process where OMPL and KTO had run (docs/history/planning_parameters.md). Elsewhere than
+glibc nothing changes.
 """
 
 import ctypes

@@ -40,15 +40,12 @@ NULL_SPACE_SETTLED_RAD = 0.01
 STALL_STEPS = 5
 STALL_SHARE = 0.9
 # Each step also moves the arm this share of the way to the nominal configuration, a share that shrinks by
-# NOMINAL_PULL_DECAY a step: the answers come out near it, as SNOPT's did with its nominal cost. Pre-grasps of 36
-# training objects: the largest joint move from the start, median 1.77 rad (SNOPT 1.85; without the pull 2.19: the
-# reaches were longer, and one unseen drill's took 8.5 s of STOMP where SNOPT's took 0.5 s).
+# NOMINAL_PULL_DECAY a step: the answers come out near it, as SNOPT's did with its nominal cost (without the pull the
+# reaches from them were longer).
 NOMINAL_PULL = 0.8
 NOMINAL_PULL_DECAY = 0.7
-# SNOPT's major iterations in the last resort (its default allows 1000 or more). Where it reaches a target it needs
-# few: of the 69 last resorts that succeeded in the 30 picks of benchmark_latency.py, none needed more than 80 (3 more
-# than 40), each with the same answer as without the cap. Where it does not reach, it iterated for up to 155 ms
-# before giving up: 1.1 s of those 30 picks' 1.7 s in last resorts.
+# SNOPT's major iterations in the last resort (its default allows 1000 or more): where it reaches a target it needs
+# few, and where it does not, the cap bounds the time it spends failing.
 LAST_RESORT_MAJOR_ITERATIONS = 100
 
 
@@ -317,8 +314,7 @@ class DualArmIk:
             if answers:
                 return answers
         # The last resort: SNOPT from the guess. It reaches some targets the steps do not, many using its tolerances'
-        # corners (2 mm on every axis and 0.03 rad at once): on the pre-grasps and grasps of 30 test and unseen
-        # placements at every torso yaw tried, 82 of its 366 calls in 672 solves (measured before NOMINAL_PULL).
+        # corners (2 mm on every axis and 0.03 rad at once).
         for X in targets:
             result = self._solve_once(
                 {side: X}, guess, q_guess, position_tolerance, angle_tolerance, None, limit_margin,

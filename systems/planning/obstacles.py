@@ -54,7 +54,7 @@ class DistanceField:
 
 # m: the carried spheres are grouped into clusters of about this radius, each bounded by one sphere: a cluster whose
 # bounding sphere keeps clear of the scene by the cost's margin is not placed sphere by sphere (most of a held move's
-# carried spheres, most of the time: on three tuning turns 4-15 % of them came within 2 cm of a box or the table).
+# carried spheres, most of the time).
 CLUSTER_RADIUS = 0.05
 
 

@@ -23,12 +23,12 @@ from pydrake.multibody.tree import BodyIndex, ModelInstanceIndex
 from pydrake.systems.framework import Diagram
 
 from systems.messages import SIDES
-from systems.planning.kinematics import EndEffectors, centauro_kinematics
+from systems.planning.kinematics import BatchedKinematics, EndEffectors
 from systems.planning.obstacles import Obstacles
+from systems.planning.sphere_model import off_the_robot, robot_spheres
 
-# Clearance added around a perceived (reconstructed) object for reach planning, m. The reconstructions
-# are 2.8-4.1 mm off (Chamfer, single views); 1.5 cm around the accurate drills left STOMP's reach without a
-# path to the pre-grasp in its 2 s (unseen drills 17/24 picks; 1 cm: see the README's evaluation).
+# Clearance added around a perceived (reconstructed) object for reach planning, m: a reconstruction is a few
+# millimetres off, and a wider margin left reaches without a path to the pre-grasp in STOMP's time.
 PERCEIVED_SHAPE_MARGIN = 0.01
 # Clearance added around the scene as the camera saw it (measured points and hidden cubes' centres:
 # systems/perception/scene_cloud.py), m: an edge seen up to a pixel short (2-3 mm at a metre) and the distance
@@ -143,6 +143,18 @@ class PlanningWorld:
             obstacles.add_points(self.scene.object_surface_W, inflation=0.5 * self.scene.object_surface_spacing)
         return obstacles
 
+    def where_the_robot_is_not(self, scene_W: np.ndarray | None, q: np.ndarray) -> np.ndarray | None:
+        """The perceived scene (its occupied points, N x 3 in W) without the points within the robot's sphere model
+        at q grown by the scene's margin and two grid cells: the robot stands there, so nothing else does. (A hand
+        beside a neighbour of the object it holds starts clear, whatever the points and their margin say.)"""
+        if scene_W is None or not len(scene_W):
+            return scene_W
+        centres = self.spheres.centres_W(self.kinematics.body_poses(np.asarray(q, float)[None]))[0]
+        # The scene's margin, STOMP's required clearance and the field's interpolation.
+        return off_the_robot(
+            scene_W, np.column_stack([centres, self.spheres.radius]), PERCEIVED_SCENE_MARGIN + 2 * SCENE_CELL_M
+        )
+
     def beyond_limits(self, q_arms: np.ndarray) -> float:
         """How far (rad) the planned joints of q_arms (... x n) lie beyond their limits at most; <= 0 within."""
         return float(np.max(np.maximum(self.lower - q_arms, q_arms - self.upper)))
@@ -169,3 +181,30 @@ class PlanningWorld:
         """X_WG of both hands at arm configuration q_arms."""
         self.plant.SetPositions(self.plant_context, self.full_positions(q_arms))
         return {side: frame.CalcPoseInWorld(self.plant_context) for side, frame in self.grasp_frames.items()}
+
+
+def centauro_kinematics(plant: MultibodyPlant, scene_graph, plant_context, arm_joints: list[str], hands: dict):
+    """Batched kinematics of both arms with the hands, and their sphere model.
+
+    Args:
+        arm_joints: the planned joints' names: the left arm (arm1_*), the right (arm2_*), and the torso yaw if
+            it is planned.
+        hands: {"left": model instance, "right": model instance} of the hands.
+
+    Groups: 0 pelvis/torso/head, 1 left arm + left hand, 2 right arm + right hand.
+    """
+    joints = [plant.GetJointByName(name) for name in arm_joints]
+    bodies = [joint.child_body() for joint in joints]
+    for hand in hands.values():
+        bodies += [plant.get_body(b) for b in plant.GetBodyIndices(hand)]
+    bodies += [plant.GetBodyByName("torso"), plant.GetBodyByName("pelvis")]
+    kinematics = BatchedKinematics(plant, plant_context, joints, bodies)
+
+    def group(name, model_instance):
+        if model_instance == hands["left"] or name.startswith("arm1_"):
+            return 1
+        if model_instance == hands["right"] or name.startswith("arm2_"):
+            return 2
+        return 0
+
+    return kinematics, robot_spheres(plant, scene_graph, kinematics, group)
