@@ -33,7 +33,8 @@ from systems.messages import Mode, PickStatus
 from systems.perception.camera_latch import CameraLatch
 from systems.perception.grasp_offset import GraspOffset
 from systems.perception.robot_spheres import RobotSpheres
-from systems.pick_supervisor import PickSupervisor, lift_task, place_task
+from systems.pick_supervisor import PickSupervisor
+from systems.pick_tasks import lift_pick, place_pick
 from systems.pick_visualiser import PickVisualiser
 from systems.planning.pick_motions import PickMotions, PlannerConfig, PlanningError
 from systems.planning.plan_telemetry import PlanTelemetryRecorder
@@ -98,12 +99,12 @@ def MakePickDiagram(
     held_looks = scenario.place.looks and scenario.task == "place"
     looks = from_camera and (held_looks or scenario.look_before_approach)
     if scenario.task == "place":
-        task = place_task(check=scenario.look_before_approach, held_looks=scenario.place.looks)
+        tasks = place_pick(check=scenario.look_before_approach, held_looks=scenario.place.looks)
         place_target_W = place_target(scenario)
     else:
-        task, place_target_W = lift_task(check=scenario.look_before_approach), None
+        tasks, place_target_W = lift_pick(check=scenario.look_before_approach), None
     supervisor = PickSupervisor(
-        task, PERCEIVE_AT_S, place_target_W, from_camera, looks, scenario.max_attempts, num_joints=n
+        tasks, PERCEIVE_AT_S, place_target_W, from_camera, looks, scenario.max_attempts, num_joints=n
     )
     builder.AddNamedSystem("pick_supervisor", supervisor)
     telemetry = builder.AddNamedSystem("plan_telemetry", PlanTelemetryRecorder())

@@ -21,6 +21,7 @@ from pydrake.systems.framework import Context, Diagram, EventStatus
 
 from diagrams.scenario import Scenario
 from diagrams.station import CLUTTER_INSTANCE, HAND_INSTANCES, OBJECT_INSTANCE
+from systems.messages import Mode
 from systems.planning.closure import relative_deviations
 
 LIFT_SUCCESS_M = 0.10
@@ -33,7 +34,9 @@ HOLD_CHECK_S = 2.0
 SAMPLE_S = 0.05
 # The executed closure: sampled this often during the held moves (the supervisor's modes HELD_MOVES), s.
 CLOSURE_SAMPLE_S = 0.01
-HELD_MOVES = ("lift", "carry", "set_down")
+HELD_MOVES = (Mode.LIFT, Mode.CARRY, Mode.SET_DOWN)
+# The modes of a failed attempt's recovery (systems/pick_tasks.py's recovery_task).
+RECOVERY_MODES = (Mode.RECOVER_OPEN, Mode.RECOVER_RETREAT, Mode.RECOVER_HOME)
 
 
 @dataclass
@@ -253,7 +256,7 @@ class PlaceJudge(LiftJudge):
         context,
         X_W_target,
         mode_of: Callable,
-        held_modes=("look", "lift", "carry", "look_again", "set_down"),
+        held_modes=(Mode.LOOK, Mode.LIFT, Mode.CARRY, Mode.LOOK_AGAIN, Mode.SET_DOWN),
     ):
         super().__init__(plant, context)
         self.context, self.X_W_target, self.mode_of, self.held_modes = context, X_W_target, mode_of, held_modes
@@ -266,11 +269,11 @@ class PlaceJudge(LiftJudge):
         z = super().sample(t)
         mode, last = self.mode_of(self.context), self.last_mode
         self.last_mode = mode
-        if self.body is not None and mode == "release" and last != "release":
+        if self.body is not None and mode == Mode.RELEASE and last != Mode.RELEASE:
             self.X_set_down = self.body.EvalPoseInWorld(self.plant_context)
         if last not in self.held_modes:
             self.held_offset = None  # a new grasp
-        if mode.startswith("recover_"):
+        if mode in RECOVERY_MODES:
             self.max_slip = 0.0  # a failed attempt's grasp is not the place's (the object may have slipped out)
         if self.body is not None and mode in self.held_modes:
             X_WG = [f.CalcPoseInWorld(self.plant_context) for f in self.frames]

@@ -70,6 +70,28 @@ class Mode(enum.StrEnum):
     FAILED = "failed"
 
 
+class PhaseKind(enum.StrEnum):
+    """What a phase of a task does (systems/pick_tasks.py)."""
+
+    MOVE = "move"  # plan a motion (a MoveKind) and play it out
+    CLOSE = "close"  # close both hands, let the grip settle, then check that each holds something
+    OPEN = "open"  # open both hands (to a width, or beyond the widest grasp) and let them settle
+    LOOK = "look"  # find the held object again: the moves that follow start from there
+    CHECK_MOVED = "check_moved"  # look at the object on the table: where it moved, reach for it again
+    CONFIRM_PLACED = "confirm_placed"  # look at the object set down: where it stands off its target, take it again
+    WAIT = "wait"  # hold still
+
+
+class TaskName(enum.StrEnum):
+    """The pick's named phase lists (systems/pick_tasks.py)."""
+
+    LIFT = "lift"  # the paper's task: grasp the object, lift it, hold it
+    PLACE = "place"  # grasp it, lift it, carry it to the place target, set it down, let go
+    REPLACE = "replace"  # set down off its target: take it again where it stands, set it down on the target
+    BACK_OFF = "back_off"  # it moved before the approach: back off before reaching for it again
+    RECOVER = "recover"  # a failed attempt: open the hands, back off, go back to where the pick started
+
+
 class Stage(enum.StrEnum):
     """The stage a failed pick stopped at."""
 
@@ -110,9 +132,9 @@ class DepthView:
     centre: tuple[float, float]  # cx, cy in pixels
     mask: np.ndarray | None = None  # H x W bool, the object's pixels (None: every pixel may be something else)
 
-    def look_up(self, points_W: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """For points (N x 3, W): their depths along the optical axis (m), the depths measured in their pixels (NaN
-        outside the image or where nothing was measured) and whether those pixels are the object's."""
+    def look_up(self, points_W: np.ndarray) -> "DepthLookup":
+        """For points (N x 3, W): their depths, the depths measured in their pixels and whether those are the
+        object's."""
         p = self.X_WC.inverse().multiply(np.asarray(points_W, dtype=float).T)
         height, width = self.depth.shape
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -126,7 +148,16 @@ class DepthView:
         on_object = np.zeros(len(p[0]), dtype=bool)
         if self.mask is not None:
             on_object[inside] = self.mask[rows, columns]
-        return p[2], measured, on_object
+        return DepthLookup(p[2], measured, on_object)
+
+
+@dataclass
+class DepthLookup:
+    """Points looked up in a depth image (DepthView.look_up), one entry per point."""
+
+    depth: np.ndarray  # (N,) their depths along the optical axis, m
+    measured: np.ndarray  # (N,) the depths measured in their pixels, m (NaN outside the image or nothing measured)
+    on_object: np.ndarray  # (N,) bool: their pixels are the object's
 
 
 @dataclass
@@ -282,9 +313,9 @@ class PickStatus:
     """Where the pick stands (the supervisor's state). Times are context (simulation or robot) seconds."""
 
     mode: Mode = Mode.WAITING
-    failed_stage: str = ""  # a Stage, when mode == FAILED
+    failed_stage: Stage | str = ""  # when mode == FAILED
     message: str = ""
-    phase_index: int = -1  # into the task's phases
+    phase_index: int = -1  # into the phases of `task`
     phase_start_s: float = 0.0
     perceive_id: int = 0  # the camera frame asked for
     perceived: bool = False  # perception's result has been read
@@ -301,9 +332,6 @@ class PickStatus:
     q_home: np.ndarray | None = None  # where the robot stood when the pick began (planned joints, rad)
     attempt: int = 1  # the attempt under way (a failed check starts the next, up to max_attempts)
     attempt_failures: tuple[tuple[str, str], ...] = ()  # (stage, message) of each failed attempt, in order
-    recovering: bool = False  # the recovery's phases (open, back off, home) are under way, not the task's
+    task: TaskName | None = None  # the phase list under way (None: none yet, or perceiving for the next attempt)
     corrections: int = 0  # reaches planned again this attempt because a look found the object moved
-    correcting: bool = False  # backing off to reach again (the object moved), not the task's phases
-    # The object was set down off its target: the hands take it again and set it down again (the re-place phases).
-    replacing: bool = False
     place_corrections: int = 0  # times the object was taken again after a set-down

@@ -1,20 +1,20 @@
-"""The pick supervisor: a state machine over the pick's phases.
+"""The pick supervisor: runs the pick's tasks (systems/pick_tasks.py), one phase at a time.
 
-It asks perception for a camera frame and reads perception's one result, then walks through the
-task's phases: a motion phase sends a PlanRequest to the planner stage and waits for its PlanResult
-and for the trajectory to be played; a hand phase sends a HandCommand and, after closing, checks the
-measured hand openings; a look phase asks the object tracker where the held object is. A failure at
-any point leaves the arms holding where they are (the trajectory source holds the last played
-trajectory's end) and names the stage.
+It asks perception for a camera frame and reads perception's one result, then runs the pick's task: a move
+phase sends a PlanRequest to the planner stage and waits for its PlanResult and for the trajectory to be
+played; a close or open phase sends a HandCommand and, after closing, checks the measured hand openings; a look
+asks the object tracker where the object is. What comes after each task, and which task a failed check or a
+look switches to, is the tasks' data. A failure at any point leaves the arms holding where they are (the
+trajectory source holds the last played trajectory's end) and names the stage.
 
 Modes: waiting -> perceiving -> (the task's phases: reach, approach, close, lift, then hold; or close,
 look, lift, carry, look_again, set_down, release, retreat, confirm) -> done, or failed.
 
 Checks and retries: after closing, each hand must hold something (its measured opening neither closed to
 nothing nor still open), and after the lift it must still do. A failed check is one failed attempt: the
-hands open, back off along their approach axes, the arms go back to where the pick started, and the pick
-starts again from a new camera frame, up to max_attempts. Failures that another attempt would repeat
-(perception found nothing, no plan) end the pick at once.
+recovery task opens the hands, backs off along their approach axes and goes back to where the pick started,
+and the pick starts again from a new camera frame, up to max_attempts. Failures that another attempt would
+repeat (perception found nothing, no plan) end the pick at once.
 
 A place moves the object from where it is in the hands, not from where it was seen before the hands touched
 it (closing turned cans by up to 21 degrees, the lift a few more): the object belief and the place goals are
@@ -32,123 +32,28 @@ from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 from pydrake.systems.framework import BasicVector, EventStatus, LeafSystem
 
 from systems.messages import (
-    CLOSED_WIDTH,
     OPEN_WIDTH,
     SIDES,
     HandCommand,
     LookRequest,
     Mode,
-    MoveKind,
     ObjectBelief,
     ObjectEstimate,
     PerceptionResult,
+    PhaseKind,
     PickStatus,
-    PlaceGoal,
     PlanRequest,
     PlanResult,
     Stage,
     Targets,
+    TaskName,
 )
+from systems.pick_tasks import Phase, PickTasks, Task, Then
 from systems.planning.place_goals import place_motion
 
 CLOSE_S = 1.0  # s: the hands close over this long
-SETTLE_S = 0.5  # s: then the grip settles before it is checked
 # A hand whose measured opening is below this after closing holds nothing, m.
 MIN_GRASPED_WIDTH = 0.004
-LIFT_HEIGHT = 0.15  # m: aimed for
-MIN_LIFT_FRACTION = 0.8  # of it: near the edge of the arms' reach a lower lift will do (0.12 m)
-HOLD_S = 2.5  # s
-# The place task carries the object this high (its bottom clears the 6 cm boxes of the place_over_box layouts;
-# over an 8 cm box STOMP found no upright carry for a can); higher, the arms are near the edge of their reach
-# and cannot move it sideways, m.
-PLACE_LIFT_HEIGHT = 0.10
-# Taken again after a set-down off its target, the object is lifted this high before it is set down again (clear
-# of the table's friction), m; near the edge of reach this share of it will do.
-REPLACE_LIFT_HEIGHT = 0.03
-MIN_REPLACE_LIFT_FRACTION = 0.5
-# Letting go of a set-down object, the hands open this much wider than the widest handle they closed on, m:
-# enough to back off it, no wider. In one can pick, set down within 1.1 deg: + 10 cm (fully open), the
-# fingers turned it by 7.9 deg; + 2.5 cm, hand and retreat by 4.2 deg; + 1.2 cm, by 1.2 deg. (A fixed 5 cm
-# opening left a hand that had closed on a 48 mm handle dragging the can away.)
-RELEASE_MARGIN = 0.012
-
-
-@dataclass(frozen=True)
-class Phase:
-    """One step of a task: a motion (path set), a hand command (hand_width set), a look, or a wait."""
-
-    name: Mode
-    path: MoveKind | None = None
-    targets: Targets | None = None  # free and straight moves: the grasp poses named so
-    X_motion_W: RigidTransform | None = None  # held moves: the object's motion in W
-    min_fraction: float = 1.0  # held moves: the shortest share of the motion's translation that will do
-    goal: PlaceGoal | None = None  # held moves to the place target
-    hand_width: float | None = None  # m
-    beyond_grasp: bool = False  # hand_width is an opening beyond the widest measured grasp (letting go)
-    wait_s: float = 0.0
-    look: bool = False  # find the held object again (the object tracker; skipped without looks)
-    check_held: bool = False  # motions: once played, both hands must still hold the object
-    # Looks: the object stands on the table; where it moved more than MOVED_M / MOVED_RAD since it was seen,
-    # the belief takes the look and the attempt goes back to its reach (at most MAX_CORRECTIONS times).
-    recheck: bool = False
-    # Looks: the object was set down; where it stands farther than PLACED_M / PLACED_RAD from the place target,
-    # the hands take it again and set it down again (replace_task, at most MAX_PLACE_CORRECTIONS times).
-    confirm: bool = False
-
-
-def lift_task(lift_height: float = LIFT_HEIGHT, check: bool = True) -> tuple[Phase, ...]:
-    """The paper's task: reach the pre-grasps, [look whether the object moved,] approach, close both hands, lift
-    the object, hold it."""
-    checking = (Phase(Mode.CHECK, look=True, recheck=True),) if check else ()
-    return (
-        Phase(Mode.REACH, path=MoveKind.FREE, targets=Targets.PREGRASP),
-        *checking,
-        Phase(Mode.APPROACH, path=MoveKind.STRAIGHT, targets=Targets.GRASP),
-        Phase(Mode.CLOSE, hand_width=CLOSED_WIDTH, wait_s=SETTLE_S),
-        Phase(
-            Mode.LIFT,
-            path=MoveKind.HELD,
-            X_motion_W=RigidTransform([0, 0, lift_height]),
-            min_fraction=MIN_LIFT_FRACTION,
-            check_held=True,
-        ),
-        Phase(Mode.HOLD, wait_s=HOLD_S),
-    )
-
-
-def place_task(
-    lift_height: float = PLACE_LIFT_HEIGHT, check: bool = True, held_looks: bool = True
-) -> tuple[Phase, ...]:
-    """Beyond the paper: lift the object, carry it to the place target, set it down upright, let go, back off.
-    held_looks: look at the held object before the carry and before the set-down (else those phases pass)."""
-    *grasping, lift = lift_task(lift_height, check)[:-1]
-    return (*grasping, Phase(Mode.LOOK, look=held_looks), lift) + (
-        Phase(Mode.CARRY, path=MoveKind.HELD, goal=PlaceGoal.CARRY),
-        Phase(Mode.LOOK_AGAIN, look=held_looks),  # the object turns a few degrees in the hands as they move it
-        Phase(Mode.SET_DOWN, path=MoveKind.HELD, goal=PlaceGoal.SET_DOWN),
-        Phase(Mode.RELEASE, hand_width=RELEASE_MARGIN, beyond_grasp=True, wait_s=SETTLE_S),
-        Phase(Mode.RETREAT, path=MoveKind.STRAIGHT, targets=Targets.RETREAT),
-        Phase(Mode.CONFIRM, look=held_looks, confirm=True),
-    )
-
-
-def replace_task(held_looks: bool = True) -> tuple[Phase, ...]:
-    """After a set-down off the target: take the object where it stands, lift it a little, set it down on the
-    target, let go, back off, and look again."""
-    *grasping, lift, _ = lift_task(REPLACE_LIFT_HEIGHT, check=False)  # reach, approach, close; lift; hold
-    lift = dataclasses.replace(lift, min_fraction=MIN_REPLACE_LIFT_FRACTION)
-    set_down, release, retreat, confirm = place_task(held_looks=held_looks)[-4:]
-    return (*grasping, Phase(Mode.LOOK, look=held_looks), lift, set_down, release, retreat, confirm)
-
-
-def recovery_task() -> tuple[Phase, ...]:
-    """After a failed attempt: open the hands, back off along the approach axes, go back to the start."""
-    return (
-        Phase(Mode.RECOVER_OPEN, hand_width=OPEN_WIDTH, wait_s=SETTLE_S),
-        Phase(Mode.RECOVER_RETREAT, path=MoveKind.STRAIGHT, targets=Targets.RETREAT),
-        Phase(Mode.RECOVER_HOME, path=MoveKind.FREE, targets=Targets.HOME),
-    )
-
 
 # A look before the approach corrects the grasps when the object moved on the table (its origin in x, y; its yaw)
 # more than this since it was seen (a look's own error is a few millimetres and a degree or two), m and rad, at
@@ -204,7 +109,7 @@ class PickSupervisor(LeafSystem):
     skipped.
 
     Args:
-        phases: the task (lift_task() or place_task()).
+        tasks: the pick's tasks (lift_pick() or place_pick()).
         perceive_at_s: when to ask for the camera frame (the object has settled), s.
         place_target_W: where a place task leaves the object (X_WO on the table).
         from_camera: perception needs a camera frame (False: a ground-truth source, read at once).
@@ -215,7 +120,7 @@ class PickSupervisor(LeafSystem):
 
     def __init__(
         self,
-        phases: tuple[Phase, ...],
+        tasks: PickTasks,
         perceive_at_s: float = 0.5,
         place_target_W: RigidTransform | None = None,
         from_camera: bool = True,
@@ -225,15 +130,12 @@ class PickSupervisor(LeafSystem):
         num_joints: int = 14,
     ):
         super().__init__()
-        self.phases, self.perceive_at_s, self.place_target_W = phases, perceive_at_s, place_target_W
+        self.tasks, self.perceive_at_s, self.place_target_W = tasks, perceive_at_s, place_target_W
         self.from_camera, self.looks = from_camera, looks
         if max_attempts < 1:
             raise ValueError(f"max_attempts must be at least 1, not {max_attempts}")
-        self.max_attempts, self.recovery = max_attempts, recovery_task()
-        self.replacement = replace_task(held_looks=any(phase.name == Mode.LOOK and phase.look for phase in phases))
-        # The object moved before the approach: back off (a reach from beside it would start in collision).
-        self.correction = (Phase(Mode.BACK_OFF, path=MoveKind.STRAIGHT, targets=Targets.RETREAT),)
-        if any(phase.goal for phase in phases) and place_target_W is None:
+        self.max_attempts = max_attempts
+        if any(phase.goal for phase in tasks.phases()) and place_target_W is None:
             raise ValueError("a task with carry or set_down phases needs place_target_W")
         self.position_port = self.DeclareVectorInputPort("position_measured", num_joints)
         self.hand_state_ports = {side: self.DeclareVectorInputPort(f"{side}_hand_state", 2) for side in SIDES}
@@ -333,25 +235,25 @@ class PickSupervisor(LeafSystem):
             self._fail(status, result.failed_stage, result.message)
             return
         status.belief = ObjectBelief.seen(result.X_WO_seen)
-        self._start_phase(context, status, 0, t)
+        self._start_task(context, status, self.tasks.main, 0, t)
+
+    def _start_task(
+        self, context, status: PickStatus, name: TaskName, index: int, t: float, look: LookRequest | None = None
+    ) -> LookRequest | None:
+        """Starts task `name` at its phase `index`; returns the look request."""
+        status.task = name
+        return self._start_phase(context, status, index, t, look)
 
     def _start_phase(self, context, status: PickStatus, index: int, t: float, look: LookRequest | None = None):
-        """Starts phase `index` (done after the last); returns the look request (a new one for a look phase)."""
+        """Starts the task's phase `index` (what comes after the task, after its last); returns the look request (a
+        new one for a look phase)."""
         status.phase_index, status.phase_start_s = index, t
-        if index >= len(self._phases(status)):
-            if status.recovering:  # backed off and home: the next attempt starts from a new frame
-                status.recovering, status.attempt, status.corrections = False, status.attempt + 1, 0
-                status.replacing, status.place_corrections = False, 0
-                self._look_at_the_table(context, status, t)
-            elif status.correcting:  # backed off: reach for the object where the look found it
-                status.correcting = False
-                return self._start_phase(context, status, self._index(Mode.REACH), t, look)
-            else:
-                status.mode = Mode.DONE
-            return look
-        phase = self._phases(status)[index]
+        task = self.tasks[status.task]
+        if index >= len(task.phases):
+            return self._after(context, status, task, t, look)
+        phase = task.phases[index]
         status.mode = phase.name
-        if phase.path is not None:
+        if phase.kind == PhaseKind.MOVE:
             X_motion_W, carried = phase.X_motion_W or RigidTransform(), None
             if phase.goal is not None:
                 X_motion_W, carried = place_motion(phase.goal, status.belief, self.place_target_W)
@@ -368,17 +270,33 @@ class PickSupervisor(LeafSystem):
                 object_motion_W=self._object_motion(status, phase),
                 grasp_offsets_G=status.grasp_offsets_G if phase.targets == Targets.GRASP else None,
             )
-        elif phase.hand_width is not None:
+        elif phase.kind in (PhaseKind.CLOSE, PhaseKind.OPEN):
             width = phase.hand_width + (max(status.grasp_widths, default=OPEN_WIDTH) if phase.beyond_grasp else 0.0)
             status.hand = HandCommand(min(width, OPEN_WIDTH), status.hand.at(t), t, CLOSE_S)
-        elif phase.look and self.looks and look is not None:
+        elif self._looks_at(phase) and look is not None:
             look = LookRequest(look.id + 1, status.belief.now_W)
         return look
 
+    def _after(self, context, status: PickStatus, task: Task, t: float, look: LookRequest | None):
+        """What comes after the task's last phase; returns the look request."""
+        if task.then == Then.NEXT_ATTEMPT:  # backed off and home: the next attempt starts from a new frame
+            status.task, status.attempt, status.corrections, status.place_corrections = None, status.attempt + 1, 0, 0
+            self._look_at_the_table(context, status, t)
+        elif task.then == Then.REACH_AGAIN:  # backed off: reach for the object where the look found it
+            main = self.tasks.main
+            return self._start_task(context, status, main, self.tasks[main].index(Mode.REACH), t, look)
+        else:
+            status.mode = Mode.DONE
+        return look
+
+    def _looks_at(self, phase: Phase) -> bool:
+        """Whether the phase asks the object tracker (without looks, a look phase passes at once)."""
+        return self.looks and phase.kind in (PhaseKind.LOOK, PhaseKind.CHECK_MOVED, PhaseKind.CONFIRM_PLACED)
+
     def _follow_phase(self, context, status: PickStatus, look: LookRequest, t: float) -> tuple[bool, LookRequest]:
         """Moves on when the phase is over (or fails it). Returns whether the status changed, and the look request."""
-        phase = self._phases(status)[status.phase_index]
-        if phase.path is not None:
+        phase = self.tasks[status.task].phases[status.phase_index]
+        if phase.kind == PhaseKind.MOVE:
             plan = self.plan_port.Eval(context)
             if plan.id != status.request.id:
                 return False, look  # not planned yet
@@ -397,24 +315,24 @@ class PickSupervisor(LeafSystem):
             status.plan_end_q = plan.trajectory.value(plan.end_s).ravel()
             if phase.check_held and (problem := self._not_holding(context, status, "after the lift: ")):
                 return True, self._attempt_failed(context, status, Stage.GRASP, problem, look, t)
-        elif phase.hand_width is not None:
+        elif phase.kind in (PhaseKind.CLOSE, PhaseKind.OPEN):
             if t + 1e-9 < status.hand.end_s + phase.wait_s:
                 return False, look
-            if phase.hand_width == CLOSED_WIDTH and (problem := self._not_holding(context, status)):
+            if phase.kind == PhaseKind.CLOSE and (problem := self._not_holding(context, status)):
                 return True, self._attempt_failed(context, status, Stage.GRASP, problem, look, t)
-        elif phase.look and self.looks:
+        elif self._looks_at(phase):
             if self.look_frame_id_port.Eval(context)[0] < look.id:
                 return False, look
-            if phase.confirm:
+            if phase.kind == PhaseKind.CONFIRM_PLACED:
                 if self._placed_off_target(context, status):
                     status.place_corrections += 1  # take it again from where it stands
-                    status.replacing = True
-                    return True, self._start_phase(context, status, 0, t, look)
-            elif self._read_look(context, status, phase.recheck) and phase.recheck:
-                if status.corrections < MAX_CORRECTIONS:
+                    return True, self._start_task(context, status, phase.if_off, 0, t, look)
+            elif phase.kind == PhaseKind.CHECK_MOVED:
+                if self._read_look(context, status, recheck=True) and status.corrections < MAX_CORRECTIONS:
                     status.corrections += 1  # it moved: back off, then reach for it where it is now
-                    status.correcting = True
-                    return True, self._start_phase(context, status, 0, t, look)
+                    return True, self._start_task(context, status, phase.if_off, 0, t, look)
+            else:
+                self._read_look(context, status)
         elif t + 1e-9 < status.phase_start_s + phase.wait_s:
             return False, look
         return True, self._start_phase(context, status, status.phase_index + 1, t, look)
@@ -431,10 +349,13 @@ class PickSupervisor(LeafSystem):
             return False
         X_WO = found.X_WO
         if recheck:  # it stands on the table: a move is planar (the tracker's tilt is for objects in the hands)
-            X_WO, shift, turn = _standing(X_WO, status.belief.now_W)
-            if shift <= MOVED_M and abs(turn) <= MOVED_RAD:
+            moved = _standing(X_WO, status.belief.now_W)
+            if moved.shift_m <= MOVED_M and abs(moved.turn_rad) <= MOVED_RAD:
                 return False
-            logging.warning("look: the object moved %.1f cm and %.1f deg", 100 * shift, np.degrees(turn))
+            logging.warning(
+                "look: the object moved %.1f cm and %.1f deg", 100 * moved.shift_m, np.degrees(moved.turn_rad)
+            )
+            X_WO = moved.X_WO
         status.belief = status.belief.looked(X_WO)
         return True
 
@@ -446,8 +367,9 @@ class PickSupervisor(LeafSystem):
         if not found.found:
             logging.warning("look after the place: %s; not confirmed", found.message)
             return False
-        X_WO, _, _ = _standing(found.X_WO, status.belief.now_W)
-        _, shift, turn = _standing(X_WO, self.place_target_W)
+        X_WO = _standing(found.X_WO, status.belief.now_W).X_WO
+        off = _standing(X_WO, self.place_target_W)
+        shift, turn = off.shift_m, off.turn_rad
         logging.info("look after the place: %.1f cm and %.1f deg off the target", 100 * shift, np.degrees(turn))
         if (shift <= PLACED_M and abs(turn) <= PLACED_RAD) or status.place_corrections >= MAX_PLACE_CORRECTIONS:
             return False
@@ -463,17 +385,6 @@ class PickSupervisor(LeafSystem):
             return None
         return belief.now_W @ belief.seen_W.inverse()
 
-    def _phases(self, status: PickStatus) -> tuple[Phase, ...]:
-        if status.recovering:
-            return self.recovery
-        if status.correcting:
-            return self.correction
-        return self.replacement if status.replacing else self.phases
-
-    def _index(self, mode: Mode) -> int:
-        """The task's phase of that name."""
-        return [phase.name for phase in self.phases].index(mode)
-
     def _not_holding(self, context, status: PickStatus, when: str = "") -> str:
         """Measures both hands' openings (m); why they do not both hold something, or "" if they do."""
         status.grasp_widths = tuple(self.hand_state_ports[side].Eval(context)[0] for side in SIDES)
@@ -488,16 +399,17 @@ class PickSupervisor(LeafSystem):
     def _attempt_failed(
         self, context, status: PickStatus, stage: Stage, message: str, look: LookRequest, t: float
     ) -> LookRequest:
-        """A failed check: the next attempt begins with the recovery's phases, or, with none left, the pick fails."""
-        if stage not in RETRIED_STAGES or status.attempt >= self.max_attempts:
+        """A failed check: the task's if_check_fails (the recovery) runs before the next attempt, or, with none left,
+        the pick fails."""
+        recovery = self.tasks[status.task].if_check_fails
+        if stage not in RETRIED_STAGES or status.attempt >= self.max_attempts or recovery is None:
             self._fail(status, stage, message)
             return look
         status.attempt_failures = (*status.attempt_failures, (str(stage), _stage_message(stage, message)))
         logging.warning(
             "attempt %d of %d failed at %s: %s; recovering", status.attempt, self.max_attempts, stage, message
         )
-        status.recovering = True
-        return self._start_phase(context, status, 0, t, look)
+        return self._start_task(context, status, recovery, 0, t, look)
 
     def _fail(self, status: PickStatus, stage: Stage, message: str):
         logging.warning("pick stopped at %s: %s", stage, message)
@@ -505,14 +417,22 @@ class PickSupervisor(LeafSystem):
         status.attempt_failures = (*status.attempt_failures, (str(stage), status.message))
 
 
-def _standing(X_WO: RigidTransform, before_W: RigidTransform) -> tuple[RigidTransform, float, float]:
-    """A look at an object standing on the table, taken as a planar move from before_W (the tracker's tilt is for
-    objects in the hands): the pose (before_W turned about the vertical by the look's yaw, its origin moved in
-    x, y to the look's), and that move's shift of the origin (m) and turn (rad)."""
+@dataclass(frozen=True)
+class PlanarMove:
+    """A look at an object standing on the table, taken as a planar move from where it was before."""
+
+    X_WO: RigidTransform  # before, turned about the vertical by the look's yaw, its origin moved in x, y to the look's
+    shift_m: float  # that move's shift of the origin in x, y
+    turn_rad: float  # its turn about the vertical
+
+
+def _standing(X_WO: RigidTransform, before_W: RigidTransform) -> PlanarMove:
+    """A look at an object standing on the table (X_WO), taken as a planar move from before_W (the tracker's tilt is
+    for objects in the hands)."""
     shift = float(np.linalg.norm(X_WO.translation()[:2] - before_W.translation()[:2]))
     turn = RollPitchYaw(X_WO.rotation() @ before_W.rotation().inverse()).yaw_angle()
     at = [*X_WO.translation()[:2], before_W.translation()[2]]
-    return RigidTransform(RotationMatrix.MakeZRotation(turn) @ before_W.rotation(), at), shift, turn
+    return PlanarMove(RigidTransform(RotationMatrix.MakeZRotation(turn) @ before_W.rotation(), at), shift, turn)
 
 
 def _stage_message(stage: Stage, message: str) -> str:

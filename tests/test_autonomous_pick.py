@@ -30,7 +30,8 @@ from systems.messages import (
 from systems.perception.perception_result import PerceptionResultCollector
 from systems.perception.segmenter import Segmenter
 from systems.perception.shape_registrar import ShapeRegistrar
-from systems.pick_supervisor import PickSupervisor, lift_task
+from systems.pick_supervisor import PickSupervisor
+from systems.pick_tasks import lift_pick
 from systems.pick_visualiser import PickVisualiser
 from systems.shape_space.space import POSE_NAMES
 
@@ -115,7 +116,7 @@ def _mode(dut, context):
 
 
 def test_supervisor_perceives_once_then_requests_each_phase_in_turn():
-    dut = PickSupervisor(lift_task(), perceive_at_s=0.5)
+    dut = PickSupervisor(lift_pick(), perceive_at_s=0.5)
     context = _sequencer_context(dut)
     simulator = Simulator(dut, context)
     simulator.AdvanceTo(0.3)
@@ -157,7 +158,7 @@ def test_supervisor_perceives_once_then_requests_each_phase_in_turn():
     ("segmentation_found", "grasps_found", "stage"), [(False, True, "segmentation"), (True, False, "registration")]
 )
 def test_supervisor_stops_at_the_failing_perception_stage(segmentation_found, grasps_found, stage):
-    dut = PickSupervisor(lift_task(), perceive_at_s=0.1)
+    dut = PickSupervisor(lift_pick(), perceive_at_s=0.1)
     context = _sequencer_context(dut, segmentation_found, grasps_found)
     dut.GetInputPort("frame_id").FixValue(context, [1.0])
     Simulator(dut, context).AdvanceTo(0.5)
@@ -167,7 +168,7 @@ def test_supervisor_stops_at_the_failing_perception_stage(segmentation_found, gr
 
 
 def test_supervisor_names_a_failed_plan_and_an_empty_grasp():
-    dut = PickSupervisor(lift_task(), perceive_at_s=0.1)
+    dut = PickSupervisor(lift_pick(), perceive_at_s=0.1)
     context = _sequencer_context(dut)
     dut.GetInputPort("frame_id").FixValue(context, [1.0])
     simulator = Simulator(dut, context)

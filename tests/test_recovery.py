@@ -14,9 +14,10 @@ from pydrake.trajectories import PiecewisePolynomial
 
 from diagrams.autonomous_pick import run_pick
 from diagrams.scenario import FaultConfig, load_scenario, replace_object
-from systems.messages import OPEN_WIDTH, GraspPoses, ObjectEstimate, PerceptionResult, PlanResult, Targets
+from systems.messages import OPEN_WIDTH, GraspPoses, ObjectEstimate, PerceptionResult, PlanResult, Targets, TaskName
 from systems.perception.grasp_offset import GraspOffset
-from systems.pick_supervisor import PickSupervisor, lift_task, place_task
+from systems.pick_supervisor import PickSupervisor
+from systems.pick_tasks import lift_pick, place_pick
 
 Q0 = np.linspace(-0.5, 0.5, 14)
 # The injected fault: every grasp 5 cm back along its approach axis. The hands grip 3 cm off: this drill
@@ -25,7 +26,7 @@ GRASP_OFFSET_G = [0.0, 0.0, -0.05]
 
 
 def _supervisor(max_attempts: int, looks: bool = False):
-    dut = PickSupervisor(lift_task(), perceive_at_s=0.1, max_attempts=max_attempts, looks=looks)
+    dut = PickSupervisor(lift_pick(), perceive_at_s=0.1, max_attempts=max_attempts, looks=looks)
     context = dut.CreateDefaultContext()
     dut.GetInputPort("position_measured").FixValue(context, Q0)
     _hands(dut, context, 0.0)  # they will close on nothing
@@ -65,7 +66,7 @@ def test_an_empty_hand_starts_the_next_attempt_from_a_new_frame():
     _answer(dut, context)  # approach
     simulator.AdvanceTo(2.0)  # closed on nothing, checked
     status = _status(dut, context)
-    assert status.mode == "recover_open" and status.attempt == 1 and status.recovering
+    assert status.mode == "recover_open" and status.attempt == 1 and status.task == TaskName.RECOVER
     assert status.attempt_failures == (("grasp", "grasp: the left hand closed on nothing (opening 0.0 mm)"),)
     assert dut.GetOutputPort("hand_command").Eval(context).width == OPEN_WIDTH
     _hands(dut, context, OPEN_WIDTH)
@@ -78,12 +79,13 @@ def test_an_empty_hand_starts_the_next_attempt_from_a_new_frame():
     np.testing.assert_array_equal(request.q_goal, Q0)  # where the pick began
     simulator.AdvanceTo(4.0)
     status = _status(dut, context)
-    assert status.mode == "perceiving" and status.attempt == 2 and not status.recovering
+    assert status.mode == "perceiving" and status.attempt == 2 and status.task is None
     assert dut.GetOutputPort("trigger").Eval(context)[0] == 2  # a new frame
     assert dut.GetOutputPort("attempt").Eval(context)[0] == 2
     dut.GetInputPort("frame_id").FixValue(context, [2.0])
     simulator.AdvanceTo(4.1)
-    assert _status(dut, context).mode == "reach"
+    status = _status(dut, context)
+    assert status.mode == "reach" and status.task == TaskName.LIFT
 
 
 def test_the_last_attempt_fails_the_pick_and_a_plan_failure_is_not_retried():
@@ -193,9 +195,9 @@ def test_a_look_that_finds_the_object_where_it_was_changes_nothing():
     assert _status(dut, context).mode == "approach" and request.object_motion_W is None
 
 
-def _place_supervisor(target: RigidTransform):
+def _place_supervisor(target: RigidTransform, max_attempts: int = 1):
     """The place task's supervisor, the object seen at its place target (the test plans no motion)."""
-    dut = PickSupervisor(place_task(), perceive_at_s=0.1, place_target_W=target, looks=True)
+    dut = PickSupervisor(place_pick(), perceive_at_s=0.1, place_target_W=target, looks=True, max_attempts=max_attempts)
     context = dut.CreateDefaultContext()
     for port, value in (("position_measured", Q0), ("frame_id", [1.0]), ("look_frame_id", [0.0])):
         dut.GetInputPort(port).FixValue(context, value)
@@ -237,7 +239,7 @@ def test_a_look_after_the_place_takes_an_object_off_its_target_again_once():
     status, modes = _play_until(dut, context, simulator, "confirm", off)
     assert modes[-4:] == ["set_down", "release", "retreat", "confirm"]
     status, modes = _play_until(dut, context, simulator, "confirm", off)
-    assert status.replacing and status.place_corrections == 1 and status.attempt == 1
+    assert status.task == TaskName.REPLACE and status.place_corrections == 1 and status.attempt == 1
     assert modes == ["confirm", "reach", "approach", "close", "look", "lift", "set_down", "release", "retreat",
                      "confirm"]  # fmt: skip
     status, _ = _play_until(dut, context, simulator, "done", off)
@@ -252,7 +254,7 @@ def test_a_look_after_the_place_takes_an_object_off_its_target_again_once():
     turned = RigidTransform(RotationMatrix.MakeZRotation(np.radians(8.0)), [0.7, 0.0, 0.8])  # on it, turned 8 deg
     _play_until(dut, context, simulator, "confirm", turned)
     status, _ = _play_until(dut, context, simulator, "reach", turned)
-    assert status.replacing and status.place_corrections == 1
+    assert status.task == TaskName.REPLACE and status.place_corrections == 1
 
     dut, context, simulator = _place_supervisor(target)
     status, _ = _play_until(dut, context, simulator, "done", None)  # the look finds nothing: nothing to correct
@@ -266,6 +268,21 @@ def test_the_retaken_object_is_reached_where_the_look_found_it():
     request = dut.GetOutputPort("plan_request").Eval(context)
     assert request.targets == Targets.PREGRASP
     np.testing.assert_allclose(request.object_motion_W.translation(), [0.0, 0.03, 0.0], atol=1e-12)
+
+
+def test_a_grasp_lost_while_taking_the_object_again_starts_the_next_attempt_at_the_place_task():
+    dut, context, simulator = _place_supervisor(RigidTransform([0.7, 0.0, 0.8]), max_attempts=2)
+    off = RigidTransform([0.7, 0.03, 0.8])
+    _play_until(dut, context, simulator, "confirm", off)
+    _play_until(dut, context, simulator, "reach", off)  # taking it again
+    _hands(dut, context, 0.0)  # they will close on nothing
+    status, modes = _play_until(dut, context, simulator, "perceiving", off)
+    assert modes == ["reach", "approach", "close", "recover_open", "recover_retreat", "recover_home", "perceiving"]
+    assert status.attempt == 2 and status.place_corrections == 0
+    dut.GetInputPort("frame_id").FixValue(context, [2.0])
+    _hands(dut, context, 0.03)
+    status, modes = _play_until(dut, context, simulator, "confirm", off)
+    assert status.task == TaskName.PLACE and modes[1:4] == ["reach", "check", "approach"]
 
 
 def test_an_object_nudged_3_cm_while_the_arms_reach_is_found_and_lifted(scenario):

@@ -82,13 +82,12 @@ def test_depth_view_looks_up_the_depth_measured_in_each_points_pixel():
     view = camera_view(1.0, mask=mask)
     view.depth[100, 120] = 0.0  # the sensor returned nothing there
     points = np.array([[0.0, -0.1, 0.9], [0.0, 0.1, 1.2], [5.0, 0.0, 1.0], [0.1, 0.0, 1.0]])
-    depth, measured, on_object = view.look_up(points)
-    np.testing.assert_allclose(depth, [0.9, 1.2, 1.0, 1.0])
-    np.testing.assert_allclose(measured[:2], [1.0, 1.0])
-    assert np.isnan(measured[2])  # off the image
-    assert np.isnan(measured[3])  # nothing measured
-    on_object = on_object[:3]
-    np.testing.assert_array_equal(on_object, [True, False, False])
+    looked_up = view.look_up(points)
+    np.testing.assert_allclose(looked_up.depth, [0.9, 1.2, 1.0, 1.0])
+    np.testing.assert_allclose(looked_up.measured[:2], [1.0, 1.0])
+    assert np.isnan(looked_up.measured[2])  # off the image
+    assert np.isnan(looked_up.measured[3])  # nothing measured
+    np.testing.assert_array_equal(looked_up.on_object[:3], [True, False, False])
 
 
 def test_a_grasp_whose_handle_was_not_seen_where_the_fit_put_it_is_a_poor_fit():

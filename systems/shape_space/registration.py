@@ -259,8 +259,9 @@ def surface_support(
     points."""
     points = visible_model_W
     if view is not None and len(points):
-        depth, measured, on_object = view.look_up(points)
-        hidden = np.isnan(measured) | ((measured < depth - HIDDEN_MARGIN) & ~on_object)
+        looked_up = view.look_up(points)
+        depth, measured = looked_up.depth, looked_up.measured
+        hidden = np.isnan(measured) | ((measured < depth - HIDDEN_MARGIN) & ~looked_up.on_object)
         points, depth, measured = points[~hidden], depth[~hidden], measured[~hidden]
     if len(points) < min_points:
         return None

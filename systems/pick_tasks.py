@@ -1,0 +1,222 @@
+"""The pick's tasks as data: named lists of phases, each phase's kind said, and what comes after each list.
+
+The supervisor (systems/pick_supervisor.py) runs one task at a time, its phases in order. A lift pick and a
+place pick each set out on their own task after every camera frame; the other tasks are where the looks and
+checks switch to:
+
+  lift      reach, [check], approach, close, lift, hold                      -> done
+  place     reach, [check], approach, close, look, lift, carry, look_again,
+            set_down, release, retreat, confirm                              -> done
+  replace   reach, approach, close, look, lift, set_down, release, retreat,
+            confirm                                                          -> done
+  back_off  back_off                                                         -> the pick's task from its reach
+  recover   recover_open, recover_retreat, recover_home                      -> the next attempt (a new frame)
+
+A failed grip check (after the close, after the lift) in lift, place or replace -> recover, while attempts are
+left (else the pick fails). A check that finds the object moved -> back_off; a confirm that finds it off its
+place target -> replace. Any other failure (perception found nothing, no plan) ends the pick.
+"""
+
+import enum
+from collections.abc import Iterator
+from dataclasses import dataclass
+
+from pydrake.math import RigidTransform
+
+from systems.messages import CLOSED_WIDTH, OPEN_WIDTH, Mode, MoveKind, PhaseKind, PlaceGoal, Targets, TaskName
+
+SETTLE_S = 0.5  # s: after the hands close or open, the grip settles before it is checked
+LIFT_HEIGHT = 0.15  # m: aimed for
+MIN_LIFT_FRACTION = 0.8  # of it: near the edge of the arms' reach a lower lift will do (0.12 m)
+HOLD_S = 2.5  # s
+# The place task carries the object this high (its bottom clears the 6 cm boxes of the place_over_box layouts;
+# over an 8 cm box STOMP found no upright carry for a can); higher, the arms are near the edge of their reach
+# and cannot move it sideways, m.
+PLACE_LIFT_HEIGHT = 0.10
+# Taken again after a set-down off its target, the object is lifted this high before it is set down again (clear
+# of the table's friction), m; near the edge of reach this share of it will do.
+REPLACE_LIFT_HEIGHT = 0.03
+MIN_REPLACE_LIFT_FRACTION = 0.5
+# Letting go of a set-down object, the hands open this much wider than the widest handle they closed on, m:
+# enough to back off it, no wider. In one can pick, set down within 1.1 deg: + 10 cm (fully open), the
+# fingers turned it by 7.9 deg; + 2.5 cm, hand and retreat by 4.2 deg; + 1.2 cm, by 1.2 deg. (A fixed 5 cm
+# opening left a hand that had closed on a 48 mm handle dragging the can away.)
+RELEASE_MARGIN = 0.012
+
+# What a phase needs set, by kind.
+_MOVES, _HANDS = (PhaseKind.MOVE,), (PhaseKind.CLOSE, PhaseKind.OPEN)
+_BRANCHES = (PhaseKind.CHECK_MOVED, PhaseKind.CONFIRM_PLACED)
+
+
+@dataclass(frozen=True)
+class Phase:
+    """One step of a task: its name (the pick's mode while it runs), what it does, and how."""
+
+    name: Mode
+    kind: PhaseKind
+    path: MoveKind | None = None  # moves
+    targets: Targets | None = None  # free and straight moves: the grasp poses named so
+    X_motion_W: RigidTransform | None = None  # held moves: the object's motion in W
+    min_fraction: float = 1.0  # held moves: the shortest share of the motion's translation that will do
+    goal: PlaceGoal | None = None  # held moves to the place target
+    check_held: bool = False  # moves: once played, both hands must still hold the object
+    hand_width: float | None = None  # closing and opening, m
+    beyond_grasp: bool = False  # opening: hand_width is beyond the widest measured grasp (letting go)
+    wait_s: float = 0.0  # waits: how long; closing and opening: the settling after the hands' motion
+    # Checks and confirms: where the look finds the object off (moved; off its target), the task run next.
+    if_off: TaskName | None = None
+
+    def __post_init__(self):
+        if (self.path is not None) != (self.kind in _MOVES):
+            raise ValueError(f"phase {self.name}: a {self.kind} phase {'needs' if self.path is None else 'has'} a path")
+        if (self.hand_width is not None) != (self.kind in _HANDS):
+            raise ValueError(f"phase {self.name}: only closing and opening set a hand width, and they need one")
+        if (self.if_off is not None) != (self.kind in _BRANCHES):
+            raise ValueError(f"phase {self.name}: only checks and confirms name a task to switch to, and they must")
+
+
+class Then(enum.StrEnum):
+    """What comes after a task's last phase."""
+
+    DONE = "done"  # the pick is done
+    NEXT_ATTEMPT = "next_attempt"  # a new camera frame, then the pick's task from its start
+    REACH_AGAIN = "reach_again"  # the pick's task again from its reach (where the look found the object)
+
+
+@dataclass(frozen=True)
+class Task:
+    """A named list of phases and what comes after it: when its last phase is over (`then`), and when a grip
+    check fails in it (`if_check_fails`: that task, while attempts are left; None: the pick fails)."""
+
+    name: TaskName
+    phases: tuple[Phase, ...]
+    then: Then
+    if_check_fails: TaskName | None
+
+    def index(self, mode: Mode) -> int:
+        """The index of its phase of that name."""
+        return [phase.name for phase in self.phases].index(mode)
+
+
+@dataclass(frozen=True)
+class PickTasks:
+    """A pick's tasks by name: the one it sets out on after each camera frame (`main`) and those it may switch
+    to."""
+
+    main: TaskName
+    tasks: dict[TaskName, Task]
+
+    def __post_init__(self):
+        named = {self.main} | {task.if_check_fails for task in self.tasks.values()}
+        named |= {phase.if_off for phase in self.phases()}
+        if missing := sorted(name for name in named - set(self.tasks) if name is not None):
+            raise ValueError(f"the pick's tasks name tasks it lacks: {missing}")
+
+    def __getitem__(self, name: TaskName) -> Task:
+        return self.tasks[name]
+
+    def phases(self) -> Iterator[Phase]:
+        """Every task's phases."""
+        return (phase for task in self.tasks.values() for phase in task.phases)
+
+
+def _grasping(check: bool) -> tuple[Phase, ...]:
+    """Reach the pre-grasps, [look whether the object moved,] approach, close both hands."""
+    checking = (Phase(Mode.CHECK, PhaseKind.CHECK_MOVED, if_off=TaskName.BACK_OFF),) if check else ()
+    return (
+        Phase(Mode.REACH, PhaseKind.MOVE, MoveKind.FREE, Targets.PREGRASP),
+        *checking,
+        Phase(Mode.APPROACH, PhaseKind.MOVE, MoveKind.STRAIGHT, Targets.GRASP),
+        Phase(Mode.CLOSE, PhaseKind.CLOSE, hand_width=CLOSED_WIDTH, wait_s=SETTLE_S),
+    )
+
+
+def _lift(height: float, min_fraction: float) -> Phase:
+    """Lift the held object `height` (m), or at least min_fraction of it; then both hands must still hold it."""
+    motion = RigidTransform([0, 0, height])
+    return Phase(
+        Mode.LIFT, PhaseKind.MOVE, MoveKind.HELD, X_motion_W=motion, min_fraction=min_fraction, check_held=True
+    )
+
+
+def _look(name: Mode, held_looks: bool) -> Phase:
+    """A look at the held object (a pass without held looks)."""
+    return Phase(name, PhaseKind.LOOK if held_looks else PhaseKind.WAIT)
+
+
+def _letting_go(held_looks: bool) -> tuple[Phase, ...]:
+    """Set the object down on the place target, let go, back off, and look whether it stands there."""
+    confirm = Phase(Mode.CONFIRM, PhaseKind.CONFIRM_PLACED, if_off=TaskName.REPLACE) if held_looks else None
+    return (
+        Phase(Mode.SET_DOWN, PhaseKind.MOVE, MoveKind.HELD, goal=PlaceGoal.SET_DOWN),
+        Phase(Mode.RELEASE, PhaseKind.OPEN, hand_width=RELEASE_MARGIN, beyond_grasp=True, wait_s=SETTLE_S),
+        Phase(Mode.RETREAT, PhaseKind.MOVE, MoveKind.STRAIGHT, Targets.RETREAT),
+        confirm or Phase(Mode.CONFIRM, PhaseKind.WAIT),
+    )
+
+
+def lift_task(lift_height: float = LIFT_HEIGHT, check: bool = True) -> Task:
+    """The paper's task: reach the pre-grasps, [look whether the object moved,] approach, close both hands, lift
+    the object, hold it; then the pick is done."""
+    phases = (*_grasping(check), _lift(lift_height, MIN_LIFT_FRACTION), Phase(Mode.HOLD, PhaseKind.WAIT, wait_s=HOLD_S))
+    return Task(TaskName.LIFT, phases, Then.DONE, if_check_fails=TaskName.RECOVER)
+
+
+def place_task(lift_height: float = PLACE_LIFT_HEIGHT, check: bool = True, held_looks: bool = True) -> Task:
+    """Beyond the paper: lift the object, carry it to the place target, set it down upright, let go, back off,
+    [look whether it stands there]; then the pick is done. held_looks: look at the held object before the lift
+    and before the set-down, and at the object set down (else those phases pass)."""
+    phases = (
+        *_grasping(check),
+        _look(Mode.LOOK, held_looks),
+        _lift(lift_height, MIN_LIFT_FRACTION),
+        Phase(Mode.CARRY, PhaseKind.MOVE, MoveKind.HELD, goal=PlaceGoal.CARRY),
+        _look(Mode.LOOK_AGAIN, held_looks),  # the object turns a few degrees in the hands as they move it
+        *_letting_go(held_looks),
+    )
+    return Task(TaskName.PLACE, phases, Then.DONE, if_check_fails=TaskName.RECOVER)
+
+
+def replace_task(held_looks: bool = True) -> Task:
+    """After a set-down off the target: take the object where it stands, lift it a little, set it down on the
+    target, let go, back off, and look again; then the pick is done."""
+    phases = (
+        *_grasping(check=False),
+        _look(Mode.LOOK, held_looks),
+        _lift(REPLACE_LIFT_HEIGHT, MIN_REPLACE_LIFT_FRACTION),
+        *_letting_go(held_looks),
+    )
+    return Task(TaskName.REPLACE, phases, Then.DONE, if_check_fails=TaskName.RECOVER)
+
+
+def back_off_task() -> Task:
+    """The object moved before the approach: back off (a reach from beside it would start in collision); then the
+    pick's task again from its reach."""
+    phases = (Phase(Mode.BACK_OFF, PhaseKind.MOVE, MoveKind.STRAIGHT, Targets.RETREAT),)
+    return Task(TaskName.BACK_OFF, phases, Then.REACH_AGAIN, if_check_fails=None)
+
+
+def recovery_task() -> Task:
+    """After a failed attempt: open the hands, back off along the approach axes, go back to the start; then the next
+    attempt."""
+    phases = (
+        Phase(Mode.RECOVER_OPEN, PhaseKind.OPEN, hand_width=OPEN_WIDTH, wait_s=SETTLE_S),
+        Phase(Mode.RECOVER_RETREAT, PhaseKind.MOVE, MoveKind.STRAIGHT, Targets.RETREAT),
+        Phase(Mode.RECOVER_HOME, PhaseKind.MOVE, MoveKind.FREE, Targets.HOME),
+    )
+    return Task(TaskName.RECOVER, phases, Then.NEXT_ATTEMPT, if_check_fails=None)
+
+
+def lift_pick(check: bool = True) -> PickTasks:
+    """A pick that lifts the object (lift_task) and its back-off and recovery."""
+    return _pick(lift_task(check=check))
+
+
+def place_pick(check: bool = True, held_looks: bool = True) -> PickTasks:
+    """A pick that places the object (place_task) and its re-place, back-off and recovery."""
+    return _pick(place_task(check=check, held_looks=held_looks), replace_task(held_looks))
+
+
+def _pick(main: Task, *others: Task) -> PickTasks:
+    tasks = (main, *others, back_off_task(), recovery_task())
+    return PickTasks(main.name, {task.name: task for task in tasks})
