@@ -18,7 +18,7 @@ from systems.shape_space.space import GRASP_NAMES
 from systems.shape_space.visibility import visible_from
 
 # A fit is poor when fewer than MIN_INLIER_SHARE of the points it saw lie within INLIER_M of the fitted shape (good
-# fits keep 0.92-1.00; those flying pixels pulled off, 0.05-0.21).
+# fits keep over 0.9, fits flying pixels pulled centimetres off under 0.25).
 INLIER_M = 0.01
 MIN_INLIER_SHARE = 0.8
 # Each grasp must be where its handle was seen: of the fitted surface visible from the camera within SUPPORT_M of
