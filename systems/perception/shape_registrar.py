@@ -12,7 +12,8 @@ from pydrake.systems.framework import LeafSystem, ValueProducer
 from systems import categories
 from systems.categories import shape_space_file, wider_shape_space_file
 from systems.messages import GraspPoses, ObjectEstimate
-from systems.shape_space.registration import Registrar, Registration
+from systems.shape_space.fit_judging import Registration
+from systems.shape_space.registration import Registrar
 from systems.shape_space.space import ShapeSpace
 
 
