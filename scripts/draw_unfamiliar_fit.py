@@ -31,7 +31,7 @@ from diagrams.scenario import load_scenario  # noqa: E402
 from systems.messages import Segmentation  # noqa: E402
 from systems.perception.rgbd_noise import noisy_depth, sensor_model  # noqa: E402
 from systems.perception.shape_registrar import scale_prior, shape_space_file  # noqa: E402
-from systems.shape_space import registration  # noqa: E402
+from systems.shape_space import grasp_placement  # noqa: E402
 from systems.shape_space.registration import Registrar  # noqa: E402
 from systems.shape_space.space import GRASP_NAMES, ShapeSpace  # noqa: E402
 
@@ -109,8 +109,8 @@ def draw(args, estimate, X_WO_true):
 
     figure, axes = plt.subplots(2, 3, figsize=(16, 8.5))
     for column, (title, (registrar, centred)) in enumerate(fits.items()):
-        centring = registration.handle_centring if centred else lambda *args: np.zeros(3)
-        with mock.patch.object(registration, "handle_centring", centring):
+        centring = grasp_placement.handle_centring if centred else lambda *args: np.zeros(3)
+        with mock.patch.object(grasp_placement, "handle_centring", centring):
             result = registrar.register(estimate.points_W, estimate.X_WO, estimate.viewpoint_W, estimate.view)
         shape_O = to_O.multiply(result.reconstructed_W.T).T
         errors = [np.linalg.norm(result.grasp_poses_W[n].translation() - truth[n].translation()) for n in GRASP_NAMES]

@@ -11,8 +11,9 @@ from diagrams.generation.objects.library import load_info
 from systems.messages import ObjectEstimate
 from systems.perception.depth_cleaning import AGREE_M, AGREE_PER_M2, dense_inliers, flying_pixels
 from systems.perception.shape_registrar import ShapeRegistrar, shape_space_file
-from systems.shape_space.registration import Registrar, visible_from
+from systems.shape_space.registration import Registrar
 from systems.shape_space.space import ShapeSpace
+from systems.shape_space.visibility import visible_from
 
 
 def test_flying_pixels_agree_in_float32_exactly_where_float64_would():

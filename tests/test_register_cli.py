@@ -13,7 +13,7 @@ from pydrake.math import RigidTransform, RotationMatrix
 from diagrams.generation.objects import catalog
 from diagrams.generation.objects.library import load_info
 from systems.perception.shape_registrar import shape_space_file
-from systems.shape_space.registration import visible_from
+from systems.shape_space.visibility import visible_from
 
 REPO = Path(__file__).resolve().parents[1]
 

@@ -12,10 +12,12 @@ from diagrams.generation.objects.library import load_info
 from systems.perception.shape_registrar import shape_space_file
 from systems.shape_space import registration
 from systems.shape_space.cpd import deformable_cpd, gmm_posteriors, rigid_cpd, squared_distances
+from systems.shape_space.grasp_placement import grasp_shift
 from systems.shape_space.handle_centring import handle_centring
 from systems.shape_space.pca_em import pca_em
-from systems.shape_space.registration import Registrar, evenly_thinned, grasp_shift, visible_from
+from systems.shape_space.registration import Registrar, evenly_thinned
 from systems.shape_space.space import POSE_NAMES, ShapeSpace, build_shape_space, scaled_copy
+from systems.shape_space.visibility import visible_from
 
 
 @pytest.fixture(scope="module")

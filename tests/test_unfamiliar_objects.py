@@ -18,11 +18,15 @@ from diagrams.pick_simulation import object_body, station_plant
 from diagrams.scenario import replace_object
 from systems.categories import wider_shape_space_file
 from systems.messages import DepthView
+from systems.parallel import THREADS
 from systems.perception.instances import named_object
 from systems.perception.shape_registrar import registrar_of, scale_prior, shape_space_file
-from systems.shape_space import registration
-from systems.shape_space.registration import MIN_GRASP_SUPPORT, Registrar, Registration, grasp_support
+from systems.shape_space import fit_judging
+from systems.shape_space.fit_judging import MIN_GRASP_SUPPORT, Registration, grasp_support, surface_support
+from systems.shape_space.registration import SOUND_FIT_MARGIN, Registrar, nearest_sound
+from systems.shape_space.shape_fit import ShapeFit
 from systems.shape_space.space import GRASP_NAMES, ShapeSpace, scaled_poses
+from systems.shape_space.visibility import visible_from
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "scripts"))
@@ -134,9 +138,9 @@ def test_a_fit_that_puts_surface_where_the_camera_saw_through_is_a_poor_fit():
     seen = front[np.abs(front[:, 0]) < 0.01]  # the camera saw a strip of it, the wall 30 cm behind the rest
     wall = camera_view(1.3)
     wall.depth[:, 98:103] = 1.0  # the strip's pixels (x within 1 cm at 1 m: 2 pixels either side of the centre)
-    assert registration.surface_support(front, seen, wall) < 0.3
-    assert registration.surface_support(front, front, camera_view(1.0)) == pytest.approx(1.0)
-    assert registration.surface_support(front, seen, camera_view(0.7)) is None  # all hidden behind something nearer
+    assert surface_support(front, seen, wall) < 0.3
+    assert surface_support(front, front, camera_view(1.0)) == pytest.approx(1.0)
+    assert surface_support(front, seen, camera_view(0.7)) is None  # all hidden behind something nearer
 
     def fitted(surface_support):
         return Registration(
@@ -144,7 +148,7 @@ def test_a_fit_that_puts_surface_where_the_camera_saw_through_is_a_poor_fit():
         )
 
     assert fitted(0.9).poor_fit == "" and fitted(None).poor_fit == ""
-    assert "the shape does not explain the view" in fitted(registration.MIN_SURFACE_SUPPORT - 0.1).poor_fit
+    assert "the shape does not explain the view" in fitted(fit_judging.MIN_SURFACE_SUPPORT - 0.1).poor_fit
 
 
 def test_a_mesh_coacds_default_mode_aborts_on_is_still_decomposed(held_out):
@@ -176,7 +180,7 @@ def test_a_can_scaled_past_its_latent_space_is_registered_with_its_scale_where_t
     np.testing.assert_array_equal(latent.scale, np.ones(3))
     assert latent_error > 0.015, f"the latent space alone came within {1000 * latent_error:.1f} mm"
     # Where it is judged poor, the shape's scale is fitted too.
-    monkeypatch.setattr(registration, "MIN_INLIER_SHARE", 0.97)
+    monkeypatch.setattr(fit_judging, "MIN_INLIER_SHARE", 0.97)
     scaled, error = registered()
     np.testing.assert_allclose(scaled.scale, scale, rtol=0.05)
     assert error < 0.01, f"grasps {1000 * error:.1f} mm off"
@@ -189,7 +193,7 @@ def test_a_can_of_the_wider_family_the_paper_like_space_cannot_fit_is_fitted_in_
     X_WO = RigidTransform(RotationMatrix.MakeZRotation(0.1), [0.75, 0.0, 0.75])
     camera_W = np.array([0.0, 0.0, 1.6])
     surface_W = X_WO.multiply(trimesh.sample.sample_surface_even(can.visual_mesh(), 6000, seed=0)[0].T).T
-    seen_W = surface_W[registration.visible_from(surface_W, camera_W)]
+    seen_W = surface_W[visible_from(surface_W, camera_W)]
     X_start = RigidTransform(RotationMatrix.MakeZRotation(0.2), [0.76, -0.01, 0.75])
     paper_like = registrar_of("watering_can", shape_space_file("watering_can"))
     assert paper_like.register(seen_W, X_start, camera_W).poor_fit
@@ -214,7 +218,7 @@ def test_a_held_out_can_the_latent_fit_calls_poor_is_registered_with_its_scale_i
     X_WO = RigidTransform(RotationMatrix.MakeZRotation(catalog.presentation_yaw("watering_can")), [0.75, 0.0, 0.75])
     camera_W = np.array([0.0, 0.0, 1.6])
     surface_W = X_WO.multiply(trimesh.sample.sample_surface_even(squat.visual_mesh(), 6000, seed=0)[0].T).T
-    seen_W = surface_W[registration.visible_from(surface_W, camera_W)]
+    seen_W = surface_W[visible_from(surface_W, camera_W)]
     X_start = RigidTransform(
         RotationMatrix.MakeZRotation(catalog.presentation_yaw("watering_can") + 0.1), [0.76, -0.01, 0.75]
     )
@@ -234,34 +238,31 @@ def test_a_held_out_can_the_latent_fit_calls_poor_is_registered_with_its_scale_i
     assert worst_grasp_error(refined) < 0.01, f"a grasp {1000 * worst_grasp_error(refined):.1f} mm off"
 
 
-def test_a_sound_hypothesis_replaces_the_nearest_only_about_as_near_the_points(monkeypatch):
+def test_a_sound_hypothesis_replaces_the_nearest_only_about_as_near_the_points():
     """Beyond the latent space the nearest yaw hypothesis judged sound wins, unless it lies much further from the seen
     points than the nearest (a can turned end for end, its rear grasp hidden): then the nearest, named poor."""
-    registrar = registrar_of("watering_can", shape_space_file("watering_can"))
-    monkeypatch.setattr(registration, "parallel_map", lambda function, items: [function(item) for item in items])
 
-    def judged(distances, sound):
-        """The fit of the scaled pass when the hypotheses' fits lie at these mean distances (m), those in `sound`
-        judged sound: which distance won."""
-        fits = iter(distances)
-        monkeypatch.setattr(registrar, "_fit", lambda *args: (None, None, None, None, next(fits), 0, None))
+    def winner(distances, sound):
+        """The registration that wins when the hypotheses' fits lie at these mean distances (m), those in `sound`
+        judged sound."""
+        fits = [ShapeFit(RigidTransform(), np.zeros(1), np.ones(3), d, 10, scaled=True) for d in distances]
 
-        def made(fit, *args):
-            result = Registration(RigidTransform(), np.zeros(1), np.zeros((1, 3)), {}, fit[4], 0, 1.0)
-            result.inlier_share = 1.0 if fit[4] in sound else 0.0
-            return result
+        def judge(fit):
+            inliers = 1.0 if fit.fit_error_m in sound else 0.0
+            return Registration(RigidTransform(), fit.latent, np.zeros((1, 3)), {}, fit.fit_error_m, 10, inliers)
 
-        monkeypatch.setattr(registrar, "_registration", made)
-        return registrar._register(None, None, RigidTransform(), None, None, 0.2).fit_error_m
+        return nearest_sound(fits, judge)
 
-    distances = [0.0100, 0.0104, 0.0150, 0.0108][: len(registrar.yaw_hypotheses)]
-    assert judged(distances, sound={0.0104, 0.0150}) == 0.0104  # within SOUND_FIT_MARGIN of the nearest
-    assert judged(distances, sound={0.0150}) == 0.0100  # 1.5 times as far: the nearest, poor
-    assert registration.SOUND_FIT_MARGIN * 0.0100 < 0.0150
+    distances = [0.0100, 0.0104, 0.0150, 0.0108]
+    assert winner(distances, sound={0.0104, 0.0150}).fit_error_m == 0.0104  # within SOUND_FIT_MARGIN of the nearest
+    nearest = winner(distances, sound={0.0150})  # 1.5 times as far: the nearest, poor
+    assert nearest.fit_error_m == 0.0100 and nearest.poor_fit
+    assert SOUND_FIT_MARGIN * 0.0100 < 0.0150
+    assert winner(distances, sound=set()).fit_error_m == 0.0100
     # Judged a batch at a time on the cores: the nearest sound one still wins, in whichever batch it lies.
-    assert len(registrar.yaw_hypotheses) == 4 and registration.THREADS == 2
-    assert judged([0.0103, 0.0100, 0.0102, 0.0101], sound={0.0102, 0.0103}) == 0.0102
-    assert judged([0.0103, 0.0100, 0.0102, 0.0101], sound={0.0101, 0.0102}) == 0.0101
+    assert THREADS == 2
+    assert winner([0.0103, 0.0100, 0.0102, 0.0101], sound={0.0102, 0.0103}).fit_error_m == 0.0102
+    assert winner([0.0103, 0.0100, 0.0102, 0.0101], sound={0.0101, 0.0102}).fit_error_m == 0.0101
 
 
 def test_a_drill_the_network_labels_in_pieces_is_completed_in_3d(held_out, scenario, tmp_path):

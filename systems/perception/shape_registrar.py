@@ -12,6 +12,7 @@ from pydrake.systems.framework import LeafSystem, ValueProducer
 from systems import categories
 from systems.categories import shape_space_file, wider_shape_space_file
 from systems.messages import GraspPoses, ObjectEstimate
+from systems.shape_space.fit_judging import Registration
 from systems.shape_space.registration import Registrar
 from systems.shape_space.space import ShapeSpace
 
@@ -114,25 +115,20 @@ def registrar_of(
 
 
 # How far (the standard deviation of its log) a category's shape may be scaled along each axis beyond its latent
-# space, where the latent fit alone is poor (Registrar). Chosen on stretched generator shapes
-# (scripts/make_unfamiliar_objects.py --split tune; 18 single views each, sensor on) and the test and
-# extra_101-108 instances. Cans: the stretched cans' median grasp error 36 -> 13 mm, poor fits 10 -> 5 of 18 (0.1
-# and 0.3 within 0.3 mm of 0.2). Fitted on every can, 0.2 also took the test / extra cans from 6.8 / 5.5 to 6.1 /
-# 5.1 mm, but the looks that track a held can from its scaled shape let it turn 3.5 deg (median of 18 places)
-# as the hands let go, against 1.9 deg. Drills vary less in their proportions than in their handles: fitted on
-# every drill, 0.2 moved the stretched drills' grasps 6.9 -> 9.9 mm, 0.03 to 8.4 mm.
+# space, where the latent fit alone is poor (Registrar): drills vary less in their proportions than in their handles.
 # The same spread stretches the copies of a folder's models in its space (build_shape_space.py's folder_copies).
 SCALE_PRIORS = {"watering_can": 0.2, "drill": 0.03}
 TAUGHT_SCALE_PRIOR = 0.1  # a taught category's
 
 
 def scale_prior(category: str) -> float:
+    """The category's scale prior (Registrar's scale_prior): SCALE_PRIORS', else a taught category's."""
     return SCALE_PRIORS.get(category, TAUGHT_SCALE_PRIOR)
 
 
 @dataclass
 class _Result:
     X_WO: RigidTransform = field(default_factory=RigidTransform)
-    registration: object = None
+    registration: Registration | None = None
     message: str = ""
     compute_s: float = 0.0  # wall time of the registration

@@ -79,15 +79,24 @@ def gmm_posteriors(squared: np.ndarray, sigma2: float, w: float, dimension: int)
     return P
 
 
-def _e_step(X, T, sigma2, w):
-    """P1 = P 1, Pt1 = P^T 1 and PX = P X for the posteriors P (M x N) of the centroids T for the points X.
+@dataclass
+class PosteriorSums:
+    """The E-step's sums over the posteriors P (M x N) of M centroids for N points, in float64."""
+
+    P1: np.ndarray  # P 1 (M,): each centroid's total weight
+    Pt1: np.ndarray  # P^T 1 (N,): each point's weight on the centroids (1 less its outlier share)
+    PX: np.ndarray  # P X (M x D): each centroid's weighted sum of the points
+
+
+def _e_step(X, T, sigma2, w) -> PosteriorSums:
+    """The sums of the posteriors P (M x N) of the centroids T for the points X.
 
     The M x N work runs in float32 (twice the speed; the posteriors need no more), the
     sums come back in float64.
     """
     X32 = X.astype(np.float32)
     P = gmm_posteriors(squared_distances(T, X32), sigma2, w, X.shape[1])
-    return P.sum(1, dtype=np.float64), P.sum(0, dtype=np.float64), (P @ X32).astype(np.float64)
+    return PosteriorSums(P.sum(1, dtype=np.float64), P.sum(0, dtype=np.float64), (P @ X32).astype(np.float64))
 
 
 @dataclass
@@ -124,7 +133,8 @@ def rigid_cpd(
     sigma2 = _initial_sigma2(X, Y)
     T = Y
     for iteration in range(1, max_iterations + 1):  # noqa: B007 (the count is returned)
-        P1, Pt1, PX = _e_step(X, T, sigma2, w)
+        sums = _e_step(X, T, sigma2, w)
+        P1, Pt1, PX = sums.P1, sums.Pt1, sums.PX
         Np = P1.sum()
         mu_x, mu_y = Pt1 @ X / Np, P1 @ Y / Np
         A = PX.T @ Y - Np * np.outer(mu_x, mu_y)  # = X_hat^T P^T Y_hat
@@ -257,7 +267,8 @@ def deformable_cpd(
     T = Y.copy()
     sigma2 = _initial_sigma2(X, Y[:M]) if initial_sigma2 is None else float(initial_sigma2)
     for iteration in range(1, max_iterations + 1):  # noqa: B007 (the count is returned)
-        P1, Pt1, PX = _e_step(X, T[:M], sigma2, w)
+        sums = _e_step(X, T[:M], sigma2, w)
+        P1, PX = sums.P1, sums.PX
         if landmarks is not None:
             # The landmarks are no mixture centroids: each is pulled to its own fixed target.
             P1, PX = np.concatenate([P1, pull]), np.vstack([PX, pull_X])
@@ -274,7 +285,7 @@ def deformable_cpd(
         P1, PX, Tm = P1[:M], PX[:M], T[:M]
         Np = P1.sum()
         previous = sigma2
-        sigma2 = float(np.sum(Pt1 * (X**2).sum(1)) - 2 * np.sum(PX * Tm) + np.sum(P1 * (Tm**2).sum(1))) / (Np * D)
+        sigma2 = float(np.sum(sums.Pt1 * (X**2).sum(1)) - 2 * np.sum(PX * Tm) + np.sum(P1 * (Tm**2).sum(1))) / (Np * D)
         sigma2 = max(sigma2, 1e-12)
         if abs(previous - sigma2) <= tolerance * previous:
             break

@@ -8,7 +8,7 @@ seen points, and moves the grasp with it.
 
 What it may not do, and why:
 - move a grasp along its handle: a piece of a curved handle matches another bend of a larger one as well (a
-  search along and across, tried on 2026-11-26, put rear grasps 3 cm along their arcs);
+  search along and across put rear grasps 3 cm along their arcs);
 - move it further than CENTRING_REACH: a handle further off than that is not beside the fit but elsewhere, and a
   search that far found other parts (that search turned named poor fits into wrong grasps);
 - move a grasp whose fitted handle already lies on what was seen: only a gain of CENTRING_GAIN in the share of the
@@ -19,11 +19,8 @@ import numpy as np
 from pydrake.math import RigidTransform
 from scipy import ndimage
 
-# Chosen on the first frames of the tuning picks (make_unfamiliar_objects.py --split tune, 18 per category) and the
-# wider family's validation views (wide_100-107, 48 rendered views), kinect_v2; the in-family test and
-# extra_101-108 views checked unchanged (docs/shape_space.md, "A grasp follows its handle"). Reach 2 cm fitted 2
-# fewer validation views; 4 cm, a match of 3 or 6 mm, a tube of 3 cm: the same counts; a gain of 0.1 moved 5
-# in-family grasps, three of them further off (by 1-3 mm).
+# Chosen on the tuning picks' first frames and the wider family's validation views, the in-family views unchanged
+# (docs/shape_space.md, "A grasp follows its handle"; alternatives: docs/history/registration_parameters.md).
 CENTRING_REACH = 0.03  # m: the largest move across the handle's axis
 CENTRING_STEP = 0.003  # m: the grid of moves tried
 CENTRING_MATCH = 0.004  # m: a fitted point this near a seen point lies on it

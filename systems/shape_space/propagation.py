@@ -27,10 +27,10 @@ from systems.shape_space.cpd import DeformableResult, deformable_cpd, thinned
 PATCH_RADIUS = 0.08
 ICP_MATCH = 0.01  # m: farther model points are no match in the ICP
 ICP_ITERATIONS = 60
-LOCAL_BETA = 0.02  # m: kernel width of the local CPD (0.03: about the same; cans' grasps 3.0-3.3 mm median)
+LOCAL_BETA = 0.02  # m: kernel width of the local CPD
 LOCAL_REACH = 0.10  # m: the model's points this near the placed grasp point are the local CPD's target
 LOCAL_SIGMA = 0.01  # m: the local CPD's starting width (the patch is already placed)
-PATCH_POINTS = 1500  # at most, in the local CPD (600: cans' grasps 6.7 mm median, drills' 4.2 mm; 1500: 3.5, 2.0)
+PATCH_POINTS = 1500  # at most, in the local CPD (fewer place the grasps less well)
 
 
 def propagated_poses(

@@ -33,8 +33,7 @@ FRAME_PROBE = 0.1  # m: radius of the star of points that stands for a grasp fra
 # instance's while its field is built.
 LANDMARK_PROBE = 0.02
 # m: kernel width that carries the field from the canonical points onto the dense surface. Narrower
-# than the fields' own beta, whose smoothing blurs thin parts (drill handles: 8.8 -> 4.5 mm from the
-# true surface with 0.02).
+# than the fields' own beta, whose smoothing blurs thin parts (drill handles).
 SURFACE_WARP_WIDTH = 0.02
 # The default spread (standard deviation of the log) of the stretches that scaled copies of a few models get, per axis
 # of C, and the seed they are drawn from (build_shape_space(scaled_copies=..., copy_spread=...)).
