@@ -1,0 +1,68 @@
+"""Whether the robot's hand fits at an instance's grasps: its palm, and the open hand at the pre-grasp, clear of
+the object and above the table.
+
+The hand is sdf/centauro/hand.sdf's (frame G at the grasp, z_G the approach, fingers closing along y_G): a palm
+box 9 x 15 x 4 cm whose front face lies 4.5 cm behind G, and two finger pads 6 x 1.5 x 7 cm reaching 2.5 cm past
+G, open to the reaching width (systems/messages.py OPEN_WIDTH). The open fingers' tips may touch the object at
+the grasp (the right hand's tips touch many a can's rear wall, and the ground-truth picks lift those cans), so
+at the grasp only the palm is checked.
+"""
+
+import itertools
+
+import numpy as np
+import trimesh
+from pydrake.math import RigidTransform
+
+from diagrams.generation.objects.instance import ObjectInstance
+from systems.messages import OPEN_WIDTH
+
+# (centre, size) of the hand's boxes in G, m.
+PALM = (np.array([0.0, 0.0, -0.065]), np.array([0.09, 0.15, 0.04]))
+FINGER_THICKNESS = 0.015
+FINGERS = [
+    (np.array([0.0, side * (OPEN_WIDTH / 2 + FINGER_THICKNESS / 2), -0.01]), np.array([0.06, FINGER_THICKNESS, 0.07]))
+    for side in (1.0, -1.0)
+]
+# Sample points per metre along each box's edges.
+POINTS_PER_M = 200
+# How deep a design's hand may press into the object (its collision pieces) or the table, m: the paper-like
+# family's grasps press at most 1 mm.
+PENETRATION_TOLERANCE = 0.003
+
+
+def _box_points(centre: np.ndarray, size: np.ndarray) -> np.ndarray:
+    axes = [np.linspace(-s / 2, s / 2, max(int(s * POINTS_PER_M), 2)) for s in size]
+    return centre + np.array(list(itertools.product(*axes)))
+
+
+PALM_POINTS_G = _box_points(*PALM)
+HAND_POINTS_G = np.vstack([PALM_POINTS_G, *(_box_points(*finger) for finger in FINGERS)])
+
+
+def _depth_inside(points: np.ndarray, pieces: list[trimesh.Trimesh]) -> float:
+    """The deepest any point lies inside one of the convex pieces, m (0 where none is inside)."""
+    deepest = 0.0
+    for piece in pieces:
+        normals = piece.face_normals
+        offsets = np.einsum("ij,ij->i", normals, piece.triangles[:, 0])
+        deepest = max(deepest, float(-np.min(np.max(points @ normals.T - offsets, axis=1))))
+    return deepest
+
+
+def hand_penetration(instance: ObjectInstance, side: str) -> dict[str, float]:
+    """How deep (m) `side`'s hand lies in the object or below the table: its palm at the grasp ("grasp"), its
+    palm and open fingers at the pre-grasp ("pregrasp")."""
+    pieces = [piece for part in instance.parts for piece in part.collision]
+    grasp = instance.grasps[side]
+    depths = {}
+    for kind, points_G in (("grasp", PALM_POINTS_G), ("pregrasp", HAND_POINTS_G)):
+        X_OG: RigidTransform = getattr(grasp, kind).GetDeterministicValue()
+        points_O = X_OG.multiply(points_G.T).T
+        depths[kind] = max(_depth_inside(points_O, pieces), float(-np.min(points_O[:, 2])), 0.0)
+    return depths
+
+
+def hands_fit(instance: ObjectInstance) -> bool:
+    """Both hands within PENETRATION_TOLERANCE of clear at their grasps and pre-grasps."""
+    return all(max(hand_penetration(instance, side).values()) <= PENETRATION_TOLERANCE for side in instance.grasps)
