@@ -63,6 +63,22 @@ def hand_penetration(instance: ObjectInstance, side: str) -> dict[str, float]:
     return depths
 
 
+def hands_overlap(instance: ObjectInstance) -> bool:
+    """Whether the two hands, open, overlap each other at their grasps or at their pre-grasps."""
+    left, right = instance.grasps["left"], instance.grasps["right"]
+    for kind in ("grasp", "pregrasp"):
+        X_OL = getattr(left, kind).GetDeterministicValue()
+        X_OR = getattr(right, kind).GetDeterministicValue()
+        for X_AB in (X_OL.inverse() @ X_OR, X_OR.inverse() @ X_OL):
+            points_A = X_AB.multiply(HAND_POINTS_G.T).T
+            for centre, size in (PALM, *FINGERS):
+                if np.any(np.all(np.abs(points_A - centre) <= size / 2, axis=1)):
+                    return True
+    return False
+
+
 def hands_fit(instance: ObjectInstance) -> bool:
-    """Both hands within PENETRATION_TOLERANCE of clear at their grasps and pre-grasps."""
-    return all(max(hand_penetration(instance, side).values()) <= PENETRATION_TOLERANCE for side in instance.grasps)
+    """Both hands within PENETRATION_TOLERANCE of clear of the object and the table at their grasps and
+    pre-grasps, and clear of each other."""
+    pressed = max(max(hand_penetration(instance, side).values()) for side in instance.grasps)
+    return pressed <= PENETRATION_TOLERANCE and not hands_overlap(instance)
