@@ -14,7 +14,7 @@ and the right.
 import numpy as np
 
 from diagrams.generation.objects import drill, geometry
-from diagrams.generation.objects.instance import ObjectInstance, Part, handle_grasp
+from diagrams.generation.objects.instance import ObjectInstance, Part, handle_grasp, tube_part
 from systems.perception.parts import PartRole
 
 CATEGORY = drill.CATEGORY
@@ -26,10 +26,9 @@ BASE_SHAPES = ("foot", "battery")
 D_GRIP_SHARE = 0.4
 TOP_HANDLE_SHARE = 0.3
 BATTERY_SHARE = 0.75
-# The steepest side handle: this far below horizontal (rad).
+# The steepest side handle: this far below horizontal (rad); the shortest side handle (m).
 MAX_SIDE_SLOPE = np.radians(70.0)
-# Spacing of a bent handle's centre line, m.
-PATH_SPACING = 0.004
+MIN_SIDE_HANDLE = 0.1
 
 
 def sample_shop_parameters(rng: np.random.Generator) -> dict[str, float]:
@@ -37,9 +36,18 @@ def sample_shop_parameters(rng: np.random.Generator) -> dict[str, float]:
     BASE_SHAPES), again until its handles stand clear of its base and the table."""
     for _ in range(100):
         p = _draw(rng)
-        if _handles_fit(p):
+        p["side_handle_length"] = min(p["side_handle_length"], _longest_side_handle(p))
+        if p["side_handle_length"] >= MIN_SIDE_HANDLE and _handles_fit(p):
             return p
     raise RuntimeError("no shop drill whose handles fit in 100 draws")
+
+
+def _longest_side_handle(p: dict[str, float]) -> float:
+    """The longest side handle (m) whose end stays 3 cm above the table: a steep handle on a low housing is
+    shorter."""
+    slope = max(p["side_handle_slope"], 1e-6)
+    drop = _layout(p)["housing_rear"][2] - 0.03 - 1.5 * p["side_handle_radius"]
+    return drop / np.sin(slope) - p["housing_radius"] - 0.015
 
 
 def _draw(rng: np.random.Generator) -> dict[str, float]:
@@ -73,7 +81,7 @@ def _draw(rng: np.random.Generator) -> dict[str, float]:
         "side_handle_length": rng.uniform(0.12, 0.2),
         "side_handle_radius": rng.uniform(0.014, 0.022),
         "side_handle_position": rng.uniform(0.45, 0.9),
-        "side_handle_slope": 0.0 if rng.uniform() < 0.3 else rng.uniform(0.0, MAX_SIDE_SLOPE),
+        "side_handle_slope": 0.0 if rng.uniform() < 0.1 else rng.uniform(0.0, MAX_SIDE_SLOPE),
         # A top handle: its middle along the housing's front part (0: as far back as it goes, 1: as far forward),
         # half-span, room above the housing, tube radius and (a bar's) corner radius (m).
         "top_handle_position": rng.uniform(0.0, 1.0),
@@ -152,11 +160,6 @@ def _top_handle_room(p: dict[str, float], rear_x: float) -> tuple[float, float]:
     return back, ahead
 
 
-def _tube_part(name: str, path: np.ndarray, radius: float, role: PartRole) -> Part:
-    path = geometry.resampled(path, PATH_SPACING)
-    return Part(name, geometry.tube(path, radius), geometry.short_tube_pieces(path, radius), role=role)
-
-
 def _left_handle(p, rear: np.ndarray) -> tuple[list[Part], np.ndarray, np.ndarray]:
     """The left hand's handle (a side handle and its knob, or a top handle), its grasp point and axis (O)."""
     rh, length = p["housing_radius"], p["housing_length"]
@@ -186,7 +189,7 @@ def _left_handle(p, rear: np.ndarray) -> tuple[list[Part], np.ndarray, np.ndarra
         path = np.column_stack(
             [centre_x + span * np.cos(angles), np.zeros_like(angles), foot_z + (top_z - foot_z) * np.sin(angles)]
         )
-    part = _tube_part("top_handle", path, tube, PartRole.LEFT_HANDLE)
+    part = tube_part("top_handle", path, tube, PartRole.LEFT_HANDLE)
     return [part], np.array([centre_x, 0.0, top_z]), np.array([1.0, 0.0, 0.0])
 
 
@@ -205,7 +208,7 @@ def _right_handle(p, layout) -> tuple[list[Part], np.ndarray, np.ndarray]:
         [p["column_x"], 0.0, hb - 0.01], [p["column_x"], 0.0, rear[2]], p["column_radius"], 0.9 * p["column_radius"]
     )
     path = geometry.filleted_path(corners, p["d_fillet"])
-    grip = _tube_part("grip", path, 0.85 * p["grip_radius"], PartRole.RIGHT_HANDLE)
+    grip = tube_part("grip", path, 0.85 * p["grip_radius"], PartRole.RIGHT_HANDLE)
     middle = 0.5 * (corners[1] + corners[2])  # the middle of the straight stretch between the bends
     return [Part("column", column, [column], density=1.5), grip], middle, axis
 

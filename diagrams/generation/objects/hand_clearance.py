@@ -1,11 +1,12 @@
-"""Whether the robot's hand fits at an instance's grasps: its palm, and the open hand at the pre-grasp, clear of
-the object and above the table.
+"""Whether the robot's hand fits at an instance's grasps: clear of the object and above the table.
 
 The hand is sdf/centauro/hand.sdf's (frame G at the grasp, z_G the approach, fingers closing along y_G): a palm
 box 9 x 15 x 4 cm whose front face lies 4.5 cm behind G, and two finger pads 6 x 1.5 x 7 cm reaching 2.5 cm past
-G, open to the reaching width (systems/messages.py OPEN_WIDTH). The open fingers' tips may touch the object at
-the grasp (the right hand's tips touch many a can's rear wall, and the ground-truth picks lift those cans), so
-at the grasp only the palm is checked.
+G, open to the reaching width (systems/messages.py OPEN_WIDTH) until they close. Checked: the palm at the grasp;
+the pads closed on the handle, from the palm to the grasp plane, against everything but the handle itself; the
+open hand at the pre-grasp. The fingers' tips may touch the object (the right hand's tips touch many a can's
+rear wall, and the ground-truth picks lift those cans), and the pads may touch the grasped handle's own bends
+(a can's arch leans into them under the tilted approach).
 """
 
 import itertools
@@ -16,6 +17,7 @@ from pydrake.math import RigidTransform
 
 from diagrams.generation.objects.instance import ObjectInstance
 from systems.messages import OPEN_WIDTH
+from systems.perception.parts import PartRole
 
 # (centre, size) of the hand's boxes in G, m.
 PALM = (np.array([0.0, 0.0, -0.065]), np.array([0.09, 0.15, 0.04]))
@@ -24,6 +26,8 @@ FINGERS = [
     (np.array([0.0, side * (OPEN_WIDTH / 2 + FINGER_THICKNESS / 2), -0.01]), np.array([0.06, FINGER_THICKNESS, 0.07]))
     for side in (1.0, -1.0)
 ]
+# The closed pads' inner faces this far from the handle's surface (m).
+CLOSED_GAP = 0.002
 # Sample points per metre along each box's edges.
 POINTS_PER_M = 200
 # How deep a design's hand may press into the object (its collision pieces) or the table, m: the paper-like
@@ -50,16 +54,35 @@ def _depth_inside(points: np.ndarray, pieces: list[trimesh.Trimesh]) -> float:
     return deepest
 
 
+def _closed_pad_points(handle_radius: float) -> np.ndarray:
+    """The pads closed on a handle of `handle_radius` (m), from the palm's front face to the grasp plane, in G."""
+    size = np.array([0.06, FINGER_THICKNESS, 0.045])
+    offset = handle_radius + CLOSED_GAP + FINGER_THICKNESS / 2
+    return np.vstack([_box_points(np.array([0.0, side * offset, -0.0225]), size) for side in (1.0, -1.0)])
+
+
 def hand_penetration(instance: ObjectInstance, side: str) -> dict[str, float]:
-    """How deep (m) `side`'s hand lies in the object or below the table: its palm at the grasp ("grasp"), its
-    palm and open fingers at the pre-grasp ("pregrasp")."""
+    """How deep (m) `side`'s hand lies in the object or below the table: its palm at the grasp ("grasp"), its pads
+    closed on the handle in anything but the handle ("closed"), its palm and open fingers at the pre-grasp
+    ("pregrasp")."""
+    role = PartRole.LEFT_HANDLE if side == "left" else PartRole.RIGHT_HANDLE
     pieces = [piece for part in instance.parts for piece in part.collision]
+    others = [piece for part in instance.parts if part.role != role for piece in part.collision]
     grasp = instance.grasps[side]
+    X_OG: RigidTransform = grasp.grasp.GetDeterministicValue()
+    handle_radius = max(
+        trimesh.proximity.signed_distance(part.mesh, X_OG.translation()[None, :])[0]
+        for part in instance.parts
+        if part.role == role
+    )
     depths = {}
-    for kind, points_G in (("grasp", PALM_POINTS_G), ("pregrasp", HAND_POINTS_G)):
-        X_OG: RigidTransform = getattr(grasp, kind).GetDeterministicValue()
-        points_O = X_OG.multiply(points_G.T).T
-        depths[kind] = max(_depth_inside(points_O, pieces), float(-np.min(points_O[:, 2])), 0.0)
+    for kind, X, points_G, against in (
+        ("grasp", X_OG, PALM_POINTS_G, pieces),
+        ("closed", X_OG, _closed_pad_points(handle_radius), others),
+        ("pregrasp", grasp.pregrasp.GetDeterministicValue(), HAND_POINTS_G, pieces),
+    ):
+        points_O = X.multiply(points_G.T).T
+        depths[kind] = max(_depth_inside(points_O, against), float(-np.min(points_O[:, 2])), 0.0)
     return depths
 
 

@@ -17,6 +17,7 @@ from pydrake.common.schema import Transform
 from pydrake.common.yaml import yaml_dump_typed
 from pydrake.math import RigidTransform, RotationMatrix
 
+from diagrams.generation.objects import geometry
 from systems.perception.parts import PartRole
 
 # How far the pre-grasp pose backs off from the grasp along -z_G, in metres.
@@ -34,6 +35,17 @@ class Part:
     density: float = 1.0
     # What the part is for: which hand holds it, the tool, or the body.
     role: PartRole = PartRole.BODY
+
+
+# Spacing of a handle's centre line (m): even, so that a tube's rings and collision pieces follow its bends.
+HANDLE_PATH_SPACING = 0.004
+
+
+def tube_part(name: str, path: np.ndarray, radius: float, role: PartRole) -> Part:
+    """A handle: a tube of `radius` (m) along `path` (n x 3, m, in O), resampled evenly, with short convex
+    collision pieces."""
+    path = geometry.resampled(path, HANDLE_PATH_SPACING)
+    return Part(name, geometry.tube(path, radius), geometry.short_tube_pieces(path, radius), role=role)
 
 
 @dataclass

@@ -3,9 +3,9 @@
 What the paper-like and wider families never make: a top handle across the body (perpendicular to the spout, as
 on most metal and many plastic cans) as well as along it, shaped as an arch, a straight bar on two posts or a D
 (a flat top on rounded shoulders); a rear handle as an arc, as a D with a straight grip (upright or leaning
-back), or none, where one loop handle runs from the lid round to the back; small indoor cans (9-12 cm bodies,
-with a loop handle: a top handle on so small a lid is too short for the hand) to big garden cans; round, oval
-and box-like bodies; spouts high or low.
+back), or none, where one loop handle runs from the lid round to the back; small indoor cans (9-11 cm bodies,
+about 20 cm long, with a loop handle: a top handle on so small a lid is too short for the hand) to big garden
+cans; round, oval and box-like bodies; spouts high or low.
 
 The grasps follow the category's convention (watering_can.py) on whatever handle there is, through
 instance.handle_grasp: the left hand on the top of the top handle (the middle of the loop's top run), x_G along
@@ -18,7 +18,7 @@ import numpy as np
 
 from diagrams.generation.objects import geometry
 from diagrams.generation.objects import watering_can as can
-from diagrams.generation.objects.instance import ObjectInstance, Part, handle_grasp
+from diagrams.generation.objects.instance import HANDLE_PATH_SPACING, ObjectInstance, Part, handle_grasp, tube_part
 from systems.perception.parts import PartRole
 
 CATEGORY = can.CATEGORY
@@ -40,8 +40,6 @@ LID_FOOT = 0.01
 WALL_FOOT = 0.012
 # The shortest straight stretch a hand holds (the fingers are 6 cm wide), m.
 MIN_GRIP_STRETCH = 0.07
-# Spacing of a handle's centre line, m.
-PATH_SPACING = 0.004
 
 
 def sample_shop_parameters(rng: np.random.Generator) -> dict[str, float]:
@@ -62,7 +60,7 @@ def _draw(rng: np.random.Generator) -> dict[str, float]:
     p = {
         "small": float(small),
         "body_outline": float(outline),
-        "radius": rng.uniform(0.045, 0.06) if small else rng.uniform(0.065, 0.125),
+        "radius": rng.uniform(0.045, 0.055) if small else rng.uniform(0.065, 0.125),
         "height": height,
         "oval_ratio": 1.0 if BODY_OUTLINES[outline] == "round" else rng.uniform(0.6, 0.9),
         "squareness": rng.uniform(3.0, 5.0) if BODY_OUTLINES[outline] == "box" else 2.0,
@@ -71,7 +69,7 @@ def _draw(rng: np.random.Generator) -> dict[str, float]:
         # The spout's root, low or high, its tube above the table.
         "spout_base": max(rng.uniform(0.05, 0.5) * height, spout_radius + 0.01),
         "spout_angle": rng.uniform(0.45, 1.0),
-        "spout_length": rng.uniform(0.07, 0.12) if small else rng.uniform(0.14, 0.34),
+        "spout_length": rng.uniform(0.05, 0.08) if small else rng.uniform(0.14, 0.34),
         "spout_radius": spout_radius,
         "tube_radius": rng.uniform(0.009, 0.012) if small else rng.uniform(0.01, 0.016),
         "mass": rng.uniform(0.55, 0.75) if small else rng.uniform(0.7, 1.2),
@@ -97,9 +95,9 @@ def _draw(rng: np.random.Generator) -> dict[str, float]:
         "rear_height": rng.uniform(0.3, 0.7),  # the rear grip's middle, as a share of the room on the wall
         "loop_front": rng.uniform(-0.1, 0.5),  # the loop's front post on the lid, as a share of the lid's x radius
         "loop_height": rng.uniform(0.05, 0.09),  # its top run above the lid, m
-        "loop_depth": rng.uniform(0.045, 0.08),  # its rear run behind the body, m
+        "loop_depth": rng.uniform(0.04, 0.05) if small else rng.uniform(0.045, 0.08),  # its rear run behind the body, m
         "loop_low": rng.uniform(0.2, 0.5),  # where it meets the rear wall, as a share of the height
-        "loop_fillet": rng.uniform(0.02, 0.04),
+        "loop_fillet": rng.uniform(0.015, 0.025) if small else rng.uniform(0.02, 0.04),
     }
     return p
 
@@ -161,11 +159,6 @@ def _loop_corners(p: dict[str, float]):
     return front, np.array([back, 0.0, z_top]), np.array([back, 0.0, z_low]), z_low, p["loop_fillet"]
 
 
-def _tube_part(name: str, path: np.ndarray, radius: float, role: PartRole) -> Part:
-    path = geometry.resampled(path, PATH_SPACING)
-    return Part(name, geometry.tube(path, radius), geometry.short_tube_pieces(path, radius), role=role)
-
-
 def _top_handle(p: dict[str, float]) -> tuple[Part, np.ndarray, np.ndarray]:
     """The top handle, its top (the left grasp's point) and its axis there (O)."""
     h, rx = p["height"], can.radius_at(p, p["height"])
@@ -186,7 +179,7 @@ def _top_handle(p: dict[str, float]) -> tuple[Part, np.ndarray, np.ndarray]:
         c, si = np.cos(angles), np.sin(angles)
         s, t = span * np.sign(c) * np.abs(c) ** power, height * np.abs(si) ** power
     path = centre + s[:, None] * axis + t[:, None] * [0.0, 0.0, 1.0]
-    part = _tube_part("top_handle", path, p["tube_radius"], PartRole.LEFT_HANDLE)
+    part = tube_part("top_handle", path, p["tube_radius"], PartRole.LEFT_HANDLE)
     return part, centre + [0.0, 0.0, height], axis
 
 
@@ -199,7 +192,7 @@ def _rear_handle(p: dict[str, float]) -> tuple[Part, np.ndarray, np.ndarray]:
         centre = np.array([-min(can.radius_at(p, z - reach), can.radius_at(p, z + reach)) + WALL_FOOT, 0.0, z])
         path = geometry.arc(centre, rr, np.pi / 2, 3 * np.pi / 2, samples=48)
         path[:, 2] = z + stretch * (path[:, 2] - z)
-        part = _tube_part("rear_handle", path, p["tube_radius"], PartRole.RIGHT_HANDLE)
+        part = tube_part("rear_handle", path, p["tube_radius"], PartRole.RIGHT_HANDLE)
         return part, centre - [rr, 0.0, 0.0], np.array([0.0, 0.0, 1.0])
     lean, fillet = p["rear_lean"], p["rear_fillet"]
     axis = np.array([-np.sin(lean), 0.0, np.cos(lean)])
@@ -209,7 +202,7 @@ def _rear_handle(p: dict[str, float]) -> tuple[Part, np.ndarray, np.ndarray]:
     foot_low = [-can.radius_at(p, corner_low[2]) + WALL_FOOT, 0.0, corner_low[2]]
     foot_high = [-can.radius_at(p, corner_high[2]) + WALL_FOOT, 0.0, corner_high[2]]
     path = geometry.filleted_path(np.array([foot_low, corner_low, corner_high, foot_high]), fillet)
-    return _tube_part("rear_handle", path, p["tube_radius"], PartRole.RIGHT_HANDLE), middle, axis
+    return tube_part("rear_handle", path, p["tube_radius"], PartRole.RIGHT_HANDLE), middle, axis
 
 
 def _loop_handle(p: dict[str, float]):
@@ -219,15 +212,14 @@ def _loop_handle(p: dict[str, float]):
     front, back_top, back_low, z_low, fillet = _loop_corners(p)
     foot_front = front - [0.0, 0.0, front[2] - (h - LID_FOOT)]
     foot_wall = np.array([-can.radius_at(p, z_low) + WALL_FOOT, 0.0, z_low])
-    path = geometry.resampled(
-        geometry.filleted_path(np.array([foot_front, front, back_top, back_low, foot_wall]), fillet), PATH_SPACING
-    )
+    corners = np.array([foot_front, front, back_top, back_low, foot_wall])
+    path = geometry.resampled(geometry.filleted_path(corners, fillet), HANDLE_PATH_SPACING)
     # The bend's middle is the point of the path nearest its corner; the stretches share one step of the path.
     split = int(np.argmin(np.linalg.norm(path - back_top, axis=1)))
     tube = p["tube_radius"]
     parts = [
-        _tube_part("loop_top", path[: split + 2], tube, PartRole.LEFT_HANDLE),
-        _tube_part("loop_rear", path[split:], tube, PartRole.RIGHT_HANDLE),
+        tube_part("loop_top", path[: split + 2], tube, PartRole.LEFT_HANDLE),
+        tube_part("loop_rear", path[split:], tube, PartRole.RIGHT_HANDLE),
     ]
     left = (0.5 * (front + back_top), np.array([1.0, 0.0, 0.0]))
     right = (0.5 * (back_top + back_low), np.array([0.0, 0.0, 1.0]))
