@@ -11,10 +11,12 @@ from above and behind; the right hand on the grip's middle (the D's straight str
 and the right.
 """
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from diagrams.generation.objects import drill, geometry
-from diagrams.generation.objects.instance import ObjectInstance, Part, handle_grasp, tube_part
+from diagrams.generation.objects.instance import Handle, ObjectInstance, Part, handle_grasp, tube_part
 from systems.perception.parts import PartRole
 
 CATEGORY = drill.CATEGORY
@@ -46,7 +48,7 @@ def _longest_side_handle(p: dict[str, float]) -> float:
     """The longest side handle (m) whose end stays 3 cm above the table: a steep handle on a low housing is
     shorter."""
     slope = max(p["side_handle_slope"], 1e-6)
-    drop = _layout(p)["housing_rear"][2] - 0.03 - 1.5 * p["side_handle_radius"]
+    drop = _layout(p).housing_rear[2] - 0.03 - 1.5 * p["side_handle_radius"]
     return drop / np.sin(slope) - p["housing_radius"] - 0.015
 
 
@@ -93,16 +95,27 @@ def _draw(rng: np.random.Generator) -> dict[str, float]:
     }
 
 
-def _layout(p: dict[str, float]) -> dict[str, np.ndarray | float]:
-    """Where the housing lies (its rear end's centre, m) and, for a pistol grip, the grip's bottom and axis; for a
-    D grip the D's corners (O)."""
+@dataclass
+class _Layout:
+    """Where a drill's housing lies and its grip runs (O, m)."""
+
+    # The centre of the housing's rear end.
+    housing_rear: np.ndarray
+    # The grip's axis (unit, upwards).
+    grip_axis: np.ndarray
+    # The grip's centre line: a pistol grip's bottom and top; a D's corners (in the column, the lower bend, the
+    # upper bend, in the housing's rear).
+    grip_line: np.ndarray
+
+
+def _layout(p: dict[str, float]) -> _Layout:
     hb, rh = p["base_height"], p["housing_radius"]
     if GRIP_SHAPES[int(p["grip_shape"])] == "pistol":
         bottom = np.array([p["grip_x"], 0.0, hb - 0.01])
         axis = np.array([np.sin(p["grip_tilt"]), 0.0, np.cos(p["grip_tilt"])])
         top = bottom + p["grip_length"] * axis
         housing_rear = np.array([top[0] - p["housing_overhang"], 0.0, top[2] + 0.6 * rh])
-        return {"housing_rear": housing_rear, "grip_bottom": bottom, "grip_axis": axis}
+        return _Layout(housing_rear, axis, np.array([bottom, top]))
     # The D: its bottom bar from the column back to the lower bend, the grip up (leaning back by grip_tilt at its
     # top) to the upper bend at the housing's axis height, the top bar forward into the housing's rear.
     fillet, tube = p["d_fillet"], 0.85 * p["grip_radius"]
@@ -112,13 +125,8 @@ def _layout(p: dict[str, float]) -> dict[str, np.ndarray | float]:
     lower = np.array([column_back - p["d_bottom_bar"], 0.0, z_low])
     upper = lower + (p["grip_length"] + 2 * fillet) / np.cos(p["grip_tilt"]) * axis
     housing_rear = np.array([upper[0] + p["d_top_bar"], 0.0, upper[2]])
-    return {
-        "housing_rear": housing_rear,
-        "grip_axis": axis,
-        "d_corners": np.array(
-            [[column_back + 0.01, 0.0, z_low], lower, upper, housing_rear + [0.015, 0.0, 0.0]], dtype=float
-        ),
-    }
+    corners = [[column_back + 0.01, 0.0, z_low], lower, upper, housing_rear + [0.015, 0.0, 0.0]]
+    return _Layout(housing_rear, axis, np.array(corners, dtype=float))
 
 
 def _side_handle_axis(p: dict[str, float]) -> np.ndarray:
@@ -127,8 +135,7 @@ def _side_handle_axis(p: dict[str, float]) -> np.ndarray:
 
 
 def _handles_fit(p: dict[str, float]) -> bool:
-    layout = _layout(p)
-    rear, rh, length = layout["housing_rear"], p["housing_radius"], p["housing_length"]
+    rear, rh, length = _layout(p).housing_rear, p["housing_radius"], p["housing_length"]
     hb, half_length, half_width = p["base_height"], p["base_length"] / 2, p["base_width"] / 2
     if GRIP_SHAPES[int(p["grip_shape"])] == "d":
         # The column stands under the housing, in front of its rear end.
@@ -160,8 +167,8 @@ def _top_handle_room(p: dict[str, float], rear_x: float) -> tuple[float, float]:
     return back, ahead
 
 
-def _left_handle(p, rear: np.ndarray) -> tuple[list[Part], np.ndarray, np.ndarray]:
-    """The left hand's handle (a side handle and its knob, or a top handle), its grasp point and axis (O)."""
+def _left_handle(p: dict[str, float], rear: np.ndarray) -> Handle:
+    """The left hand's handle: a side handle and its knob, held at the middle; or a top handle, held at its top."""
     rh, length = p["housing_radius"], p["housing_length"]
     if LEFT_SHAPES[int(p["left_shape"])] == "side":
         radius, axis = p["side_handle_radius"], _side_handle_axis(p)
@@ -173,7 +180,7 @@ def _left_handle(p, rear: np.ndarray) -> tuple[list[Part], np.ndarray, np.ndarra
             Part("side_handle", side, [side], role=PartRole.LEFT_HANDLE),
             Part("knob", knob, [knob], role=PartRole.LEFT_HANDLE),
         ]
-        return parts, start + 0.5 * (rh + p["side_handle_length"]) * axis, axis
+        return Handle(parts, start + 0.5 * (rh + p["side_handle_length"]) * axis, axis)
     # A top handle over the housing's front half: its feet half way into the housing, in the xz plane.
     back, ahead = _top_handle_room(p, rear[0])
     centre_x = back + p["top_handle_position"] * (ahead - back)
@@ -190,34 +197,30 @@ def _left_handle(p, rear: np.ndarray) -> tuple[list[Part], np.ndarray, np.ndarra
             [centre_x + span * np.cos(angles), np.zeros_like(angles), foot_z + (top_z - foot_z) * np.sin(angles)]
         )
     part = tube_part("top_handle", path, tube, PartRole.LEFT_HANDLE)
-    return [part], np.array([centre_x, 0.0, top_z]), np.array([1.0, 0.0, 0.0])
+    return Handle([part], np.array([centre_x, 0.0, top_z]), np.array([1.0, 0.0, 0.0]))
 
 
-def _right_handle(p, layout) -> tuple[list[Part], np.ndarray, np.ndarray]:
-    """The right hand's grip (a pistol grip, or a D grip and the motor column under the housing), its grasp point
-    and axis (O)."""
-    axis, rh = layout["grip_axis"], p["housing_radius"]
+def _right_handle(p: dict[str, float], layout: _Layout) -> Handle:
+    """The right hand's grip: a pistol grip or a D grip, held at the middle of its straight stretch."""
+    axis, rh = layout.grip_axis, p["housing_radius"]
     if GRIP_SHAPES[int(p["grip_shape"])] == "pistol":
-        bottom, r = layout["grip_bottom"], p["grip_radius"]
-        top = bottom + p["grip_length"] * axis
+        (bottom, top), r = layout.grip_line, p["grip_radius"]
         grip = geometry.frustum(bottom, top + 0.5 * rh * axis, r, r)
-        return [Part("grip", grip, [grip], role=PartRole.RIGHT_HANDLE)], bottom + 0.5 * p["grip_length"] * axis, axis
-    corners = layout["d_corners"]
-    hb, rear = p["base_height"], layout["housing_rear"]
-    column = geometry.frustum(
-        [p["column_x"], 0.0, hb - 0.01], [p["column_x"], 0.0, rear[2]], p["column_radius"], 0.9 * p["column_radius"]
+        return Handle(
+            [Part("grip", grip, [grip], role=PartRole.RIGHT_HANDLE)], bottom + 0.5 * p["grip_length"] * axis, axis
+        )
+    corners = layout.grip_line
+    grip = tube_part(
+        "grip", geometry.filleted_path(corners, p["d_fillet"]), 0.85 * p["grip_radius"], PartRole.RIGHT_HANDLE
     )
-    path = geometry.filleted_path(corners, p["d_fillet"])
-    grip = tube_part("grip", path, 0.85 * p["grip_radius"], PartRole.RIGHT_HANDLE)
-    middle = 0.5 * (corners[1] + corners[2])  # the middle of the straight stretch between the bends
-    return [Part("column", column, [column], density=1.5), grip], middle, axis
+    return Handle([grip], 0.5 * (corners[1] + corners[2]), axis)  # the middle of the straight stretch
 
 
 def build(name: str, p: dict[str, float]) -> ObjectInstance:
     """Builds a shop drill's parts and ground-truth grasps from its parameters."""
     hb, rh = p["base_height"], p["housing_radius"]
     layout = _layout(p)
-    rear = layout["housing_rear"]
+    rear = layout.housing_rear
     front = rear + [p["housing_length"], 0.0, 0.0]
     base = geometry.box([p["base_length"], p["base_width"], hb], [0.0, 0.0, hb / 2])
     housing = geometry.frustum(rear, front, rh, 0.85 * rh)
@@ -228,12 +231,16 @@ def build(name: str, p: dict[str, float]) -> ObjectInstance:
         Part("housing", housing, [housing], density=1.5),
         Part("chuck", chuck, [chuck], density=2.0, role=PartRole.TOOL),
     ]
-    left_parts, *left = _left_handle(p, rear)
-    right_parts, *right = _right_handle(p, layout)
-    parts += right_parts + left_parts
+    if GRIP_SHAPES[int(p["grip_shape"])] == "d":
+        # The motor column under the housing, which the D closes onto.
+        bottom, top = [p["column_x"], 0.0, hb - 0.01], [p["column_x"], 0.0, rear[2]]
+        column = geometry.frustum(bottom, top, p["column_radius"], 0.9 * p["column_radius"])
+        parts.append(Part("column", column, [column], density=1.5))
+    left, right = _left_handle(p, rear), _right_handle(p, layout)
+    parts += right.parts + left.parts
     tilt, turn = drill.APPROACH_TILT, drill.RIGHT_APPROACH_YAW
     grasps = {
-        "left": handle_grasp(*left, approach=[np.sin(tilt), 0.0, -np.cos(tilt)]),
-        "right": handle_grasp(*right, approach=[np.cos(turn), np.sin(turn), 0.0]),
+        "left": handle_grasp(left.point, left.axis, approach=[np.sin(tilt), 0.0, -np.cos(tilt)]),
+        "right": handle_grasp(right.point, right.axis, approach=[np.cos(turn), np.sin(turn), 0.0]),
     }
     return ObjectInstance(CATEGORY, name, p, parts, p["mass"], grasps)

@@ -37,6 +37,17 @@ class Part:
     role: PartRole = PartRole.BODY
 
 
+@dataclass
+class Handle:
+    """A hand's handle: its parts, and where on it and along which axis the hand holds it (in O)."""
+
+    parts: list[Part]
+    # The grasp point, m.
+    point: np.ndarray
+    # The handle's axis at the point (any length).
+    axis: np.ndarray
+
+
 # Spacing of a handle's centre line (m): even, so that a tube's rings and collision pieces follow its bends.
 HANDLE_PATH_SPACING = 0.004
 

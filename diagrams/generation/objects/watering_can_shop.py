@@ -14,11 +14,20 @@ handle is two parts: its top stretch the left hand's, its rear stretch the right
 between them.
 """
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from diagrams.generation.objects import geometry
 from diagrams.generation.objects import watering_can as can
-from diagrams.generation.objects.instance import HANDLE_PATH_SPACING, ObjectInstance, Part, handle_grasp, tube_part
+from diagrams.generation.objects.instance import (
+    HANDLE_PATH_SPACING,
+    Handle,
+    ObjectInstance,
+    Part,
+    handle_grasp,
+    tube_part,
+)
 from systems.perception.parts import PartRole
 
 CATEGORY = can.CATEGORY
@@ -126,18 +135,17 @@ def _wall_x(p: dict[str, float], z_low: float, z_high: float) -> float:
 def _handles_fit(p: dict[str, float]) -> bool:
     h = p["height"]
     if TOP_SHAPES[int(p["top_shape"])] == "loop":
-        front, back_top, back_low, _, bend = _loop_corners(p)
-        runs = front[0] - back_top[0] - 2 * bend, back_top[2] - back_low[2] - 2 * bend
-        on_lid = front[0] < can.radius_at(p, h) - p["tube_radius"] - LID_RIM
+        loop, bend = _loop(p), p["loop_fillet"]
+        runs = loop.front[0] - loop.back_top[0] - 2 * bend, loop.back_top[2] - loop.back_low[2] - 2 * bend
+        on_lid = loop.front[0] < can.radius_at(p, h) - p["tube_radius"] - LID_RIM
         return min(runs) >= MIN_GRIP_STRETCH and on_lid
     if top_span_limit(p) < MIN_TOP_SPAN:
         return False
     middle, reach = _rear_middle(p)
     if middle - reach < 0.03 or middle + reach > h - 0.015:
         return False
-    # The grip stands clear of the wall behind it (a belly can reach out towards an arc's middle).
-    _, grip, _ = _rear_handle(p)
-    return grip[0] <= -can.radius_at(p, grip[2]) - 0.035
+    # The grip stands clear of the wall in front of it (a belly can reach out towards an arc's middle).
+    return _rear_grip_x(p) <= -can.radius_at(p, middle) - 0.035
 
 
 def _rear_middle(p: dict[str, float]) -> tuple[float, float]:
@@ -150,17 +158,49 @@ def _rear_middle(p: dict[str, float]) -> tuple[float, float]:
     return low + p["rear_height"] * max(high - low, 0.0), reach
 
 
-def _loop_corners(p: dict[str, float]):
-    """The loop handle's corners (front foot's top, rear-top, rear-bottom, wall foot) and its bend radius."""
+def _rear_grip_x(p: dict[str, float]) -> float:
+    """The x of the rear grip's middle (m): an arc's rearmost point, a D's straight grip."""
+    z, reach = _rear_middle(p)
+    if REAR_SHAPES[int(p["rear_shape"])] == "arc":
+        return _arc_feet_x(p) - p["rear_radius"]
+    return _wall_x(p, z - reach, z + reach) - p["rear_depth"]
+
+
+def _arc_feet_x(p: dict[str, float]) -> float:
+    """The x of an arc's feet and centre (m): within the wall where it is least deep (as the paper-like
+    family's)."""
+    z, reach = _rear_middle(p)
+    return -min(can.radius_at(p, z - reach), can.radius_at(p, z + reach)) + WALL_FOOT
+
+
+@dataclass
+class _Loop:
+    """A loop handle's corners (O, m): the top of its front post, its upper and lower rear bends, and its ends in
+    the lid and in the rear wall."""
+
+    front: np.ndarray
+    back_top: np.ndarray
+    back_low: np.ndarray
+    foot_front: np.ndarray
+    foot_wall: np.ndarray
+
+
+def _loop(p: dict[str, float]) -> _Loop:
     h, rx = p["height"], can.radius_at(p, p["height"])
     z_top, z_low = h + p["loop_height"], max(p["loop_low"] * h, 0.05)
     back = _wall_x(p, z_low, h) - p["loop_depth"]
     front = np.array([p["loop_front"] * rx, 0.0, z_top])
-    return front, np.array([back, 0.0, z_top]), np.array([back, 0.0, z_low]), z_low, p["loop_fillet"]
+    return _Loop(
+        front=front,
+        back_top=np.array([back, 0.0, z_top]),
+        back_low=np.array([back, 0.0, z_low]),
+        foot_front=front - [0.0, 0.0, front[2] - (h - LID_FOOT)],
+        foot_wall=np.array([-can.radius_at(p, z_low) + WALL_FOOT, 0.0, z_low]),
+    )
 
 
-def _top_handle(p: dict[str, float]) -> tuple[Part, np.ndarray, np.ndarray]:
-    """The top handle, its top (the left grasp's point) and its axis there (O)."""
+def _top_handle(p: dict[str, float]) -> Handle:
+    """The top handle, held at its top along its axis there."""
     h, rx = p["height"], can.radius_at(p, p["height"])
     span = max(p["top_span"] * min(top_span_limit(p), 0.11), MIN_TOP_SPAN)
     height = p["top_height"]
@@ -168,10 +208,8 @@ def _top_handle(p: dict[str, float]) -> tuple[Part, np.ndarray, np.ndarray]:
     centre = np.array([p["top_offset"] * rx, 0.0, h - LID_FOOT])
     shape = TOP_SHAPES[int(p["top_shape"])]
     if shape == "bar":
-        outline = geometry.filleted_path(
-            np.array([[-span, 0.0], [-span, height], [span, height], [span, 0.0]]) @ [[1, 0, 0], [0, 0, 1]],
-            p["top_fillet"],
-        )
+        corners = np.array([[-span, 0.0, 0.0], [-span, 0.0, height], [span, 0.0, height], [span, 0.0, 0.0]])
+        outline = geometry.filleted_path(corners, p["top_fillet"])
         s, t = outline[:, 0], outline[:, 2]
     else:
         angles = np.linspace(np.pi, 0.0, 48)
@@ -180,71 +218,63 @@ def _top_handle(p: dict[str, float]) -> tuple[Part, np.ndarray, np.ndarray]:
         s, t = span * np.sign(c) * np.abs(c) ** power, height * np.abs(si) ** power
     path = centre + s[:, None] * axis + t[:, None] * [0.0, 0.0, 1.0]
     part = tube_part("top_handle", path, p["tube_radius"], PartRole.LEFT_HANDLE)
-    return part, centre + [0.0, 0.0, height], axis
+    return Handle([part], centre + [0.0, 0.0, height], axis)
 
 
-def _rear_handle(p: dict[str, float]) -> tuple[Part, np.ndarray, np.ndarray]:
-    """The rear handle, the middle of its grip (the right grasp's point) and the grip's axis there (O)."""
-    z, reach = _rear_middle(p)
+def _rear_handle(p: dict[str, float]) -> Handle:
+    """The rear handle, held at the middle of its grip along the grip."""
+    z, _ = _rear_middle(p)
     if REAR_SHAPES[int(p["rear_shape"])] == "arc":
-        # Its feet within the wall where it is least deep (as the paper-like family's).
-        rr, stretch = p["rear_radius"], p["rear_stretch"]
-        centre = np.array([-min(can.radius_at(p, z - reach), can.radius_at(p, z + reach)) + WALL_FOOT, 0.0, z])
+        rr, centre = p["rear_radius"], np.array([_arc_feet_x(p), 0.0, z])
         path = geometry.arc(centre, rr, np.pi / 2, 3 * np.pi / 2, samples=48)
-        path[:, 2] = z + stretch * (path[:, 2] - z)
-        part = tube_part("rear_handle", path, p["tube_radius"], PartRole.RIGHT_HANDLE)
-        return part, centre - [rr, 0.0, 0.0], np.array([0.0, 0.0, 1.0])
-    lean, fillet = p["rear_lean"], p["rear_fillet"]
-    axis = np.array([-np.sin(lean), 0.0, np.cos(lean)])
-    middle = np.array([_wall_x(p, z - reach, z + reach) - p["rear_depth"], 0.0, z])
-    reach = 0.5 * p["rear_grip_length"] + fillet
-    corner_low, corner_high = middle - reach * axis, middle + reach * axis
-    foot_low = [-can.radius_at(p, corner_low[2]) + WALL_FOOT, 0.0, corner_low[2]]
-    foot_high = [-can.radius_at(p, corner_high[2]) + WALL_FOOT, 0.0, corner_high[2]]
-    path = geometry.filleted_path(np.array([foot_low, corner_low, corner_high, foot_high]), fillet)
-    return tube_part("rear_handle", path, p["tube_radius"], PartRole.RIGHT_HANDLE), middle, axis
+        path[:, 2] = z + p["rear_stretch"] * (path[:, 2] - z)
+        grip, axis = centre - [rr, 0.0, 0.0], np.array([0.0, 0.0, 1.0])
+    else:
+        grip = np.array([_rear_grip_x(p), 0.0, z])
+        lean = p["rear_lean"]
+        axis = np.array([-np.sin(lean), 0.0, np.cos(lean)])
+        corner = 0.5 * p["rear_grip_length"] + p["rear_fillet"]
+        corner_low, corner_high = grip - corner * axis, grip + corner * axis
+        feet = [[-can.radius_at(p, c[2]) + WALL_FOOT, 0.0, c[2]] for c in (corner_low, corner_high)]
+        path = geometry.filleted_path(np.array([feet[0], corner_low, corner_high, feet[1]]), p["rear_fillet"])
+    return Handle([tube_part("rear_handle", path, p["tube_radius"], PartRole.RIGHT_HANDLE)], grip, axis)
 
 
-def _loop_handle(p: dict[str, float]):
-    """The loop handle's two parts (top stretch: the left hand's; rear stretch: the right hand's, split at the
-    bend between them) and the grasp points and axes of both hands (O)."""
-    h = p["height"]
-    front, back_top, back_low, z_low, fillet = _loop_corners(p)
-    foot_front = front - [0.0, 0.0, front[2] - (h - LID_FOOT)]
-    foot_wall = np.array([-can.radius_at(p, z_low) + WALL_FOOT, 0.0, z_low])
-    corners = np.array([foot_front, front, back_top, back_low, foot_wall])
-    path = geometry.resampled(geometry.filleted_path(corners, fillet), HANDLE_PATH_SPACING)
+def _loop_handles(p: dict[str, float]) -> tuple[Handle, Handle]:
+    """The loop handle as the left hand's (its top stretch, held at the middle of its top run) and the right
+    hand's (its rear stretch, held at the middle of its rear run), split at the bend between them."""
+    loop = _loop(p)
+    corners = np.array([loop.foot_front, loop.front, loop.back_top, loop.back_low, loop.foot_wall])
+    path = geometry.resampled(geometry.filleted_path(corners, p["loop_fillet"]), HANDLE_PATH_SPACING)
     # The bend's middle is the point of the path nearest its corner; the stretches share one step of the path.
-    split = int(np.argmin(np.linalg.norm(path - back_top, axis=1)))
+    split = int(np.argmin(np.linalg.norm(path - loop.back_top, axis=1)))
     tube = p["tube_radius"]
-    parts = [
-        tube_part("loop_top", path[: split + 2], tube, PartRole.LEFT_HANDLE),
-        tube_part("loop_rear", path[split:], tube, PartRole.RIGHT_HANDLE),
-    ]
-    left = (0.5 * (front + back_top), np.array([1.0, 0.0, 0.0]))
-    right = (0.5 * (back_top + back_low), np.array([0.0, 0.0, 1.0]))
-    return parts, left, right
+    top = tube_part("loop_top", path[: split + 2], tube, PartRole.LEFT_HANDLE)
+    rear = tube_part("loop_rear", path[split:], tube, PartRole.RIGHT_HANDLE)
+    return (
+        Handle([top], 0.5 * (loop.front + loop.back_top), np.array([1.0, 0.0, 0.0])),
+        Handle([rear], 0.5 * (loop.back_top + loop.back_low), np.array([0.0, 0.0, 1.0])),
+    )
 
 
 def build(name: str, p: dict[str, float]) -> ObjectInstance:
     """Builds a shop can's parts and ground-truth grasps from its parameters."""
     body = can.body_mesh(p)
     spout, rose = can.spout_and_rose(p)
+    if TOP_SHAPES[int(p["top_shape"])] == "loop":
+        left, right = _loop_handles(p)
+    else:
+        left, right = _top_handle(p), _rear_handle(p)
     parts = [
         Part("body", body, [body]),
         Part("spout", spout, [spout], role=PartRole.TOOL),
         Part("rose", rose, [rose], role=PartRole.TOOL),
+        *left.parts,
+        *right.parts,
     ]
-    if TOP_SHAPES[int(p["top_shape"])] == "loop":
-        handles, left, right = _loop_handle(p)
-        parts += handles
-    else:
-        top, *left = _top_handle(p)
-        rear, *right = _rear_handle(p)
-        parts += [top, rear]
     tilt, turn, dip = can.LEFT_APPROACH_TILT, can.RIGHT_APPROACH_TURN, can.RIGHT_APPROACH_DIP
     grasps = {
-        "left": handle_grasp(*left, approach=[0.0, -np.sin(tilt), -np.cos(tilt)]),
-        "right": handle_grasp(*right, approach=[np.cos(turn), np.sin(turn), -dip]),
+        "left": handle_grasp(left.point, left.axis, approach=[0.0, -np.sin(tilt), -np.cos(tilt)]),
+        "right": handle_grasp(right.point, right.axis, approach=[np.cos(turn), np.sin(turn), -dip]),
     }
     return ObjectInstance(CATEGORY, name, p, parts, p["mass"], grasps)
