@@ -113,9 +113,9 @@ def test_unknown_category_gives_a_clear_error():
         resolve_object(ObjectConfig(category="teapot"))
 
 
-def test_extra_and_wide_instances_on_demand(tmp_path, monkeypatch):
+def test_extra_wide_and_shop_instances_on_demand(tmp_path, monkeypatch):
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
-    for name in ("extra_42", "wide_42"):
+    for name in ("extra_42", "wide_42", "shop_42"):
         model = resolve_object(ObjectConfig(category="drill", instance=name))
         assert model.model_file.is_file() and model.info.name == name
 
