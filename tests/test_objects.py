@@ -10,8 +10,8 @@ from diagrams.generation.objects.library import load_info, resolve_object, writt
 from diagrams.scenario import ObjectConfig
 
 INSTANCES = [(c, n) for c in sorted(catalog.CATEGORIES) for n in catalog.instance_names(c)]
-# A few of the wider family (on demand, not committed): the same checks of shape, grasps and stance.
-WIDE = [(c, f"wide_{k}") for c in sorted(catalog.CATEGORIES) for k in range(4)]
+# A few of the wider and the shop families (on demand, not committed): the same checks of shape, grasps and stance.
+ON_DEMAND = [(c, f"{family}_{k}") for c in sorted(catalog.CATEGORIES) for family in ("wide", "shop") for k in range(4)]
 
 
 def _generated(request):
@@ -25,7 +25,7 @@ def committed(request):
     return _generated(request)
 
 
-@pytest.fixture(scope="module", params=INSTANCES + WIDE, ids=lambda p: "/".join(p))
+@pytest.fixture(scope="module", params=INSTANCES + ON_DEMAND, ids=lambda p: "/".join(p))
 def generated(request):
     return _generated(request)
 
@@ -113,9 +113,9 @@ def test_unknown_category_gives_a_clear_error():
         resolve_object(ObjectConfig(category="teapot"))
 
 
-def test_extra_and_wide_instances_on_demand(tmp_path, monkeypatch):
+def test_extra_wide_and_shop_instances_on_demand(tmp_path, monkeypatch):
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
-    for name in ("extra_42", "wide_42"):
+    for name in ("extra_42", "wide_42", "shop_42"):
         model = resolve_object(ObjectConfig(category="drill", instance=name))
         assert model.model_file.is_file() and model.info.name == name
 

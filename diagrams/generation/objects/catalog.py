@@ -3,7 +3,8 @@
 Every instance's shape comes from `numpy.random.default_rng([CATALOG_SEED, category id,
 split id, index])`, so `train_3` is the same can on every machine. `extra_<seed>` instances are drawn
 from the same family as train_* and test_*; `wide_<seed>` ones from each generator's wider family
-(`sample_wide_parameters`: more of what real products vary in).
+(`sample_wide_parameters`: more of what real products vary in); `shop_<seed>` ones from its shop family
+(`<category>_shop.py`: handles in every form and direction real products have them).
 """
 
 import functools
@@ -14,6 +15,7 @@ import numpy as np
 import trimesh
 from scipy.spatial import ConvexHull
 
+from diagrams.generation.objects.hand_clearance import hands_fit
 from diagrams.generation.objects.instance import ObjectInstance
 from diagrams.paths import SDF_DIR
 from systems import categories
@@ -22,9 +24,11 @@ CATALOG_SEED = 2018
 # Each generated category's generator: the module of its name (the registry, systems/categories.py, lists
 # them; taught categories are data). Their order seeds the instances: never reorder GENERATED.
 CATEGORIES = {name: importlib.import_module(f"diagrams.generation.objects.{name}") for name in categories.GENERATED}
+# Each generated category's shop family: the module `<name>_shop` (sample_shop_parameters, build).
+SHOP_FAMILIES = {name: importlib.import_module(f"diagrams.generation.objects.{name}_shop") for name in CATEGORIES}
 SPLITS = {"train": 8, "test": 3}
-# On-demand instances, any number of each: the paper-like family, and the wider one. Never reorder.
-ON_DEMAND = ("extra", "wide")
+# On-demand instances, any number of each: the paper-like family, the wider one, the shop one. Never reorder.
+ON_DEMAND = ("extra", "wide", "shop")
 # The paper's test cans differ clearly from each other: one body style each.
 TEST_CAN_STYLES = ("cylinder", "oval", "tapered")
 
@@ -48,15 +52,18 @@ def category_module(category: str):
 
 
 def parse_instance_name(name: str) -> tuple[str, int]:
-    """Splits 'train_3' into ('train', 3); 'extra_17' and 'wide_17' name on-demand instances."""
+    """Splits 'train_3' into ('train', 3); 'extra_17', 'wide_17' and 'shop_17' name on-demand instances."""
     split, _, index = name.rpartition("_")
     if split not in (*SPLITS, *ON_DEMAND) or not index.isdigit():
-        raise ValueError(f"bad instance name {name!r}: expected train_<i>, test_<i>, extra_<seed> or wide_<seed>")
+        raise ValueError(
+            f"bad instance name {name!r}: expected train_<i>, test_<i>, extra_<seed>, wide_<seed> or shop_<seed>"
+        )
     return split, int(index)
 
 
 def generate(category: str, name: str) -> ObjectInstance:
-    """Generates the named instance (train_i, test_i, or extra_<seed> and wide_<seed> for any number more)."""
+    """Generates the named instance (train_i, test_i, or extra_<seed>, wide_<seed> and shop_<seed> for any number
+    more)."""
     module = category_module(category)
     split, index = parse_instance_name(name)
     if split in SPLITS and index >= SPLITS[split]:
@@ -65,7 +72,10 @@ def generate(category: str, name: str) -> ObjectInstance:
     category_id = list(CATEGORIES).index(category)
     rng = np.random.default_rng([CATALOG_SEED, category_id, split_id, index])
     if split == "wide":
-        return _standing_wide_instance(module, name, rng)
+        return _standing_instance(category, name, rng, module.sample_wide_parameters, module.build)
+    if split == "shop":
+        shop = SHOP_FAMILIES[category]
+        return _standing_instance(category, name, rng, shop.sample_shop_parameters, shop.build, hands_fit)
     if category == "watering_can" and split == "test":
         parameters = module.sample_parameters(rng, body_style=TEST_CAN_STYLES[index])
     else:
@@ -73,21 +83,21 @@ def generate(category: str, name: str) -> ObjectInstance:
     return module.build(name, parameters)
 
 
-# A wide instance's centre of mass lies this far inside its footprint (m), or its shape is drawn again.
+# A wide or shop instance's centre of mass lies this far inside its footprint (m), or its shape is drawn again.
 STANDING_MARGIN = 0.01
 
 
-def _standing_wide_instance(module, name: str, rng: np.random.Generator) -> ObjectInstance:
-    """The first shape of the wider family drawn from `rng` that stands on its base (a long, front-heavy drill
-    on a small battery would tip over)."""
+def _standing_instance(category: str, name: str, rng: np.random.Generator, sample, build, accept=None):
+    """The first shape `build(name, sample(rng))` that stands on its base (a long, front-heavy drill on a small
+    battery would tip over) and that `accept` takes (where given)."""
     for _ in range(100):
-        instance = module.build(name, module.sample_wide_parameters(rng))
+        instance = build(name, sample(rng))
         com, _ = instance.mass_properties()
         base = np.vstack([part.mesh.vertices for part in instance.parts])
         hull = ConvexHull(base[base[:, 2] < 1e-6][:, :2])
-        if np.max(hull.equations @ [com[0], com[1], 1.0]) <= -STANDING_MARGIN:
+        if np.max(hull.equations @ [com[0], com[1], 1.0]) <= -STANDING_MARGIN and (accept is None or accept(instance)):
             return instance
-    raise RuntimeError(f"no standing {module.CATEGORY} found for {name} in 100 draws")
+    raise RuntimeError(f"no standing {category} found for {name} in 100 draws")
 
 
 def instance_directory(category: str, name: str) -> Path:

@@ -10,6 +10,7 @@ import numpy as np
 
 from diagrams.generation.objects import geometry
 from diagrams.generation.objects.instance import ObjectInstance, Part, make_grasp
+from systems.perception.parts import PartRole
 
 CATEGORY = "drill"
 # Yaw of O in the world at the "0 rad" presentation: chuck away from the robot.
@@ -102,11 +103,12 @@ def build(name: str, p: dict[str, float]) -> ObjectInstance:
     parts = [
         # Most of a cordless drill's mass sits in its battery and motor.
         Part("battery", battery, [battery], density=2.5),
-        Part("grip", grip, [grip]),
+        Part("grip", grip, [grip], role=PartRole.RIGHT_HANDLE),
         Part("housing", housing, [housing], density=1.5),
-        Part("chuck", chuck, [chuck], density=2.0),
-        Part("side_handle", side, [side]),
-        Part("knob", knob, [knob]),
+        Part("chuck", chuck, [chuck], density=2.0, role=PartRole.TOOL),
+        Part("side_handle", side, [side], role=PartRole.LEFT_HANDLE),
+        # The knob ends the side handle: the left hand's part.
+        Part("knob", knob, [knob], role=PartRole.LEFT_HANDLE),
     ]
     grip_middle = grip_bottom + 0.5 * p["grip_length"] * grip_axis
     side_middle = side_start + 0.5 * (rh + p["side_handle_length"]) * side_axis

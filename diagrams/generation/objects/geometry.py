@@ -122,3 +122,47 @@ def convex_pieces_of_tube(path: np.ndarray, radius: float, pieces: int) -> list[
         rings = [circle_ring(p, t, radius, 12) for p, t in zip(segment, np.gradient(segment, axis=0), strict=True)]
         hulls.append(convex_loft(rings))
     return hulls
+
+
+def filleted_path(corners, radius: float, samples: int = 10) -> np.ndarray:
+    """A polyline through `corners` (n x 3, m) with each inner corner replaced by a circular arc of `radius` (m),
+    smaller where a segment is too short for it."""
+    corners = np.asarray(corners, dtype=float)
+    points = [corners[0]]
+    for a, b, c in zip(corners[:-2], corners[1:-1], corners[2:], strict=True):
+        u, v = (a - b) / np.linalg.norm(a - b), (c - b) / np.linalg.norm(c - b)
+        half_angle = 0.5 * np.arccos(np.clip(np.dot(u, v), -1.0, 1.0))
+        # The arc's tangent points lie `reach` from the corner; at most half of either segment.
+        reach = min(radius / np.tan(half_angle), 0.5 * np.linalg.norm(a - b), 0.5 * np.linalg.norm(c - b))
+        r = reach * np.tan(half_angle)
+        centre = b + (u + v) / np.linalg.norm(u + v) * r / np.sin(half_angle)
+        start, end = b + reach * u, b + reach * v
+        e1 = (start - centre) / r
+        e2 = (end - centre) - np.dot(end - centre, e1) * e1
+        e2 /= np.linalg.norm(e2)
+        sweep = np.pi - 2.0 * half_angle
+        angles = np.linspace(0.0, sweep, samples)
+        points.extend(centre + r * (np.cos(angles)[:, None] * e1 + np.sin(angles)[:, None] * e2))
+    points.append(corners[-1])
+    path = np.array(points)
+    keep = np.r_[True, np.linalg.norm(np.diff(path, axis=0), axis=1) > 1e-6]
+    return path[keep]
+
+
+def resampled(path, spacing: float) -> np.ndarray:
+    """The polyline `path` (n x 3) resampled at even arc length, about `spacing` apart (m), ends kept."""
+    path = np.asarray(path, dtype=float)
+    arc_length = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(path, axis=0), axis=1))]
+    count = max(int(np.ceil(arc_length[-1] / spacing)), 1) + 1
+    s = np.linspace(0.0, arc_length[-1], count)
+    return np.column_stack([np.interp(s, arc_length, path[:, k]) for k in range(3)])
+
+
+def short_tube_pieces(path, radius: float, piece_length: float = 0.03) -> list[trimesh.Trimesh]:
+    """Convex pieces of a tube along `path`, each covering about `piece_length` of it (m): short enough that a
+    piece round a bend fills little of the bend's inside (a D-handle keeps its opening for the fingers)."""
+    path = np.asarray(path, dtype=float)
+    length = np.sum(np.linalg.norm(np.diff(path, axis=0), axis=1))
+    pieces = max(int(np.ceil(length / piece_length)), 1)
+    even = resampled(path, length / (4 * pieces))
+    return convex_pieces_of_tube(even, radius, pieces)

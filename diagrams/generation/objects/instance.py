@@ -17,6 +17,9 @@ from pydrake.common.schema import Transform
 from pydrake.common.yaml import yaml_dump_typed
 from pydrake.math import RigidTransform, RotationMatrix
 
+from diagrams.generation.objects import geometry
+from systems.perception.parts import PartRole
+
 # How far the pre-grasp pose backs off from the grasp along -z_G, in metres.
 PREGRASP_DISTANCE = 0.10
 
@@ -30,6 +33,30 @@ class Part:
     collision: list[trimesh.Trimesh]
     # Relative density: lets a drill's battery be heavier than its housing.
     density: float = 1.0
+    # What the part is for: which hand holds it, the tool, or the body.
+    role: PartRole = PartRole.BODY
+
+
+@dataclass
+class Handle:
+    """A hand's handle: its parts, and where on it and along which axis the hand holds it (in O)."""
+
+    parts: list[Part]
+    # The grasp point, m.
+    point: np.ndarray
+    # The handle's axis at the point (any length).
+    axis: np.ndarray
+
+
+# Spacing of a handle's centre line (m): even, so that a tube's rings and collision pieces follow its bends.
+HANDLE_PATH_SPACING = 0.004
+
+
+def tube_part(name: str, path: np.ndarray, radius: float, role: PartRole) -> Part:
+    """A handle: a tube of `radius` (m) along `path` (n x 3, m, in O), resampled evenly, with short convex
+    collision pieces."""
+    path = geometry.resampled(path, HANDLE_PATH_SPACING)
+    return Part(name, geometry.tube(path, radius), geometry.short_tube_pieces(path, radius), role=role)
 
 
 @dataclass
@@ -68,13 +95,44 @@ class ObjectInfo:
         }
 
 
+# A handle grasp's approach leans at least this far from the handle's axis (rad): closer to parallel, no hand comes
+# from that side, and handle_grasp says so.
+MIN_APPROACH_TO_AXIS = np.radians(15.0)
+
+
 def make_grasp(point, approach, handle_axis) -> HandGrasp:
-    """Builds a HandGrasp from the grasp point, approach direction and handle axis (all in O)."""
+    """Builds a HandGrasp from the grasp point, approach direction and handle axis (all in O): z_G the approach as
+    given, x_G the handle axis made perpendicular to it."""
     z = np.asarray(approach, dtype=float)
     z /= np.linalg.norm(z)
     x = np.asarray(handle_axis, dtype=float)
     x = x - z * np.dot(x, z)
     x /= np.linalg.norm(x)
+    return _hand_grasp(point, x, z)
+
+
+def handle_grasp(point, handle_axis, approach) -> HandGrasp:
+    """A grasp on a handle whatever its direction (all in O): x_G along the handle's axis at `point`, z_G the
+    category's approach direction for the hand made perpendicular to x_G (Gram-Schmidt), the fingers closing
+    across the handle along y_G.
+
+    Raises:
+        ValueError: the approach runs within MIN_APPROACH_TO_AXIS of the handle's axis (its perpendicular part
+            is then mostly noise: a generator's ranges keep its handles clear of that).
+    """
+    x = np.asarray(handle_axis, dtype=float)
+    x /= np.linalg.norm(x)
+    z = np.asarray(approach, dtype=float)
+    z /= np.linalg.norm(z)
+    z = z - x * np.dot(z, x)
+    if np.linalg.norm(z) < np.sin(MIN_APPROACH_TO_AXIS):
+        raise ValueError(f"the approach {approach} runs along the handle's axis {handle_axis}: no grasp from there")
+    z /= np.linalg.norm(z)
+    return _hand_grasp(point, x, z)
+
+
+def _hand_grasp(point, x: np.ndarray, z: np.ndarray) -> HandGrasp:
+    """The grasp at `point` with axes x_G, z_G (unit, perpendicular), and its pre-grasp backed off along -z_G."""
     y = np.cross(z, x)
     R_OG = RotationMatrix(np.column_stack([x, y, z]))
     X_OG = RigidTransform(R_OG, np.asarray(point, dtype=float))

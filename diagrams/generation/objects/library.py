@@ -1,7 +1,7 @@
 """Finds the model file (and, when known, the ground truth) of the object a scenario names.
 
 Generated instances live under sdf/objects/<category>/<instance>/ (model.sdf and
-info.yaml); `extra_<seed>` and `wide_<seed>` instances are generated into a cache on first use. A
+info.yaml); `extra_<seed>`, `wide_<seed>` and `shop_<seed>` instances are generated into a cache on first use. A
 user's own model is an SDF/URDF used as is, or a mesh (.obj/.ply/.stl) that is
 recentred (origin at the centre of its bottom face), scaled, decomposed into
 convex pieces with CoACD and written as an SDF into the cache.
@@ -62,7 +62,8 @@ def resolve_object(config) -> ObjectModel:
 
 
 def generated_instance_directory(category: str, name: str) -> Path:
-    """The folder of a generated instance; extra_<seed> and wide_<seed> ones are generated into the cache on first use.
+    """The folder of a generated instance; on-demand ones (extra_, wide_, shop_<seed>) are generated into the cache on
+    first use.
 
     Raises:
         ValueError: unknown category or impossible instance name.

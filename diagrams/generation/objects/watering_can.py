@@ -9,6 +9,7 @@ import numpy as np
 
 from diagrams.generation.objects import geometry
 from diagrams.generation.objects.instance import ObjectInstance, Part, make_grasp
+from systems.perception.parts import PartRole
 
 CATEGORY = "watering_can"
 # Yaw of O in the world at the paper's "0 rad" presentation: spout pointing away from
@@ -103,7 +104,7 @@ def radius_at(p: dict[str, float], z: float) -> float:
     return r
 
 
-def _body(p: dict[str, float]):
+def body_mesh(p: dict[str, float]):
     """The body: a convex loft of its outline (a superellipse, an ellipse without `squareness`) at its bottom and
     top, and for the wider family's bodies (a belly or a box outline) at 7 heights between."""
     h, ratio, exponent = p["height"], p["oval_ratio"], p.get("squareness", 2.0)
@@ -113,19 +114,28 @@ def _body(p: dict[str, float]):
     )
 
 
+def spout_axis(p: dict[str, float]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The spout's start (inside the body's front wall), its direction (unit, up and forward in the xz plane) and
+    its end, where the rose begins; in O, m."""
+    start = np.array([radius_at(p, p["spout_base"]) - 0.03, 0.0, p["spout_base"]])
+    direction = np.array([np.cos(p["spout_angle"]), 0.0, np.sin(p["spout_angle"])])
+    return start, direction, start + p["spout_length"] * direction
+
+
+def spout_and_rose(p: dict[str, float]):
+    """The spout (a frustum narrowing from the body's front wall to its end) and the rose on its end."""
+    start, direction, end = spout_axis(p)
+    tip_radius = 0.6 * p["spout_radius"]
+    spout = geometry.frustum(start, end, p["spout_radius"], tip_radius)
+    rose = geometry.frustum(end - 0.01 * direction, end + 0.025 * direction, tip_radius, 1.9 * tip_radius)
+    return spout, rose
+
+
 def build(name: str, p: dict[str, float]) -> ObjectInstance:
     """Builds the instance's parts and ground-truth grasps from its parameters."""
     h, tube = p["height"], p["tube_radius"]
-    body = _body(p)
-
-    spout_start = np.array([radius_at(p, p["spout_base"]) - 0.03, 0.0, p["spout_base"]])
-    direction = np.array([np.cos(p["spout_angle"]), 0.0, np.sin(p["spout_angle"])])
-    spout_end = spout_start + p["spout_length"] * direction
-    spout_tip_radius = 0.6 * p["spout_radius"]
-    spout = geometry.frustum(spout_start, spout_end, p["spout_radius"], spout_tip_radius)
-    rose = geometry.frustum(
-        spout_end - 0.01 * direction, spout_end + 0.025 * direction, spout_tip_radius, 1.9 * spout_tip_radius
-    )
+    body = body_mesh(p)
+    spout, rose = spout_and_rose(p)
 
     # Top handle: half ellipse in the xz plane standing on the lid.
     top_center = np.array([p["top_handle_offset"], 0.0, h - 0.01])
@@ -147,10 +157,10 @@ def build(name: str, p: dict[str, float]) -> ObjectInstance:
 
     parts = [
         Part("body", body, [body]),
-        Part("spout", spout, [spout]),
-        Part("rose", rose, [rose]),
-        Part("top_handle", top, geometry.convex_pieces_of_tube(top_path, tube, 6)),
-        Part("rear_handle", rear, geometry.convex_pieces_of_tube(rear_path, tube, 6)),
+        Part("spout", spout, [spout], role=PartRole.TOOL),
+        Part("rose", rose, [rose], role=PartRole.TOOL),
+        Part("top_handle", top, geometry.convex_pieces_of_tube(top_path, tube, 6), role=PartRole.LEFT_HANDLE),
+        Part("rear_handle", rear, geometry.convex_pieces_of_tube(rear_path, tube, 6), role=PartRole.RIGHT_HANDLE),
     ]
     top_apex = top_center + [0.0, 0.0, p["top_handle_height"]]
     rear_apex = rear_center - [rr, 0.0, 0.0]
