@@ -1,51 +1,23 @@
-"""The paper's simulated experiment (§V-B, Tables II and III): autonomous picks of unseen objects.
-
-Each object at yaw +0.25, 0 and -0.25 rad, K seeded trials each, with a yaw offset
-uniform in +-0.2 rad on the pose handed to the shape registration. Prints the success
-table (Table II form) and the per-component runtime table (Table III form), writes JSON
-and a PNG figure.
-
-python scripts/evaluate.py --trials 3                          # the 3 test cans, 27 picks
-python scripts/evaluate.py --trials 3 --category drill --json drills.json
-python scripts/evaluate.py --trials 2 --category watering_can --object-files my_cans/*.sdf
-python scripts/evaluate.py --trials 3 --jobs 2                 # two picks at a time (timings then share the CPU)
-python scripts/evaluate.py --trials 3 --ray --jobs 2           # as Ray tasks on a local Ray with 2 CPUs
-python scripts/evaluate.py --trials 20 --ray auto --json big.json   # on the Ray cluster this machine is part of
-python scripts/evaluate.py --trials 20 --ray auto --json big.json --resume  # go on where it was stopped
-python scripts/evaluate.py --summarize big.jsonl --json big.json   # tables and figure from a records file
-python scripts/evaluate.py --placement random --trials 40 --jobs 2 --json map.json   # 40 random placements
-    (unseen extra_1000.., x +-10 cm, y +-20 cm, yaw +-0.6 rad), each also picked with ground truth; a map
-
-Every finished pick is appended to a JSON-lines records file (--records, by default --json's name with
-.jsonl) as soon as it ends, so a stopped campaign keeps what it finished and --resume runs only the rest.
+"""The report of a campaign of picks (scripts/evaluate.py): the success table (Table II form) and the per-component
+runtime table (Table III form) of the paper's placements, the tables of random placements and cluttered tables, the
+JSON with every record, and a PNG figure (or, for random placements, a map of the table region).
 """
 
-import argparse
 import dataclasses
-import logging
 import math
 import platform
-import sys
+from dataclasses import dataclass, field
 from pathlib import Path
 
-from campaign import read_records, run_campaign
-from json_report import write_json
-from scenario_options import add_sensor_option, with_sensor
-
+from diagrams.cli import write_json
 from diagrams.evaluation import (
     COMPONENTS,
     OTHERS_MOVED_LIMIT_M,
     PAPER_YAW_NOISE,
     PAPER_YAWS,
     TIMED_STAGES,
-    clutter_trials,
-    file_objects,
-    generated_objects,
-    make_trials,
-    random_placements,
     summarize,
 )
-from diagrams.scenario import DEFAULT_SCENARIO, load_scenario, overlay_scenario, place_over_box_scenario
 
 # The paper's figures (Table II: the three test cans; Table III: the real robot's pipeline, s).
 PAPER_CAN_SUCCESS = {"test_0": 0.75, "test_1": 1.00, "test_2": 0.60}
@@ -64,93 +36,35 @@ STAGE_LABELS = {
 }
 
 
-def parse_args(argv=None):
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--trials", type=int, default=3, help="picks per object and yaw (K)")
-    parser.add_argument(
-        "--category", default="watering_can", help="watering_can, drill, or a taught one (scripts/add_category.py)"
+@dataclass
+class Campaign:
+    """What a campaign was, as its report states it (evaluate.py's options)."""
+
+    category: str = "watering_can"
+    task: str = "lift"  # or "place"
+    obstacle: bool = False  # the category's place_over_box layout
+    trials: int = 3  # per object and yaw
+    yaws: list[float] = field(default_factory=lambda: list(PAPER_YAWS))  # rad
+    yaw_noise: float = PAPER_YAW_NOISE  # the registration's yaw noise, +-rad
+    sensor: str | None = None  # the RGB-D sensor model's preset
+    jobs: int = 1  # picks at a time
+    ray: str | None = None  # the Ray cluster's address ("": a local Ray); None: worker processes
+
+
+def recorded_campaign(records: list[dict], given: Campaign) -> Campaign:
+    """The campaign a records file says it was: what its records share (older records may lack some: `given`'s
+    stand), its yaws and its trials per object and yaw."""
+    first = records[0]
+    return dataclasses.replace(
+        given,
+        category=first.get("category", given.category),
+        task=first.get("task", given.task),
+        obstacle=first.get("obstacle", given.obstacle),
+        yaw_noise=first.get("yaw_noise_rad", given.yaw_noise),
+        sensor=first.get("sensor", "perfect"),  # (records from before the sensor model: the renderer's images)
+        yaws=list(dict.fromkeys(r["yaw"] for r in records)),
+        trials=1 + max(r["trial"] for r in records),
     )
-    parser.add_argument(
-        "--object-files", dest="object_files", type=Path, nargs="+", help="your own models instead of the test set"
-    )
-    parser.add_argument("--instances", nargs="+", help="generated instances instead of the test set (e.g. test_1)")
-    parser.add_argument("--yaws", type=float, nargs="+", help=f"object yaws, rad (default {list(PAPER_YAWS)})")
-    parser.add_argument(
-        "--placement",
-        choices=("paper", "random"),
-        default="paper",
-        help="paper: each object at each yaw (--trials per yaw); random: --trials random placements over the table "
-        "region with unseen instances, each also picked with ground truth (--yaws does not apply)",
-    )
-    parser.add_argument(
-        "--scene",
-        choices=("single", "clutter"),
-        default="single",
-        help="single: one object on the table; clutter: --scenes seeded cluttered tables, an unseen --category "
-        "object among 1-4 others, named to the pick (diagrams/generation/clutter_scenes.py)",
-    )
-    parser.add_argument("--scenes", type=int, default=30, help="cluttered tables (--scene clutter)")
-    parser.add_argument(
-        "--ground-truth",
-        dest="ground_truth",
-        action="store_true",
-        help="each pick also run with ground truth in place of perception (the true grasps: what the robot can do "
-        "there at all), tabled beside the autonomous one (--placement random always does)",
-    )
-    parser.add_argument(
-        "--scene-split",
-        dest="scene_split",
-        choices=("report", "tune"),
-        default="report",
-        help="which cluttered tables: report (unseen instances; never tuned on) or tune (training instances)",
-    )
-    parser.add_argument(
-        "--yaw-noise", dest="yaw_noise", type=float, default=PAPER_YAW_NOISE, help="registration yaw noise, +-rad"
-    )
-    parser.add_argument(
-        "--task", choices=("lift", "place"), default="lift", help="lift and hold (the paper), or carry and place"
-    )
-    parser.add_argument(
-        "--obstacle",
-        action="store_true",
-        help="with --task place: the category's place_over_box layout (diagrams/place_over_box_<category>.yaml): "
-        "object, target and a box on the table between them",
-    )
-    parser.add_argument(
-        "--jobs", type=int, default=1, help="picks run at a time (separate processes; CPUs of a local Ray)"
-    )
-    parser.add_argument(
-        "--ray",
-        nargs="?",
-        const="",
-        metavar="ADDRESS",
-        help="run each pick as a Ray task: on the cluster at ADDRESS ('auto': the one this machine joined), "
-        "or without an address on a local Ray with --jobs CPUs (pip install -e '.[cluster]')",
-    )
-    parser.add_argument("--records", type=Path, help="JSON-lines file of every finished pick (default: --json, .jsonl)")
-    parser.add_argument("--resume", action="store_true", help="keep the picks already in --records, run the rest")
-    parser.add_argument("--summarize", type=Path, metavar="RECORDS", help="no picks: tables from a records file")
-    parser.add_argument("--seed", type=int, help="seed of the first trial (trial n gets seed + n)")
-    parser.add_argument("--scenario", type=Path, default=DEFAULT_SCENARIO, help="scenario YAML file")
-    parser.add_argument("--scenario_text", default="", help="YAML overlaid on the scenario file")
-    add_sensor_option(parser)
-    parser.add_argument("--json", type=Path, help="write the summary and every trial as JSON")
-    parser.add_argument("--figure", type=Path, help="PNG figure (default: --json's name, .png)")
-    args = parser.parse_args(argv)
-    if args.jobs < 1:
-        parser.error("--jobs must be >= 1")
-    if args.placement == "random" and (args.yaws or args.instances or args.object_files):
-        parser.error("--placement random draws its own yaws and unseen instances: no --yaws, --instances or files")
-    if args.scene == "clutter" and (args.yaws or args.instances or args.object_files or args.placement != "paper"):
-        parser.error("--scene clutter draws its own objects and places: no --yaws, --instances, files or --placement")
-    if args.ground_truth and args.scene == "clutter":
-        parser.error("--ground-truth is for one object on the table (the paper's or random placements)")
-    args.yaws = args.yaws or list(PAPER_YAWS)
-    if args.records is None and args.json is not None:
-        args.records = args.json.with_suffix(".jsonl")
-    if args.resume and args.records is None:
-        parser.error("--resume needs --records or --json (the records file to go on from)")
-    return args
 
 
 def describe(record: dict) -> str:
@@ -281,88 +195,6 @@ def draw_figure(path: Path, summary: dict, records: list[dict], category: str):
     print(f"wrote {path}")
 
 
-def main(argv=None) -> int:
-    logging.basicConfig(level=logging.WARNING, format="%(message)s")
-    args = parse_args(argv)
-    if args.summarize:
-        return summarize_records(args)
-    try:
-        base = load_scenario(args.scenario)
-        if args.obstacle and args.task != "place":
-            raise ValueError("--obstacle needs --task place (the box lies between the object and the place target)")
-        if args.obstacle:  # the category's layout: where the object rests, the target and the box between
-            layout = place_over_box_scenario(args.category)
-            base = overlay_scenario(base, layout.read_text(), str(layout))
-        base = overlay_scenario(base, args.scenario_text, "--scenario_text")
-        base = dataclasses.replace(with_sensor(base, args.sensor), task=args.task)
-        args.sensor = base.camera_noise.preset
-        if args.seed is not None:
-            base = dataclasses.replace(base, random_seed=args.seed)
-        if args.object_files:
-            objects = file_objects(args.object_files)
-        elif args.instances:
-            objects = {n: {"instance": n, "file": ""} for n in args.instances}
-        else:
-            objects = generated_objects(args.category)
-        if args.scene == "clutter":
-            trials = clutter_trials(base, args.category, args.scenes, args.scene_split, args.yaw_noise)
-            objects = {trial.name: {} for trial in trials}
-        elif args.placement == "random":
-            trials = random_placements(base, args.category, args.trials, args.yaw_noise)
-            objects = {trial.name: {} for trial in trials}
-        else:
-            trials = make_trials(
-                base,
-                args.category,
-                objects,
-                args.trials,
-                args.yaws,
-                args.yaw_noise,
-                with_ground_truth=args.ground_truth,
-            )
-    except (ValueError, FileNotFoundError) as error:
-        print(f"error: {error}", file=sys.stderr)
-        return 2
-    what = args.task + (", a box in the way" if args.obstacle else "")
-    where = f"{args.jobs} at a time"
-    if args.ray is not None:
-        where = f"as Ray tasks ({'at ' + args.ray if args.ray else f'a local Ray with {args.jobs} CPUs'})"
-    if args.scene == "clutter":
-        shape = f"{len(trials)} cluttered tables ({args.scene_split} range), the {args.category} named to the pick"
-    elif args.placement == "random":
-        shape = f"{len(trials)} random placements of unseen {args.category} instances, each also with ground truth"
-    else:
-        shape = f"{len(objects)} {args.category} object(s) x {len(args.yaws)} yaw(s) x {args.trials} trial(s)"
-    print(
-        f"{len(trials)} autonomous picks ({what}): {shape}, registration yaw noise +-{args.yaw_noise:.2f} rad, "
-        f"sensor {args.sensor}, {where}"
-    )
-    try:
-        records = run_campaign(trials, args.jobs, args.ray, args.records, args.resume, describe)
-    except (RuntimeError, FileExistsError, ValueError) as error:
-        print(f"error: {error}", file=sys.stderr)
-        return 2
-    report(args, records, base.random_seed)
-    return 0
-
-
-def summarize_records(args) -> int:
-    """--summarize: the tables, JSON and figure of a records file (a finished or a stopped campaign)."""
-    records = read_records(args.summarize)
-    if not records:
-        print(f"error: no records in {args.summarize}", file=sys.stderr)
-        return 2
-    first = records[0]  # a campaign's records share these (older records may lack some: the flags stand)
-    args.category, args.task = first.get("category", args.category), first.get("task", args.task)
-    args.obstacle, args.yaw_noise = first.get("obstacle", args.obstacle), first.get("yaw_noise_rad", args.yaw_noise)
-    args.sensor = first.get("sensor", "perfect")  # (records from before the sensor model: the renderer's images)
-    args.yaws = list(dict.fromkeys(r["yaw"] for r in records))
-    args.trials = 1 + max(r["trial"] for r in records)
-    print(f"{len(records)} picks from {args.summarize}")
-    report(args, records, min(r["seed"] for r in records))
-    return 0
-
-
 def _short_reason(record: dict) -> str:
     """A failure's stage and the message's gist, for tables and the map."""
     message = record["message"].split(": ", 1)[-1]
@@ -440,17 +272,24 @@ def draw_map(path: Path, records: list[dict], category: str):
     print(f"wrote {path}")
 
 
-def report(args, records: list[dict], first_seed: int):
-    """Prints the tables; writes the JSON (with every record) and the figure."""
+def report(
+    campaign: Campaign,
+    records: list[dict],
+    first_seed: int,
+    json_path: Path | None = None,
+    figure_path: Path | None = None,
+):
+    """Prints the tables; writes the JSON (with every record) and the figure (default: the JSON's name,
+    .png; without a JSON, evaluation_<category>.png)."""
     summary = summarize(records)
     # (Records from before a record said its placement: random placements were those with a ground-truth pick.)
     placements = all(r.get("placement", "random" if "oracle" in r else "paper") == "random" for r in records)
     if placements:
-        print_placements(summary, records, args.category)
+        print_placements(summary, records, campaign.category)
     elif any(r.get("clutter") for r in records):
-        print_clutter(summary, records, args.category)
+        print_clutter(summary, records, campaign.category)
     else:
-        print_tables(summary, args.category, args.trials, args.yaw_noise)
+        print_tables(summary, campaign.category, campaign.trials, campaign.yaw_noise)
     if "others_moved_m_max" in summary:
         print(
             f"\ncluttered tables: other objects moved at most {100 * summary['others_moved_m_max']:.1f} cm "
@@ -460,39 +299,37 @@ def report(args, records: list[dict], first_seed: int):
         )
     t_dev, o_dev = summary["closure_translation_dev_m_max"], summary["closure_orientation_dev_rad_max"]
     print(f"\nclosure along the played held moves (picks that lifted): largest {1000 * t_dev:.1f} mm, {o_dev:.4f} rad")
-    if args.task == "place":
+    if campaign.task == "place":
         error = summary["place_error_m_median"]
         print(f"place error, median over the picks that set the object down: {100 * error:.1f} cm")
         turn, most = summary["release_turn_rad_median"], summary["release_turn_rad_max"]
         turned = f"median {math.degrees(turn):.1f} deg, largest {math.degrees(most):.1f} deg"
         print(f"turned by letting go and backing off: {turned}")
     report = {
-        "category": args.category,
-        "task": args.task,
-        "obstacle": args.obstacle,
+        "category": campaign.category,
+        "task": campaign.task,
+        "obstacle": campaign.obstacle,
         "placement": "random" if placements else "paper",
         "scene": "clutter" if any(r.get("clutter") for r in records) else "single",
-        "trials_per_yaw": args.trials,
-        "yaws": args.yaws,
-        "yaw_noise_rad": args.yaw_noise,
-        "sensor": args.sensor,
+        "trials_per_yaw": campaign.trials,
+        "yaws": campaign.yaws,
+        "yaw_noise_rad": campaign.yaw_noise,
+        "sensor": campaign.sensor,
         "first_seed": first_seed,
-        "jobs": args.jobs,
-        "ray": args.ray,
+        "jobs": campaign.jobs,
+        "ray": campaign.ray,
         "machine": f"{platform.processor() or platform.machine()}, {platform.system()}",
         **summary,
         "records": records,
     }
-    if args.json:
-        write_json(args.json, report)
-    figure = args.figure or (args.json.with_suffix(".png") if args.json else Path(f"evaluation_{args.category}.png"))
+    if json_path:
+        write_json(json_path, report)
+    figure = figure_path or (
+        json_path.with_suffix(".png") if json_path else Path(f"evaluation_{campaign.category}.png")
+    )
     if placements:
-        draw_map(figure, records, args.category)
+        draw_map(figure, records, campaign.category)
     elif report["scene"] == "clutter":  # one table each, no yaws: the tables and the JSON say it all
         print("(no figure for cluttered tables: draw one with scripts/draw_clutter_scene.py)")
     else:
-        draw_figure(figure, summary, records, args.category)
-
-
-if __name__ == "__main__":
-    sys.exit(main())
+        draw_figure(figure, summary, records, campaign.category)

@@ -12,6 +12,7 @@ import trimesh
 from pydrake.math import RigidTransform
 from scipy.spatial import cKDTree
 
+from diagrams.benchmarks.planner_peers import OmplConfig, ompl_plan
 from diagrams.generation.objects.library import resolve_object
 from diagrams.generation.planning_problems import (
     CARRIED_SURFACE_POINTS,
@@ -29,9 +30,6 @@ from systems.planning.closure import ClosureConstraint, deviations
 from systems.planning.obstacles import covering_centres
 from systems.planning.pick_motions import CARRIED_MOST_SPHERES, CARRIED_RADIUS
 from systems.planning.stomp import DETOUR_BATCH, HeldPart, Stomp, StompConfig
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
-from planner_peers import OmplConfig, ompl_plan  # noqa: E402
 
 
 @pytest.fixture(scope="module")

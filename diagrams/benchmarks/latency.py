@@ -1,4 +1,5 @@
-"""Image to first trajectory: the pick's latency end to end and each stage's share, one pick at a time.
+"""Image to first trajectory: the pick's latency end to end and each stage's share, one pick at a time
+(scripts/benchmark_latency.py).
 
 Each pick is evaluate.py's (diagrams/evaluation.py run_trial in a worker process: torch, BLAS and OpenMP on one
 thread, the stages' independent pieces on two threads: systems/parallel.py), run one after another so that no two
@@ -8,24 +9,16 @@ plan before it included); a pick that failed counts until the plan or the percep
 a sum of the stage timers: what the stages' medians leave of it is shown as "between the stages". Nothing is kept
 from one pick to the next but what is built before the image (the diagram, its IK seed table), which is not
 counted.
-
-python scripts/benchmark_latency.py --json latency.json          # 30 picks of both categories, about 8 min
-python scripts/benchmark_latency.py --unseen 0 --yaws 0          # the test instances at yaw 0 alone
 """
 
-import argparse
 import dataclasses
-import sys
 from pathlib import Path
 
 import numpy as np
-from campaign import run_campaign
-from json_report import write_json
-from scenario_options import add_sensor_option, with_sensor
 
-from diagrams.evaluation import PAPER_YAW_NOISE, PAPER_YAWS, generated_objects, make_trials
+from diagrams.cli import with_sensor
+from diagrams.evaluation import PAPER_YAW_NOISE, generated_objects, make_trials
 from diagrams.scenario import DEFAULT_SCENARIO, load_scenario
-from systems.parallel import THREADS
 
 CATEGORIES = ("watering_can", "drill")
 STAGES = ("segmentation", "pose", "registration", "planning")
@@ -35,21 +28,6 @@ FIRST_UNSEEN = 401
 TARGETS_S = {"image_to_trajectory": 0.4, "image_to_trajectory_p95": 0.8, "segmentation": 0.04, "pose": 0.015,
              "registration": 0.12, "planning": 0.25}  # fmt: skip
 PAPER_IMAGE_TO_TRAJECTORY_S = 6.27  # the paper's Table III, the real robot
-
-
-def parse_args(argv=None):
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--yaws", type=float, nargs="+", default=list(PAPER_YAWS), help="test instances' yaws, rad")
-    parser.add_argument("--unseen", type=int, default=6, help=f"unseen instances per category (extra_{FIRST_UNSEEN}..)")
-    parser.add_argument("--json", type=Path, help="write the summary and every pick's record as JSON")
-    parser.add_argument("--figure", type=Path, help="PNG figure (default: --json's name, .png)")
-    add_sensor_option(parser)
-    args = parser.parse_args(argv)
-    if args.unseen < 0:
-        parser.error("--unseen must be >= 0")
-    if args.figure is None and args.json is not None:
-        args.figure = args.json.with_suffix(".png")
-    return args
 
 
 def latency_trials(yaws: list[float], unseen: int, sensor: str | None) -> list:
@@ -139,33 +117,9 @@ def draw_figure(path: Path, records: list[dict]):
     print(f"wrote {path}")
 
 
-def main(argv=None) -> int:
-    args = parse_args(argv)
-    try:
-        trials = latency_trials(args.yaws, args.unseen, args.sensor)
-    except (ValueError, FileNotFoundError) as error:
-        print(f"error: {error}", file=sys.stderr)
-        return 2
-    sensor = trials[0].scenario.camera_noise.preset
-    print(f"{len(trials)} picks one at a time (sensor {sensor}), each in a worker process with torch, BLAS and "
-          f"OpenMP on one thread and the stages' independent pieces on {THREADS} threads, as evaluate.py runs "
-          "them")  # fmt: skip
-
-    def describe(record: dict) -> str:
-        outcome = "lifted" if record["success"] else f"FAILED at {record['failed_stage']}"
-        latency = record["stages"].get("image_to_trajectory", float("nan"))
-        name = f"{record['category']} {record['name']} yaw {record['yaw']:+.2f}"
-        return f"{name}: {outcome}, image to trajectory {latency:.3f} s"
-
-    records = run_campaign(trials, jobs=1, describe=describe)
-    summary = summarize(records)
-    print_table(summary, sensor)
-    if args.json:
-        write_json(args.json, {**summary, "sensor": sensor, "targets_s": TARGETS_S, "records": records})
-    if args.figure:
-        draw_figure(args.figure, records)
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())
+def describe(record: dict) -> str:
+    """A pick's line above the progress bar."""
+    outcome = "lifted" if record["success"] else f"FAILED at {record['failed_stage']}"
+    latency = record["stages"].get("image_to_trajectory", float("nan"))
+    name = f"{record['category']} {record['name']} yaw {record['yaw']:+.2f}"
+    return f"{name}: {outcome}, image to trajectory {latency:.3f} s"

@@ -1,19 +1,11 @@
-"""Benchmarks segmentation and pose estimation on held-out scenes with the unseen test instances.
+"""The perception benchmark on held-out scenes with the unseen test instances (scripts/benchmark_perception.py).
 
 Each scene is a new random background with one test can or drill at a random pose,
 seen from the chest camera's nominal pose (the whole object in view), its colour and depth as the
-RGB-D sensor model reports them (--sensor, by default kinect_v2; --no-noise: the renderer's perfect
-images). The Segmenter and PoseEstimator systems run as they do in the pick diagram (FixValue / Eval).
-
-With --scene clutter, seeded cluttered tables instead (scripts/perception_in_clutter.py): the target among others,
-and empty tables with distractors only.
-
-python scripts/benchmark_perception.py --scenes 60 --json perception.json
-python scripts/benchmark_perception.py --scenes 60 --no-noise
-python scripts/benchmark_perception.py --scene clutter --scenes 30 --empty-tables 20 --json clutter_perception.json
+RGB-D sensor model reports them (kinect_v2 by default; perfect: the renderer's images). The Segmenter and
+PoseEstimator systems run as they do in the pick diagram (FixValue / Eval).
 """
 
-import argparse
 import dataclasses
 import logging
 import platform
@@ -23,16 +15,14 @@ from pathlib import Path
 import cv2
 import numpy as np
 import torch
-from json_report import write_json
 from pydrake.common.value import AbstractValue
-from pydrake.systems.sensors import ImageDepth32F, ImageRgba8U
-from scenario_options import add_sensor_option, with_sensor
 
 from diagrams.generation.synthetic_scenes import CLASSES, SyntheticScene
 from diagrams.perception import MakePoseEstimator
 from diagrams.scenario import load_scenario
+from systems.perception.images import to_depth_image, to_rgba_image
 from systems.perception.rgbd_noise import noisy_color, noisy_depth, sensor_model
-from systems.perception.segmenter import DEFAULT_WEIGHTS, TEST_TIME_FLIP, Segmenter
+from systems.perception.segmenter import Segmenter
 from systems.perception.segmenter_training import intersection_over_union
 
 OBJECT_REGION = ((0.6, 0.85), (-0.2, 0.2))  # m, in W: where the robot picks from
@@ -79,67 +69,24 @@ def draw_result(frame, segmentation, estimate, intrinsics, scale: float = 0.5) -
     return cv2.resize(image, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA)
 
 
-def to_rgba_image(rgb: np.ndarray) -> ImageRgba8U:
-    image = ImageRgba8U(rgb.shape[1], rgb.shape[0])
-    image.mutable_data[:, :, :3] = rgb
-    image.mutable_data[:, :, 3] = 255
-    return image
-
-
-def to_depth_image(depth: np.ndarray) -> ImageDepth32F:
-    image = ImageDepth32F(depth.shape[1], depth.shape[0])
-    image.mutable_data[:, :, 0] = depth
-    return image
-
-
-def main():
-    logging.basicConfig(level=logging.INFO, format="%(message)s")
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--scenes", type=int, default=60)
-    parser.add_argument("--seed", type=int, default=2024, help="held-out scenes' seed (training used others)")
-    parser.add_argument("--weights", type=Path, default=DEFAULT_WEIGHTS)
-    parser.add_argument("--threads", type=int, default=2, help="torch CPU threads")
-    add_sensor_option(parser, default="kinect_v2")
-    parser.add_argument("--json", type=Path, help="write the results here")
-    parser.add_argument("--figure", type=Path, help="write a mosaic of the first 6 scenes here (.png)")
-    parser.add_argument(
-        "--scene",
-        choices=("single", "clutter"),
-        default="single",
-        help="single: synthetic scenes with one object; clutter: --scenes cluttered tables per category",
-    )
-    parser.add_argument("--empty-tables", dest="empty_tables", type=int, default=20, help="with --scene clutter")
-    parser.add_argument(
-        "--flip",
-        choices=("on", "off"),
-        help=f"the segmenter's test-time flip (default: the pick's, {'on' if TEST_TIME_FLIP else 'off'})",
-    )
-    args = parser.parse_args()
-    torch.set_num_threads(args.threads)
-    if args.scene == "clutter":
-        import perception_in_clutter
-
-        base = with_sensor(load_scenario(), args.sensor)
-        results = perception_in_clutter.run(base, args.weights, args.scenes, args.empty_tables)
-        results |= {"sensor": args.sensor, "torch_threads": torch.get_num_threads()}
-        perception_in_clutter.print_table(results)
-        if args.json:
-            write_json(args.json, results)
-        return
+def run(scenes: int, seed: int, weights: Path, sensor_name: str | None, flip: bool, figure_tiles: int = 0):
+    """The benchmark's results over `scenes` held-out scenes of the stream `seed` (sensor_name: an RGB-D sensor
+    model preset, None or perfect for the renderer's images; flip: the segmenter's test-time flip), and up to
+    `figure_tiles` drawn results of the first scenes."""
     scenario = load_scenario()
-    rng = np.random.default_rng(args.seed)
+    rng = np.random.default_rng(seed)
 
-    sensor = sensor_model(args.sensor)
+    sensor = sensor_model(sensor_name)
     intrinsics = scenario.camera.MakeCameras()[1].core().intrinsics()
-    segmenter = Segmenter(args.weights, flip=TEST_TIME_FLIP if args.flip is None else args.flip == "on")
+    segmenter = Segmenter(weights, flip=flip)
     pose_estimator = MakePoseEstimator(scenario)
     predicted, predicted_dominant, truth, rows, tiles = [], [], [], [], []
-    for i in range(args.scenes):
+    for i in range(scenes):
         scene = SyntheticScene(scenario, rng, split="test", cameras=1, camera_jitter=False)
         frame = render_held_out_frame(scene)
         category, instance, X_WO_true = frame.objects[0]
         if sensor is not None:  # (a stream of its own: the scenes are those of a run without it)
-            noise = np.random.default_rng([args.seed, i])
+            noise = np.random.default_rng([seed, i])
             depth = noisy_depth(frame.depth, frame.rgb, intrinsics, sensor, noise)
             frame = dataclasses.replace(frame, rgb=noisy_color(frame.rgb, sensor, noise), depth=depth)
 
@@ -164,7 +111,7 @@ def main():
             dominant[segmentation.mask] = CLASSES.index(segmentation.category)
         predicted_dominant.append(dominant)
         truth.append(frame.labels)
-        if args.figure and len(tiles) < 6:
+        if len(tiles) < figure_tiles:
             tiles.append(draw_result(frame, segmentation, estimate, pose_estimator.intrinsics))
         row = {
             "category": category,
@@ -195,9 +142,9 @@ def main():
     iou_dominant = intersection_over_union(np.stack(predicted_dominant), np.stack(truth), len(CLASSES))
     localised = [r for r in rows if "translation_error_m" in r]
     results = {
-        "scenes": args.scenes,
-        "seed": args.seed,
-        "sensor": args.sensor,
+        "scenes": scenes,
+        "seed": seed,
+        "sensor": sensor_name,
         "iou": dict(zip(CLASSES, iou.tolist(), strict=True)),
         "iou_mean": float(np.nanmean(iou[1:])),  # network labels, over the object classes
         "iou_dominant": dict(zip(CLASSES, iou_dominant.tolist(), strict=True)),
@@ -213,6 +160,11 @@ def main():
         "machine": platform.processor() or platform.machine(),
         "frames": rows,
     }
+    return results, tiles
+
+
+def print_table(results: dict) -> None:
+    """The summary beside its targets."""
     print()
     print(f"{'metric':32s} {'value':>10s}  target")
     for key, value, target in (
@@ -228,13 +180,10 @@ def main():
         ("yaw_error_deg_p90", np.degrees(results["yaw_error_rad_p90"]), ""),
     ):
         print(f"{key:32s} {value:10.4f}  {target}")
-    if args.json:
-        write_json(args.json, results)
-    if args.figure and tiles:
-        rows_of_tiles = [np.hstack(tiles[i : i + 3]) for i in range(0, len(tiles) - len(tiles) % 3 or 1, 3)]
-        cv2.imwrite(str(args.figure), cv2.cvtColor(np.vstack(rows_of_tiles), cv2.COLOR_RGB2BGR))
-        print(f"wrote {args.figure}")
 
 
-if __name__ == "__main__":
-    main()
+def write_mosaic(path: Path, tiles: list[np.ndarray]) -> None:
+    """The drawn results in rows of three (.png)."""
+    rows_of_tiles = [np.hstack(tiles[i : i + 3]) for i in range(0, len(tiles) - len(tiles) % 3 or 1, 3)]
+    cv2.imwrite(str(path), cv2.cvtColor(np.vstack(rows_of_tiles), cv2.COLOR_RGB2BGR))
+    print(f"wrote {path}")

@@ -1,4 +1,4 @@
-"""The perception benchmark on cluttered tables (benchmark_perception.py --scene clutter).
+"""The perception benchmark on cluttered tables (scripts/benchmark_perception.py --scene clutter).
 
 Each table is a seeded cluttered table (diagrams/generation/clutter_scenes.py, the report range: unseen instances),
 seen by the station's chest camera through the sensor model once the objects have settled. The Segmenter (told the
@@ -22,14 +22,13 @@ from diagrams.perception import MakePoseEstimator, MakeSegmenter
 from diagrams.scenario import CLUTTER_SHAPES, Scenario, clutter_name
 from diagrams.station import settled_frame
 from systems.messages import GraspPoses
+from systems.perception.images import to_depth_image, to_rgba_image
 from systems.perception.shape_registrar import ShapeRegistrar
 
 CATEGORIES = ("watering_can", "drill")
 
 
 def _to_images(frame):
-    from benchmark_perception import to_depth_image, to_rgba_image
-
     return to_rgba_image(frame.rgb), to_depth_image(frame.depth)
 
 

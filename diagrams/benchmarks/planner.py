@@ -1,4 +1,5 @@
-"""Benchmarks STOMP on seeded families of planning problems, beside OMPL and Drake's KinematicTrajectoryOptimization.
+"""The planner benchmark (scripts/benchmark_planner.py): STOMP on seeded families of planning problems, beside OMPL
+and Drake's KinematicTrajectoryOptimization.
 
 Families (diagrams/generation/planning_problems.py; problem k of a family and split is made from its seed alone):
   lift, carry, turn, set_down: held moves of an object both hands hold (closure and hand orientation kept, the
@@ -16,33 +17,22 @@ and boxes, the joint limits, and in held moves the closure and hand orientation,
   kto: Drake's KinematicTrajectoryOptimization.
 A planner that fails counts at the time limit in the time statistics. The slow planners (ompl, kto, and the
 ablations) run on the first --peer-problems problems; ratios are taken on the problems both planners ran.
-
-python scripts/benchmark_planner.py --family carry --problems 200 --split report --json carry.json
 """
 
-import argparse
 import dataclasses
-import logging
-import time
 from pathlib import Path
 
 import numpy as np
-from json_report import write_json
-from planner_peers import KtoConfig, OmplConfig, PeerResult, kto_plan, ompl_plan
 from tqdm import tqdm
 
+from diagrams.benchmarks.planner_peers import KtoConfig, OmplConfig, PeerResult, kto_plan, ompl_plan
 from diagrams.generation.planning_problems import (
-    DRAWN_WITH,
-    FAMILIES,
     HELD_FAMILIES,
-    SPLITS,
     PlanningProblem,
     check_path,
     make_problem,
     projected_straight_line,
 )
-from diagrams.planning_scene import make_pick_motions
-from diagrams.scenario import load_scenario
 from systems.planning.closure import ClosureConstraint
 from systems.planning.pick_motions import PickMotions
 from systems.planning.stomp import Stomp, StompConfig
@@ -157,6 +147,8 @@ def generate(motions: PickMotions, family: str, split: str, count: int) -> tuple
 
 
 def run_family(args, motions: PickMotions, family: str) -> dict:
+    """The family's problems of args.split run by args.planners (scripts/benchmark_planner.py's options: split,
+    problems, planners, peer_problems and the ompl_* ones): the figures of each planner and every record."""
     problems, dropped = generate(motions, family, args.split, args.problems)
     planners = [p for p in (PLANNERS if family in HELD_FAMILIES else REACH_PLANNERS) if p in args.planners]
     ompl_config = OmplConfig(
@@ -279,39 +271,3 @@ def draw(family: str, result: dict, path: Path) -> None:
     figure.tight_layout()
     figure.savefig(path, dpi=110)
     plt.close(figure)
-
-
-def main():
-    logging.basicConfig(level=logging.WARNING, format="%(message)s")
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--family", nargs="+", choices=FAMILIES, default=list(FAMILIES))
-    parser.add_argument("--problems", type=int, default=200, help="the first N kept problems of the split")
-    parser.add_argument("--split", choices=SPLITS, default="report")
-    parser.add_argument("--planners", nargs="+", choices=PLANNERS, default=list(PLANNERS))
-    parser.add_argument("--peer-problems", type=int, default=40, help="the slow planners run on the first N")
-    defaults = OmplConfig()
-    parser.add_argument("--ompl-space", choices=("projected", "atlas"), default=defaults.space)
-    parser.add_argument("--ompl-range", type=float, default=defaults.range, help="RRTConnect's range (0: default)")
-    parser.add_argument("--ompl-delta", type=float, default=defaults.delta, help="step along the manifold")
-    parser.add_argument("--ompl-tolerance", type=float, default=defaults.tolerance)
-    parser.add_argument("--ompl-bounds-margin", type=float, default=defaults.bounds_margin)
-    parser.add_argument("--figure-dir", type=Path, help="writes <family>.png there")
-    parser.add_argument("--json", type=Path)
-    args = parser.parse_args()
-    motions = make_pick_motions(load_scenario(), DRAWN_WITH)
-    print(f"threads: this process, one problem at a time; time limit {TIME_LIMIT_S:.0f} s per planner and problem")
-    results = {}
-    for family in args.family:
-        start = time.perf_counter()
-        results[family] = run_family(args, motions, family)
-        print_family(family, results[family])
-        print(f"({time.perf_counter() - start:.0f} s)")
-        if args.figure_dir:
-            args.figure_dir.mkdir(parents=True, exist_ok=True)
-            draw(family, results[family], args.figure_dir / f"planner_{family}.png")
-    if args.json:
-        write_json(args.json, results)
-
-
-if __name__ == "__main__":
-    main()

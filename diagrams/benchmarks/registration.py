@@ -1,65 +1,39 @@
-"""Benchmarks shape-space registration on single-view clouds of the unseen test instances, and CPD vs pycpd.
+"""The registration benchmark (scripts/benchmark_registration.py): shape-space registration of single-view clouds
+of the unseen test instances, judged on the generator's ground truth.
 
 Each trial renders one test can or drill at the paper's experiment poses (yaw -0.25, 0
 or +0.25 about the presentation, plus uniform +-0.2 rad noise) on a random background,
-takes its depth points (true mask) as the RGB-D sensor model reports them (--sensor, by default
-kinect_v2: flying pixels, dropouts, axial noise; --no-noise: the renderer's depth with 2 mm Gaussian
-noise, as before the sensor model), starts from the PoseEstimator's initial pose and registers,
+takes its depth points (true mask) as the RGB-D sensor model reports them (kinect_v2 by default: flying pixels,
+dropouts, axial noise; None: the renderer's depth with 2 mm Gaussian noise, as before the sensor model), starts
+from the PoseEstimator's initial pose and registers,
 knowing the camera's position. Errors are against the generator's ground truth: grasp frames (mean
 over the four control poses), the symmetric Chamfer distance from the reconstruction to the true
 mesh (surface distances both ways), and whether the object was registered end for end (its rotation over
-90 deg off). A poor fit (Registration.poor_fit: the pick would stop, named) is counted.
-
-python scripts/benchmark_registration.py --trials 30 --json registration.json
-python scripts/benchmark_registration.py --trials 48 --instances extra_101 extra_102 ... --cpd-sizes  # others
-python scripts/benchmark_registration.py --trials 30 --no-noise --cpd-sizes                          # perfect depth
-python scripts/benchmark_registration.py --trials 18 --annotation canonical --cpd-sizes  # the user's path, 1 annotated
-
-With --pick-frames the views are instead the first frames that evaluate.py's campaign of the same objects, yaws,
-seed and --scenario_text would see, pick by pick (the object's mass changes how it settles, so the frame): the
-station's camera and sensor model, the segmenter's mask, the pose estimator and the paper's +-0.2 rad registration
-yaw noise. Each pick is simulated only until perception latches that frame (a few seconds instead of a whole pick;
-the pick registers it once itself on the way), and the frame is registered to the category perception gave it, as
-the pick does, with the benchmark's spaces (--space-dir, --part-prior):
-
-python scripts/benchmark_registration.py --pick-frames --category watering_can --object-files cans/*.obj \
-    --scenario_text "{object: {mass: 0.9}}"
-python scripts/benchmark_registration.py --pick-frames --trials 3 --json F   # the test instances, as evaluate.py
+90 deg off). A poor fit (Registration.poor_fit: the pick would stop, named) is counted. The picks' own first
+frames are diagrams/benchmarks/pick_frames.py's; CPD beside pycpd is diagrams/benchmarks/cpd.py's.
 """
 
-import argparse
-import dataclasses
 import logging
 import shutil
-import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
-import pycpd
 import trimesh
 import yaml
-from build_shape_space import build_from_folder, folder_copies, pose_entries, sample_mesh
-from json_report import write_json
-from pydrake.math import RigidTransform
-from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
-from pydrake.systems.framework import Context, Diagram
-from scenario_options import add_sensor_option, with_sensor
 from scipy.spatial import cKDTree
 
-from diagrams.autonomous_pick import PERCEIVE_AT_S, MakePickDiagram
-from diagrams.evaluation import PAPER_YAWS, file_objects, make_trials
 from diagrams.generation.objects import catalog
 from diagrams.generation.objects.library import generated_instance_directory, load_info, mesh_to_sdf
 from diagrams.generation.synthetic_scenes import SyntheticScene
 from diagrams.perception import MakePoseEstimator
-from diagrams.pick_simulation import object_body, station_plant
-from diagrams.scenario import Scenario, load_scenario, overlay_scenario
-from systems.messages import ObjectEstimate, Segmentation
-from systems.perception.rgbd_noise import RgbdNoiseParameters, noisy_depth, sensor_model
+from diagrams.scenario import load_scenario
+from systems.messages import Segmentation
+from systems.perception.rgbd_noise import RgbdNoiseParameters, noisy_depth
 from systems.perception.shape_registrar import registrar_of, shape_space_file, wider_shape_space_file
-from systems.shape_space.cpd import deformable_cpd, thinned
-from systems.shape_space.space import ShapeSpace, choose_canonical
+from systems.shape_space.cpd import thinned
+from systems.shape_space.folder import build_from_folder, pose_entries, sample_mesh
+from systems.shape_space.space import choose_canonical
 
 NOMINAL_XY = (0.73, 0.0)  # m, where the scenario puts the object
 DEPTH_NOISE = 0.002  # m, standard deviation
@@ -77,7 +51,6 @@ METRICS = (
 # pick would go on with it).
 COUNTS = ("flipped", "poor_fit", "grasp_off", "handed_on_off")
 GRASP_OFF_M = 0.02
-FRAME_POLL_S = 0.01  # s: the pick's simulation steps while it waits for its first frame
 
 
 def true_grasps(category: str, instance: str):
@@ -236,88 +209,6 @@ def registration_trials(
     return rows
 
 
-def pick_frame_trials(
-    base: Scenario,
-    category: str,
-    objects: dict[str, dict],
-    trials: int,
-    yaws,
-    space_dir: Path | None = None,
-    part_prior: float | None = None,
-):
-    """One row per pick of evaluate.py's campaign (make_trials: every object at every yaw, `trials` each, pick n
-    with the seed base.random_seed + n): the registration of the first frame the autonomous pick itself takes
-    (the station's camera and sensor model, the segmenter's mask, the pose estimator, the paper's registration
-    yaw noise), without running the pick past it. objects: evaluate.py's (file_objects, or instances). A frame in
-    which perception finds no object is a row with "found": False and the reason (the pick would stop there)."""
-    # The pick registers the object to the category perception gives it (the network's, or the one the user named).
-    registrars = {c: registrar_of(c, *space_files(c, space_dir), part_prior=part_prior) for c in catalog.CATEGORIES}
-    rows, meshes = [], {}
-    for n, trial in enumerate(make_trials(base, category, objects, trials, yaws)):
-        scenario = trial.scenario
-        estimate, X_WO_true = first_pick_frame(scenario)
-        pick = {"category": category, "instance": trial.name, "yaw": trial.yaw, "seed": scenario.random_seed}
-        if not estimate.found:
-            logging.warning(
-                "%2d %s at yaw %+.2f: perception found no object (%s)", n, trial.name, trial.yaw, estimate.message
-            )
-            rows.append({**pick, "found": False, "message": estimate.message})
-            continue
-        if estimate.category not in registrars:  # (a taught category the network knows: no space here)
-            message = f"perceived as {estimate.category!r}, a category this benchmark has no space for"
-            logging.warning("%2d %s at yaw %+.2f: %s", n, trial.name, trial.yaw, message)
-            rows.append({**pick, "found": False, "message": message})
-            continue
-        if scenario.object.file:
-            path = Path(scenario.object.file)
-            true, mesh_file = load_info(path.with_suffix(".info.yaml")).control_poses(), path
-        else:
-            true = true_grasps(category, scenario.object.instance)
-            mesh_file = generated_instance_directory(category, scenario.object.instance) / "visual.obj"
-        if mesh_file not in meshes:
-            meshes[mesh_file] = trimesh.load(mesh_file, force="mesh")
-        start = time.perf_counter()
-        result = registrars[estimate.category].register(
-            estimate.points_W, estimate.X_WO, estimate.viewpoint_W, estimate.view
-        )
-        seconds = time.perf_counter() - start
-        row = judged_row(result, estimate.X_WO, X_WO_true, true, meshes[mesh_file])
-        rows.append({**pick, "found": True, "perceived_category": estimate.category, "registration_s": seconds, **row})
-        log_row(n, rows[-1], result)
-    return rows
-
-
-def first_pick_frame(scenario: Scenario) -> tuple[ObjectEstimate, RigidTransform]:
-    """The ObjectEstimate the autonomous pick's registrar is given for its first frame (after the registration yaw
-    noise), and the object's true pose X_WO then (as it settled)."""
-    diagram, context = pick_at_first_frame(scenario)
-    registrar = diagram.GetSubsystemByName("perception").GetSubsystemByName("shape_registrar")
-    plant = station_plant(diagram)
-    X_WO = object_body(plant).EvalPoseInWorld(plant.GetMyContextFromRoot(context))
-    return registrar.GetInputPort("estimate").Eval(registrar.GetMyContextFromRoot(context)), X_WO
-
-
-def pick_at_first_frame(scenario: Scenario) -> tuple[Diagram, Context]:
-    """The pick diagram and its context, simulated until perception has latched its first frame."""
-    diagram = MakePickDiagram(scenario)
-    simulator = Simulator(diagram)
-    ApplySimulatorConfig(scenario.simulator_config, simulator)
-    perception = diagram.GetSubsystemByName("perception")
-    context = simulator.get_mutable_context()
-    frame_id = perception.GetOutputPort("frame_id")
-    t = 0.0
-    logging.disable(logging.WARNING)  # (the pick's own supervisor reports its registration of the frame too)
-    try:
-        while frame_id.Eval(perception.GetMyContextFromRoot(context))[0] < 1:
-            if t > PERCEIVE_AT_S + 1.0:
-                raise RuntimeError("the pick's perception latched no frame")
-            t += FRAME_POLL_S
-            simulator.AdvanceTo(t)
-    finally:
-        logging.disable(logging.NOTSET)
-    return diagram, context  # (the context keeps its simulator alive)
-
-
 def folder_spaces(annotation: str, directory: Path, scaled_copies: dict[str, int]) -> dict:
     """Builds each category's space through the user's path: its 8 training meshes exported to a folder, with
     only the canonical model (their medoid) annotated ("canonical") or all of them ("all"), into `directory`
@@ -365,169 +256,10 @@ def folder_spaces(annotation: str, directory: Path, scaled_copies: dict[str, int
     return propagation
 
 
-def smooth_warp(points: np.ndarray) -> np.ndarray:
-    return points + 0.02 * np.column_stack(
-        [np.sin(8 * points[:, 1]), np.cos(7 * points[:, 0]) - 1, np.sin(6 * points[:, 2])]
-    )
-
-
-def cpd_comparison(sizes, beta: float = 0.1, lam: float = 2.0, iterations: int = 50):
-    """Both implementations, the same problem, parameters and number of iterations."""
-    space = ShapeSpace.load(shape_space_file("watering_can"))
-    mesh_points = space.canonical_points
-    rows = []
-    for size in sizes:
-        rng = np.random.default_rng(size)
-        source = mesh_points[rng.choice(len(mesh_points), size, replace=len(mesh_points) < size)]
-        source = source + rng.normal(0, 1e-3, source.shape)
-        truth = smooth_warp(source)
-        target = truth[rng.permutation(size)]
-        start = time.perf_counter()
-        ours = deformable_cpd(source, target, beta=beta, lam=lam, max_iterations=iterations, tolerance=0.0)
-        ours_s = time.perf_counter() - start
-        reference = pycpd.DeformableRegistration(
-            X=target, Y=source, beta=beta, alpha=lam, max_iterations=iterations, tolerance=0.0
-        )
-        start = time.perf_counter()
-        reference_points, _ = reference.register()
-        reference_s = time.perf_counter() - start
-        row = {
-            "points": size,
-            "iterations": iterations,
-            "ours_s": ours_s,
-            "pycpd_s": reference_s,
-            "speedup": reference_s / ours_s,
-            "ours_error_m": float(np.linalg.norm(ours.transformed - truth, axis=1).mean()),
-            "pycpd_error_m": float(np.linalg.norm(reference_points - truth, axis=1).mean()),
-        }
-        rows.append(row)
-        logging.info("CPD %d points: ours %.2f s, pycpd %.2f s (%.1fx)", size, ours_s, reference_s, row["speedup"])
-    return rows
-
-
-def main():
-    logging.basicConfig(level=logging.INFO, format="%(message)s")
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument(
-        "--trials", type=int, help="rendered views in all (default 30); with --pick-frames, per object and yaw (1)"
-    )
-    parser.add_argument(
-        "--seed", type=int, help="default 7; with --pick-frames, the scenario's (as evaluate.py: pick n has seed + n)"
-    )
-    parser.add_argument(
-        "--pick-frames",
-        action="store_true",
-        help="register the first frames the autonomous picks of evaluate.py's campaign would see (the station's "
-        "camera, the segmenter's mask, the paper's +-0.2 rad yaw noise) instead of rendered views with true masks",
-    )
-    parser.add_argument("--yaws", type=float, nargs="+", help="with --pick-frames (rad; default the paper's three)")
-    parser.add_argument(
-        "--scenario_text", default="", help="with --pick-frames: YAML overlaid on the scenario, as evaluate.py's"
-    )
-    parser.add_argument(
-        "--instances",
-        nargs="+",
-        default=list(TEST_INSTANCES),
-        help="instances of each category, taken in turn (e.g. extra_101 extra_102: generated on first use)",
-    )
-    parser.add_argument("--cpd-sizes", type=int, nargs="*", help="default 500 1000 2000; none with --pick-frames")
-    parser.add_argument("--space-dir", type=Path, help="read shape_space_<category>.npz from here (default: models/)")
-    parser.add_argument(
-        "--part-prior",
-        type=float,
-        help="m: where the scaled fit is poor, also fit each handle's own offset with this prior (Registrar's "
-        "part_prior, e.g. 0.03; the pick does not)",
-    )
-    parser.add_argument(
-        "--annotation",
-        choices=("canonical", "all"),
-        help="build the spaces first, as a user's folder of the 8 training meshes with only the canonical model "
-        "(their medoid) annotated, or all 8 (default: the spaces in models/, 48 generated and annotated models)",
-    )
-    parser.add_argument(
-        "--object-files",
-        dest="object_files",
-        type=Path,
-        nargs="+",
-        help="your own meshes of --category instead (each with <name>.info.yaml beside it: the true grasps)",
-    )
-    parser.add_argument(
-        "--category",
-        choices=tuple(catalog.CATEGORIES),
-        help="the category of --object-files; with --pick-frames alone, the one category of --instances",
-    )
-    parser.add_argument(
-        "--scaled-copies",
-        type=int,
-        help="with --annotation: stretched copies of each of the 8 meshes in the spaces (default: "
-        "build_shape_space.py's for a folder)",
-    )
-    add_sensor_option(parser, default="kinect_v2")
-    parser.add_argument("--json", type=Path)
-    args = parser.parse_args()
-    if bool(args.object_files) != bool(args.category) and not (args.pick_frames and args.category):
-        parser.error("--object-files and --category go together (--category alone with --pick-frames)")
-    if args.scaled_copies is not None and not args.annotation:
-        parser.error("--scaled-copies needs --annotation (it builds the spaces from the training meshes)")
-    if args.scaled_copies is not None and args.scaled_copies < 0:
-        parser.error(f"--scaled-copies must be 0 or more, got {args.scaled_copies}")
-    if not args.pick_frames and (args.yaws or args.scenario_text):
-        parser.error("--yaws and --scenario_text go with --pick-frames")
-    if args.part_prior is not None and not args.part_prior > 0:
-        parser.error(f"--part-prior must be a positive distance in metres, got {args.part_prior}")
-    if args.trials is not None and args.trials < 1:
-        parser.error(f"--trials must be 1 or more, got {args.trials}")
-    if args.cpd_sizes is None:
-        args.cpd_sizes = [] if args.pick_frames else [500, 1000, 2000]
-    sensor = sensor_model(args.sensor)
-    space_dir, propagation, copies = args.space_dir, {}, {}
-    if args.annotation:
-        space_dir = Path(tempfile.mkdtemp(prefix="folder_spaces_"))
-        copies = {c: folder_copies(c) if args.scaled_copies is None else args.scaled_copies for c in catalog.CATEGORIES}
-        propagation = folder_spaces(args.annotation, space_dir, copies)
-    categories = (args.category,) if args.category else tuple(catalog.CATEGORIES)
-    if args.pick_frames:
-        args.trials, args.yaws = args.trials or 1, args.yaws or list(PAPER_YAWS)
-        try:
-            base = with_sensor(overlay_scenario(load_scenario(), args.scenario_text, "--scenario_text"), args.sensor)
-        except ValueError as error:
-            parser.error(str(error))
-        if args.seed is not None:
-            base = dataclasses.replace(base, random_seed=args.seed)
-        args.seed = base.random_seed
-        if args.object_files:
-            objects = file_objects(args.object_files)
-        else:
-            objects = {name: {"instance": name, "file": ""} for name in args.instances}
-        rows = [
-            row
-            for category in categories
-            for row in pick_frame_trials(base, category, objects, args.trials, args.yaws, space_dir, args.part_prior)
-        ]
-    else:
-        args.trials = args.trials or 30
-        args.seed = 7 if args.seed is None else args.seed
-        rows = registration_trials(
-            args.trials,
-            args.seed,
-            args.instances,
-            categories,
-            space_dir=space_dir,
-            sensor=sensor,
-            files=args.object_files,
-            part_prior=args.part_prior,
-        )
-    cpd_rows = cpd_comparison(args.cpd_sizes)
-    results = {"trials": args.trials, "seed": args.seed, "instances": args.instances, "sensor": args.sensor}
-    results["views"] = "the picks' first frames (segmenter's masks)" if args.pick_frames else "rendered, true masks"
-    if args.pick_frames:
-        results["yaws"] = args.yaws
-    results["annotation"] = args.annotation or "generated (48 models, all annotated)"
-    results["scaled_copies"] = copies
-    results["part_prior_m"] = args.part_prior
-    results["propagation"] = propagation
-    if args.object_files:
-        results["instances"] = [str(path) for path in args.object_files]
+def summarize(results: dict, rows: list[dict], cpd_rows: list[dict], categories) -> dict:
+    """The run's settings (`results`, kept first) with, per category and over all, the medians of METRICS and the
+    COUNTS over the views registered, the views in which perception found no object, CPD's comparison and every
+    row."""
     results["not_found"] = {
         c: sum(1 for r in rows if r["category"] == c and not r.get("found", True)) for c in categories
     }
@@ -545,7 +277,11 @@ def main():
         results["cpd_speedup_vs_pycpd_1000"] = by_size[1000]["speedup"]
     results["cpd"] = cpd_rows
     results["rows"] = all_rows
+    return results
 
+
+def print_summary(results: dict, categories, sensor: str) -> None:
+    """The medians and counts per category beside their targets, and what the views were."""
     print(f"\n{'metric (median)':37s}" + "".join(f" {c:>13s}" for c in categories) + "  target")
     for key, scale, unit, target in (
         ("grasp_translation_error_m", 1000, "mm", "<= 10 mm"),
@@ -568,21 +304,4 @@ def main():
         values = results[key]
         print(f"{key + ' [trials]':37s}" + "".join(f" {values[c]:13d}" for c in categories) + f"  {target}")
     copies = "".join(f", {c}: {n} stretched copies of each" for c, n in results["scaled_copies"].items() if n)
-    print(f"(sensor: {args.sensor}; views: {results['views']}; annotated models: {results['annotation']}{copies})")
-    if not cpd_rows:
-        if args.json:
-            write_json(args.json, results)
-        return
-    header = ("CPD points", "ours s", "pycpd s", "speedup", "ours err mm", "pycpd err mm")
-    print("\n" + " ".join(f"{h:>12s}" for h in header))
-    for r in cpd_rows:
-        print(
-            f"{r['points']:12d} {r['ours_s']:12.3f} {r['pycpd_s']:12.3f} {r['speedup']:12.1f} "
-            f"{1000 * r['ours_error_m']:12.2f} {1000 * r['pycpd_error_m']:12.2f}"
-        )
-    if args.json:
-        write_json(args.json, results)
-
-
-if __name__ == "__main__":
-    main()
+    print(f"(sensor: {sensor}; views: {results['views']}; annotated models: {results['annotation']}{copies})")

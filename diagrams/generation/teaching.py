@@ -1,8 +1,5 @@
-"""Teaches the robot a new familiar category from a folder of your own models, one of them annotated.
-
-python scripts/add_category.py --folder my_pots/ --poses my_pots/poses.yaml --name pot --symmetric
-python scripts/pick.py --object pot --object-file new_pot.obj                 # then pick an unseen one
-python scripts/evaluate.py --category pot --object-files pots/test/*.obj --trials 1
+"""Teaches the robot a new familiar category from a folder of the user's models, one of them annotated
+(scripts/add_category.py).
 
 The folder and the poses file are build_shape_space.py's (meshes or point clouds in metres, sharing one
 upright frame; the poses YAML names the canonical model and its control poses). The steps:
@@ -18,11 +15,10 @@ upright frame; the poses YAML names the canonical model and its control poses). 
   5. the new segmenter and the category's record are written: from then on every pick knows the class.
 
 Everything lands in systems.categories.categories_dir() ($DUALARM_CATEGORIES, default
-~/.local/share/dualarm/categories): <name>/ and segmenter.pt. --symmetric: the models look the same turned
-half a turn about z (a pot, a crate); the pose then keeps the left grasp on the robot's left.
+~/.local/share/dualarm/categories): <name>/ and segmenter.pt. The functions take add_category.py's options
+(`args`: an argparse.Namespace).
 """
 
-import argparse
 import json
 import logging
 import os
@@ -32,12 +28,10 @@ import time
 from pathlib import Path
 
 import numpy as np
-import torch
 import trimesh
-from build_shape_space import draw_space, folder_instances, frame_warnings
 from pydrake.math import RigidTransform
-from scenario_options import add_sensor_option, with_sensor
 
+from diagrams.cli import with_sensor
 from diagrams.generation import segmentation_data
 from diagrams.generation.objects.instance import export_obj, object_sdf
 from diagrams.generation.objects.library import recentred
@@ -45,42 +39,19 @@ from diagrams.scenario import load_scenario
 from systems import categories
 from systems.perception import segmentation_network, segmenter_training
 from systems.shape_space.densify import surface_mesh
-from systems.shape_space.space import ALIGNMENTS, build_shape_space
+from systems.shape_space.drawing import draw_space
+from systems.shape_space.folder import folder_instances, frame_warnings
+from systems.shape_space.space import build_shape_space
 
 FINE_TUNE_LEARNING_RATE = 1e-3
 
 
-def parse_args(argv=None):
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--folder", type=Path, required=True, help="one model per file (meshes or point clouds)")
-    parser.add_argument("--poses", type=Path, required=True, help="the canonical model's control poses (YAML)")
-    parser.add_argument("--name", required=True, help="the category's name (lower case letters, digits, _)")
-    parser.add_argument("--symmetric", action="store_true", help="the models look the same turned pi about z")
-    parser.add_argument(
-        "--presentation-yaw", dest="presentation_yaw", type=float, default=0.0,
-        help="world yaw of O at the presentation the grasps are meant for, rad (0: x_O away from the robot)",
-    )  # fmt: skip
-    parser.add_argument("--components", type=int, default=8, help="latent dimensions (at most models - 1)")
-    parser.add_argument("--align", choices=ALIGNMENTS, default="none", help="as build_shape_space.py's")
-    parser.add_argument("--frames", type=int, default=800, help="synthetic frames to fine-tune the segmenter on")
-    parser.add_argument("--frames-per-scene", dest="frames_per_scene", type=int, default=25)
-    parser.add_argument("--epochs", type=int, default=10, help="fine-tuning epochs")
-    parser.add_argument("--validation-frames", dest="validation_frames", type=int, default=40)
-    parser.add_argument(
-        "--keep-segmenter", dest="keep_segmenter", action="store_true",
-        help="re-teach the shape space and grasps only: the segmenter in use knows the class already",
-    )  # fmt: skip
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--threads", type=int, default=2, help="torch CPU threads")
-    add_sensor_option(parser)
-    args = parser.parse_args(argv)
-    if not re.fullmatch(r"[a-z][a-z0-9_]*", args.name):
-        parser.error(f"--name {args.name!r}: use lower case letters, digits and _ (starting with a letter)")
-    if args.name in categories.GENERATED or args.name == "background":
-        parser.error(f"--name {args.name!r} is taken by a built-in class")
-    if min(args.frames, args.frames_per_scene, args.epochs, args.validation_frames) < 1:
-        parser.error("--frames, --frames-per-scene, --epochs and --validation-frames must be positive")
-    return args
+def check_name(name: str) -> None:
+    """Raises ValueError where `name` cannot name a taught category (the message names --name)."""
+    if not re.fullmatch(r"[a-z][a-z0-9_]*", name):
+        raise ValueError(f"--name {name!r}: use lower case letters, digits and _ (starting with a letter)")
+    if name in categories.GENERATED or name == "background":
+        raise ValueError(f"--name {name!r} is taken by a built-in class")
 
 
 def model_mesh(path: Path, points: np.ndarray) -> trimesh.Trimesh:
@@ -204,10 +175,13 @@ def teach(args, directory: Path, base_model, base: dict) -> categories.CategoryR
     return record
 
 
-def main(argv=None) -> int:
-    logging.basicConfig(level=logging.INFO, format="%(message)s")
-    args = parse_args(argv)
-    torch.set_num_threads(args.threads)
+def teach_category(args) -> None:
+    """Steps 1-5 into the categories folder (systems.categories.categories_dir()).
+
+    Raises:
+        SystemExit: --keep-segmenter with a segmenter that does not know the class, or a folder or poses file
+            that cannot be read (naming the problem).
+    """
     base_path = categories.active_segmenter()
     base_model, base = segmentation_network.load(base_path)
     base["path"] = str(base_path)
@@ -232,8 +206,3 @@ def main(argv=None) -> int:
             aside.rename(directory)
         raise
     shutil.rmtree(aside, ignore_errors=True)
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

@@ -1,9 +1,5 @@
-"""Builds a category's latent shape space (CPD fields from a canonical instance + PCA-EM).
-
-python scripts/build_shape_space.py --category watering_can          # models/shape_space_watering_can.npz
-python scripts/build_shape_space.py --category drill --extra 8       # only 8 more generated instances (default 40)
-python scripts/build_shape_space.py --folder my_cans/ --poses my_cans/poses.yaml --category my_cans
-python scripts/build_shape_space.py --folder scans/ --poses scans/poses.yaml --category my_drills --align vertical
+"""A category's latent shape space from a user's folder of models (scripts/build_shape_space.py --folder,
+scripts/add_category.py): reading and checking the models and their poses file, then build_shape_space.
 
 A folder holds one model per file: meshes (.obj, .ply, .stl; surface-sampled) or point
 clouds (.ply, .pcd), in metres (a model 1000 times too large is an error naming the unit).
@@ -31,14 +27,12 @@ components, grasps transferred to an unseen can: 13-21 mm with the canonical's p
 (12-37 mm where the fields carry them), 8-10 mm with all six models' poses (see
 tests/test_build_shape_space_cli.py). A folder's models are also each copied FOLDER_SCALED_COPIES times,
 stretched along their axes as far as the registrar lets the category's shape scale beyond its space (its scale
-prior), unless that is under MIN_COPY_SPREAD (drills: none); --scaled-copies N sets the number. With 8 cans (one
+prior), unless that is under MIN_COPY_SPREAD (drills: none); scaled_copies sets the number. With 8 cans (one
 annotated) the copies took unseen cans' grasps from 12.9 to 8.8 mm (docs/shape_space.md, "Stretched copies of a
 few models").
 """
 
-import argparse
 import logging
-import time
 from pathlib import Path
 
 import numpy as np
@@ -47,12 +41,9 @@ import trimesh
 import yaml
 from pydrake.math import RigidTransform, RollPitchYaw
 
-from diagrams.generation.objects import catalog
-from diagrams.generation.objects.library import generated_instance_directory, load_info
-from diagrams.paths import MODELS_DIR
 from systems.perception.shape_registrar import scale_prior
 from systems.shape_space.densify import densified
-from systems.shape_space.space import ALIGNMENTS, POSE_NAMES, build_shape_space
+from systems.shape_space.space import POSE_NAMES, build_shape_space
 from systems.shape_space.units import check_metres
 
 CLOUD_POINTS = 8000  # per model: all of them for the canonical surface, a thinned 2000 as CPD's target
@@ -110,19 +101,6 @@ def frame_warnings(clouds: dict[str, np.ndarray], canonical: str) -> list[str]:
         if offset > FRAME_OFFSET_WARNING * np.max(hi - lo):
             warnings.append(f"{name}'s extent is centred {100 * offset:.0f} cm from {canonical}'s")
     return warnings
-
-
-def generated_instances(category: str, extra: int, wide: int = 0):
-    """Clouds and true control poses of the training instances, `extra` more of their family (extra_0..) and
-    `wide` of the generator's wider family (wide_0..)."""
-    names = [n for n in catalog.instance_names(category) if n.startswith("train")]
-    names += [f"extra_{i}" for i in range(extra)] + [f"wide_{i}" for i in range(wide)]
-    clouds, poses = {}, {}
-    for name in names:
-        directory = generated_instance_directory(category, name)
-        clouds[name] = sample_mesh(directory / "visual.obj")
-        poses[name] = load_info(directory / "info.yaml").control_poses()
-    return clouds, poses
 
 
 def folder_instances(folder: Path, poses_file: Path):
@@ -207,109 +185,3 @@ def pose_entries(poses: dict[str, RigidTransform]) -> dict:
         }
         for name, X in poses.items()
     }
-
-
-def draw_space(space, path: Path, components: int = 3, spread: float = 2.0):
-    """A figure of the space: the mean shape and each of the first components at -spread, +spread standard
-    deviations, seen from the front (x_O right, z_O up) and from above, with the grasp frames' origins."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    shown = min(components, space.latent_size)
-    rows = [("mean", np.zeros(space.latent_size))]
-    for k in range(shown):
-        for sign in (-1, 1):
-            latent = np.zeros(space.latent_size)
-            latent[k] = sign * spread * np.sqrt(space.pca.variances[k])
-            rows.append((f"component {k + 1}: {sign * spread:+.0f} sd", latent))
-    size = (2.2 * len(rows), 4.6)
-    figure, axes = plt.subplots(2, len(rows), figsize=size, squeeze=False, sharex="row", sharey="row")
-    for column, (title, latent) in enumerate(rows):
-        surface = space.reconstruct(latent)
-        grasps = np.array([X.translation() for X in space.control_poses_at(latent).values()])
-        for row, (u, v) in enumerate(((0, 2), (0, 1))):
-            ax = axes[row, column]
-            ax.scatter(surface[:, u], surface[:, v], s=0.2, c="0.4")
-            ax.scatter(grasps[:, u], grasps[:, v], s=12, c=["tab:blue", "tab:blue", "tab:red", "tab:red"])
-            ax.set_aspect("equal")
-            ax.set_xticks([])
-            ax.set_yticks([])
-        axes[0, column].set_title(title, fontsize=8)
-    axes[0, 0].set_ylabel("front (x, z)")
-    axes[1, 0].set_ylabel("above (x, y)")
-    title = f"{space.category}: mean and first components; control poses left blue, right red (outer: pre-grasps)"
-    figure.suptitle(title, fontsize=9)
-    figure.tight_layout()
-    figure.savefig(path, dpi=110)
-    plt.close(figure)
-
-
-def main():
-    logging.basicConfig(level=logging.INFO, format="%(message)s")
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--category", required=True, help="generated category, or the name of a folder's category")
-    parser.add_argument("--extra", type=int, default=40, help="extra generated instances beyond train_0..7")
-    parser.add_argument(
-        "--wide", type=int, default=0, help="generated instances of the wider family (wide_0..) beside them"
-    )
-    parser.add_argument("--folder", type=Path, help="a folder of your own models (meshes or point clouds)")
-    parser.add_argument("--poses", type=Path, help="with --folder: YAML with the canonical model's control poses")
-    parser.add_argument(
-        "--align",
-        choices=ALIGNMENTS,
-        default="none",
-        help="with --folder: none (default): the models share one upright frame, kept as it is; vertical: each "
-        "has its own heading and origin, z up; rigid: each has a frame of its own",
-    )
-    parser.add_argument("--components", type=int, default=8, help="latent dimensions (the paper: 8)")
-    parser.add_argument(
-        "--scaled-copies",
-        type=int,
-        help=f"with --folder: stretched copies of each model beside it (default {FOLDER_SCALED_COPIES}, none where "
-        f"the category's scale prior is under {MIN_COPY_SPREAD}: drills; see docs/shape_space.md)",
-    )
-    parser.add_argument(
-        "--no-landmarks",
-        action="store_true",
-        help="plain CPD fields carry the canonical poses: other models' poses are neither used nor propagated",
-    )
-    parser.add_argument(
-        "--out", type=Path, help="default: models/shape_space_<category>.npz (and a figure of it beside, .png)"
-    )
-    args = parser.parse_args()
-    if args.scaled_copies is not None and not args.folder:
-        parser.error("--scaled-copies needs --folder (the generated spaces have enough models)")
-    if args.scaled_copies is not None and args.scaled_copies < 0:
-        parser.error(f"--scaled-copies must be 0 or more, got {args.scaled_copies}")
-    start = time.perf_counter()
-    if args.folder:
-        if not args.poses:
-            parser.error("--folder needs --poses")
-        space = build_from_folder(
-            args.folder,
-            args.poses,
-            args.category,
-            args.components,
-            args.align,
-            landmarks=not args.no_landmarks,
-            scaled_copies=args.scaled_copies,
-        )
-    else:
-        clouds, poses = generated_instances(args.category, args.extra, args.wide)
-        space = build_shape_space(args.category, clouds, poses, args.components, landmarks=not args.no_landmarks)
-    out = args.out or MODELS_DIR / f"shape_space_{args.category}.npz"
-    space.save(out)
-    explained = space.pca.variances / space.pca.variances.sum()
-    print(f"canonical: {space.canonical_name}; {len(space.instance_names)} instances; {space.latent_size} components")
-    print("variance explained per component: " + " ".join(f"{v:.2f}" for v in explained))
-    draw_space(space, out.with_suffix(".png"))
-    print(
-        f"wrote {out} ({out.stat().st_size / 1e3:.0f} kB) and a figure of it, {out.with_suffix('.png')}, in "
-        f"{time.perf_counter() - start:.1f} s"
-    )
-
-
-if __name__ == "__main__":
-    main()

@@ -1,22 +1,14 @@
-"""Writes a folder of two-handled cooking pots as a user would bring them: plain meshes, one annotated.
-
-python scripts/make_pot_models.py --out my_pots             # my_pots/train/*.obj + poses.yaml, my_pots/test/*.obj
-python scripts/make_pot_models.py --out my_pots --train 3 --test 1 --seed 7
-
-The robot's pipeline never sees this script: the pots reach it only through the user paths
-(`scripts/add_category.py --folder my_pots/train --poses my_pots/train/poses.yaml --name pot`, then
-`--object-file my_pots/test/pot_test_0.obj`). It stands in for a user's CAD files.
+"""Two-handled cooking pots, a family for teaching and judging the user paths (scripts/make_pot_models.py writes them
+as a user would bring them: plain meshes, one annotated). Not a generated category: the pipeline reaches them only
+through add_category.py and --object-file.
 
 Each pot: a lidded body (cylinder or slightly tapered), a knob on the lid, and two loop handles on the
 wall rising above the rim, leaning outwards, one at +y and one at -y. The object frame O has its origin at
 the centre of the bottom face, z up; the pots are half-turn symmetric about z. The left hand takes the
-+y handle's apex from above and outside, the right hand the -y one. Only the first training pot's
-control poses go into poses.yaml (the canonical model); every test pot gets `<name>.info.yaml`
-beside it (its true grasps and mass) for judging, never for the pick.
++y handle's apex from above and outside, the right hand the -y one.
 """
 
 import numpy as np
-import user_model_folder
 
 from diagrams.generation.objects import geometry
 from diagrams.generation.objects.instance import ObjectInstance, Part, make_grasp
@@ -70,7 +62,3 @@ def build(name: str, p: dict[str, float]) -> ObjectInstance:
             apex, approach=[0.0, -sign * np.sin(APPROACH_TILT), -np.cos(APPROACH_TILT)], handle_axis=[sign, 0.0, 0.0]
         )
     return ObjectInstance(CATEGORY, name, p, parts, p["mass"], grasps)
-
-
-if __name__ == "__main__":
-    user_model_folder.main(__doc__, CATEGORY, sample_parameters, build)

@@ -1,8 +1,5 @@
-"""Writes watering cans and drills outside the generators' families as a user would bring them: plain OBJ meshes.
-
-python scripts/make_unfamiliar_objects.py --out held_out                # held_out/<category>/*.obj, never tuned on
-python scripts/make_unfamiliar_objects.py --out tuning --split tune     # stretched generator shapes, to tune on
-python scripts/evaluate.py --category drill --object-files held_out/drill/*.obj --scenario_text "{object: {mass: 1.6}}"
+"""Watering cans and drills outside the generators' families, as a user would bring them (written as plain OBJ
+meshes by scripts/make_unfamiliar_objects.py).
 
 Two splits, apart on purpose:
 - held_out: six designs per category that no generator makes (docs/shape_space.md shows them): a box-bodied
@@ -20,18 +17,14 @@ axis: spout or chuck), already where `--object-file` recentres a mesh, so `<name
 grasp frames and mass, for judging, never read by the pick) is in the frame the pick uses.
 """
 
-import argparse
-from pathlib import Path
-
 import numpy as np
 from pydrake.common.schema import Transform
-from pydrake.common.yaml import yaml_dump_typed
 from pydrake.math import RigidTransform
 
 from diagrams.generation.objects import catalog, geometry
 from diagrams.generation.objects import drill as drill_convention
 from diagrams.generation.objects import watering_can as can_convention
-from diagrams.generation.objects.instance import ObjectInstance, Part, export_obj, make_grasp
+from diagrams.generation.objects.instance import ObjectInstance, Part, make_grasp
 from diagrams.generation.objects.library import recentred
 
 CAN_MASS = 0.9  # kg
@@ -361,21 +354,3 @@ def instances(category: str, split: str) -> list[ObjectInstance]:
             grasp.grasp = Transform(RigidTransform(shift) @ grasp.grasp.GetDeterministicValue())
         out.append(instance)
     return out
-
-
-def main():
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--out", type=Path, required=True, help="folder to write <category>/*.obj into")
-    parser.add_argument("--split", choices=("held_out", "tune"), default="held_out")
-    args = parser.parse_args()
-    for category in DESIGNS:
-        folder = args.out / category
-        folder.mkdir(parents=True, exist_ok=True)
-        for instance in instances(category, args.split):
-            export_obj(instance.visual_mesh(), folder / f"{instance.name}.obj")
-            (folder / f"{instance.name}.info.yaml").write_text(yaml_dump_typed(instance.info()))
-            print(f"wrote {folder / instance.name}.obj ({instance.mass:.2f} kg)")
-
-
-if __name__ == "__main__":
-    main()
