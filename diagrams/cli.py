@@ -13,6 +13,8 @@ from systems.perception.rgbd_noise import PRESETS
 
 
 def add_scenario_options(parser: argparse.ArgumentParser) -> None:
+    """--scenario, --scenario_text, the object options (--object, --instance, --object-file, --yaw), --seed, --scene
+    with --clutter-index, and --sensor."""
     parser.add_argument("--scenario", type=Path, default=DEFAULT_SCENARIO, help="scenario YAML file")
     parser.add_argument("--scenario_text", default="", help="YAML overlaid on the scenario file")
     parser.add_argument("--object", help="object category: watering_can, drill, or one taught by add_category.py")

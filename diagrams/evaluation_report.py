@@ -68,6 +68,7 @@ def recorded_campaign(records: list[dict], given: Campaign) -> Campaign:
 
 
 def describe(record: dict) -> str:
+    """A pick's line above the progress bar: where it was, and its outcome."""
     offset = record["registration_yaw_offset_rad"]
     head = f"{record['name']} yaw {record['yaw']:+.2f} #{record['trial']} (offset {offset:+.3f})"
     if "oracle" in record:
@@ -104,6 +105,7 @@ def _always(always: list[str], objects: int) -> str:
 
 
 def print_tables(summary: dict, category: str, trials: int, yaw_noise: float):
+    """The paper's placements: the success table (Table II form) and the runtime table (Table III form)."""
     print(f"\nSuccess rate ({category}, {trials} trial(s) per yaw, yaw noise +-{yaw_noise:.2f} rad), Table II form")
     width = max(16, 2 + max(len(name) for name in summary["per_instance"]))
     print(_per_yaw_header("success (attempts)", width, summary["per_instance"]) + f"{'paper':>8}")

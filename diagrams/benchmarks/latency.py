@@ -74,6 +74,7 @@ def summarize(records: list[dict]) -> dict:
 
 
 def print_table(summary: dict, sensor: str):
+    """Each stage's median and 95th percentile beside its target and its share of the end to end time."""
     print(f"\nImage to first trajectory, {summary['picks']} picks one at a time (sensor {sensor}; "
           f"lifted {summary['lifted']}); seconds")  # fmt: skip
     print(f"{'stage':<24}{'median':>9}{'p95':>9}{'target':>9}{'share':>8}")

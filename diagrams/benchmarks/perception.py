@@ -30,11 +30,13 @@ MIN_OBJECT_PIXELS = 1500
 
 
 def yaw_of(X) -> float:
+    """The yaw of a pose's x axis about z (rad)."""
     R = X.rotation().matrix()
     return float(np.arctan2(R[1, 0], R[0, 0]))
 
 
 def wrap(angle: float) -> float:
+    """The angle in [-pi, pi) (rad)."""
     return float((angle + np.pi) % (2 * np.pi) - np.pi)
 
 

@@ -148,6 +148,7 @@ def run(base: Scenario, weights, tables: int, empty_tables: int, split: str = "r
 
 
 def print_table(results: dict) -> None:
+    """The summary beside its targets, per category, and the empty tables."""
     print(f"\n{'cluttered tables (' + results['split'] + ' range)':40s} {'value':>8s}  target")
     for key, value, target in (
         ("target IoU, mean", results["target_iou_mean"], ">= 0.85"),

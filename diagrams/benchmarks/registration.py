@@ -1,16 +1,15 @@
 """The registration benchmark (scripts/benchmark_registration.py): shape-space registration of single-view clouds
 of the unseen test instances, judged on the generator's ground truth.
 
-Each trial renders one test can or drill at the paper's experiment poses (yaw -0.25, 0
-or +0.25 about the presentation, plus uniform +-0.2 rad noise) on a random background,
-takes its depth points (true mask) as the RGB-D sensor model reports them (kinect_v2 by default: flying pixels,
-dropouts, axial noise; None: the renderer's depth with 2 mm Gaussian noise, as before the sensor model), starts
-from the PoseEstimator's initial pose and registers,
-knowing the camera's position. Errors are against the generator's ground truth: grasp frames (mean
-over the four control poses), the symmetric Chamfer distance from the reconstruction to the true
-mesh (surface distances both ways), and whether the object was registered end for end (its rotation over
-90 deg off). A poor fit (Registration.poor_fit: the pick would stop, named) is counted. The picks' own first
-frames are diagrams/benchmarks/pick_frames.py's; CPD beside pycpd is diagrams/benchmarks/cpd.py's.
+Each trial renders one test can or drill at the paper's experiment poses (yaw -0.25, 0 or +0.25 about the
+presentation, plus uniform +-0.2 rad noise) on a random background, takes its depth points (true mask) as the RGB-D
+sensor model reports them (kinect_v2 by default: flying pixels, dropouts, axial noise; None: the renderer's depth
+with 2 mm Gaussian noise, as before the sensor model), starts from the PoseEstimator's initial pose and registers,
+knowing the camera's position. Errors are against the generator's ground truth: grasp frames (mean over the four
+control poses), the symmetric Chamfer distance from the reconstruction to the true mesh (surface distances both
+ways), and whether the object was registered end for end (its rotation over 90 deg off). A poor fit
+(Registration.poor_fit: the pick would stop, named) is counted. The picks' own first frames are
+diagrams/benchmarks/pick_frames.py's; CPD beside pycpd is diagrams/benchmarks/cpd.py's.
 """
 
 import logging
@@ -54,10 +53,12 @@ GRASP_OFF_M = 0.02
 
 
 def true_grasps(category: str, instance: str):
+    """A generated instance's true control poses, {name: X_OG}."""
     return load_info(generated_instance_directory(category, instance) / "info.yaml").control_poses()
 
 
 def pose_errors(X_est, X_true) -> tuple[float, float]:
+    """How far a pose is from the true one: translation (m) and rotation angle (rad)."""
     translation = float(np.linalg.norm(X_est.translation() - X_true.translation()))
     angle = float(X_est.rotation().InvertAndCompose(X_true.rotation()).ToAngleAxis().angle())
     return translation, angle
@@ -117,6 +118,7 @@ def judged_row(result, X_WO_initial, X_WO_true, true: dict, mesh: trimesh.Trimes
 
 
 def log_row(trial: int, row: dict, result) -> None:
+    """A view's errors, logged as two lines."""
     logging.info(
         "%2d %-12s %s  grasp %.1f mm %.1f deg  chamfer %.1f mm  %.2f s%s",
         trial,

@@ -64,6 +64,7 @@ FRAME_OFFSET_WARNING = 0.25
 
 
 def sample_mesh(path: Path, count: int = CLOUD_POINTS) -> np.ndarray:
+    """`count` points spread evenly over a mesh file's surface (its units), the same on every call."""
     mesh = trimesh.load(path, force="mesh")
     points, _ = trimesh.sample.sample_surface_even(mesh, count, seed=0)
     return np.asarray(points)
@@ -104,6 +105,11 @@ def frame_warnings(clouds: dict[str, np.ndarray], canonical: str) -> list[str]:
 
 
 def folder_instances(folder: Path, poses_file: Path):
+    """A folder's model points {file name: N x 3, m}, the control poses its poses file gives {file name: {name:
+    X_OG}} and the canonical model's file name (its points densified where sparse).
+
+    Raises SystemExit naming the problem: not a folder, fewer than 2 models, a poses file that lacks something.
+    """
     if not folder.is_dir():
         raise SystemExit(f"error: {folder} is not a folder")
     files = sorted(p for p in folder.iterdir() if p.suffix.lower() in MESH_SUFFIXES | CLOUD_SUFFIXES)
