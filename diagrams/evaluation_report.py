@@ -37,7 +37,7 @@ STAGE_LABELS = {
 
 
 @dataclass
-class Campaign:
+class CampaignSettings:
     """What a campaign was, as its report states it (evaluate.py's options)."""
 
     category: str = "watering_can"
@@ -51,7 +51,7 @@ class Campaign:
     ray: str | None = None  # the Ray cluster's address ("": a local Ray); None: worker processes
 
 
-def recorded_campaign(records: list[dict], given: Campaign) -> Campaign:
+def recorded_campaign(records: list[dict], given: CampaignSettings) -> CampaignSettings:
     """The campaign a records file says it was: what its records share (older records may lack some: `given`'s
     stand), its yaws and its trials per object and yaw."""
     first = records[0]
@@ -275,7 +275,7 @@ def draw_map(path: Path, records: list[dict], category: str):
 
 
 def report(
-    campaign: Campaign,
+    campaign: CampaignSettings,
     records: list[dict],
     first_seed: int,
     json_path: Path | None = None,

@@ -37,7 +37,7 @@ from diagrams.evaluation import (
     make_trials,
     random_placements,
 )
-from diagrams.evaluation_report import Campaign, describe, recorded_campaign, report
+from diagrams.evaluation_report import CampaignSettings, describe, recorded_campaign, report
 from diagrams.scenario import DEFAULT_SCENARIO, load_scenario, overlay_scenario, place_over_box_scenario
 
 
@@ -130,10 +130,9 @@ def parse_args(argv=None):
     return args
 
 
-def campaign_of(args) -> Campaign:
-    """What the report says the campaign was."""
-    names = ("category", "task", "obstacle", "trials", "yaws", "yaw_noise", "sensor", "jobs", "ray")
-    return Campaign(**{name: getattr(args, name) for name in names})
+def campaign_of(args) -> CampaignSettings:
+    """What the report says the campaign was: the options of the same names."""
+    return CampaignSettings(**{field.name: getattr(args, field.name) for field in dataclasses.fields(CampaignSettings)})
 
 
 def base_scenario(args):

@@ -25,7 +25,7 @@ from diagrams.evaluation import (
     random_placements,
     summarize,
 )
-from diagrams.evaluation_report import Campaign, describe, report
+from diagrams.evaluation_report import CampaignSettings, describe, report
 from systems.messages import ObjectEstimate
 from systems.perception.pose_noise import PoseYawOffset, draw_yaw_offset
 
@@ -177,7 +177,7 @@ def test_the_paper_placements_with_ground_truth_table_what_the_true_grasps_lift_
     assert summary["success_rate_given_oracle"] == pytest.approx(2 / 3)
     assert "[ground truth: FAILED at grasp]" in describe(records[2])
     path = tmp_path / "truth.json"
-    report(Campaign(category="drill", trials=1), records, first_seed=0, json_path=path)  # --ground-truth's records
+    report(CampaignSettings(category="drill", trials=1), records, first_seed=0, json_path=path)
     printed = capsys.readouterr().out
     assert "Table II form" in printed and "Random placements" not in printed
     assert "ground truth: 75 % lifted; objects with every pick a success: 1/2 (a)" in printed
