@@ -23,31 +23,14 @@ half a turn about z (a pot, a crate); the pose then keeps the left grasp on the 
 """
 
 import argparse
-import json
 import logging
-import os
-import re
-import shutil
-import time
 from pathlib import Path
 
-import numpy as np
 import torch
-import trimesh
-from build_shape_space import draw_space, folder_instances, frame_warnings
-from pydrake.math import RigidTransform
-from scenario_options import add_sensor_option, with_sensor
 
-from diagrams.generation import segmentation_data
-from diagrams.generation.objects.instance import export_obj, object_sdf
-from diagrams.generation.objects.library import recentred
-from diagrams.scenario import load_scenario
-from systems import categories
-from systems.perception import segmentation_network, segmenter_training
-from systems.shape_space.densify import surface_mesh
-from systems.shape_space.space import ALIGNMENTS, build_shape_space
-
-FINE_TUNE_LEARNING_RATE = 1e-3
+from diagrams.cli import add_sensor_option
+from diagrams.generation.teaching import check_name, teach_category
+from systems.shape_space.space import ALIGNMENTS
 
 
 def parse_args(argv=None):
@@ -74,164 +57,20 @@ def parse_args(argv=None):
     parser.add_argument("--threads", type=int, default=2, help="torch CPU threads")
     add_sensor_option(parser)
     args = parser.parse_args(argv)
-    if not re.fullmatch(r"[a-z][a-z0-9_]*", args.name):
-        parser.error(f"--name {args.name!r}: use lower case letters, digits and _ (starting with a letter)")
-    if args.name in categories.GENERATED or args.name == "background":
-        parser.error(f"--name {args.name!r} is taken by a built-in class")
+    try:
+        check_name(args.name)
+    except ValueError as error:
+        parser.error(str(error))
     if min(args.frames, args.frames_per_scene, args.epochs, args.validation_frames) < 1:
         parser.error("--frames, --frames-per-scene, --epochs and --validation-frames must be positive")
     return args
-
-
-def model_mesh(path: Path, points: np.ndarray) -> trimesh.Trimesh:
-    """The file's triangle mesh, or a Poisson surface through its points where it is a point cloud."""
-    if path.suffix.lower() != ".pcd":
-        mesh = trimesh.load(path, force="mesh")
-        if isinstance(mesh, trimesh.Trimesh) and len(mesh.faces):
-            return mesh
-    logging.info("%s is a point cloud: its surface is reconstructed for rendering", path.name)
-    return surface_mesh(points)
-
-
-def visual_sdf(mesh: trimesh.Trimesh, directory: Path, name: str) -> Path:
-    """A free body with the mesh as its only (visual) geometry: what segmentation frames render."""
-    export_obj(mesh, directory / f"{name}.obj")
-    box = trimesh.primitives.Box(extents=np.maximum(mesh.extents, 1e-3))
-    inertia = box.moment_inertia / box.volume  # of a unit mass filling the model's box: rendering needs no more
-    path = directory / f"{name}.sdf"
-    path.write_text(object_sdf(name, f"{name}.obj", [], 1.0, mesh.centroid, inertia, (0.6, 0.6, 0.65)))
-    return path
-
-
-def write_models(args, directory: Path):
-    """Steps 1-3: the category's shape space, template and training models in `directory`; its record."""
-    clouds, poses, canonical = folder_instances(args.folder, args.poses)
-    if args.align == "none":
-        for warning in frame_warnings(clouds, canonical):
-            logging.warning("warning: %s; if the models do not share one frame, pass --align vertical", warning)
-    lo, hi = clouds[canonical].min(axis=0), clouds[canonical].max(axis=0)
-    X_OF = RigidTransform([-(lo[0] + hi[0]) / 2, -(lo[1] + hi[1]) / 2, -lo[2]])  # the folder's frame F in O
-    folder_clouds, clouds = clouds, {name: X_OF.multiply(points.T).T for name, points in clouds.items()}
-    poses = {name: {pose: X_OF @ X for pose, X in model_poses.items()} for name, model_poses in poses.items()}
-    box_centre = np.mean([(c.min(axis=0) + c.max(axis=0))[:2] / 2 for c in clouds.values()], axis=0)
-
-    logging.info("[2/5] the shape space of %d models (%d annotated)", len(clouds), len(poses))
-    space = build_shape_space(args.name, clouds, poses, args.components, canonical=canonical, align=args.align)
-    space.save(directory / "shape_space.npz")
-    draw_space(space, directory / "shape_space.png")
-
-    logging.info("[3/5] the template and %d training models for rendering", len(clouds))
-    (directory / "training").mkdir()
-    for name in sorted(clouds):
-        path = args.folder / name
-        mesh = model_mesh(path, folder_clouds[name])  # in the folder's frame
-        if name == canonical:
-            template = mesh.copy()
-            template.apply_transform(X_OF.GetAsMatrix4())
-            export_obj(template, directory / "template.obj")
-        visual_sdf(recentred(mesh, box_centre), directory / "training", Path(name).stem)
-    return categories.CategoryRecord(
-        name=args.name,
-        presentation_yaw=args.presentation_yaw,
-        box_centre=[float(v) for v in box_centre],
-        half_turn_symmetric=args.symmetric,
-        models=sorted(clouds),
-        annotated_models=len(poses),
-    )
-
-
-def fine_tune_segmenter(args, base_model, base: dict, classes: tuple[str, ...]):
-    """Step 4: the segmenter in use (base_model, its metadata `base`), widened to `classes` and fine-tuned on
-    frames of every class. Returns the new model and its metadata."""
-    model = segmentation_network.with_classes(base_model, len(classes))
-    scenario = with_sensor(load_scenario(), args.sensor)
-    logging.info("[4/5] rendering %d frames of %s", args.frames, ", ".join(classes[1:]))
-    data = segmentation_data.generate(scenario, args.frames, args.frames_per_scene, "train", args.seed, classes=classes)
-    start = time.perf_counter()
-    model, history = segmenter_training.fit(
-        model, data["rgb"], data["labels"], args.epochs, args.seed, learning_rate=FINE_TUNE_LEARNING_RATE,
-        description=f"fine-tuning the segmenter with {classes[-1]!r}",
-    )  # fmt: skip
-    train_s = time.perf_counter() - start
-    seed = segmentation_data.VALIDATION_SEED
-    validation = segmentation_data.generate(
-        scenario, args.validation_frames, args.frames_per_scene, "test", seed, classes=classes
-    )
-    frames = validation["rgb"], validation["labels"]
-    metadata = segmenter_training.training_record(
-        classes, args.epochs, args.seed, len(data["rgb"]), scenario.camera_noise.preset, train_s, history
-    )
-    # The raw network at its input size (no flip averaging), on the generated categories' test instances and a
-    # taught category's own training models (it has no others); beside it the segmenter it started from on the
-    # same frames: what the fine-tuning cost the classes it knew.
-    before = segmenter_training.class_iou(base_model, *frames, classes)
-    metadata |= {
-        "fine_tuned_from": base,
-        "validation": {
-            "frames": args.validation_frames,
-            "seed": seed,
-            "iou": segmenter_training.class_iou(model, *frames, classes),
-            "iou_before": {name: before[name] for name in base["classes"]},
-        },
-    }
-    return model, metadata
-
-
-def teach(args, directory: Path, base_model, base: dict) -> categories.CategoryRecord:
-    """Steps 1-5 into `directory` (and the segmenter beside it, unless --keep-segmenter)."""
-    logging.info("[1/5] reading %s into %s", args.folder, directory)
-    record = write_models(args, directory)
-    if args.keep_segmenter:
-        categories.save_record(record)
-        print(f"taught {args.name!r} again: {len(record.models)} models, {record.annotated_models} annotated; "
-              f"the segmenter kept ({categories.active_segmenter()})")  # fmt: skip
-        return record
-    known = tuple(base["classes"])
-    classes = known if args.name in known else (*known, args.name)
-    model, metadata = fine_tune_segmenter(args, base_model, base, classes)
-    logging.info("[5/5] writing the segmenter (%d classes) and the record", len(classes))
-    root = directory.parent
-    partial = root / f"segmenter.{os.getpid()}.tmp.pt"
-    segmentation_network.save(model, partial, metadata)
-    os.replace(partial, root / "segmenter.pt")
-    categories.save_record(record)  # last: until now the category was not known to any pick
-    print(json.dumps(metadata["validation"], indent=2))
-    print(
-        f"taught {args.name!r}: {len(record.models)} models, {record.annotated_models} annotated; "
-        f"segmenter IoU on it {metadata['validation']['iou'][args.name]:.3f}. Try: python scripts/pick.py "
-        f"--object {args.name} --object-file <an unseen {args.name}>.obj"
-    )
-    return record
 
 
 def main(argv=None) -> int:
     logging.basicConfig(level=logging.INFO, format="%(message)s")
     args = parse_args(argv)
     torch.set_num_threads(args.threads)
-    base_path = categories.active_segmenter()
-    base_model, base = segmentation_network.load(base_path)
-    base["path"] = str(base_path)
-    if args.keep_segmenter and args.name not in base["classes"]:
-        raise SystemExit(f"error: --keep-segmenter: {base_path} does not know {args.name!r}")
-    root = categories.categories_dir()
-    directory = root / args.name
-    # A category taught before waits aside (out of known_categories' sight) until the new one is done: a run
-    # that fails or is stopped puts it back.
-    aside = root / ".previous" / args.name
-    if directory.exists():
-        logging.warning("%s is taught already: it is taught again (the old one is kept until then)", args.name)
-        shutil.rmtree(aside, ignore_errors=True)
-        aside.parent.mkdir(parents=True, exist_ok=True)
-        directory.rename(aside)
-    directory.mkdir(parents=True)
-    try:
-        teach(args, directory, base_model, base)
-    except BaseException:
-        shutil.rmtree(directory, ignore_errors=True)
-        if aside.exists():
-            aside.rename(directory)
-        raise
-    shutil.rmtree(aside, ignore_errors=True)
+    teach_category(args)
     return 0
 
 

@@ -7,40 +7,29 @@ first successful plan after it (the supervisor's reads, the simulator's steps be
 plan before it included); a pick that failed counts until the plan or the perception result that failed. It is not
 a sum of the stage timers: what the stages' medians leave of it is shown as "between the stages". Nothing is kept
 from one pick to the next but what is built before the image (the diagram, its IK seed table), which is not
-counted.
+counted (diagrams/benchmarks/latency.py).
 
 python scripts/benchmark_latency.py --json latency.json          # 30 picks of both categories, about 8 min
 python scripts/benchmark_latency.py --unseen 0 --yaws 0          # the test instances at yaw 0 alone
 """
 
 import argparse
-import dataclasses
 import sys
 from pathlib import Path
 
-import numpy as np
-from campaign import run_campaign
-from json_report import write_json
-from scenario_options import add_sensor_option, with_sensor
-
-from diagrams.evaluation import PAPER_YAW_NOISE, PAPER_YAWS, generated_objects, make_trials
-from diagrams.scenario import DEFAULT_SCENARIO, load_scenario
+from diagrams.benchmarks import latency
+from diagrams.campaign import run_campaign
+from diagrams.cli import add_sensor_option, write_json
+from diagrams.evaluation import PAPER_YAWS
 from systems.parallel import THREADS
-
-CATEGORIES = ("watering_can", "drill")
-STAGES = ("segmentation", "pose", "registration", "planning")
-# The unseen instances: extra_<FIRST_UNSEEN + k>, a range no other figure uses.
-FIRST_UNSEEN = 401
-# Issue 38's targets, s (medians unless named).
-TARGETS_S = {"image_to_trajectory": 0.4, "image_to_trajectory_p95": 0.8, "segmentation": 0.04, "pose": 0.015,
-             "registration": 0.12, "planning": 0.25}  # fmt: skip
-PAPER_IMAGE_TO_TRAJECTORY_S = 6.27  # the paper's Table III, the real robot
 
 
 def parse_args(argv=None):
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--yaws", type=float, nargs="+", default=list(PAPER_YAWS), help="test instances' yaws, rad")
-    parser.add_argument("--unseen", type=int, default=6, help=f"unseen instances per category (extra_{FIRST_UNSEEN}..)")
+    parser.add_argument(
+        "--unseen", type=int, default=6, help=f"unseen instances per category (extra_{latency.FIRST_UNSEEN}..)"
+    )
     parser.add_argument("--json", type=Path, help="write the summary and every pick's record as JSON")
     parser.add_argument("--figure", type=Path, help="PNG figure (default: --json's name, .png)")
     add_sensor_option(parser)
@@ -52,97 +41,10 @@ def parse_args(argv=None):
     return args
 
 
-def latency_trials(yaws: list[float], unseen: int, sensor: str | None) -> list:
-    """Per category: the test instances at each yaw, then `unseen` unseen instances at yaw 0."""
-    base = with_sensor(load_scenario(DEFAULT_SCENARIO), sensor)
-    trials = []
-    for category in CATEGORIES:
-        trials += make_trials(base, category, generated_objects(category), 1, yaws, PAPER_YAW_NOISE)
-        extras = {
-            f"extra_{FIRST_UNSEEN + k}": {"instance": f"extra_{FIRST_UNSEEN + k}", "file": ""} for k in range(unseen)
-        }
-        if extras:
-            trials += make_trials(base, category, extras, 1, [0.0], PAPER_YAW_NOISE)
-    # One seed per pick across both categories.
-    return [
-        dataclasses.replace(t, scenario=dataclasses.replace(t.scenario, random_seed=n)) for n, t in enumerate(trials)
-    ]
-
-
-def summarize(records: list[dict]) -> dict:
-    """The JSON's top level: medians (and the end to end's 95th percentile) over every pick that timed them."""
-
-    def seconds(stage: str) -> np.ndarray:
-        return np.array([r["stages"][stage] for r in records if stage in r["stages"]])
-
-    end_to_end = seconds("image_to_trajectory")
-    summary = {
-        "picks": len(records),
-        "lifted": int(sum(r["success"] for r in records)),
-        "image_to_trajectory_s_median": float(np.median(end_to_end)) if len(end_to_end) else float("nan"),
-        "image_to_trajectory_s_p95": float(np.percentile(end_to_end, 95)) if len(end_to_end) else float("nan"),
-    }
-    for stage in STAGES:
-        values = seconds(stage)
-        summary[f"{stage}_s_median"] = float(np.median(values)) if len(values) else float("nan")
-        summary[f"{stage}_s_p95"] = float(np.percentile(values, 95)) if len(values) else float("nan")
-    between = [
-        r["stages"]["image_to_trajectory"] - sum(r["stages"].get(s, 0.0) for s in STAGES)
-        for r in records
-        if "image_to_trajectory" in r["stages"]
-    ]
-    summary["between_stages_s_median"] = float(np.median(between)) if between else float("nan")
-    return summary
-
-
-def print_table(summary: dict, sensor: str):
-    print(f"\nImage to first trajectory, {summary['picks']} picks one at a time (sensor {sensor}; "
-          f"lifted {summary['lifted']}); seconds")  # fmt: skip
-    print(f"{'stage':<24}{'median':>9}{'p95':>9}{'target':>9}{'share':>8}")
-    total = summary["image_to_trajectory_s_median"]
-    for stage in STAGES:
-        median, p95 = summary[f"{stage}_s_median"], summary[f"{stage}_s_p95"]
-        print(f"{stage:<24}{median:>9.3f}{p95:>9.3f}{TARGETS_S[stage]:>9.3f}{100 * median / total:>7.0f}%")
-    between = summary["between_stages_s_median"]
-    print(f"{'between the stages':<24}{between:>9.3f}{'':>9}{'':>9}{100 * between / total:>7.0f}%")
-    print(f"{'image to trajectory':<24}{total:>9.3f}{summary['image_to_trajectory_s_p95']:>9.3f}"
-          f"{TARGETS_S['image_to_trajectory']:>9.3f}    (p95 target {TARGETS_S['image_to_trajectory_p95']:.1f} s; "
-          f"paper {PAPER_IMAGE_TO_TRAJECTORY_S} s)")  # fmt: skip
-
-
-def draw_figure(path: Path, records: list[dict]):
-    """Each pick's end to end latency as stacked stage times, slowest on top, with the 0.4 s target."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    timed = sorted((r for r in records if "image_to_trajectory" in r["stages"]),
-                   key=lambda r: r["stages"]["image_to_trajectory"])  # fmt: skip
-    figure, axes = plt.subplots(figsize=(9, 0.25 * len(timed) + 1.5))
-    left = np.zeros(len(timed))
-    for stage in STAGES:
-        widths = np.array([r["stages"].get(stage, 0.0) for r in timed])
-        axes.barh(range(len(timed)), widths, left=left, label=stage)
-        left += widths
-    rest = np.array([r["stages"]["image_to_trajectory"] for r in timed]) - left
-    axes.barh(range(len(timed)), rest, left=left, label="between the stages", color="lightgrey")
-    axes.axvline(TARGETS_S["image_to_trajectory"], color="k", linestyle="--", linewidth=1, label="target 0.4 s")
-    labels = [f"{r['category'][:5]} {r['name']} {r['yaw']:+.2f}" + ("" if r["success"] else " (failed)") for r in timed]
-    axes.set_yticks(range(len(timed)), labels, fontsize=7)
-    axes.set_xlabel("wall time from the latched image [s]")
-    axes.set_title(f"image to first trajectory, {len(timed)} picks one at a time")
-    axes.legend(fontsize=8, loc="lower right")
-    figure.tight_layout()
-    figure.savefig(path, dpi=110)
-    plt.close(figure)
-    print(f"wrote {path}")
-
-
 def main(argv=None) -> int:
     args = parse_args(argv)
     try:
-        trials = latency_trials(args.yaws, args.unseen, args.sensor)
+        trials = latency.latency_trials(args.yaws, args.unseen, args.sensor)
     except (ValueError, FileNotFoundError) as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
@@ -150,20 +52,13 @@ def main(argv=None) -> int:
     print(f"{len(trials)} picks one at a time (sensor {sensor}), each in a worker process with torch, BLAS and "
           f"OpenMP on one thread and the stages' independent pieces on {THREADS} threads, as evaluate.py runs "
           "them")  # fmt: skip
-
-    def describe(record: dict) -> str:
-        outcome = "lifted" if record["success"] else f"FAILED at {record['failed_stage']}"
-        latency = record["stages"].get("image_to_trajectory", float("nan"))
-        name = f"{record['category']} {record['name']} yaw {record['yaw']:+.2f}"
-        return f"{name}: {outcome}, image to trajectory {latency:.3f} s"
-
-    records = run_campaign(trials, jobs=1, describe=describe)
-    summary = summarize(records)
-    print_table(summary, sensor)
+    records = run_campaign(trials, jobs=1, describe=latency.describe)
+    summary = latency.summarize(records)
+    latency.print_table(summary, sensor)
     if args.json:
-        write_json(args.json, {**summary, "sensor": sensor, "targets_s": TARGETS_S, "records": records})
+        write_json(args.json, {**summary, "sensor": sensor, "targets_s": latency.TARGETS_S, "records": records})
     if args.figure:
-        draw_figure(args.figure, records)
+        latency.draw_figure(args.figure, records)
     return 0
 
 

@@ -5,8 +5,8 @@ seen from the chest camera's nominal pose (the whole object in view), its colour
 RGB-D sensor model reports them (--sensor, by default kinect_v2; --no-noise: the renderer's perfect
 images). The Segmenter and PoseEstimator systems run as they do in the pick diagram (FixValue / Eval).
 
-With --scene clutter, seeded cluttered tables instead (scripts/perception_in_clutter.py): the target among others,
-and empty tables with distractors only.
+With --scene clutter, seeded cluttered tables instead (diagrams/benchmarks/perception_in_clutter.py): the target
+among others, and empty tables with distractors only.
 
 python scripts/benchmark_perception.py --scenes 60 --json perception.json
 python scripts/benchmark_perception.py --scenes 60 --no-noise
@@ -14,82 +14,15 @@ python scripts/benchmark_perception.py --scene clutter --scenes 30 --empty-table
 """
 
 import argparse
-import dataclasses
 import logging
-import platform
-import time
 from pathlib import Path
 
-import cv2
-import numpy as np
 import torch
-from json_report import write_json
-from pydrake.common.value import AbstractValue
-from pydrake.systems.sensors import ImageDepth32F, ImageRgba8U
-from scenario_options import add_sensor_option, with_sensor
 
-from diagrams.generation.synthetic_scenes import CLASSES, SyntheticScene
-from diagrams.perception import MakePoseEstimator
+from diagrams.benchmarks import perception, perception_in_clutter
+from diagrams.cli import add_sensor_option, with_sensor, write_json
 from diagrams.scenario import load_scenario
-from systems.perception.rgbd_noise import noisy_color, noisy_depth, sensor_model
-from systems.perception.segmenter import DEFAULT_WEIGHTS, TEST_TIME_FLIP, Segmenter
-from systems.perception.segmenter_training import intersection_over_union
-
-OBJECT_REGION = ((0.6, 0.85), (-0.2, 0.2))  # m, in W: where the robot picks from
-MIN_OBJECT_PIXELS = 1500
-
-
-def yaw_of(X) -> float:
-    R = X.rotation().matrix()
-    return float(np.arctan2(R[1, 0], R[0, 0]))
-
-
-def wrap(angle: float) -> float:
-    return float((angle + np.pi) % (2 * np.pi) - np.pi)
-
-
-def render_held_out_frame(scene: SyntheticScene):
-    """A frame with exactly one object wholly in view (re-placed until it is)."""
-    for _ in range(20):
-        frame = scene.render(object_region=OBJECT_REGION, count=1)
-        object_pixels = frame.labels > 0
-        on_border = object_pixels[[0, -1]].any() or object_pixels[:, [0, -1]].any()
-        if np.count_nonzero(object_pixels) >= MIN_OBJECT_PIXELS and not on_border:
-            return frame
-    raise RuntimeError("could not place an object wholly in view in 20 tries")
-
-
-def draw_result(frame, segmentation, estimate, intrinsics, scale: float = 0.5) -> np.ndarray:
-    """The colour image with the predicted mask tinted and the estimated object frame drawn (x red, y green)."""
-    image = frame.rgb.copy()
-    if segmentation.found:
-        image[segmentation.mask] = (0.5 * image[segmentation.mask] + [0, 0, 127]).astype(np.uint8)
-    if estimate.found:
-        X_CW = frame.X_WC.inverse()
-        axes = estimate.X_WO.multiply(np.array([[0, 0, 0], [0.1, 0, 0], [0, 0.1, 0]]).T)
-        p = X_CW.multiply(axes)
-        uv = np.column_stack(
-            [
-                intrinsics.focal_x() * p[0] / p[2] + intrinsics.center_x(),
-                intrinsics.focal_y() * p[1] / p[2] + intrinsics.center_y(),
-            ]
-        ).astype(int)
-        for end, color in ((1, (255, 0, 0)), (2, (0, 255, 0))):
-            cv2.line(image, tuple(uv[0]), tuple(uv[end]), color, 3)
-    return cv2.resize(image, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA)
-
-
-def to_rgba_image(rgb: np.ndarray) -> ImageRgba8U:
-    image = ImageRgba8U(rgb.shape[1], rgb.shape[0])
-    image.mutable_data[:, :, :3] = rgb
-    image.mutable_data[:, :, 3] = 255
-    return image
-
-
-def to_depth_image(depth: np.ndarray) -> ImageDepth32F:
-    image = ImageDepth32F(depth.shape[1], depth.shape[0])
-    image.mutable_data[:, :, 0] = depth
-    return image
+from systems.perception.segmenter import DEFAULT_WEIGHTS, TEST_TIME_FLIP
 
 
 def main():
@@ -117,8 +50,6 @@ def main():
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
     if args.scene == "clutter":
-        import perception_in_clutter
-
         base = with_sensor(load_scenario(), args.sensor)
         results = perception_in_clutter.run(base, args.weights, args.scenes, args.empty_tables)
         results |= {"sensor": args.sensor, "torch_threads": torch.get_num_threads()}
@@ -126,114 +57,13 @@ def main():
         if args.json:
             write_json(args.json, results)
         return
-    scenario = load_scenario()
-    rng = np.random.default_rng(args.seed)
-
-    sensor = sensor_model(args.sensor)
-    intrinsics = scenario.camera.MakeCameras()[1].core().intrinsics()
-    segmenter = Segmenter(args.weights, flip=TEST_TIME_FLIP if args.flip is None else args.flip == "on")
-    pose_estimator = MakePoseEstimator(scenario)
-    predicted, predicted_dominant, truth, rows, tiles = [], [], [], [], []
-    for i in range(args.scenes):
-        scene = SyntheticScene(scenario, rng, split="test", cameras=1, camera_jitter=False)
-        frame = render_held_out_frame(scene)
-        category, instance, X_WO_true = frame.objects[0]
-        if sensor is not None:  # (a stream of its own: the scenes are those of a run without it)
-            noise = np.random.default_rng([args.seed, i])
-            depth = noisy_depth(frame.depth, frame.rgb, intrinsics, sensor, noise)
-            frame = dataclasses.replace(frame, rgb=noisy_color(frame.rgb, sensor, noise), depth=depth)
-
-        seg_context = segmenter.CreateDefaultContext()
-        segmenter.GetInputPort("color_image").FixValue(seg_context, to_rgba_image(frame.rgb))
-        start = time.perf_counter()
-        segmentation = segmenter.GetOutputPort("segmentation").Eval(seg_context)
-        segmentation_s = time.perf_counter() - start
-        labels = segmenter.GetOutputPort("labels").Eval(seg_context)
-
-        pose_context = pose_estimator.CreateDefaultContext()
-        pose_estimator.GetInputPort("segmentation").FixValue(pose_context, AbstractValue.Make(segmentation))
-        pose_estimator.GetInputPort("depth_image").FixValue(pose_context, to_depth_image(frame.depth))
-        pose_estimator.GetInputPort("camera_pose").FixValue(pose_context, AbstractValue.Make(frame.X_WC))
-        start = time.perf_counter()
-        estimate = pose_estimator.GetOutputPort("estimate").Eval(pose_context)
-        pose_s = time.perf_counter() - start
-
-        predicted.append(labels)
-        dominant = np.zeros_like(labels)
-        if segmentation.found:
-            dominant[segmentation.mask] = CLASSES.index(segmentation.category)
-        predicted_dominant.append(dominant)
-        truth.append(frame.labels)
-        if args.figure and len(tiles) < 6:
-            tiles.append(draw_result(frame, segmentation, estimate, pose_estimator.intrinsics))
-        row = {
-            "category": category,
-            "instance": instance,
-            "found": estimate.found,
-            "category_correct": estimate.category == category,
-            "segmentation_s": segmentation_s,
-            "pose_s": pose_s,
-        }
-        if estimate.found and estimate.category == category:
-            row["translation_error_m"] = float(np.linalg.norm(estimate.X_WO.translation() - X_WO_true.translation()))
-            row["yaw_error_rad"] = abs(wrap(yaw_of(estimate.X_WO) - yaw_of(X_WO_true)))
-        rows.append(row)
-        logging.info(
-            "%3d %-12s %-7s %s seg %.3f s pose %.4f s  dt %s  dyaw %s",
-            i,
-            category,
-            instance,
-            "ok  " if row["category_correct"] else "MISS",
-            segmentation_s,
-            pose_s,
-            f"{row.get('translation_error_m', float('nan')):.3f} m",
-            f"{np.degrees(row.get('yaw_error_rad', float('nan'))):5.1f} deg",
-        )
-
-    iou = intersection_over_union(np.stack(predicted), np.stack(truth), len(CLASSES))
-    # The dominant object's mask: what the pose estimator consumes.
-    iou_dominant = intersection_over_union(np.stack(predicted_dominant), np.stack(truth), len(CLASSES))
-    localised = [r for r in rows if "translation_error_m" in r]
-    results = {
-        "scenes": args.scenes,
-        "seed": args.seed,
-        "sensor": args.sensor,
-        "iou": dict(zip(CLASSES, iou.tolist(), strict=True)),
-        "iou_mean": float(np.nanmean(iou[1:])),  # network labels, over the object classes
-        "iou_dominant": dict(zip(CLASSES, iou_dominant.tolist(), strict=True)),
-        "iou_dominant_mean": float(np.nanmean(iou_dominant[1:])),
-        "category_accuracy": float(np.mean([r["category_correct"] for r in rows])),
-        "segmentation_s_median": float(np.median([r["segmentation_s"] for r in rows])),
-        "pose_s_median": float(np.median([r["pose_s"] for r in rows])),
-        "translation_error_m_median": float(np.median([r["translation_error_m"] for r in localised])),
-        "translation_error_m_p90": float(np.percentile([r["translation_error_m"] for r in localised], 90)),
-        "yaw_error_rad_median": float(np.median([r["yaw_error_rad"] for r in localised])),
-        "yaw_error_rad_p90": float(np.percentile([r["yaw_error_rad"] for r in localised], 90)),
-        "torch_threads": torch.get_num_threads(),
-        "machine": platform.processor() or platform.machine(),
-        "frames": rows,
-    }
-    print()
-    print(f"{'metric':32s} {'value':>10s}  target")
-    for key, value, target in (
-        ("iou_mean (can, drill)", results["iou_mean"], ">= 0.9"),
-        ("iou_dominant_mean (after post.)", results["iou_dominant_mean"], ""),
-        ("iou watering_can", results["iou"]["watering_can"], ""),
-        ("iou drill", results["iou"]["drill"], ""),
-        ("category accuracy", results["category_accuracy"], ""),
-        ("segmentation_s_median", results["segmentation_s_median"], "<= 0.15 s"),
-        ("pose_s_median", results["pose_s_median"], "<= 0.02 s"),
-        ("translation_error_m_median", results["translation_error_m_median"], "<= 0.02 m"),
-        ("yaw_error_deg_median", np.degrees(results["yaw_error_rad_median"]), "<= 15 deg"),
-        ("yaw_error_deg_p90", np.degrees(results["yaw_error_rad_p90"]), ""),
-    ):
-        print(f"{key:32s} {value:10.4f}  {target}")
+    flip = TEST_TIME_FLIP if args.flip is None else args.flip == "on"
+    results, tiles = perception.run(args.scenes, args.seed, args.weights, args.sensor, flip, 6 if args.figure else 0)
+    perception.print_table(results)
     if args.json:
         write_json(args.json, results)
     if args.figure and tiles:
-        rows_of_tiles = [np.hstack(tiles[i : i + 3]) for i in range(0, len(tiles) - len(tiles) % 3 or 1, 3)]
-        cv2.imwrite(str(args.figure), cv2.cvtColor(np.vstack(rows_of_tiles), cv2.COLOR_RGB2BGR))
-        print(f"wrote {args.figure}")
+        perception.write_mosaic(args.figure, tiles)
 
 
 if __name__ == "__main__":

@@ -11,12 +11,12 @@ import logging
 import matplotlib
 import numpy as np
 from pydrake.systems.analysis import Simulator
-from scenario_options import add_scenario_options, scenario_from_args
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 from diagrams.autonomous_pick import PERCEIVE_AT_S, MakePickDiagram  # noqa: E402
+from diagrams.cli import add_scenario_options, scenario_from_args  # noqa: E402
 from systems.perception.instances import object_instances  # noqa: E402
 
 

@@ -19,9 +19,9 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-from benchmark_registration import first_pick_frame  # noqa: E402
-from scenario_options import with_sensor  # noqa: E402
 
+from diagrams.benchmarks.pick_frames import first_pick_frame  # noqa: E402
+from diagrams.cli import with_sensor  # noqa: E402
 from diagrams.evaluation import make_trials  # noqa: E402
 from diagrams.generation.objects import catalog  # noqa: E402
 from diagrams.generation.objects.library import load_info, mesh_to_sdf  # noqa: E402

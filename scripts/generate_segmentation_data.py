@@ -15,9 +15,8 @@ they are rendered here, in worker processes or on Ray.
 import argparse
 from pathlib import Path
 
-from campaign import fan_out
-from scenario_options import add_sensor_option, with_sensor
-
+from diagrams.campaign import fan_out
+from diagrams.cli import add_sensor_option, with_sensor
 from diagrams.generation import segmentation_data
 from diagrams.scenario import load_scenario
 

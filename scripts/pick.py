@@ -14,12 +14,11 @@ import math
 import sys
 from pathlib import Path
 
-from json_report import write_json
 from pydrake.geometry import Meshcat, MeshcatParams
-from scenario_options import add_scenario_options, scenario_arguments, scenario_from_args
 
 from diagrams import lcm_pick
 from diagrams.autonomous_pick import run_pick
+from diagrams.cli import add_scenario_options, scenario_arguments, scenario_from_args, write_json
 from diagrams.hardware_station import RobotNotResponding
 from diagrams.scenario import clutter_name
 from systems.planning.pick_motions import PlanningError

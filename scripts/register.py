@@ -20,9 +20,9 @@ from pathlib import Path
 
 import numpy as np
 import open3d as o3d
-from json_report import write_json
 from pydrake.math import RigidTransform, RotationMatrix
 
+from diagrams.cli import write_json
 from systems.perception.shape_registrar import scale_prior
 from systems.shape_space.registration import Registrar
 from systems.shape_space.space import ShapeSpace

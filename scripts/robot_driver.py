@@ -15,11 +15,10 @@ import signal
 import sys
 from pathlib import Path
 
-from json_report import write_json
 from pydrake.lcm import DrakeLcm
 from pydrake.systems.analysis import Simulator
-from scenario_options import add_scenario_options, scenario_from_args
 
+from diagrams.cli import add_scenario_options, scenario_from_args, write_json
 from diagrams.pick_simulation import SAMPLE_S, LiftJudge, station_plant
 from diagrams.robot_driver import MakeRobotDriver
 

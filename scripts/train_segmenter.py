@@ -17,8 +17,8 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from scenario_options import add_sensor_option, with_sensor
 
+from diagrams.cli import add_sensor_option, with_sensor
 from diagrams.generation import segmentation_data
 from diagrams.generation.synthetic_scenes import CLASSES, WIDE_TRAINING, WIDE_VALIDATION
 from diagrams.paths import MODELS_DIR

@@ -1,11 +1,13 @@
-"""benchmark_registration.py's views of the picks' own first frames (--pick-frames)."""
+"""benchmark_registration.py's views of the picks' own first frames (--pick-frames):
+diagrams/benchmarks/pick_frames.py."""
 
 import dataclasses
-import sys
-from pathlib import Path
 
 import numpy as np
 
+from diagrams.benchmarks import pick_frames
+from diagrams.benchmarks.pick_frames import first_pick_frame, pick_frame_trials
+from diagrams.benchmarks.registration import true_grasps
 from diagrams.evaluation import make_trials
 from diagrams.generation.objects.library import resolve_object
 from diagrams.scenario import load_scenario
@@ -13,9 +15,6 @@ from diagrams.station import object_pose_on_table
 from systems.messages import ObjectEstimate
 from systems.perception.pose_noise import draw_yaw_offset
 from systems.perception.shape_registrar import registrar_of, shape_space_file, wider_shape_space_file
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
-from benchmark_registration import first_pick_frame, pick_frame_trials, true_grasps  # noqa: E402
 
 
 def yaw(X) -> float:
@@ -56,9 +55,7 @@ def test_pick_frame_trials_judge_every_pick_of_the_campaign():
 
 
 def test_a_frame_in_which_perception_finds_nothing_is_a_row_with_its_reason(monkeypatch):
-    import benchmark_registration
-
     nothing = ObjectEstimate(False, message="no")
-    monkeypatch.setattr(benchmark_registration, "first_pick_frame", lambda scenario: (nothing, None))
+    monkeypatch.setattr(pick_frames, "first_pick_frame", lambda scenario: (nothing, None))
     rows = pick_frame_trials(load_scenario(), "drill", {"test_1": {"instance": "test_1", "file": ""}}, 1, [0.0, 0.25])
     assert [(row["yaw"], row["found"], row["message"]) for row in rows] == [(0.0, False, "no"), (0.25, False, "no")]

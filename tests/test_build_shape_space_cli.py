@@ -13,13 +13,12 @@ from pydrake.math import RigidTransform, RotationMatrix
 
 from diagrams.generation.objects import catalog
 from diagrams.generation.objects.library import load_info
+from systems.shape_space import folder as folder_tools
+from systems.shape_space.folder import FOLDER_SCALED_COPIES, folder_copies, pose_entries
 from systems.shape_space.registration import Registrar
 from systems.shape_space.space import ShapeSpace
 
 REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO / "scripts"))
-import build_shape_space  # noqa: E402
-from build_shape_space import FOLDER_SCALED_COPIES, folder_copies, pose_entries  # noqa: E402
 
 MODELS = [f"train_{i}" for i in range(6)]
 
@@ -143,7 +142,7 @@ def test_a_folder_gets_stretched_copies_where_its_category_varies_in_proportion(
     poses_file = tmp_path / "poses.yaml"
     poses_file.write_text(yaml.safe_dump(spec))
     handed = {}
-    monkeypatch.setattr(build_shape_space, "build_shape_space", lambda *args, **options: handed.update(options))
-    build_shape_space.build_from_folder(models, poses_file, category, align="vertical")
+    monkeypatch.setattr(folder_tools, "build_shape_space", lambda *args, **options: handed.update(options))
+    folder_tools.build_from_folder(models, poses_file, category, align="vertical")
     assert folder_copies(category) == copies
     assert handed["scaled_copies"] == copies and handed["copy_spread"] == spread

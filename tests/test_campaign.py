@@ -1,18 +1,18 @@
-"""Campaigns of picks (scripts/campaign.py): Ray against one process, records streamed, resumed, summarised."""
+"""Campaigns of picks (diagrams/campaign.py): Ray against one process, records streamed, resumed, summarised."""
 
 import json
+import subprocess
 import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from diagrams import campaign
 from diagrams.evaluation import make_trials, wilson_interval
 from diagrams.generation import segmentation_data
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
-import campaign  # noqa: E402
-import evaluate  # noqa: E402
+REPO = Path(__file__).resolve().parents[1]
 
 WALL_CLOCK = ("stages", "sim_wall_s")  # the only fields that may differ between runs of the same seed
 
@@ -20,6 +20,12 @@ WALL_CLOCK = ("stages", "sim_wall_s")  # the only fields that may differ between
 def lift_trials(scenario, count: int):
     yaws = (0.25, 0.0, -0.25, 0.1)[:count]
     return make_trials(scenario, "watering_can", {"test_1": {"instance": "test_1", "file": ""}}, 1, yaws)
+
+
+def evaluate(*arguments: str) -> subprocess.CompletedProcess:
+    """scripts/evaluate.py as a user runs it."""
+    command = [sys.executable, "scripts/evaluate.py", *arguments]
+    return subprocess.run(command, cwd=REPO, capture_output=True, text=True, timeout=600)
 
 
 def without_wall_clock(record: dict) -> dict:
@@ -89,7 +95,8 @@ def test_a_stopped_campaign_resumes_without_redoing_finished_picks(scenario, tmp
     assert [r["seed"] for r in on_file] == [first.scenario.random_seed, second.scenario.random_seed]
 
     report = tmp_path / "summary.json"
-    assert evaluate.main(["--summarize", str(records), "--json", str(report)]) == 0
+    summarized = evaluate("--summarize", str(records), "--json", str(report))
+    assert summarized.returncode == 0, summarized.stderr
     summary = json.loads(report.read_text())
     assert summary["trials"] == 2 and len(summary["success_rate_ci95"]) == 2
     assert summary["yaws"] == [first.yaw, second.yaw] and summary["obstacle"] is False
@@ -101,10 +108,9 @@ def test_ray_missing_is_said_with_how_to_get_it(scenario, monkeypatch):
         campaign.run_campaign(lift_trials(scenario, 1), ray_address="")
 
 
-def test_resume_needs_a_records_file(capsys):
-    with pytest.raises(SystemExit):
-        evaluate.parse_args(["--resume"])
-    assert "--resume needs --records or --json" in capsys.readouterr().err
+def test_resume_needs_a_records_file():
+    refused = evaluate("--resume")
+    assert refused.returncode == 2 and "--resume needs --records or --json" in refused.stderr
 
 
 def test_segmentation_frames_rendered_on_ray_are_the_frames_rendered_here(scenario):

@@ -1,19 +1,14 @@
 """The arm command stream: a process of its own that keeps sending while this one is busy (an LCM log file
 stands for the bus: no network)."""
 
-import json
-import sys
 import time
-from pathlib import Path
 
 import lcm
 import numpy as np
 from drake import lcmt_iiwa_command
 
+from diagrams.benchmarks.command_stream import benchmark
 from systems.robot_io.command_stream import CommandStream, CommandStreamSender
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
-import benchmark_command_stream  # noqa: E402
 
 PERIOD_S = 0.005
 
@@ -67,10 +62,8 @@ def test_sender_system_hands_the_guards_command_to_the_stream(tmp_path):
     assert sent and sent[-1][1].utime == 250_000 and list(sent[-1][1].joint_position) == [0.5] * 14
 
 
-def test_stream_benchmark_reports_idle_and_loaded_runs(tmp_path):
-    report = tmp_path / "stream.json"
-    assert benchmark_command_stream.main(["--seconds", "1.5", "--load", "1", "--json", str(report)]) == 0
-    runs = json.loads(report.read_text())["runs"]
+def test_stream_benchmark_reports_idle_and_loaded_runs():
+    runs = benchmark(1.5, 1)["runs"]
     assert [run["busy_processes"] for run in runs] == [0, 1]
     for run in runs:  # the streamer needs about 0.5 s to start; then it sends every 5 ms
         assert 100 < run["sent"] <= 1.5 / PERIOD_S + 1 and run["max_gap_s"] >= PERIOD_S * 0.9

@@ -3,6 +3,7 @@
 import dataclasses
 import json
 import pickle
+import subprocess
 import sys
 from pathlib import Path
 
@@ -24,11 +25,17 @@ from diagrams.evaluation import (
     random_placements,
     summarize,
 )
+from diagrams.evaluation_report import CampaignSettings, describe, report
 from systems.messages import ObjectEstimate
 from systems.perception.pose_noise import PoseYawOffset, draw_yaw_offset
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
-import evaluate  # noqa: E402
+REPO = Path(__file__).resolve().parents[1]
+
+
+def evaluate(*arguments: str) -> subprocess.CompletedProcess:
+    """scripts/evaluate.py as a user runs it."""
+    command = [sys.executable, "scripts/evaluate.py", *arguments]
+    return subprocess.run(command, cwd=REPO, capture_output=True, text=True, timeout=600)
 
 
 def test_yaw_offset_is_seeded_uniform_and_bounded():
@@ -168,47 +175,42 @@ def test_the_paper_placements_with_ground_truth_table_what_the_true_grasps_lift_
     assert summary["ground_truth_per_instance"]["b"]["per_yaw"] == {"+0.25": 0.0, "+0.00": 1.0}
     assert summary["ground_truth_always_succeeded"] == ["a"] and summary["always_succeeded"] == []
     assert summary["success_rate_given_oracle"] == pytest.approx(2 / 3)
-    assert "[ground truth: FAILED at grasp]" in evaluate.describe(records[2])
-    report = tmp_path / "truth.json"
-    args = evaluate.parse_args(["--ground-truth", "--category", "drill", "--trials", "1", "--json", str(report)])
-    evaluate.report(args, records, first_seed=0)
+    assert "[ground truth: FAILED at grasp]" in describe(records[2])
+    path = tmp_path / "truth.json"
+    report(CampaignSettings(category="drill", trials=1), records, first_seed=0, json_path=path)
     printed = capsys.readouterr().out
     assert "Table II form" in printed and "Random placements" not in printed
     assert "ground truth: 75 % lifted; objects with every pick a success: 1/2 (a)" in printed
     assert "the autonomous pick lifted 67 % of what ground truth lifted" in printed
-    assert json.loads(report.read_text())["placement"] == "paper"
-    with pytest.raises(SystemExit):
-        evaluate.parse_args(["--ground-truth", "--scene", "clutter"])
+    assert json.loads(path.read_text())["placement"] == "paper"
+    refused = evaluate("--ground-truth", "--scene", "clutter")
+    assert refused.returncode == 2 and "--ground-truth is for one object" in refused.stderr
 
 
-def test_evaluate_script_end_to_end(tmp_path, capsys):
+def test_evaluate_script_end_to_end(tmp_path):
     """One pick of one unseen can at one yaw, with the registration's yaw noise: tables, JSON and figure."""
     report = tmp_path / "evaluation.json"
-    assert (
-        evaluate.main(["--trials", "1", "--instances", "test_1", "--yaws", "0", "--seed", "5", "--json", str(report)])
-        == 0
-    )
+    run = evaluate("--trials", "1", "--instances", "test_1", "--yaws", "0", "--seed", "5", "--json", str(report))
+    assert run.returncode == 0, run.stderr
     results = json.loads(report.read_text())
     assert results["per_instance"]["test_1"]["success_rate"] == 1.0, results["records"]
     assert results["success_rate"] == 1.0
     assert 0.1 < results["stages"]["image_to_trajectory_s_median"] < 30
     (record,) = results["records"]
     assert record["seed"] == 5 and record["registration_yaw_offset_rad"] == pytest.approx(draw_yaw_offset(0.2, 5))
-    printed = capsys.readouterr().out
-    assert "Table II form" in printed and "complete pipeline" in printed
+    assert "Table II form" in run.stdout and "complete pipeline" in run.stdout
     png = report.with_suffix(".png").read_bytes()
     assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 10_000
 
 
-def test_evaluate_refuses_a_box_without_the_place_task(capsys):
-    assert evaluate.main(["--obstacle", "--trials", "1"]) == 2
-    assert "--obstacle needs --task place" in capsys.readouterr().err
+def test_evaluate_refuses_a_box_without_the_place_task():
+    refused = evaluate("--obstacle", "--trials", "1")
+    assert refused.returncode == 2 and "--obstacle needs --task place" in refused.stderr
 
 
-def test_random_placements_refuse_given_yaws(capsys):
-    with pytest.raises(SystemExit):
-        evaluate.main(["--placement", "random", "--yaws", "0"])
-    assert "--placement random draws its own yaws" in capsys.readouterr().err
+def test_random_placements_refuse_given_yaws():
+    refused = evaluate("--placement", "random", "--yaws", "0")
+    assert refused.returncode == 2 and "--placement random draws its own yaws" in refused.stderr
 
 
 def test_summary_of_cluttered_tables_keeps_the_largest_move_of_another_object(scenario):

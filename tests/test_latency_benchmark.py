@@ -1,12 +1,9 @@
-"""scripts/benchmark_latency.py without its picks: which picks it runs and what its JSON says of their records."""
-
-import sys
-from pathlib import Path
+"""scripts/benchmark_latency.py (diagrams/benchmarks/latency.py) without its picks: which picks it runs and what its
+JSON says of their records."""
 
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
-import benchmark_latency  # noqa: E402
+from diagrams.benchmarks import latency as benchmark_latency
 
 
 def test_the_latency_benchmark_runs_thirty_distinct_picks_of_both_categories():

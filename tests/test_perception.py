@@ -1,8 +1,6 @@
 """Perception systems alone (FixValue / Eval) on rendered frames, and wired to the station."""
 
 import dataclasses
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -16,6 +14,7 @@ from pydrake.systems.sensors import CameraInfo
 from diagrams.generation import segmentation_data
 from diagrams.generation.objects.instance import export_obj
 from diagrams.generation.objects.library import resolve_object
+from diagrams.generation.objects.unfamiliar import instances
 from diagrams.generation.synthetic_scenes import CLASSES, WIDE_TRAINING, WIDE_VALIDATION, SyntheticScene
 from diagrams.perception import MakePerception, MakePoseEstimator
 from diagrams.scenario import initial_positions, load_scenario, replace_object
@@ -30,9 +29,6 @@ from systems.perception.segmenter_training import intersection_over_union, predi
 from systems.perception.shape_registrar import scale_prior, shape_space_file
 from systems.shape_space.registration import PART_PRIOR, Registrar
 from systems.shape_space.space import ShapeSpace
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
-from make_unfamiliar_objects import instances  # noqa: E402
 
 TRANSLATION_TOLERANCE = 0.03  # m
 YAW_TOLERANCE = np.radians(12)

@@ -12,6 +12,7 @@ import trimesh
 from pydrake.math import RigidTransform
 from scipy.spatial import cKDTree
 
+from diagrams.benchmarks.planner_peers import OmplConfig, ompl_plan
 from diagrams.generation.objects.library import resolve_object
 from diagrams.generation.planning_problems import (
     CARRIED_SURFACE_POINTS,
@@ -34,9 +35,6 @@ from systems.planning.stomp_config import DetourConfig, FirstTrajectoryConfig, S
 from systems.planning.stomp_costs import StompProblem
 from systems.planning.stomp_detours import DETOUR_BATCH
 from systems.planning.stomp_starts import keyframes_through
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
-from planner_peers import OmplConfig, ompl_plan  # noqa: E402
 
 
 @pytest.fixture(scope="module")

@@ -1,16 +1,12 @@
 """The hedge trimmers of scripts/make_trimmer_models.py, a family to teach and judge on: sound meshes, grasps on
 their handles, standing on their own."""
 
-import sys
-from pathlib import Path
-
 import numpy as np
 import pytest
 import trimesh
 from scipy.spatial import Delaunay
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
-from make_trimmer_models import build, sample_parameters  # noqa: E402
+from diagrams.generation.objects.trimmer import build, sample_parameters
 
 
 @pytest.fixture(scope="module", params=[0, 1, 2])

@@ -3,17 +3,17 @@ and the whole fit against what was seen (grasp_support, surface_support, DepthVi
 CoACD's default mode cannot take."""
 
 import dataclasses
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 import trimesh
 from pydrake.math import RigidTransform, RotationMatrix
 
+from diagrams.benchmarks.pick_frames import pick_at_first_frame
 from diagrams.generation.objects import catalog
 from diagrams.generation.objects.instance import export_obj
 from diagrams.generation.objects.library import convex_decomposition
+from diagrams.generation.objects.unfamiliar import DESIGNS, instances
 from diagrams.pick_simulation import object_body, station_plant
 from diagrams.scenario import replace_object
 from systems.categories import wider_shape_space_file
@@ -27,11 +27,6 @@ from systems.shape_space.registration import SOUND_FIT_MARGIN, Registrar, neares
 from systems.shape_space.shape_fit import ShapeFit
 from systems.shape_space.space import GRASP_NAMES, ShapeSpace, scaled_poses
 from systems.shape_space.visibility import visible_from
-
-REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO / "scripts"))
-from benchmark_registration import pick_at_first_frame  # noqa: E402
-from make_unfamiliar_objects import DESIGNS, instances  # noqa: E402
 
 
 @pytest.fixture(scope="module")

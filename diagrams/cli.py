@@ -1,7 +1,10 @@
-"""The command-line options that choose a scenario and its object, shared by pick.py and robot_driver.py."""
+"""What the scripts share on the command line: the options that choose a scenario and its object (pick.py,
+robot_driver.py, draw_clutter_scene.py), the --sensor option, and results written as strict JSON."""
 
 import argparse
 import dataclasses
+import json
+import math
 from pathlib import Path
 
 from diagrams.generation.clutter_scenes import clutter_scene
@@ -10,6 +13,8 @@ from systems.perception.rgbd_noise import PRESETS
 
 
 def add_scenario_options(parser: argparse.ArgumentParser) -> None:
+    """--scenario, --scenario_text, the object options (--object, --instance, --object-file, --yaw), --seed, --scene
+    with --clutter-index, and --sensor."""
     parser.add_argument("--scenario", type=Path, default=DEFAULT_SCENARIO, help="scenario YAML file")
     parser.add_argument("--scenario_text", default="", help="YAML overlaid on the scenario file")
     parser.add_argument("--object", help="object category: watering_can, drill, or one taught by add_category.py")
@@ -92,3 +97,19 @@ def scenario_arguments(args: argparse.Namespace) -> list[str]:
         if value is not None:
             forwarded += [f"--{name.replace('_', '-')}", str(value)]
     return forwarded
+
+
+def _finite_or_none(value):
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, dict):
+        return {key: _finite_or_none(item) for key, item in value.items()}
+    if isinstance(value, list | tuple):
+        return [_finite_or_none(item) for item in value]
+    return value
+
+
+def write_json(path: Path, results: dict) -> None:
+    """Writes a script's results as strict JSON: NaN and infinities (a figure that does not exist) become null."""
+    path.write_text(json.dumps(_finite_or_none(results), indent=2, allow_nan=False))
+    print(f"wrote {path}")

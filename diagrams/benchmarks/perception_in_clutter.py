@@ -1,4 +1,4 @@
-"""The perception benchmark on cluttered tables (benchmark_perception.py --scene clutter).
+"""The perception benchmark on cluttered tables (scripts/benchmark_perception.py --scene clutter).
 
 Each table is a seeded cluttered table (diagrams/generation/clutter_scenes.py, the report range: unseen instances),
 seen by the station's chest camera through the sensor model once the objects have settled. The Segmenter (told the
@@ -22,14 +22,13 @@ from diagrams.perception import MakePoseEstimator, MakeSegmenter
 from diagrams.scenario import CLUTTER_SHAPES, Scenario, clutter_name
 from diagrams.station import settled_frame
 from systems.messages import GraspPoses
+from systems.perception.images import to_depth_image, to_rgba_image
 from systems.perception.shape_registrar import ShapeRegistrar
 
 CATEGORIES = ("watering_can", "drill")
 
 
 def _to_images(frame):
-    from benchmark_perception import to_depth_image, to_rgba_image
-
     return to_rgba_image(frame.rgb), to_depth_image(frame.depth)
 
 
@@ -149,6 +148,7 @@ def run(base: Scenario, weights, tables: int, empty_tables: int, split: str = "r
 
 
 def print_table(results: dict) -> None:
+    """The summary beside its targets, per category, and the empty tables."""
     print(f"\n{'cluttered tables (' + results['split'] + ' range)':40s} {'value':>8s}  target")
     for key, value, target in (
         ("target IoU, mean", results["target_iou_mean"], ">= 0.85"),

@@ -1,0 +1,193 @@
+"""A category's latent shape space from a user's folder of models (scripts/build_shape_space.py --folder,
+scripts/add_category.py): reading and checking the models and their poses file, then build_shape_space.
+
+A folder holds one model per file: meshes (.obj, .ply, .stl; surface-sampled) or point
+clouds (.ply, .pcd), in metres (a model 1000 times too large is an error naming the unit).
+The models are taken as sharing one upright frame (z up), kept as it is; --align vertical
+turns each about z and shifts it in x, y onto the canonical model, bottom on bottom;
+--align rigid moves each freely in 3D. A canonical model of fewer than 4000 points (a
+sparse scan) is densified (a Poisson surface, kept near the scan): it is the surface every
+reconstruction warps. The poses YAML names the canonical model and its control poses
+in that model's frame (metres, degrees):
+
+  canonical: can_a.obj
+  poses:
+    left_pregrasp:  {translation: [0.0, 0.05, 0.40], rpy_deg: [145, 0, 0]}
+    left_grasp:     {translation: [0.0, 0.0, 0.32], rpy_deg: [145, 0, 0]}
+    right_pregrasp: {...}
+    right_grasp:    {...}
+  others:           # optional: other models' control poses, each in its own file's frame
+    can_b.obj: {left_pregrasp: {...}, left_grasp: {...}, right_pregrasp: {...}, right_grasp: {...}}
+
+Every other model's grasp frames guide its CPD field (landmarks: handle onto handle) and are
+learnt as its grasp frames. Where the YAML does not give them, they are carried from the
+canonical model (systems/shape_space/propagation.py: the canonical surface about each grasp,
+placed by ICP and a local CPD): one annotated model is enough. A folder of 6 cans, 4
+components, grasps transferred to an unseen can: 13-21 mm with the canonical's poses alone
+(12-37 mm where the fields carry them), 8-10 mm with all six models' poses (see
+tests/test_build_shape_space_cli.py). A folder's models are also each copied FOLDER_SCALED_COPIES times,
+stretched along their axes as far as the registrar lets the category's shape scale beyond its space (its scale
+prior), unless that is under MIN_COPY_SPREAD (drills: none); scaled_copies sets the number. With 8 cans (one
+annotated) the copies took unseen cans' grasps from 12.9 to 8.8 mm (docs/shape_space.md, "Stretched copies of a
+few models").
+"""
+
+import logging
+from pathlib import Path
+
+import numpy as np
+import open3d as o3d
+import trimesh
+import yaml
+from pydrake.math import RigidTransform, RollPitchYaw
+
+from systems.perception.shape_registrar import scale_prior
+from systems.shape_space.densify import densified
+from systems.shape_space.space import POSE_NAMES, build_shape_space
+from systems.shape_space.units import check_metres
+
+CLOUD_POINTS = 8000  # per model: all of them for the canonical surface, a thinned 2000 as CPD's target
+MESH_SUFFIXES = {".obj", ".stl", ".ply"}
+CLOUD_SUFFIXES = {".pcd", ".ply"}
+# A canonical model with fewer points than this (a sparse scan) is densified: its points are the surface
+# every reconstruction warps.
+DENSE_POINTS = 4000
+# A folder's few models are each copied this often, stretched along C's axes with the spread of the category's scale
+# prior (the registrar's: how far its shape may scale beyond its space), unless that spread is below MIN_COPY_SPREAD:
+# such copies nearly repeat their model. 8 training meshes, one annotated, kinect_v2, validation range extra_201-208
+# (24 views per category): cans (0.2) 12.4 -> 9.7 mm grasps, Chamfer 5.3 -> 5.8 mm, grasps over 2 cm off handed on
+# 9 -> 2; drills (0.03) 7.9 -> 8.1 mm, Chamfer 3.8 -> 4.2 mm (and with 0.1, the earlier fixed spread, 7.8 -> 9.8 mm).
+FOLDER_SCALED_COPIES = 4
+MIN_COPY_SPREAD = 0.05
+# Centres of extent farther apart than this share of the canonical's size suggest models in different frames.
+FRAME_OFFSET_WARNING = 0.25
+
+
+def sample_mesh(path: Path, count: int = CLOUD_POINTS) -> np.ndarray:
+    """`count` points spread evenly over a mesh file's surface (its units), the same on every call."""
+    mesh = trimesh.load(path, force="mesh")
+    points, _ = trimesh.sample.sample_surface_even(mesh, count, seed=0)
+    return np.asarray(points)
+
+
+def load_model_points(path: Path) -> np.ndarray:
+    """Surface points of a mesh file, or the points of a point-cloud file (thinned to CLOUD_POINTS), in metres.
+
+    Raises SystemExit naming the file if it holds nothing or is not in metres.
+    """
+    points = None
+    if path.suffix.lower() in CLOUD_SUFFIXES:
+        cloud = np.asarray(o3d.io.read_point_cloud(str(path)).points)
+        if len(cloud) > 0 and (path.suffix.lower() == ".pcd" or len(trimesh.load(path, force="mesh").faces) == 0):
+            index = np.random.default_rng(0).choice(len(cloud), min(CLOUD_POINTS, len(cloud)), replace=False)
+            points = cloud[np.sort(index)]
+    if points is None:
+        points = sample_mesh(path)
+    points = points[np.all(np.isfinite(points), axis=1)]
+    if len(points) == 0:
+        raise SystemExit(f"error: {path}: no surface or points")
+    try:
+        check_metres(points, str(path))
+    except ValueError as error:
+        raise SystemExit(f"error: {error}") from None
+    return points
+
+
+def frame_warnings(clouds: dict[str, np.ndarray], canonical: str) -> list[str]:
+    """Models whose extent lies far from the canonical's: their frames are probably not the canonical's."""
+    lo, hi = clouds[canonical].min(axis=0), clouds[canonical].max(axis=0)
+    warnings = []
+    for name, cloud in clouds.items():
+        offset = np.linalg.norm((cloud.min(axis=0) + cloud.max(axis=0)) / 2 - (lo + hi) / 2)
+        if offset > FRAME_OFFSET_WARNING * np.max(hi - lo):
+            warnings.append(f"{name}'s extent is centred {100 * offset:.0f} cm from {canonical}'s")
+    return warnings
+
+
+def folder_instances(folder: Path, poses_file: Path):
+    """A folder's model points {file name: N x 3, m}, the control poses its poses file gives {file name: {name:
+    X_OG}} and the canonical model's file name (its points densified where sparse).
+
+    Raises SystemExit naming the problem: not a folder, fewer than 2 models, a poses file that lacks something.
+    """
+    if not folder.is_dir():
+        raise SystemExit(f"error: {folder} is not a folder")
+    files = sorted(p for p in folder.iterdir() if p.suffix.lower() in MESH_SUFFIXES | CLOUD_SUFFIXES)
+    if len(files) < 2:
+        raise SystemExit(f"error: {folder} holds {len(files)} model files; a shape space needs at least 2")
+    spec = yaml.safe_load(poses_file.read_text())
+    if not isinstance(spec, dict) or "canonical" not in spec or "poses" not in spec:
+        raise SystemExit(f"error: {poses_file} needs 'canonical' (a model's file name) and its 'poses'")
+    # The pose file is checked before any model is sampled: a mistake in it costs nothing.
+    poses = {spec["canonical"]: parse_poses(spec["poses"], poses_file)}
+    for model, model_poses in (spec.get("others") or {}).items():
+        poses[model] = parse_poses(model_poses, poses_file, model)
+    names = sorted(p.name for p in files)
+    unknown = sorted(set(poses) - set(names))
+    if unknown:
+        raise SystemExit(f"error: {poses_file} gives poses of {unknown}, not among the models {names}")
+    clouds = {p.name: load_model_points(p) for p in files}
+    canonical = spec["canonical"]
+    if len(clouds[canonical]) < DENSE_POINTS:
+        logging.info("%s has %d points: densifying its surface", canonical, len(clouds[canonical]))
+        clouds[canonical] = densified(clouds[canonical], CLOUD_POINTS)
+    return clouds, poses, canonical
+
+
+def parse_poses(spec: dict, poses_file: Path, model: str = "the canonical model") -> dict[str, RigidTransform]:
+    """{POSE_NAMES entry: X_OG} from {name: {translation: [x, y, z] (m), rpy_deg: [r, p, y]}}."""
+    missing = [n for n in POSE_NAMES if n not in (spec or {})]
+    if missing:
+        raise SystemExit(f"error: {poses_file}: {model} lacks poses {missing}")
+    return {n: RigidTransform(RollPitchYaw(np.radians(spec[n]["rpy_deg"])), spec[n]["translation"]) for n in POSE_NAMES}
+
+
+def build_from_folder(
+    folder: Path,
+    poses_file: Path,
+    category: str,
+    components: int = 8,
+    align: str = "none",
+    landmarks: bool = True,
+    scaled_copies: int | None = None,
+):
+    """The shape space of a folder of models (see the module's doc); models without poses get propagated ones.
+    scaled_copies: stretched copies of each model beside it (build_shape_space, with the spread of the category's
+    scale prior); None: folder_copies(category)."""
+    spread = scale_prior(category)
+    if scaled_copies is None:
+        scaled_copies = folder_copies(category)
+    if scaled_copies:
+        logging.info("%s: %d stretched copies of each model (spread %.2f)", category, scaled_copies, spread)
+    clouds, poses, canonical = folder_instances(folder, poses_file)
+    if align == "none":
+        for warning in frame_warnings(clouds, canonical):
+            logging.warning("warning: %s; if the models do not share one frame, pass --align vertical", warning)
+    return build_shape_space(
+        category,
+        clouds,
+        poses,
+        components,
+        canonical=canonical,
+        align=align,
+        landmarks=landmarks,
+        scaled_copies=scaled_copies,
+        copy_spread=spread,
+    )
+
+
+def folder_copies(category: str) -> int:
+    """How many stretched copies of each of a folder's models its space gets by default: FOLDER_SCALED_COPIES, none
+    where the category's scale prior is below MIN_COPY_SPREAD."""
+    return FOLDER_SCALED_COPIES if scale_prior(category) >= MIN_COPY_SPREAD else 0
+
+
+def pose_entries(poses: dict[str, RigidTransform]) -> dict:
+    """Control poses as the poses YAML holds them (the inverse of parse_poses)."""
+    return {
+        name: {
+            "translation": X.translation().tolist(),
+            "rpy_deg": np.degrees(RollPitchYaw(X.rotation()).vector()).tolist(),
+        }
+        for name, X in poses.items()
+    }
