@@ -5,10 +5,12 @@ import torch
 from torch.nn import functional as F
 from tqdm import tqdm
 
+from systems.perception.parts import PartRole
 from systems.perception.segmentation_network import RefineNetLite, to_input
 
 # Background pixels dominate; weigh them down so thin spouts and handles count (every object class 1.0).
 BACKGROUND_WEIGHT = 0.4
+UNKNOWN_LABEL = 255  # a pixel whose label is not known (a part of a taught category's object): no loss
 
 
 def augment(rgb: torch.Tensor, labels: torch.Tensor, generator: torch.Generator):
@@ -67,7 +69,7 @@ def fit(
         for first in range(0, len(order), batch_size):
             batch = order[first : first + batch_size]
             x, y = augment(to_input(rgb[batch]), torch.from_numpy(labels[batch]).long(), generator)
-            loss = F.cross_entropy(model(x), y, weight=weights)
+            loss = F.cross_entropy(model(x), y, weight=weights, ignore_index=UNKNOWN_LABEL)
             optimizer.zero_grad()
             loss.backward()
             optimizer.step()
@@ -117,3 +119,15 @@ def intersection_over_union(predicted: np.ndarray, truth: np.ndarray, num_classe
         if union:
             iou[c] = np.count_nonzero((predicted == c) & (truth == c)) / union
     return iou
+
+
+def part_iou(model: RefineNetLite, rgb: np.ndarray, parts: np.ndarray) -> dict[str, float]:
+    """{role name: IoU} of the part network's roles over the object pixels of part windows (N x S x S x 3 uint8,
+    N x S x S PartRole values; pixels of no known part, 255, left out): the roles the network gives an object
+    pixel are those of its scores without NONE, as the pick reads them (part_segmenter)."""
+    with torch.no_grad():
+        scores = torch.cat([model(to_input(rgb[i : i + 16])) for i in range(0, len(rgb), 16)]).numpy()
+    on_object = (parts != PartRole.NONE) & (parts != UNKNOWN_LABEL)
+    predicted = np.argmax(scores[:, 1:], axis=1) + 1
+    iou = intersection_over_union(predicted[on_object], parts[on_object], len(PartRole))
+    return {role.name: float(iou[role]) for role in PartRole if role != PartRole.NONE}
