@@ -51,15 +51,17 @@ def fit(
     batch_size: int = 8,
     learning_rate: float = 3e-3,
     description: str = "training the segmenter",
+    class_weights: tuple[float, ...] | None = None,
 ) -> tuple[RefineNetLite, list[float]]:
     """Trains `model` (fresh, or a trained one to fine-tune: see segmentation_network.with_classes) on the
-    frames (N x H x W x 3 uint8, N x H x W class ids); returns it (eval mode) and each epoch's mean loss."""
+    frames (N x H x W x 3 uint8, N x H x W class ids); returns it (eval mode) and each epoch's mean loss.
+    class_weights: each class's weight in the loss (default: BACKGROUND_WEIGHT for class 0, 1 for the others)."""
     generator = torch.Generator().manual_seed(seed)
     num_classes = model.num_classes
     optimizer = torch.optim.AdamW(model.parameters(), lr=learning_rate, weight_decay=1e-4)
     steps = epochs * int(np.ceil(len(rgb) / batch_size))
     schedule = torch.optim.lr_scheduler.OneCycleLR(optimizer, learning_rate, total_steps=steps, pct_start=0.15)
-    weights = torch.tensor([BACKGROUND_WEIGHT] + [1.0] * (num_classes - 1))
+    weights = torch.tensor(class_weights or [BACKGROUND_WEIGHT] + [1.0] * (num_classes - 1))
     history = []
     bar = tqdm(range(epochs), unit="epoch", desc=description, dynamic_ncols=True)
     for _ in bar:

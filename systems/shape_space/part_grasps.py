@@ -1,43 +1,47 @@
 """Grasp frames built on the handles the camera sees, with the shape-space fit as their prior.
 
-The part network labels the object's pixels with their functional parts (systems/perception/parts.py); each hand
-takes one part: the left hand the LEFT_HANDLE (a can's top handle, a drill's side handle), the right hand the
-RIGHT_HANDLE (a can's rear handle, a drill's pistol grip). For each hand:
+The part network labels the object's pixels with their functional parts (systems/messages.py's PartRole); each
+hand takes one part: the left hand the LEFT_HANDLE (a can's top handle, a drill's side handle), the right hand the
+RIGHT_HANDLE (a can's rear handle, a drill's pistol grip). For each hand, a straight tube is fitted to its part's
+points about a seed (systems/perception/tube_fit.py: axis, radius, where the points lie along it; along an arch,
+the tangent tube there), and the grasp frame G is built on it (x_G along the handle, y_G the fingers' closing
+direction, z_G the approach: the generators' convention, diagrams/generation/objects/instance.py): its origin on
+the axis; x_G the axis, turned to agree with the prior's x_G (a hand is symmetric about z_G: either way is one
+grasp); z_G the category's approach for that hand (the canonical grasp's approach in O, turned by the fitted pose
+X_WO) made perpendicular to x_G, so a top handle is taken from above whichever way it runs and a rear handle from
+behind. The pre-grasp backs off along -z_G as the prior's does.
 
-1. The seed: the point of the hand's part nearest the prior's grasp (the shape-space fit's, registration.py).
-2. A straight tube is fitted to the part's points about the seed (systems/perception/tube_fit.py): its axis, its
-   radius, where the points lie along it.
-3. The grasp frame G (x_G along the handle, y_G the fingers' closing direction, z_G the approach; the generators'
-   convention, diagrams/generation/objects/instance.py) is built on the tube: its origin on the axis, at the foot
-   of the prior's grasp moved along the axis until the fingers' span fits within the seen stretch (and the tube is
-   fitted again there); x_G the axis, turned to agree with the prior's x_G (a hand is symmetric about z_G, so
-   either way is one grasp); z_G the category's approach for that hand (the canonical grasp's approach in O, by
-   the fitted pose X_WO) made perpendicular to x_G: a top handle is taken from above whichever way it runs, a
-   rear handle from behind. The pre-grasp backs off along -z_G as the prior's does.
-
-The rules between the seen part and the prior:
-- A part seen well (PartFit.sound: enough points about the seed, a tube of a handle's radius that they lie on)
-  decides its hand's grasp, whatever the prior says: the prior only seeds the fit and gives the approach.
-- A part not seen well leaves its hand to the prior, and only where the prior is sound (the fit is not poor and
-  the prior grasp is confirmed by the camera, Registration.poor_fit / unconfirmed); else the grasp is poor and the
-  perception names why.
-- An approach that runs along the seen handle (within MAX_APPROACH_ALONG_AXIS) cannot close across it: such a
-  part is not used.
+Where along the handle (the seed), and the rules between the seen part and the prior:
+- The prior is sound (the fit is not poor: Registration.poor_fit) and its grasp lies on the seen handle (within
+  PRIOR_ACROSS of the tube's axis): the grasp stays at the prior's place along the handle, moved onto the seen
+  axis, and into the seen stretch until the fingers' span lies on it. The part corrects the prior across the
+  handle; it does not move a sound grasp along it.
+- The prior is poor, or its grasp is not on the seen handle: the handle's middle decides (handle_middle: halfway
+  between the ends of the part's points along their longest direction, an arch's or a D's chord, a grip's axis;
+  where the generators put a grasp, and where a hand holds).
+- The image's border cut the part (SeenPart.cut_off): its middle is not seen, so the prior's place along it is
+  taken as above, sound or not (the part puts it on the handle).
+- A part not seen well (fewer than MIN_PART_POINTS, no tube of a handle's radius, its points more than
+  MAX_TUBE_RMS off the tube, or an approach running along it) leaves its hand to the prior, and only where the
+  prior is sound; else the grasps are poor, and perception names why.
 """
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from pydrake.math import RigidTransform, RotationMatrix
 
+from systems.messages import SeenPart
 from systems.perception.parts import PartRole
 from systems.perception.tube_fit import Tube, fit_tube
 
 HAND_PARTS = {"left": PartRole.LEFT_HANDLE, "right": PartRole.RIGHT_HANDLE}
 MIN_PART_POINTS = 40  # seen points of a part, fewer: the part is not seen
-FINGER_HALF_SPAN = 0.03  # m: the fingers' half width along the handle (sdf/centauro/hand.sdf: 6 cm pads)
 MAX_TUBE_RMS = 0.005  # m: a part's points farther from the fitted tube than this (RMS) are no handle seen well
 MIN_TUBE_POINTS = 30  # points the tube is fitted to, about the seed
+FINGER_HALF_SPAN = 0.03  # m: the fingers' half width along the handle (sdf/centauro/hand.sdf: 6 cm pads)
+PRIOR_ACROSS = 0.03  # m: a prior grasp farther than this across the seen handle's axis is not on it
+MIDDLE_BAND = 0.01  # m: a handle's middle slice, this far either side of halfway along it
 # rad: an approach within this of the handle's axis cannot close the fingers across the handle
 MAX_APPROACH_ALONG_AXIS = np.radians(20.0)
 
@@ -50,6 +54,7 @@ class PartFit:
     points: int
     tube: Tube | None = None
     reason: str = ""  # why the part does not decide the grasp ("" where it does)
+    cut_off: bool = False  # the image's border cut the part: its place along the handle is the prior's
 
     @property
     def sound(self) -> bool:
@@ -73,28 +78,70 @@ class PartGrasps:
         return ", ".join(f"{hand} grasp from the {source}" for hand, source in self.sources.items())
 
 
-def fit_part(hand: str, points_W: np.ndarray, viewpoint_W: np.ndarray, prior_W: RigidTransform) -> PartFit:
-    """The hand's part seen in `points_W` (N x 3, m), fitted as a tube about the prior grasp's nearest part point,
-    moved along the axis until the fingers' span fits within what was seen, and fitted again there."""
-    points_W = np.asarray(points_W, float).reshape(-1, 3)
+def handle_middle(points_W: np.ndarray) -> np.ndarray:
+    """The point of a handle's seen points (N x 3, m) in its middle: along the part's longest principal direction
+    (an arch's or a D's chord, a grip's or a bar's axis), the slice of points halfway between its ends, and of that
+    slice the point nearest its centre."""
+    centred = points_W - points_W.mean(axis=0)
+    _, vectors = np.linalg.eigh(centred.T @ centred)
+    along = centred @ vectors[:, -1]
+    low, high = np.percentile(along, [2, 98])
+    middle = 0.5 * (low + high)
+    band = points_W[np.abs(along - middle) < MIDDLE_BAND]
+    if len(band) == 0:
+        band = points_W[[np.argmin(np.abs(along - middle))]]
+    return band[np.argmin(np.linalg.norm(band - band.mean(axis=0), axis=1))]
+
+
+def fit_part(
+    hand: str, part: SeenPart | None, viewpoint_W: np.ndarray, prior_W: RigidTransform, prior_sound: bool
+) -> PartFit:
+    """The hand's part as seen, fitted as a tube, and where along it the grasp goes (PartFit.tube.point): about the
+    handle's middle (handle_middle); or, where the prior is sound and its grasp lies on the seen handle, or where
+    the image's border cut the part (its middle unseen), about the seen point nearest the prior grasp, at the
+    prior's place along the handle moved into the seen stretch until the fingers' span lies on it."""
+    points_W = np.zeros((0, 3)) if part is None else np.asarray(part.points_W, float).reshape(-1, 3)
+    points_W = points_W[np.all(np.isfinite(points_W), axis=1)]
     count = len(points_W)
     if count < MIN_PART_POINTS:
         return PartFit(hand, count, reason=f"{count} points seen (at least {MIN_PART_POINTS} expected)")
-    prior = prior_W.translation()
-    seed = points_W[np.argmin(np.linalg.norm(points_W - prior, axis=1))]
-    tube = fit_tube(points_W, viewpoint_W, seed)
-    if tube is not None:
-        along = np.clip(tube.along(prior), tube.extent[0] + FINGER_HALF_SPAN, tube.extent[1] - FINGER_HALF_SPAN)
-        if tube.extent[1] - tube.extent[0] < 2 * FINGER_HALF_SPAN:
-            along = 0.5 * (tube.extent[0] + tube.extent[1])
-        moved = tube.point + along * tube.axis
-        refitted = fit_tube(points_W, viewpoint_W, points_W[np.argmin(np.linalg.norm(points_W - moved, axis=1))])
-        tube = refitted or tube
+    cut_off = part.cut_off
+    tube = None
+    if prior_sound or cut_off:
+        tube = _at_prior_place(points_W, viewpoint_W, prior_W.translation())
+    if tube is None and not cut_off:
+        tube = fit_tube(points_W, viewpoint_W, handle_middle(points_W))
     if tube is None or tube.points < MIN_TUBE_POINTS:
-        return PartFit(hand, count, tube, f"no tube of a handle's radius fits the {count} points")
+        return PartFit(hand, count, tube, f"no tube of a handle's radius fits the {count} points", cut_off)
     if tube.rms_m > MAX_TUBE_RMS:
-        return PartFit(hand, count, tube, f"the points lie {1000 * tube.rms_m:.1f} mm (RMS) off the fitted tube")
-    return PartFit(hand, count, tube)
+        reason = f"the points lie {1000 * tube.rms_m:.1f} mm (RMS) off the fitted tube"
+        return PartFit(hand, count, tube, reason, cut_off)
+    return PartFit(hand, count, tube, cut_off=cut_off)
+
+
+def _at_prior_place(points_W: np.ndarray, viewpoint_W: np.ndarray, prior: np.ndarray) -> Tube | None:
+    """The tube about the seen point nearest the prior grasp, its point at the prior's place along it moved into the
+    seen stretch by the fingers' half span; None where no tube fits there or the prior lies farther across the
+    seen axis than PRIOR_ACROSS (then the prior's place is not on this handle)."""
+    tube = fit_tube(points_W, viewpoint_W, _nearest(points_W, prior))
+    if tube is None:
+        return None
+    along = tube.along(prior)
+    if np.linalg.norm(prior - tube.point - along * tube.axis) > PRIOR_ACROSS:
+        return None
+    low, high = tube.extent
+    along = (
+        0.5 * (low + high)
+        if high - low < 2 * FINGER_HALF_SPAN
+        else np.clip(along, low + FINGER_HALF_SPAN, high - FINGER_HALF_SPAN)
+    )
+    moved = tube.point + along * tube.axis
+    tube = fit_tube(points_W, viewpoint_W, _nearest(points_W, moved)) or tube
+    return replace(tube, point=tube.point + tube.along(moved) * tube.axis)
+
+
+def _nearest(points: np.ndarray, point: np.ndarray) -> np.ndarray:
+    return points[np.argmin(np.linalg.norm(points - point, axis=1))]
 
 
 def grasp_on_tube(tube: Tube, approach_W: np.ndarray, prior_W: RigidTransform, pregrasp_m: float):
@@ -111,7 +158,7 @@ def grasp_on_tube(tube: Tube, approach_W: np.ndarray, prior_W: RigidTransform, p
 
 
 def grasps_on_seen_parts(
-    part_points_W: dict[PartRole, np.ndarray],
+    parts: dict[PartRole, SeenPart],
     viewpoint_W: np.ndarray,
     prior_poses_W: dict[str, RigidTransform],
     approaches_W: dict[str, np.ndarray],
@@ -121,7 +168,7 @@ def grasps_on_seen_parts(
     """Each hand's grasp on its seen part, or from the prior where the part is not seen well (module docstring).
 
     Args:
-        part_points_W: the object's seen points of each part (N x 3 each, m, W); parts not seen may be missing.
+        parts: the object's parts as seen (by role; parts not seen may be missing).
         viewpoint_W: the camera's position (3,), m.
         prior_poses_W: the shape-space fit's control poses (POSE_NAMES -> X_WG).
         approaches_W: each hand's approach direction by the category's rule (3,), in W.
@@ -131,7 +178,7 @@ def grasps_on_seen_parts(
     result = PartGrasps()
     for hand, role in HAND_PARTS.items():
         prior_grasp, prior_pregrasp = prior_poses_W[f"{hand}_grasp"], prior_poses_W[f"{hand}_pregrasp"]
-        fit = fit_part(hand, part_points_W.get(role, np.zeros((0, 3))), viewpoint_W, prior_grasp)
+        fit = fit_part(hand, parts.get(role), viewpoint_W, prior_grasp, prior_sound)
         grasp = None
         if fit.sound:
             pregrasp_m = float(np.linalg.norm(prior_grasp.translation() - prior_pregrasp.translation()))
