@@ -40,6 +40,7 @@ MIN_PART_POINTS = 40  # seen points of a part, fewer: the part is not seen
 MAX_TUBE_RMS = 0.005  # m: a part's points farther from the fitted tube than this (RMS) are no handle seen well
 MIN_TUBE_POINTS = 30  # points the tube is fitted to, about the seed
 FINGER_HALF_SPAN = 0.03  # m: the fingers' half width along the handle (sdf/centauro/hand.sdf: 6 cm pads)
+STRETCH_MARGIN = 0.006  # m: a part's point this near the fitted tube's surface lies on its straight stretch
 PRIOR_ACROSS = 0.03  # m: a prior grasp farther than this across the seen handle's axis is not on it
 MIDDLE_BAND = 0.01  # m: a handle's middle slice, this far either side of halfway along it
 # rad: an approach within this of the handle's axis cannot close the fingers across the handle
@@ -129,7 +130,7 @@ def _at_prior_place(points_W: np.ndarray, viewpoint_W: np.ndarray, prior: np.nda
     along = tube.along(prior)
     if np.linalg.norm(prior - tube.point - along * tube.axis) > PRIOR_ACROSS:
         return None
-    low, high = tube.extent
+    low, high = _seen_stretch(points_W, tube)
     along = (
         0.5 * (low + high)
         if high - low < 2 * FINGER_HALF_SPAN
@@ -138,6 +139,19 @@ def _at_prior_place(points_W: np.ndarray, viewpoint_W: np.ndarray, prior: np.nda
     moved = tube.point + along * tube.axis
     tube = fit_tube(points_W, viewpoint_W, _nearest(points_W, moved)) or tube
     return replace(tube, point=tube.point + tube.along(moved) * tube.axis)
+
+
+def _seen_stretch(points_W: np.ndarray, tube: Tube) -> tuple[float, float]:
+    """Where along the tube's axis (from its point, m) the part's points on the tube lie (within STRETCH_MARGIN of
+    its surface; 2nd and 98th percentiles): the straight stretch seen, not only the points about the seed."""
+    offset = points_W - tube.point
+    along = offset @ tube.axis
+    across = np.linalg.norm(offset - np.outer(along, tube.axis), axis=1)
+    on_tube = np.abs(across - tube.radius) < STRETCH_MARGIN
+    if np.count_nonzero(on_tube) < MIN_TUBE_POINTS:
+        return tube.extent
+    low, high = np.percentile(along[on_tube], [2, 98])
+    return float(low), float(high)
 
 
 def _nearest(points: np.ndarray, point: np.ndarray) -> np.ndarray:
