@@ -17,6 +17,7 @@ import time
 import numpy as np
 from pydrake.common.value import AbstractValue
 
+from diagrams.evaluation import PAPER_CATEGORIES
 from diagrams.generation.clutter_scenes import clutter_scene
 from diagrams.perception import MakePoseEstimator, MakeSegmenter
 from diagrams.scenario import CLUTTER_SHAPES, Scenario, clutter_name
@@ -25,7 +26,6 @@ from systems.messages import GraspPoses
 from systems.perception.images import to_depth_image, to_rgba_image
 from systems.perception.shape_registrar import ShapeRegistrar
 
-CATEGORIES = ("watering_can", "drill")
 
 
 def _to_images(frame):
@@ -62,7 +62,7 @@ def run(base: Scenario, weights, tables: int, empty_tables: int, split: str = "r
     """The benchmark's rows and summary (see the module docstring)."""
     pose_estimator = MakePoseEstimator(base)
     rows, empty_rows = [], []
-    for category in CATEGORIES:
+    for category in PAPER_CATEGORIES:
         segmenter = MakeSegmenter(base, weights, category)
         for k in range(tables):
             scenario = clutter_scene(base, category, k, split)
@@ -97,10 +97,10 @@ def run(base: Scenario, weights, tables: int, empty_tables: int, split: str = "r
                 segmentation.message,
             )
     segmenter = MakeSegmenter(base, weights, category="")  # (no category: the network's instances alone)
-    registrar = ShapeRegistrar(list(CATEGORIES))
-    named = {category: MakeSegmenter(base, weights, category) for category in CATEGORIES}
+    registrar = ShapeRegistrar(list(PAPER_CATEGORIES))
+    named = {category: MakeSegmenter(base, weights, category) for category in PAPER_CATEGORIES}
     for k in range(empty_tables):
-        table = clutter_scene(base, CATEGORIES[k % 2], k, split)
+        table = clutter_scene(base, PAPER_CATEGORIES[k % 2], k, split)
         shapes = [other for other in table.clutter if other.kind in CLUTTER_SHAPES]
         table = dataclasses.replace(table, object=dataclasses.replace(table.object, present=False), clutter=shapes)
         frame = settled_frame(table)
@@ -118,7 +118,7 @@ def run(base: Scenario, weights, tables: int, empty_tables: int, split: str = "r
             [clutter_name(o) for o in shapes],
         )  # fmt: skip
     summary = {}
-    for category in CATEGORIES:
+    for category in PAPER_CATEGORIES:
         mine = [r for r in rows if r["category"] == category]
         located = [r["translation_error_m"] for r in mine if "translation_error_m" in r]
         summary[category] = {

@@ -38,9 +38,9 @@ from systems.messages import DepthView, ObjectEstimate, Segmentation
 from systems.paths import cache_dir, save_npz_atomically
 from systems.perception.depth_cleaning import flying_pixels
 
-MIN_POINTS = 50
+MIN_POSE_POINTS = 50
 MAX_OBJECT_RADIUS = 0.35  # m from the points' median: farther points are strays
-VOXEL = 0.006  # m: the points are thinned to one per voxel before fitting
+FIT_VOXEL_M = 0.006  # m: the points are thinned to one per voxel before fitting
 GRID_CELL = 0.004  # m: resolution of the template's nearest-point field
 MAX_FIT_POINTS = 400
 COARSE_ITERATIONS = 4
@@ -82,7 +82,7 @@ def depth_to_points(depth: np.ndarray, mask: np.ndarray, intrinsics: CameraInfo)
     return np.column_stack([x, y, z])
 
 
-def voxel_thin(points: np.ndarray, size: float = VOXEL) -> np.ndarray:
+def voxel_thin(points: np.ndarray, size: float = FIT_VOXEL_M) -> np.ndarray:
     """One point (the first) per occupied voxel: near surfaces no longer outweigh far ones."""
     cells = np.floor(points / size).astype(np.int64)
     cells -= cells.min(axis=0)
@@ -297,7 +297,7 @@ class PoseEstimator(LeafSystem):
         X_WC = X_WB @ self.X_BC
         depth = np.where(flying_pixels(depth), np.nan, depth)
         points_W = self._object_points_W(segmentation.mask, depth, X_WC)
-        if len(points_W) < MIN_POINTS:
+        if len(points_W) < MIN_POSE_POINTS:
             return ObjectEstimate(
                 False,
                 segmentation.category,
@@ -311,7 +311,7 @@ class PoseEstimator(LeafSystem):
             kernel = np.ones((2 * self.erode_pixels + 1,) * 2, np.uint8)
             eroded = cv2.erode(segmentation.mask.astype(np.uint8), kernel).astype(bool)
             interior_W = self._object_points_W(eroded, depth, X_WC)
-            if len(interior_W) >= MIN_POINTS:
+            if len(interior_W) >= MIN_POSE_POINTS:
                 fit_points_W = interior_W
         support = self.support_height(segmentation.mask, depth, X_WC, fit_points_W)
         X_WO = estimate_pose(fit_points_W, prior, support, self._free_space_test(segmentation.mask, depth, X_WC))
@@ -324,11 +324,11 @@ class PoseEstimator(LeafSystem):
     def _object_points_W(self, mask, depth, X_WC) -> np.ndarray:
         """The mask's pixels with a valid depth, in W (N x 3), less far strays."""
         points_W = X_WC.multiply(depth_to_points(depth, mask, self.intrinsics).T).T
-        if len(points_W) < MIN_POINTS:
+        if len(points_W) < MIN_POSE_POINTS:
             return points_W
         # Far strays (a wrongly segmented patch of wall or table) are not part of the object.
         near = np.linalg.norm(points_W - np.median(points_W, axis=0), axis=1) < MAX_OBJECT_RADIUS
-        return points_W[near] if np.count_nonzero(near) >= MIN_POINTS else points_W
+        return points_W[near] if np.count_nonzero(near) >= MIN_POSE_POINTS else points_W
 
     def _free_space_test(self, mask, depth, X_WC):
         """f(points_W) -> fraction of the points the camera would have seen but sees through.
@@ -367,7 +367,7 @@ class PoseEstimator(LeafSystem):
         ring_W = X_WC.multiply(depth_to_points(depth, (far > near), self.intrinsics).T).T
         bottom = np.percentile(points_W[:, 2], 2.0)
         table = ring_W[(ring_W[:, 2] < bottom + 0.02) & (ring_W[:, 2] > bottom - 0.15), 2]
-        return float(np.median(table)) if len(table) >= MIN_POINTS else None
+        return float(np.median(table)) if len(table) >= MIN_POSE_POINTS else None
 
     def _calc(self, context, output):
         segmentation = self.segmentation_port.Eval(context)

@@ -35,7 +35,7 @@ PERCEIVED_SHAPE_MARGIN = 0.01
 # field's interpolation between its nodes (up to about 2 mm at a sphere's radius from an edge). Depth noise
 # makes the nearest points nearer, not farther.
 PERCEIVED_SCENE_MARGIN = 0.005
-# The scene's distance field's grid, m (systems/planning/obstacles.py: DistanceField; scene_cloud.VOXEL_M, the hidden
+# The scene's distance field's grid, m (systems/planning/obstacles.py: DistanceField; scene_cloud.SCENE_VOXEL_M, the hidden
 # cubes' side).
 SCENE_CELL_M = 0.01
 # rad: a configuration may lie this far beyond a joint limit and still count as within it (IK's answers at a limit).
