@@ -18,7 +18,7 @@ from diagrams.station import TABLE_HEIGHT, object_pose_on_table, settled_frame
 from systems.perception.instances import TableView, named_object
 from systems.perception.object_completion import completed_mask
 from systems.perception.robot_spheres import RobotSpheres
-from systems.perception.scene_cloud import HIDDEN_DEPTH_M, SELF_MARGIN_M, TABLE_MARGIN_M, SCENE_VOXEL_M, scene_points
+from systems.perception.scene_cloud import HIDDEN_DEPTH_M, SCENE_VOXEL_M, SELF_MARGIN_M, TABLE_MARGIN_M, scene_points
 from systems.planning.obstacles import Obstacles
 from systems.planning.world import SCENE_CELL_M
 
@@ -72,7 +72,8 @@ def test_the_scene_cloud_holds_what_is_not_the_object_and_the_space_hidden_behin
     assert np.count_nonzero(inside(hidden)) > 50
     # Nothing is seen of the object (its mask), nothing of the table top or below it, nothing on the robot.
     assert seen[:, 2].min() > top_z + TABLE_MARGIN_M - SCENE_VOXEL_M
-    assert np.mean(inside(seen, SCENE_VOXEL_M)) > 0.95  # what is seen is the box (the object and the robot are left out)
+    # What is seen is the box (the object and the robot are left out).
+    assert np.mean(inside(seen, SCENE_VOXEL_M)) > 0.95
     gaps = np.linalg.norm(np.vstack([seen, hidden])[:, None, :] - spheres[None, :, :3], axis=2) - spheres[:, 3]
     assert gaps.min() > SELF_MARGIN_M - SCENE_VOXEL_M
     # Hidden space lies behind what is seen, along the camera's rays, at most HIDDEN_DEPTH_M further.

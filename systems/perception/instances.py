@@ -2,19 +2,19 @@
 
 The network labels pixels by class; on a cluttered table one class's pixels can belong to several objects, and two
 objects can touch in the image. Instances are found in 3D: the object pixels' points (from the depth image) fall
-into INSTANCE_CUBE_M cubes, and cubes that touch (26 neighbours) are one cluster: two objects that stand apart by more than
-a cube come apart, whatever the image shows, and an object's parts (a handle in front of its body, a spout rising
+into INSTANCE_CUBE_M cubes, and cubes that touch (26 neighbours) are one cluster: two objects that stand apart by more
+than a cube come apart, whatever the image shows, and an object's parts (a handle in front of its body, a spout rising
 towards the camera) stay together where they join. A cluster with less than PIECE_SHARE of the largest in its image
 region is a part: it joins the nearest large cluster where it lies within ATTACHED_M of it (a part cut off by a line
 of lost pixels), and is left out otherwise (a fragment of another object the network labelled too). Pixels without
 depth go with the nearest pixel of their region that has it. Classes never cut an instance: the network may label
 one object in parts. Each instance has the class that labelled most of it.
 
-Where the table is known (TableView), a large cluster that floats (its lowest points more than INSTANCE_FLOAT_M above the
-table top) cannot stand on its own: every object rests on the table. Nearer the camera than a cluster of its image
-region that does stand, within INSTANCE_JOIN_M of it, it is that object's upper part, cut off by self-occlusion (a drill's
-barrel and grip in front of and above its battery pack, seen from above: the grip's thin side leaves a depth step),
-and joins it. A floating cluster farther from the camera than the standing ones is left alone: it may be another
+Where the table is known (TableView), a large cluster that floats (its lowest points more than INSTANCE_FLOAT_M above
+the table top) cannot stand on its own: every object rests on the table. Nearer the camera than a cluster of its image
+region that does stand, within INSTANCE_JOIN_M of it, it is that object's upper part, cut off by self-occlusion (a
+drill's barrel and grip in front of and above its battery pack, seen from above: the grip's thin side leaves a depth
+step), and joins it. A floating cluster farther from the camera than the standing ones is left alone: it may be another
 object whose base the nearer one hides.
 """
 
@@ -171,7 +171,8 @@ def grouped(ids: np.ndarray) -> list[np.ndarray]:
 
 def _join_floating(large, home, members, points, table: TableView, final) -> None:
     """Joins each floating large cluster to the nearest standing one of its image region that lies farther from the
-    camera, within INSTANCE_JOIN_M (final: cluster -> the cluster it belongs to, updated), as the module docstring says."""
+    camera, within INSTANCE_JOIN_M (final: cluster -> the cluster it belongs to, updated), as the module docstring
+    says."""
     lowest = {c: np.percentile(table.heights(points[members(c)]), LOWEST_PERCENTILE) for c in large}
     depth = {c: np.median(points[members(c), 2]) for c in large}
     standing = [c for c in large if lowest[c] <= INSTANCE_FLOAT_M]

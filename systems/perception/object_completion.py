@@ -80,7 +80,8 @@ def completed_mask(mask: np.ndarray, labels: np.ndarray, depth: np.ndarray, intr
     points, v, u, own = points[keep], v[keep], u[keep], own[keep]
     if not own.any() or np.count_nonzero(~own) < MIN_ADDED_SHARE * np.count_nonzero(mask):
         return mask  # (too few other points about it to add MIN_ADDED_SHARE: an object seen whole, on its own)
-    body = touching_cubes(points - points.min(axis=0), BODY_CUBE_M)  # (cubes from the points' lowest corner, as measured)
+    # (The cubes from the points' lowest corner, as measured.)
+    body = touching_cubes(points - points.min(axis=0), BODY_CUBE_M)
     in_bodies = np.isin(body, _object_bodies(body, own, points, heights[keep]))
     labelled = in_bodies & ((labels[v, u] > 0) | own)
     unlabelled = in_bodies & ~labelled

@@ -92,8 +92,8 @@ def _planar_fit(points_W, model_O, X_from: RigidTransform) -> RigidTransform:
     field = _ModelField(tilt.multiply(model_O.T).T)
     p = X_from.translation()
     yaw_from = RollPitchYaw(X_from.rotation()).yaw_angle()
-    yaw, xy, _ = fit_yaw_translation(points_W, yaw_from, p[:2], p[2], field, PLANAR_FIT_ITERATIONS, TRACK_INLIER_M)
-    return RigidTransform(RotationMatrix.MakeZRotation(yaw) @ tilt, [*xy, p[2]])
+    planar = fit_yaw_translation(points_W, yaw_from, p[:2], p[2], field, PLANAR_FIT_ITERATIONS, TRACK_INLIER_M)
+    return RigidTransform(RotationMatrix.MakeZRotation(planar.yaw) @ tilt, [*planar.xy, p[2]])
 
 
 def _skew(a: np.ndarray) -> np.ndarray:
@@ -177,7 +177,9 @@ def track(
     error, fraction = float(distance[inlier].mean()), float(inlier.mean())
     moved = float(np.linalg.norm(X.translation()[:2] - X_WO_expected.translation()[:2]))
     turned = abs(RollPitchYaw(X_WO_expected.rotation().inverse() @ X.rotation()).yaw_angle())
-    summary = f"{len(points_W)} points, {100 * fraction:.0f}% within {1000 * TRACK_INLIER_M:.0f} mm at {1000 * error:.1f} mm"
+    summary = (
+        f"{len(points_W)} points, {100 * fraction:.0f}% within {1000 * TRACK_INLIER_M:.0f} mm at {1000 * error:.1f} mm"
+    )
     change = f"moved {100 * moved:.1f} cm and {np.degrees(turned):.1f} deg from where it was expected; {tilt_said}"
     if error > MAX_FIT_ERROR_M or fraction < MIN_INLIER_FRACTION:
         return ObjectEstimate(False, X_WO=X, points_W=points_W, message=f"a poor fit: {summary}")

@@ -146,14 +146,25 @@ def _rotation_2d(angle: float) -> np.ndarray:
     return np.array([[c, -s], [s, c]])
 
 
-def fit_yaw_translation(points_W, yaw, xy, z, field: NearestPointField, iterations, inlier_m: float = np.inf):
+@dataclass
+class PlanarFit:
+    """An upright pose X_WO = (Rz(yaw), [x, y, z]) fitted to observed points, and how well it fits."""
+
+    yaw: float  # rad, about W's z
+    xy: np.ndarray  # (2,): the origin's x, y in W, m
+    error: float  # the points' mean distance to the template, m (estimate_pose adds its free-space cost)
+
+
+def fit_yaw_translation(
+    points_W, yaw, xy, z, field: NearestPointField, iterations, inlier_m: float = np.inf
+) -> PlanarFit:
     """Planar ICP (yaw about z, translation in x-y; the origin at height z) of the observed points onto the
     template (`field`: its .points in O and .query(points in O) -> (distance, index)).
 
     Every observed point within inlier_m of the template counts (by default all: the spout and handles are few
     points, but they fix the yaw; the object tracker leaves out the fingers and strays around a held object).
 
-    Returns (yaw, xy, mean distance of all the points in metres).
+    Returns the fit, its error over all the points.
     """
 
     in_O = np.empty_like(points_W)  # (filled in place: the small arrays' calls are most of the time)
@@ -178,7 +189,7 @@ def fit_yaw_translation(points_W, yaw, xy, z, field: NearestPointField, iteratio
         yaw = np.arctan2(H[0, 1] - H[1, 0], H[0, 0] + H[1, 1])
         xy = b_mean - _rotation_2d(yaw) @ a_mean
     distance, _ = nearest(yaw, xy)  # the error of the pose returned
-    return yaw, xy, float(distance.mean())
+    return PlanarFit(yaw, xy, float(distance.mean()))
 
 
 def estimate_pose(
@@ -206,20 +217,21 @@ def estimate_pose(
     box_centre = np.asarray(prior.box_centre)
     coarse = thinned[np.linspace(0, len(thinned) - 1, min(len(thinned), COARSE_POINTS)).astype(int)]
 
-    def fit(points, yaw, xy, iterations):
-        yaw, xy, error = fit_yaw_translation(points, yaw, xy, z, field, iterations)
+    def fit(points, yaw, xy, iterations) -> PlanarFit:
+        planar = fit_yaw_translation(points, yaw, xy, z, field, iterations)
         if see_through is not None:
-            X_WO = RigidTransform(RotationMatrix.MakeZRotation(yaw), [xy[0], xy[1], z])
-            error += FREE_SPACE_WEIGHT * see_through(X_WO.multiply(template[::4].T).T)
-        return error, yaw, xy
+            X_WO = RigidTransform(RotationMatrix.MakeZRotation(planar.yaw), [planar.xy[0], planar.xy[1], z])
+            planar.error += FREE_SPACE_WEIGHT * see_through(X_WO.multiply(template[::4].T).T)
+        return planar
 
     candidates = []
     for k in range(YAW_CANDIDATES):
         yaw = axis_yaw + k * 2 * np.pi / YAW_CANDIDATES
         candidates.append(fit(coarse, yaw, extent_centre - _rotation_2d(yaw) @ box_centre, COARSE_ITERATIONS))
-    candidates.sort(key=lambda candidate: candidate[0])
-    refined = [fit(thinned, yaw, xy, FINE_ITERATIONS) for _, yaw, xy in candidates[:FINE_CANDIDATES]]
-    _, yaw, xy = min(refined, key=lambda candidate: candidate[0])
+    candidates.sort(key=lambda candidate: candidate.error)
+    refined = [fit(thinned, c.yaw, c.xy, FINE_ITERATIONS) for c in candidates[:FINE_CANDIDATES]]
+    best = min(refined, key=lambda candidate: candidate.error)
+    yaw, xy = best.yaw, best.xy
     if prior.symmetric_about_yaw is not None:
         yaw = folded_yaw(yaw, prior.symmetric_about_yaw)
     return RigidTransform(RotationMatrix.MakeZRotation(yaw), [xy[0], xy[1], z])

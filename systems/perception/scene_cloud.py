@@ -11,10 +11,10 @@ From one depth image:
     box), within reach (WORKSPACE_RADIUS_M of the robot's torso axis) and off the robot (its sphere model,
     SELF_MARGIN_M);
   * thinned to one measured point per SEEN_SPACING_M cube (the planner measures its distance to these points: a
-    face is where the camera saw it, not up to a cube beyond); then, behind each SCENE_VOXEL_M cube of them, the space
-    hidden from the camera along its ray, up to HIDDEN_DEPTH_M further (and never below the table top), as the
-    centres of SCENE_VOXEL_M cubes: the camera cannot tell how deep an object is, so the space behind what it sees counts
-    as occupied that far;
+    face is where the camera saw it, not up to a cube beyond); then, behind each SCENE_VOXEL_M cube of them, the
+    space hidden from the camera along its ray, up to HIDDEN_DEPTH_M further (and never below the table top), as the
+    centres of SCENE_VOXEL_M cubes: the camera cannot tell how deep an object is, so the space behind what it sees
+    counts as occupied that far;
   * hidden space within TARGET_MARGIN_M of the object's reconstruction is the object's (where the far hand goes),
     and within SELF_MARGIN_M of the robot the robot's: not an obstacle. Only space hidden by other things is.
 """
@@ -56,8 +56,8 @@ def scene_points(
     object_cloud_W: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """(seen, hidden): the scene's occupied points in W, as the module docstring says: N x 3 measured points (one per
-    SEEN_SPACING_M cube) and M x 3 centres of SCENE_VOXEL_M cubes. object_mask: H x W bool (may be empty: nothing to leave
-    out); object_cloud_W: the object's reconstruction (N x 3 in W), or None."""
+    SEEN_SPACING_M cube) and M x 3 centres of SCENE_VOXEL_M cubes. object_mask: H x W bool (may be empty: nothing to
+    leave out); object_cloud_W: the object's reconstruction (N x 3 in W), or None."""
     depth = np.where(np.isfinite(depth), depth, 0.0).astype(np.float32)
     mask = np.zeros(depth.shape, bool)
     if object_mask.shape == depth.shape and object_mask.any():
@@ -82,7 +82,7 @@ def scene_points(
     behind = behind[behind[:, 2] > table_top_z + TABLE_MARGIN_M]
     hidden = voxel_centres(behind) if len(behind) else np.zeros((0, 3))
     if len(hidden):
-        hidden = hidden[cKDTree(seen).query(hidden, workers=THREADS)[0] > 0.5 * SCENE_VOXEL_M]  # (not what is seen already)
+        hidden = hidden[cKDTree(seen).query(hidden, workers=THREADS)[0] > 0.5 * SCENE_VOXEL_M]  # (not seen already)
     if object_cloud_W is not None and len(object_cloud_W) and len(hidden):
         hidden = hidden[cKDTree(object_cloud_W).query(hidden, workers=THREADS)[0] > TARGET_MARGIN_M]
     # The robot's own shadow (behind parts of it the sphere model leaves out, e.g. the fingers) is not an obstacle.

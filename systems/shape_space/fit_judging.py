@@ -17,13 +17,13 @@ from systems.shape_space.shape_fit import ShapeFit
 from systems.shape_space.space import GRASP_NAMES
 from systems.shape_space.visibility import visible_from
 
-# A fit is poor when fewer than MIN_INLIER_SHARE of the points it saw lie within FIT_INLIER_M of the fitted shape (good
-# fits keep over 0.9, fits flying pixels pulled centimetres off under 0.25).
+# A fit is poor when fewer than MIN_INLIER_SHARE of the points it saw lie within FIT_INLIER_M of the fitted shape
+# (good fits keep over 0.9, fits flying pixels pulled centimetres off under 0.25).
 FIT_INLIER_M = 0.01
 MIN_INLIER_SHARE = 0.8
 # Each grasp must be where its handle was seen: of the fitted surface visible from the camera within SUPPORT_M of
-# a grasp frame, at least MIN_GRASP_SUPPORT must lie within FIT_INLIER_M of a seen point. A grasp with too little visible
-# surface about it is not judged: a drill's grip hidden under its housing is no evidence against it.
+# a grasp frame, at least MIN_GRASP_SUPPORT must lie within FIT_INLIER_M of a seen point. A grasp with too little
+# visible surface about it is not judged: a drill's grip hidden under its housing is no evidence against it.
 SUPPORT_M = 0.03
 MIN_GRASP_SUPPORT = 0.6
 MIN_SUPPORT_POINTS = 10  # visible surface points about a grasp that a support share needs
@@ -83,8 +83,8 @@ class Registration:
         does not hold for this shape."""
         if self.inlier_share < MIN_INLIER_SHARE:
             return (
-                f"a poor fit: {100 * self.inlier_share:.0f}% of the seen points lie within {1000 * FIT_INLIER_M:.0f} mm "
-                f"of the fitted shape (at least {100 * MIN_INLIER_SHARE:.0f}% expected)"
+                f"a poor fit: {100 * self.inlier_share:.0f}% of the seen points lie within "
+                f"{1000 * FIT_INLIER_M:.0f} mm of the fitted shape (at least {100 * MIN_INLIER_SHARE:.0f}% expected)"
             )
         if self.surface_support is not None and self.surface_support < MIN_SURFACE_SUPPORT:
             return (

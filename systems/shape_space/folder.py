@@ -33,6 +33,7 @@ few models").
 """
 
 import logging
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -104,9 +105,17 @@ def frame_warnings(clouds: dict[str, np.ndarray], canonical: str) -> list[str]:
     return warnings
 
 
-def folder_instances(folder: Path, poses_file: Path):
-    """A folder's model points {file name: N x 3, m}, the control poses its poses file gives {file name: {name:
-    X_OG}} and the canonical model's file name (its points densified where sparse).
+@dataclass
+class FolderModels:
+    """A folder of a category's models, read."""
+
+    clouds: dict[str, np.ndarray]  # {file name: N x 3 model points, m}; the canonical one's densified where sparse
+    poses: dict[str, dict[str, RigidTransform]]  # the poses file's control poses {file name: {name: X_OG}}
+    canonical: str  # the canonical model's file name
+
+
+def folder_instances(folder: Path, poses_file: Path) -> FolderModels:
+    """A folder's models and the control poses its poses file gives.
 
     Raises SystemExit naming the problem: not a folder, fewer than 2 models, a poses file that lacks something.
     """
@@ -131,7 +140,7 @@ def folder_instances(folder: Path, poses_file: Path):
     if len(clouds[canonical]) < DENSE_POINTS:
         logging.info("%s has %d points: densifying its surface", canonical, len(clouds[canonical]))
         clouds[canonical] = densified(clouds[canonical], CLOUD_POINTS)
-    return clouds, poses, canonical
+    return FolderModels(clouds, poses, canonical)
 
 
 def parse_poses(spec: dict, poses_file: Path, model: str = "the canonical model") -> dict[str, RigidTransform]:
@@ -159,7 +168,8 @@ def build_from_folder(
         scaled_copies = folder_copies(category)
     if scaled_copies:
         logging.info("%s: %d stretched copies of each model (spread %.2f)", category, scaled_copies, spread)
-    clouds, poses, canonical = folder_instances(folder, poses_file)
+    models = folder_instances(folder, poses_file)
+    clouds, poses, canonical = models.clouds, models.poses, models.canonical
     if align == "none":
         for warning in frame_warnings(clouds, canonical):
             logging.warning("warning: %s; if the models do not share one frame, pass --align vertical", warning)

@@ -67,7 +67,8 @@ _MOVES = _moves()
 
 
 class _Occupancy:
-    """The cells of an OCCUPANCY_CELL_M grid over the box |p| < reach (3,) that lie within `radius` of the points (N x 3)."""
+    """The cells of an OCCUPANCY_CELL_M grid over the box |p| < reach (3,) that lie within `radius` of the points
+    (N x 3)."""
 
     def __init__(self, points: np.ndarray, reach: np.ndarray, radius: float):
         self.low = -reach
