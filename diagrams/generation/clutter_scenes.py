@@ -27,8 +27,7 @@ from diagrams.scenario import ClutterObjectConfig, Scenario, initial_positions, 
 from diagrams.station import TABLE_HEIGHT
 
 CLUTTER_SEED = 35
-# (Split 0 was the first report range: its tables 0-11 were looked at while the instances and the scene cloud were
-# built, so they are no longer reported on.)
+# Each split's code in its tables' seeds (code 0, a report range looked at while the scenes were built, is unused).
 SPLIT_CODES = {"report": 2, "tune": 1}
 # The target: extra_<TARGET_FIRST_INSTANCE + k> in the report split (unseen), train_<k % 8> when tuning; placed
 # within TARGET_HALF_SIZE_M (x, y) of TARGET_CENTRE (table_top frame, m) and TARGET_MAX_YAW of the presentation.

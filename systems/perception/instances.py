@@ -39,9 +39,8 @@ CONNECTIVITY = 3  # cubes that share a face (1), an edge (2) or a corner (3) tou
 # Among the instances of a named category, only those with at least this share of the largest one are candidates:
 # a small mislabelled patch nearer the camera is not an object to pick.
 CANDIDATE_SHARE = 0.4
-# (Both chosen on the tuning drills' first pick frames and the tuning range's cluttered tables: the floating upper
-# parts of one drill were 6-19 cm above the table and 1-6 cm from its standing part; two objects' pieces that a
-# floating-nearer rule could join were 14 cm apart.)
+# (Both chosen on the tuning drills' first pick frames and the tuning range's cluttered tables:
+# docs/history/perception_parameters.md.)
 INSTANCE_FLOAT_M = 0.05  # m: a cluster whose lowest points are higher above the table top floats
 INSTANCE_JOIN_M = 0.08  # m: a floating cluster joins a standing one at most this far from it
 LOWEST_PERCENTILE = 2  # a cluster's lowest points: this percentile of its heights (a few stray pixels are noise)

@@ -38,8 +38,7 @@ SEED_SHARE = 0.1  # a body holding this share of the instance's points is the ob
 MOSTLY_OWN = 0.6  # where they are at least this share of the body's points
 GROW_M = 0.1  # m: an unlabelled point joins at most this far from a labelled one of the object's bodies
 # A completion that adds less than this share of the instance's pixels adds its edge, not a missing part, and is
-# not made (at most 1.8 % on the first pick frames of the tuning and held-out objects the network labels whole; the
-# held-out drills' frames in pieces, the centre-grip one at 0 and -0.25 rad and the compact one at 0, gained 17-74 %).
+# not made (docs/history/perception_parameters.md).
 MIN_ADDED_SHARE = 0.05
 NEAR_M = 0.12  # m: only points this near the instance's (its box, grown) are looked at (beyond GROW_M)
 MIN_BODY_POINTS = 20  # smaller bodies are noise

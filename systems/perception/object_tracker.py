@@ -47,8 +47,10 @@ TRACK_SELF_MARGIN_M = 0.01  # m: the robot's sphere model grown by this
 MIN_TRACK_POINTS = 50
 TRACK_INLIER_M = 0.015
 PLANAR_FIT_ITERATIONS = 15
-MAX_FIT_ERROR_M = 0.006  # mean distance of the inliers to the reconstruction (the looks at held cans: 3.8-4.1 mm)
-MIN_INLIER_FRACTION = 0.8  # (those looks: 94-95 %; a fit stuck 35 deg or 8 cm off a test shape: 59-60 %)
+# The fit's mean inlier distance to the reconstruction (m) and share of inliers: above what good looks at held cans
+# show, below a fit stuck far off (docs/history/perception_parameters.md).
+MAX_FIT_ERROR_M = 0.006
+MIN_INLIER_FRACTION = 0.8
 MAX_CORRECTION_M = 0.05
 MAX_CORRECTION_RAD = np.radians(30.0)
 FAR_FROM_ROBOT_M = 0.03
@@ -64,8 +66,7 @@ YAW_PRIOR_RAD = np.radians(5.0)
 XY_PRIOR_M = 0.01
 HEIGHT_PRIOR_M = 0.01
 REFINE_ITERATIONS = 20
-# (Chosen on looks at training cans and drills carried over the box, not on the test instances; taking every
-# refined tilt put drills, which hang 1-2 deg, 9 mm off in x-y instead of 7 mm.)
+# Chosen on looks at training cans and drills carried over the box (docs/history/perception_parameters.md).
 MIN_TILT_CHANGE_RAD = np.radians(2.0)
 
 

@@ -317,7 +317,7 @@ class PoseEstimator(LeafSystem):
             )
         # The pose fit takes the mask's interior: edge pixels mix object and background depth. The
         # estimate keeps every point: the silhouette's edge is the shape's extent, and the shape
-        # registration weighs strays down itself (cans' Chamfer 6.8 -> 5.6 mm with the edges, thinned at random).
+        # registration weighs strays down itself.
         fit_points_W = points_W
         if self.erode_pixels:
             kernel = np.ones((2 * self.erode_pixels + 1,) * 2, np.uint8)

@@ -70,7 +70,7 @@ class DetourConfig:
     # fraction of the time.
     checks: int = 4
     proxy_points: int = 64
-    moved_steps: int = 3  # (with 2, a set-down's first trajectory no longer solved it)
+    moved_steps: int = 3  # (fewer leave some set-downs' first trajectories unsolved)
 
 
 @dataclass(frozen=True)

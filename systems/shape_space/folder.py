@@ -55,9 +55,7 @@ CLOUD_SUFFIXES = {".pcd", ".ply"}
 DENSE_POINTS = 4000
 # A folder's few models are each copied this often, stretched along C's axes with the spread of the category's scale
 # prior (the registrar's: how far its shape may scale beyond its space), unless that spread is below MIN_COPY_SPREAD:
-# such copies nearly repeat their model. 8 training meshes, one annotated, kinect_v2, validation range extra_201-208
-# (24 views per category): cans (0.2) 12.4 -> 9.7 mm grasps, Chamfer 5.3 -> 5.8 mm, grasps over 2 cm off handed on
-# 9 -> 2; drills (0.03) 7.9 -> 8.1 mm, Chamfer 3.8 -> 4.2 mm (and with 0.1, the earlier fixed spread, 7.8 -> 9.8 mm).
+# such copies nearly repeat their model (docs/history/registration_parameters.md).
 FOLDER_SCALED_COPIES = 4
 MIN_COPY_SPREAD = 0.05
 # Centres of extent farther apart than this share of the canonical's size suggest models in different frames.
