@@ -18,9 +18,13 @@ from scipy.stats import binomtest
 from diagrams.generation.objects import catalog
 from diagrams.scenario import Scenario, clutter_name, replace_object
 
+# The paper's two categories: what the benchmarks and the planning problems draw from (a category added to the
+# catalog changes none of them).
+PAPER_CATEGORIES = ("watering_can", "drill")
 PAPER_YAWS = (0.25, 0.0, -0.25)  # rad
 PAPER_YAW_NOISE = 0.2  # rad
-# Random placements over the table region around the default spot (object.xy, table_top frame): x within
+# Random placements over the table region around the default spot (object.xy, table_top frame; the planning
+# problems' objects stand there too): x within
 # +-PLACEMENT_HALF_SIZE_M[0], y within +-[1], yaw within +-PLACEMENT_MAX_YAW (m, m, rad), placement k with the
 # unseen generated instance extra_<PLACEMENT_FIRST_INSTANCE + k> (a range nobody tunes on).
 PLACEMENT_HALF_SIZE_M = (0.10, 0.20)

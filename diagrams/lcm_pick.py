@@ -18,7 +18,7 @@ import subprocess
 import sys
 import tempfile
 import time
-from dataclasses import replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from pydrake.geometry import Meshcat
@@ -58,16 +58,21 @@ DRIVER_START_TIMEOUT_S = 60.0
 SPAWNED_DRIVER_WATCHDOG_S = 1.0
 
 
+@dataclass
+class RobotRun:
+    """What a pick against a robot on the bus saw (nothing judged: there is no ground truth)."""
+
+    report: PickReport  # the supervisor's final status, the stages' times, the closure deviations
+    problems: list[str] = field(default_factory=list)  # safety problems: tripped watchdogs, rejected messages
+    # On a real bus, the arm commands' figures: {"sent": n, "max_gap_s": s, "late": sends more than two periods
+    # after the one before}; {} on memq://.
+    commands: dict = field(default_factory=dict)
+
+
 def run_pick_on_robot(
     scenario: Scenario, lcm: DrakeLcmInterface | None = None, meshcat: Meshcat | None = None
-) -> tuple[PickReport, list[str], dict]:
+) -> RobotRun:
     """Runs the pick diagram in real time against a robot (or scripts/robot_driver.py) over LCM.
-
-    Nothing is judged here (no ground truth): returns the pick's report (the supervisor's final status,
-    the stages' times, the closure deviations), the safety
-    problems seen (tripped watchdogs, rejected messages and commands), and on a real bus the arm
-    commands' figures ({"sent": n, "max_gap_s": s, "late": sends more than two periods after the one
-    before}; {} on memq://).
 
     Raises:
         RobotNotResponding: no status or images within scenario.hardware.status_timeout_s.
@@ -104,7 +109,7 @@ def run_pick_on_robot(
             commands = {"sent": stream.sends, "max_gap_s": stream.max_gap_s, "late": stream.late_sends}
             logging.info("arm commands: %d sent, %d more than two periods after the one before, largest gap %.1f ms",
                          stream.sends, stream.late_sends, 1000 * stream.max_gap_s)  # fmt: skip
-    return pick_report(diagram, context), problems, commands
+    return RobotRun(pick_report(diagram, context), problems, commands)
 
 
 def _hold_while_the_robot_catches_up(simulator: Simulator, station: Diagram, timeout_s: float = 60.0):
@@ -146,11 +151,11 @@ def safety_problems(station: Diagram, context) -> tuple[bool, list[str]]:
 def run_on_robot(scenario: Scenario, lcm_url: str | None = None, meshcat: Meshcat | None = None) -> PickOutcome:
     """The pick against a robot on the bus; success means the plan was played out with no safety problem."""
     lcm = DrakeLcm(lcm_url) if lcm_url else DrakeLcm(scenario.lcm)
-    return _outcome(*run_pick_on_robot(scenario, lcm, meshcat))
+    return _outcome(run_pick_on_robot(scenario, lcm, meshcat))
 
 
-def _outcome(report: PickReport, problems: list[str], commands: dict) -> PickOutcome:
-    status = report.status
+def _outcome(run: RobotRun) -> PickOutcome:
+    report, problems, status = run.report, run.problems, run.report.status
     played = status.mode == Mode.DONE
     message = (
         status.message if status.mode == Mode.FAILED else ("plan played out" if played else f"stopped in {status.mode}")
@@ -162,7 +167,7 @@ def _outcome(report: PickReport, problems: list[str], commands: dict) -> PickOut
     outcome.attempts_made, outcome.attempt_failures = status.attempt, attempt_failures(status)
     outcome.planning_s = report.stages.get("image_to_trajectory", 0.0)
     outcome.closure = report.closure
-    outcome.commands = commands
+    outcome.commands = run.commands
     return outcome
 
 
@@ -200,14 +205,14 @@ def run_with_spawned_driver(scenario: Scenario, driver_arguments: list[str]) -> 
         command += ["--lcm-url", NAMESPACE_LCM_URL, "--result", str(result)]
         driver = subprocess.Popen(command)
         try:
-            report, problems, commands = run_pick_on_robot(scenario, DrakeLcm(NAMESPACE_LCM_URL))
+            run = run_pick_on_robot(scenario, DrakeLcm(NAMESPACE_LCM_URL))
         finally:
             driver.send_signal(signal.SIGTERM)
             try:
                 driver.wait(timeout=60)
             except subprocess.TimeoutExpired:
                 driver.kill()
-        outcome = _outcome(report, problems, commands)
+        outcome = _outcome(run)
         if not result.is_file():
             outcome.success, outcome.message = False, f"{outcome.message}; the driver wrote no result"
             return outcome

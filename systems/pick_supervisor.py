@@ -63,10 +63,8 @@ MOVED_RAD = np.radians(4.0)
 MAX_CORRECTIONS = 2
 # A look after the place finds the object off its target by more than this (its origin in x, y; its yaw): the
 # hands take it again, m and rad, at most this often per attempt. Only where it is clearly off (the judge allows
-# 2 cm and 5 deg; a look's own error is up to about 1 cm and 2 deg): taking a can again disturbs it, and a look
-# at it in the hands can miss a large turn (over the box, test_2 at yaw -0.25, stood 3.8 deg off; the approach
-# pushed it 9 deg and the close 5 deg more, the held look saw 2 deg, and it was set down 11 deg off; with 4 deg
-# here two cans placed within 5 deg were taken again and failed).
+# 2 cm and 5 deg; a look's own error is up to about 1 cm and 2 deg): taking a can again disturbs it
+# (docs/history/pick_parameters.md).
 PLACED_M = 0.02
 PLACED_RAD = np.radians(6.0)
 MAX_PLACE_CORRECTIONS = 1

@@ -29,18 +29,15 @@ SETTLE_S = 0.5  # s: after the hands close or open, the grip settles before it i
 LIFT_HEIGHT = 0.15  # m: aimed for
 MIN_LIFT_FRACTION = 0.8  # of it: near the edge of the arms' reach a lower lift will do (0.12 m)
 HOLD_S = 2.5  # s
-# The place task carries the object this high (its bottom clears the 6 cm boxes of the place_over_box layouts;
-# over an 8 cm box STOMP found no upright carry for a can); higher, the arms are near the edge of their reach
-# and cannot move it sideways, m.
+# The place task carries the object this high (its bottom clears the 6 cm boxes of the place_over_box layouts);
+# higher, the arms are near the edge of their reach and cannot move it sideways, m.
 PLACE_LIFT_HEIGHT = 0.10
 # Taken again after a set-down off its target, the object is lifted this high before it is set down again (clear
 # of the table's friction), m; near the edge of reach this share of it will do.
 REPLACE_LIFT_HEIGHT = 0.03
 MIN_REPLACE_LIFT_FRACTION = 0.5
 # Letting go of a set-down object, the hands open this much wider than the widest handle they closed on, m:
-# enough to back off it, no wider. In one can pick, set down within 1.1 deg: + 10 cm (fully open), the
-# fingers turned it by 7.9 deg; + 2.5 cm, hand and retreat by 4.2 deg; + 1.2 cm, by 1.2 deg. (A fixed 5 cm
-# opening left a hand that had closed on a 48 mm handle dragging the can away.)
+# enough to back off it, no wider (wider, the fingers turn it; docs/history/pick_parameters.md).
 RELEASE_MARGIN = 0.012
 
 # What a phase needs set, by kind.

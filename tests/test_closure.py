@@ -303,11 +303,11 @@ def test_a_carry_over_a_box_starts_from_a_detour_clear_of_it(scenario):
     q_grasp = grasp_configuration(scenario, make_pick_motions(scenario, obstacle=model, X_WO=X_WO))
     motions = make_pick_motions(scenario)
     stomp = motions.stomp
-    q_start = motions.held_path(q_grasp, RigidTransform([0, 0, 0.10]), 1.0)[0][-1]
+    q_start = motions.held_path(q_grasp, RigidTransform([0, 0, 0.10]), 1.0).configurations[-1]
     points = object_surface_W(model, RigidTransform([0, 0, 0.10]) @ X_WO, 500)[0]
     scene = motions.world.table_obstacles().carrying(motions.carried(q_start, points))
     X_desired = stomp.end_effectors.relative(q_start[None])[0]
-    q_across = motions.held_path(q_start, RigidTransform([0, -0.40, 0]), 1.0)[0][-1]
+    q_across = motions.held_path(q_start, RigidTransform([0, -0.40, 0]), 1.0).configurations[-1]
     q_goal = stomp.project(q_across, X_desired, steps=15)[0]
     straight = np.linspace(q_start, q_goal, stomp.config.keyframes)
     closure = (ClosureConstraint(), X_desired)

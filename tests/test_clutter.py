@@ -18,7 +18,7 @@ from diagrams.station import TABLE_HEIGHT, object_pose_on_table, settled_frame
 from systems.perception.instances import TableView, named_object
 from systems.perception.object_completion import completed_mask
 from systems.perception.robot_spheres import RobotSpheres
-from systems.perception.scene_cloud import HIDDEN_DEPTH_M, SELF_MARGIN_M, TABLE_MARGIN_M, VOXEL_M, scene_points
+from systems.perception.scene_cloud import HIDDEN_DEPTH_M, SCENE_VOXEL_M, SELF_MARGIN_M, TABLE_MARGIN_M, scene_points
 from systems.planning.obstacles import Obstacles
 from systems.planning.world import SCENE_CELL_M
 
@@ -68,18 +68,19 @@ def test_the_scene_cloud_holds_what_is_not_the_object_and_the_space_hidden_behin
     box_centre = np.array([*centre, top_z + 0.04])
     inside = lambda p, grow=0.0: np.all(np.abs(p - box_centre) <= half + grow, axis=1)  # noqa: E731
     # The box's top and front faces are seen; its inside is hidden by them (the camera looks down at it).
-    assert np.count_nonzero(inside(seen, VOXEL_M)) > 50
+    assert np.count_nonzero(inside(seen, SCENE_VOXEL_M)) > 50
     assert np.count_nonzero(inside(hidden)) > 50
     # Nothing is seen of the object (its mask), nothing of the table top or below it, nothing on the robot.
-    assert seen[:, 2].min() > top_z + TABLE_MARGIN_M - VOXEL_M
-    assert np.mean(inside(seen, VOXEL_M)) > 0.95  # what is seen is the box (the object and the robot are left out)
+    assert seen[:, 2].min() > top_z + TABLE_MARGIN_M - SCENE_VOXEL_M
+    # What is seen is the box (the object and the robot are left out).
+    assert np.mean(inside(seen, SCENE_VOXEL_M)) > 0.95
     gaps = np.linalg.norm(np.vstack([seen, hidden])[:, None, :] - spheres[None, :, :3], axis=2) - spheres[:, 3]
-    assert gaps.min() > SELF_MARGIN_M - VOXEL_M
+    assert gaps.min() > SELF_MARGIN_M - SCENE_VOXEL_M
     # Hidden space lies behind what is seen, along the camera's rays, at most HIDDEN_DEPTH_M further.
     camera = X_WC.translation()
     along = np.linalg.norm(hidden - camera, axis=1)
     nearest_seen = np.array([np.linalg.norm(seen - h, axis=1).min() for h in hidden[::25]])
-    assert nearest_seen.max() <= HIDDEN_DEPTH_M + VOXEL_M and along.min() > 0.3
+    assert nearest_seen.max() <= HIDDEN_DEPTH_M + SCENE_VOXEL_M and along.min() > 0.3
 
 
 def test_the_planner_avoids_an_obstacle_only_the_camera_saw(scenario):

@@ -5,7 +5,7 @@ import pytest
 import trimesh
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 
-from systems.perception.object_tracker import MAX_CORRECTION_RAD, SELF_MARGIN, refine_pose, track
+from systems.perception.object_tracker import MAX_CORRECTION_RAD, TRACK_SELF_MARGIN_M, refine_pose, track
 from systems.planning.sphere_model import off_the_robot
 
 
@@ -62,8 +62,8 @@ def test_too_few_points_where_the_object_was_expected_is_a_named_failure(scene):
 def test_points_on_the_robots_spheres_are_left_out():
     points = np.array([[0.0, 0.0, 0.0], [0.05, 0.0, 0.0], [0.5, 0.0, 0.0]])
     spheres = np.array([[0.0, 0.0, 0.0, 0.045]])  # radius 4.5 cm, +1 cm margin reaches the second point
-    np.testing.assert_array_equal(off_the_robot(points, spheres, SELF_MARGIN), points[2:])
-    np.testing.assert_array_equal(off_the_robot(points, np.zeros((0, 4)), SELF_MARGIN), points)
+    np.testing.assert_array_equal(off_the_robot(points, spheres, TRACK_SELF_MARGIN_M), points[2:])
+    np.testing.assert_array_equal(off_the_robot(points, np.zeros((0, 4)), TRACK_SELF_MARGIN_M), points)
 
 
 def test_a_tilt_within_what_one_look_tells_is_kept(scene):

@@ -68,11 +68,11 @@ def test_part_image_of_a_rendered_can_puts_each_role_where_its_part_is(can_frame
     assert image.dtype == np.uint8 and np.array_equal(image > 0, f["mask"])
     assert {PartRole(r) for r in np.unique(image[f["mask"]])} == {BODY, LEFT, RIGHT, TOOL}
     X_CW = f["X_WC"].inverse()
-    _, direction, spout_end = watering_can.spout_axis(instance.parameters)
+    spout = watering_can.spout_axis(instance.parameters)
     points_O = {
         LEFT: instance.grasps["left"].grasp.GetDeterministicValue().translation(),
         RIGHT: instance.grasps["right"].grasp.GetDeterministicValue().translation(),
-        TOOL: spout_end + 0.02 * direction,  # on the rose
+        TOOL: spout.end + 0.02 * spout.direction,  # on the rose
     }
     for role, p_O in points_O.items():
         row, col = _pixel(X_CW, f["camera_info"], f["X_WO"].multiply(p_O))

@@ -10,6 +10,7 @@ from diagrams.scenario import planned_joints
 from diagrams.station import AddCentauro
 from systems.planning.dynamics import gravity_torques, joint_torques
 from systems.planning.kinematics import EndEffectors
+from systems.planning.sphere_model import SphereGroup
 from systems.planning.world import centauro_kinematics
 
 
@@ -93,7 +94,7 @@ def test_spheres_cover_every_collision_geometry(robot):
                 p = (X_WB @ X_BG @ np.append(corner, 1.0))[:3]
                 inside = np.linalg.norm(centres[mine] - p, axis=1) <= spheres.radius[mine] + 1e-9
                 assert inside.any(), f"{body.name()}: {corner} not covered"
-    assert set(np.unique(spheres.group)) == {0, 1, 2}
+    assert set(np.unique(spheres.group)) == set(SphereGroup)
 
 
 def _extreme_points(shape):

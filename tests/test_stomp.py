@@ -15,6 +15,7 @@ from systems.planning.closure import ClosureConstraint
 from systems.planning.dynamics import Payload, joint_torques
 from systems.planning.ik import DualArmIk
 from systems.planning.obstacles import DistanceField, Obstacles
+from systems.planning.sphere_model import SphereGroup
 from systems.planning.stomp import Stomp
 from systems.planning.stomp_costs import TERMS, StompProblem
 
@@ -193,7 +194,7 @@ def test_batched_sphere_centres_and_the_broad_phase_agree_with_one_sphere_at_a_t
     # Against a box among the arms: every sphere's clearance to it exact below the margin, the shortfall as if each
     # sphere were placed alone.
     X_WB = np.eye(4)
-    X_WB[:3, 3] = centres[:, spheres.group == 1].mean(axis=(0, 1))
+    X_WB[:3, 3] = centres[:, spheres.group == SphereGroup.LEFT].mean(axis=(0, 1))
     scene = Obstacles().add_box(X_WB, [0.3, 0.3, 0.3])
     to_box = scene.distance(centres) - spheres.radius
     all_gaps = np.concatenate([to_box, np.where(gaps < stomp.config.costs.margin, gaps, np.inf)], axis=1)

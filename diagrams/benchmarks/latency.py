@@ -17,10 +17,9 @@ from pathlib import Path
 import numpy as np
 
 from diagrams.cli import with_sensor
-from diagrams.evaluation import PAPER_YAW_NOISE, generated_objects, make_trials
+from diagrams.evaluation import PAPER_CATEGORIES, PAPER_YAW_NOISE, generated_objects, make_trials
 from diagrams.scenario import DEFAULT_SCENARIO, load_scenario
 
-CATEGORIES = ("watering_can", "drill")
 STAGES = ("segmentation", "pose", "registration", "planning")
 # The unseen instances: extra_<FIRST_UNSEEN + k>, a range no other figure uses.
 FIRST_UNSEEN = 401
@@ -34,7 +33,7 @@ def latency_trials(yaws: list[float], unseen: int, sensor: str | None) -> list:
     """Per category: the test instances at each yaw, then `unseen` unseen instances at yaw 0."""
     base = with_sensor(load_scenario(DEFAULT_SCENARIO), sensor)
     trials = []
-    for category in CATEGORIES:
+    for category in PAPER_CATEGORIES:
         trials += make_trials(base, category, generated_objects(category), 1, yaws, PAPER_YAW_NOISE)
         extras = {
             f"extra_{FIRST_UNSEEN + k}": {"instance": f"extra_{FIRST_UNSEEN + k}", "file": ""} for k in range(unseen)

@@ -13,28 +13,36 @@ labelled as objects are counted too.
 import dataclasses
 import logging
 import time
+from dataclasses import dataclass
 
 import numpy as np
 from pydrake.common.value import AbstractValue
 
+from diagrams.evaluation import PAPER_CATEGORIES
 from diagrams.generation.clutter_scenes import clutter_scene
 from diagrams.perception import MakePoseEstimator, MakeSegmenter
 from diagrams.scenario import CLUTTER_SHAPES, Scenario, clutter_name
 from diagrams.station import settled_frame
-from systems.messages import GraspPoses
+from systems.messages import GraspPoses, ObjectEstimate, Segmentation
 from systems.perception.images import to_depth_image, to_rgba_image
 from systems.perception.shape_registrar import ShapeRegistrar
-
-CATEGORIES = ("watering_can", "drill")
 
 
 def _to_images(frame):
     return to_rgba_image(frame.rgb), to_depth_image(frame.depth)
 
 
-def _perceive(segmenter, pose_estimator, rgb, depth, X_WB):
-    """The segmentation and pose estimate of one frame, as the pick's perception makes them, and the segmentation's
-    wall time (s)."""
+@dataclass
+class _Perceived:
+    """One frame's segmentation and pose estimate, as the pick's perception makes them."""
+
+    segmentation: Segmentation
+    estimate: ObjectEstimate
+    segmentation_s: float  # the segmentation's wall time, s
+
+
+def _perceive(segmenter, pose_estimator, rgb, depth, X_WB) -> _Perceived:
+    """The segmentation and pose estimate of one frame (X_WB: the camera body's pose in W)."""
     context = segmenter.CreateDefaultContext()
     segmenter.GetInputPort("color_image").FixValue(context, rgb)
     segmenter.GetInputPort("depth_image").FixValue(context, depth)
@@ -46,13 +54,13 @@ def _perceive(segmenter, pose_estimator, rgb, depth, X_WB):
     pose_estimator.GetInputPort("segmentation").FixValue(pose_context, AbstractValue.Make(segmentation))
     pose_estimator.GetInputPort("depth_image").FixValue(pose_context, depth)
     pose_estimator.GetInputPort("camera_pose").FixValue(pose_context, AbstractValue.Make(X_WB))
-    return segmentation, pose_estimator.GetOutputPort("estimate").Eval(pose_context), segmentation_s
+    return _Perceived(segmentation, pose_estimator.GetOutputPort("estimate").Eval(pose_context), segmentation_s)
 
 
 def _perceived_grasps(segmenter, pose_estimator, registrar, rgb, depth, X_WB) -> GraspPoses:
     """What the pick's perception hands on for one frame (segmenter -> pose estimator -> shape registrar), not found
     with the reason where a stage found nothing or the fit is poor."""
-    _, estimate, _ = _perceive(segmenter, pose_estimator, rgb, depth, X_WB)
+    estimate = _perceive(segmenter, pose_estimator, rgb, depth, X_WB).estimate
     context = registrar.CreateDefaultContext()
     registrar.GetInputPort("estimate").FixValue(context, AbstractValue.Make(estimate))
     return registrar.GetOutputPort("grasp_poses").Eval(context)
@@ -62,13 +70,14 @@ def run(base: Scenario, weights, tables: int, empty_tables: int, split: str = "r
     """The benchmark's rows and summary (see the module docstring)."""
     pose_estimator = MakePoseEstimator(base)
     rows, empty_rows = [], []
-    for category in CATEGORIES:
+    for category in PAPER_CATEGORIES:
         segmenter = MakeSegmenter(base, weights, category)
         for k in range(tables):
             scenario = clutter_scene(base, category, k, split)
             frame = settled_frame(scenario)
             rgb, depth = _to_images(frame)
-            segmentation, estimate, segmentation_s = _perceive(segmenter, pose_estimator, rgb, depth, frame.X_WB)
+            perceived = _perceive(segmenter, pose_estimator, rgb, depth, frame.X_WB)
+            segmentation, estimate = perceived.segmentation, perceived.estimate
             truth = frame.labels == frame.object_label
             union = np.count_nonzero(truth | segmentation.mask)
             iou = np.count_nonzero(truth & segmentation.mask) / union if union else 0.0
@@ -80,7 +89,7 @@ def run(base: Scenario, weights, tables: int, empty_tables: int, split: str = "r
                 "found": segmentation.found,
                 "iou": float(iou),
                 "category_correct": segmentation.network_category == category,
-                "segmentation_s": segmentation_s,
+                "segmentation_s": perceived.segmentation_s,
                 "message": segmentation.message,
             }
             if estimate.found:
@@ -97,10 +106,10 @@ def run(base: Scenario, weights, tables: int, empty_tables: int, split: str = "r
                 segmentation.message,
             )
     segmenter = MakeSegmenter(base, weights, category="")  # (no category: the network's instances alone)
-    registrar = ShapeRegistrar(list(CATEGORIES))
-    named = {category: MakeSegmenter(base, weights, category) for category in CATEGORIES}
+    registrar = ShapeRegistrar(list(PAPER_CATEGORIES))
+    named = {category: MakeSegmenter(base, weights, category) for category in PAPER_CATEGORIES}
     for k in range(empty_tables):
-        table = clutter_scene(base, CATEGORIES[k % 2], k, split)
+        table = clutter_scene(base, PAPER_CATEGORIES[k % 2], k, split)
         shapes = [other for other in table.clutter if other.kind in CLUTTER_SHAPES]
         table = dataclasses.replace(table, object=dataclasses.replace(table.object, present=False), clutter=shapes)
         frame = settled_frame(table)
@@ -118,7 +127,7 @@ def run(base: Scenario, weights, tables: int, empty_tables: int, split: str = "r
             [clutter_name(o) for o in shapes],
         )  # fmt: skip
     summary = {}
-    for category in CATEGORIES:
+    for category in PAPER_CATEGORIES:
         mine = [r for r in rows if r["category"] == category]
         located = [r["translation_error_m"] for r in mine if "translation_error_m" in r]
         summary[category] = {

@@ -39,8 +39,7 @@ from systems.planning.stomp import Stomp
 from systems.planning.stomp_config import StompConfig
 
 TIME_LIMIT_S = 10.0  # every planner's, per problem
-# Without any projection, the tangent-space noise must be small (the earlier lift, 6 seeds: 5 solved at 0.15 rad,
-# 2 of 3 at 0.1, none of 3 at 0.03 or 0.8).
+# Without any projection, the tangent-space noise must be small (docs/history/planning_parameters.md).
 NO_PROJECTION_NOISE = 0.15
 STOMP_PLANNERS = ("stomp", "stomp_no_detours", "stomp_no_projection", "stomp_first_trajectory")
 PLANNERS = (*STOMP_PLANNERS, "ompl", "kto")

@@ -208,7 +208,7 @@ class KtoConfig:
 
     control_points: int = 12
     samples: int = 24  # path points where the constraints are imposed
-    min_distance: float = 0.01  # m, at the samples: with 5 mm, the can passed 1.2 mm into a box between them
+    min_distance: float = 0.01  # m, at the samples: less lets a held can pass into a box between two of them
     keyframes: int = 32  # the solved B-spline's states handed to the dense checker
 
 

@@ -27,9 +27,8 @@ from diagrams.scenario import ClutterObjectConfig, Scenario, initial_positions, 
 from diagrams.station import TABLE_HEIGHT
 
 CLUTTER_SEED = 35
-# (Split 0 was the first report range: its tables 0-11 were looked at while the instances and the scene cloud were
-# built, so they are no longer reported on.)
-SPLITS = {"report": 2, "tune": 1}
+# Each split's code in its tables' seeds (code 0, a report range looked at while the scenes were built, is unused).
+SPLIT_CODES = {"report": 2, "tune": 1}
 # The target: extra_<TARGET_FIRST_INSTANCE + k> in the report split (unseen), train_<k % 8> when tuning; placed
 # within TARGET_HALF_SIZE_M (x, y) of TARGET_CENTRE (table_top frame, m) and TARGET_MAX_YAW of the presentation.
 TARGET_FIRST_INSTANCE = 2200
@@ -68,12 +67,12 @@ def clutter_scene(base: Scenario, category: str, k: int, split: str = "report") 
     Raises:
         ValueError: an unknown split or category.
     """
-    if split not in SPLITS:
-        raise ValueError(f"unknown split {split!r}: one of {tuple(SPLITS)}")
+    if split not in SPLIT_CODES:
+        raise ValueError(f"unknown split {split!r}: one of {tuple(SPLIT_CODES)}")
     other_category = {"watering_can": "drill", "drill": "watering_can"}.get(category)
     if other_category is None:
         raise ValueError(f"cluttered scenes are drawn for the generated categories, not {category!r}")
-    rng = np.random.default_rng([CLUTTER_SEED, SPLITS[split], k])
+    rng = np.random.default_rng([CLUTTER_SEED, SPLIT_CODES[split], k])
     instance = f"extra_{TARGET_FIRST_INSTANCE + k}" if split == "report" else f"train_{k % 8}"
     xy = np.array(TARGET_CENTRE) + rng.uniform(-1, 1, 2) * TARGET_HALF_SIZE_M
     yaw = float(rng.uniform(-TARGET_MAX_YAW, TARGET_MAX_YAW))

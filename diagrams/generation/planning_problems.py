@@ -30,6 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 from pydrake.math import RigidTransform, RollPitchYaw
 
+from diagrams.evaluation import PAPER_CATEGORIES, PLACEMENT_HALF_SIZE_M, PLACEMENT_MAX_YAW
 from diagrams.generation.objects.library import ObjectModel, resolve_object
 from diagrams.planning_scene import MakeRobotScene, object_collision_surface_W, object_surface_W
 from diagrams.scenario import Scenario, initial_positions, load_scenario, replace_object
@@ -51,11 +52,9 @@ REPORT_FIRST_SEED = 100_000
 TRAINING_INSTANCES = [f"train_{i}" for i in range(8)]
 REPORT_FIRST_INSTANCE = 3000  # unseen generated instances extra_3000..3039 (no other script uses them)
 REPORT_INSTANCES = 40
-CATEGORIES = ("watering_can", "drill")
-# The object's placement on the table (table top frame, m and rad): evaluation's random-placement region.
+# The object stands in evaluation's random-placement region (PLACEMENT_HALF_SIZE_M, PLACEMENT_MAX_YAW) about the
+# default scenario's object.xy (table top frame, m).
 PLACEMENT_CENTRE = (-0.12, 0.0)
-PLACEMENT_HALF_SIZE = (0.10, 0.20)
-PLACEMENT_MAX_YAW = 0.6
 LIFT_START_M = 0.03  # a lift starts, and a set-down ends, with the object this far above the table top
 MIN_CLEARANCE_M = 0.02  # start and goal: every pair of robot, held object, table and boxes this far apart at least
 REACH_MIN_CLEARANCE_M = 0.01  # ... in a reach (the open hands come near the object at their pre-grasps)
@@ -220,12 +219,12 @@ def held_problem(
 
 def _placement(rng: np.random.Generator, split: str) -> Scenario:
     """The default scenario with an object of either category at a random place and yaw."""
-    category = CATEGORIES[rng.integers(len(CATEGORIES))]
+    category = PAPER_CATEGORIES[rng.integers(len(PAPER_CATEGORIES))]
     if split == "tune":
         instance = TRAINING_INSTANCES[rng.integers(len(TRAINING_INSTANCES))]
     else:
         instance = f"extra_{REPORT_FIRST_INSTANCE + rng.integers(REPORT_INSTANCES)}"
-    xy = np.array(PLACEMENT_CENTRE) + rng.uniform(-1, 1, 2) * PLACEMENT_HALF_SIZE
+    xy = np.array(PLACEMENT_CENTRE) + rng.uniform(-1, 1, 2) * PLACEMENT_HALF_SIZE_M
     yaw = rng.uniform(-PLACEMENT_MAX_YAW, PLACEMENT_MAX_YAW)
     return replace_object(load_scenario(), category=category, instance=instance, xy=list(xy), yaw=float(yaw))
 
@@ -270,7 +269,7 @@ def _goal_xy(rng, table_xy, X_WO: RigidTransform, shortest: float, longest: floa
     """A move (x, y in W, m) of the object from X_WO to a place of the placement region (widened by 5 cm; the table
     top's origin at table_xy in W) between `shortest` and `longest` away (the last of 100 draws if none is)."""
     table = np.asarray(table_xy)
-    half = np.array(PLACEMENT_HALF_SIZE) + 0.05
+    half = np.array(PLACEMENT_HALF_SIZE_M) + 0.05
     for _ in range(100):
         move = table + PLACEMENT_CENTRE + rng.uniform(-1, 1, 2) * half - X_WO.translation()[:2]
         if shortest <= np.linalg.norm(move) <= longest:

@@ -12,6 +12,7 @@ Class ids of the label images: 0 background, then CLASSES' order.
 import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from enum import IntEnum
 from pathlib import Path
 
 import numpy as np
@@ -53,6 +54,15 @@ SHOP_VALIDATION = tuple(f"shop_{i}" for i in range(100, 120))
 # Split "parts": every family's training members, for the part network.
 PART_TRAINING = tuple(f"train_{i}" for i in range(8)) + WIDE_TRAINING + SHOP_TRAINING
 PART_VALIDATION = tuple(f"test_{i}" for i in range(3)) + WIDE_VALIDATION + SHOP_VALIDATION
+
+
+class ClutterShape(IntEnum):
+    """A clutter body's shape, drawn by its value (the bowl in crowded scenes only)."""
+
+    BOX = 0
+    CYLINDER = 1
+    SPHERE = 2
+    BOWL = 3
 
 
 @dataclass
@@ -225,14 +235,14 @@ class SyntheticScene:
         body = plant.AddRigidBody(
             f"clutter_{index}", model_instance, SpatialInertia.SolidBoxWithMass(0.1, 0.1, 0.1, 0.1)
         )
-        kind = rng.integers(4 if self.crowded else 3)
+        kind = ClutterShape(rng.integers(len(ClutterShape) if self.crowded else ClutterShape.BOWL))
         size = rng.uniform(0.03, 0.12, size=3)
         pose = RigidTransform([0, 0, size[2] / 2])
-        if kind == 0:
+        if kind == ClutterShape.BOX:
             shape = Box(*size)
-        elif kind == 1:
+        elif kind == ClutterShape.CYLINDER:
             shape = Cylinder(size[0] / 2, size[2])
-        elif kind == 2:
+        elif kind == ClutterShape.SPHERE:
             shape, pose = Sphere(size[0] / 2), RigidTransform([0, 0, size[0] / 2])
         else:  # a bowl, 10-18 cm across
             shape, pose = Mesh(str(bowl_file(round(size[0] + 0.07, 2), round(size[2] / 2 + 0.03, 2)))), RigidTransform()

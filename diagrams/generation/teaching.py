@@ -76,7 +76,8 @@ def visual_sdf(mesh: trimesh.Trimesh, directory: Path, name: str) -> Path:
 
 def write_models(args, directory: Path):
     """Steps 1-3: the category's shape space, template and training models in `directory`; its record."""
-    clouds, poses, canonical = folder_instances(args.folder, args.poses)
+    models = folder_instances(args.folder, args.poses)
+    clouds, poses, canonical = models.clouds, models.poses, models.canonical
     if args.align == "none":
         for warning in frame_warnings(clouds, canonical):
             logging.warning("warning: %s; if the models do not share one frame, pass --align vertical", warning)

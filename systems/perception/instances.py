@@ -2,19 +2,19 @@
 
 The network labels pixels by class; on a cluttered table one class's pixels can belong to several objects, and two
 objects can touch in the image. Instances are found in 3D: the object pixels' points (from the depth image) fall
-into VOXEL_M cubes, and cubes that touch (26 neighbours) are one cluster: two objects that stand apart by more than
-a cube come apart, whatever the image shows, and an object's parts (a handle in front of its body, a spout rising
+into INSTANCE_CUBE_M cubes, and cubes that touch (26 neighbours) are one cluster: two objects that stand apart by more
+than a cube come apart, whatever the image shows, and an object's parts (a handle in front of its body, a spout rising
 towards the camera) stay together where they join. A cluster with less than PIECE_SHARE of the largest in its image
 region is a part: it joins the nearest large cluster where it lies within ATTACHED_M of it (a part cut off by a line
 of lost pixels), and is left out otherwise (a fragment of another object the network labelled too). Pixels without
 depth go with the nearest pixel of their region that has it. Classes never cut an instance: the network may label
 one object in parts. Each instance has the class that labelled most of it.
 
-Where the table is known (TableView), a large cluster that floats (its lowest points more than FLOAT_M above the
-table top) cannot stand on its own: every object rests on the table. Nearer the camera than a cluster of its image
-region that does stand, within JOIN_M of it, it is that object's upper part, cut off by self-occlusion (a drill's
-barrel and grip in front of and above its battery pack, seen from above: the grip's thin side leaves a depth step),
-and joins it. A floating cluster farther from the camera than the standing ones is left alone: it may be another
+Where the table is known (TableView), a large cluster that floats (its lowest points more than INSTANCE_FLOAT_M above
+the table top) cannot stand on its own: every object rests on the table. Nearer the camera than a cluster of its image
+region that does stand, within INSTANCE_JOIN_M of it, it is that object's upper part, cut off by self-occlusion (a
+drill's barrel and grip in front of and above its battery pack, seen from above: the grip's thin side leaves a depth
+step), and joins it. A floating cluster farther from the camera than the standing ones is left alone: it may be another
 object whose base the nearer one hides.
 """
 
@@ -30,7 +30,7 @@ from scipy.spatial import cKDTree
 from systems.messages import Segmentation
 from systems.perception.pose_estimator import depth_to_points
 
-VOXEL_M = 0.008  # m: points in touching cubes of this side are one object
+INSTANCE_CUBE_M = 0.008  # m: points in touching cubes of this side are one object
 # A cluster is an object of its own only with at least this share of the largest one in its image region (and
 # min_pixels): smaller ones are parts, or fragments.
 PIECE_SHARE = 0.25
@@ -39,11 +39,10 @@ CONNECTIVITY = 3  # cubes that share a face (1), an edge (2) or a corner (3) tou
 # Among the instances of a named category, only those with at least this share of the largest one are candidates:
 # a small mislabelled patch nearer the camera is not an object to pick.
 CANDIDATE_SHARE = 0.4
-# (Both chosen on the tuning drills' first pick frames and the tuning range's cluttered tables: the floating upper
-# parts of one drill were 6-19 cm above the table and 1-6 cm from its standing part; two objects' pieces that a
-# floating-nearer rule could join were 14 cm apart.)
-FLOAT_M = 0.05  # m: a cluster whose lowest points are higher above the table top floats
-JOIN_M = 0.08  # m: a floating cluster joins a standing one at most this far from it
+# (Both chosen on the tuning drills' first pick frames and the tuning range's cluttered tables:
+# docs/history/perception_parameters.md.)
+INSTANCE_FLOAT_M = 0.05  # m: a cluster whose lowest points are higher above the table top floats
+INSTANCE_JOIN_M = 0.08  # m: a floating cluster joins a standing one at most this far from it
 LOWEST_PERCENTILE = 2  # a cluster's lowest points: this percentile of its heights (a few stray pixels are noise)
 
 
@@ -114,7 +113,7 @@ def _clusters(
     points = depth_to_points(depth, valid, intrinsics)  # (in the same pixel order)
     if not len(points):
         return np.zeros(regions.shape, np.int32)
-    cluster = touching_cubes(points, VOXEL_M, CONNECTIVITY)  # per valid pixel
+    cluster = touching_cubes(points, INSTANCE_CUBE_M, CONNECTIVITY)  # per valid pixel
     sizes = np.bincount(cluster)
     members = grouped(cluster).__getitem__  # members(c): the pixels of cluster c
 
@@ -171,17 +170,18 @@ def grouped(ids: np.ndarray) -> list[np.ndarray]:
 
 def _join_floating(large, home, members, points, table: TableView, final) -> None:
     """Joins each floating large cluster to the nearest standing one of its image region that lies farther from the
-    camera, within JOIN_M (final: cluster -> the cluster it belongs to, updated), as the module docstring says."""
+    camera, within INSTANCE_JOIN_M (final: cluster -> the cluster it belongs to, updated), as the module docstring
+    says."""
     lowest = {c: np.percentile(table.heights(points[members(c)]), LOWEST_PERCENTILE) for c in large}
     depth = {c: np.median(points[members(c), 2]) for c in large}
-    standing = [c for c in large if lowest[c] <= FLOAT_M]
+    standing = [c for c in large if lowest[c] <= INSTANCE_FLOAT_M]
     for c in large:
         below = [s for s in standing if home[s] == home[c] and depth[s] > depth[c]]
-        if lowest[c] <= FLOAT_M or not below:
+        if lowest[c] <= INSTANCE_FLOAT_M or not below:
             continue
         tree = cKDTree(points[members(c)])
         gaps = [tree.query(points[members(s)[::4]])[0].min() for s in below]
-        if min(gaps) < JOIN_M:
+        if min(gaps) < INSTANCE_JOIN_M:
             final[c] = below[int(np.argmin(gaps))]
 
 

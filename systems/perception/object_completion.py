@@ -5,10 +5,10 @@ none of them (the battery block under a grip that stands under the middle of its
 may call background, and the instance found from the labelled pixels is then an object in pieces: the pose
 estimator and the registrar see half a drill, and the fit is named poor. But an object is one body standing on the
 table, and the objects on it stand apart. So the instance is completed in 3D: the points at least ABOVE_TABLE_M
-above the table top near it (not flying pixels) fall into VOXEL_M cubes, and cubes that touch are one body.
+above the table top near it (not flying pixels) fall into BODY_CUBE_M cubes, and cubes that touch are one body.
   * A body holding SEED_SHARE of the instance's points, and made mostly (MOSTLY_OWN) of them, is the object's.
-  * A body that floats (its lowest points FLOAT_M above the table top: it cannot stand by itself) nearer the
-    camera than the object's body nearest to it, within JOIN_M of it, is the object's too: its upper part, cut
+  * A body that floats (its lowest points BODY_FLOAT_M above the table top: it cannot stand by itself) nearer the
+    camera than the object's body nearest to it, within BODY_JOIN_M of it, is the object's too: its upper part, cut
     off by a depth step where it hides its own junction (a drill's housing over its grip, seen from above).
   * The object's bodies' points the network labelled (as any class) join the instance, and so do their
     unlabelled points within GROW_M of a labelled one: where that adds at least MIN_ADDED_SHARE of it (less is the
@@ -29,23 +29,21 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from systems.perception.depth_cleaning import flying_pixels
-from systems.perception.instances import TableView, grouped, touching_cubes
+from systems.perception.instances import LOWEST_PERCENTILE, TableView, grouped, touching_cubes
 from systems.perception.pose_estimator import depth_to_points
 
-VOXEL_M = 0.005  # m: points in touching cubes of this side are one body
+BODY_CUBE_M = 0.005  # m: points in touching cubes of this side are one body
 ABOVE_TABLE_M = 0.015  # m: points at least this high above the table top may be the object's
 SEED_SHARE = 0.1  # a body holding this share of the instance's points is the object's,
 MOSTLY_OWN = 0.6  # where they are at least this share of the body's points
 GROW_M = 0.1  # m: an unlabelled point joins at most this far from a labelled one of the object's bodies
 # A completion that adds less than this share of the instance's pixels adds its edge, not a missing part, and is
-# not made (at most 1.8 % on the first pick frames of the tuning and held-out objects the network labels whole; the
-# held-out drills' frames in pieces, the centre-grip one at 0 and -0.25 rad and the compact one at 0, gained 17-74 %).
+# not made (docs/history/perception_parameters.md).
 MIN_ADDED_SHARE = 0.05
 NEAR_M = 0.12  # m: only points this near the instance's (its box, grown) are looked at (beyond GROW_M)
 MIN_BODY_POINTS = 20  # smaller bodies are noise
-FLOAT_M = 0.1  # m: a body whose lowest points are higher above the table top floats
-LOWEST_PERCENTILE = 2  # a body's lowest points: this percentile of its heights
-JOIN_M = 0.08  # m: a floating body joins the object's body nearest to it at most this far from it
+BODY_FLOAT_M = 0.1  # m: a body whose lowest points are higher above the table top floats
+BODY_JOIN_M = 0.08  # m: a floating body joins the object's body nearest to it at most this far from it
 JOIN_STRIDE = 4  # (the object's bodies' every JOIN_STRIDE-th point is measured against a floating one)
 
 
@@ -81,7 +79,8 @@ def completed_mask(mask: np.ndarray, labels: np.ndarray, depth: np.ndarray, intr
     points, v, u, own = points[keep], v[keep], u[keep], own[keep]
     if not own.any() or np.count_nonzero(~own) < MIN_ADDED_SHARE * np.count_nonzero(mask):
         return mask  # (too few other points about it to add MIN_ADDED_SHARE: an object seen whole, on its own)
-    body = touching_cubes(points - points.min(axis=0), VOXEL_M)  # (cubes from the points' lowest corner, as measured)
+    # (The cubes from the points' lowest corner, as measured.)
+    body = touching_cubes(points - points.min(axis=0), BODY_CUBE_M)
     in_bodies = np.isin(body, _object_bodies(body, own, points, heights[keep]))
     labelled = in_bodies & ((labels[v, u] > 0) | own)
     unlabelled = in_bodies & ~labelled
@@ -109,7 +108,7 @@ def _object_bodies(body: np.ndarray, own: np.ndarray, points: np.ndarray, height
     members = {b: indices for b, indices in enumerate(grouped(body)) if b and sizes[b] >= MIN_BODY_POINTS}
     counts = np.bincount(body[own], minlength=len(sizes))
     group = {b for b in members if counts[b] >= SEED_SHARE * own.sum() and counts[b] >= MOSTLY_OWN * len(members[b])}
-    floating = {b for b in members if np.percentile(heights[members[b]], LOWEST_PERCENTILE) >= FLOAT_M}
+    floating = {b for b in members if np.percentile(heights[members[b]], LOWEST_PERCENTILE) >= BODY_FLOAT_M}
     depth = {b: np.median(points[members[b], 2]) for b in members}
     trees, gaps = {}, {}  # (a floating body, one of the object's) -> their gap, m: each measured once
 
@@ -124,7 +123,7 @@ def _object_bodies(body: np.ndarray, own: np.ndarray, points: np.ndarray, height
         changed = False
         for b in sorted(floating - group):
             nearest = min(group, key=lambda g: gap(b, g))
-            if gap(b, nearest) < JOIN_M and depth[b] < depth[nearest]:
+            if gap(b, nearest) < BODY_JOIN_M and depth[b] < depth[nearest]:
                 group.add(b)
                 changed = True
     return np.array(sorted(group), int)

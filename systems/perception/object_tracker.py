@@ -8,9 +8,9 @@ the pose it was at), where it is believed to be now, and where the robot's own b
   * points: every depth pixel but flying ones (depth_cleaning), back-projected to W, inside the
     reconstruction's box at the expected pose (grown by CROP_MARGIN) and above the table (SUPPORT_CLEARANCE
     over the expected origin), less the robot's body (its sphere model where the arms stood when the frame
-    was taken, SELF_MARGIN wider).
+    was taken, TRACK_SELF_MARGIN_M wider).
   * pose: the pose estimator's planar ICP (yaw about z, x-y; at the expected height) of those points
-    onto the reconstruction, from the expected pose, over the points within INLIER_M of it (fingers and
+    onto the reconstruction, from the expected pose, over the points within TRACK_INLIER_M of it (fingers and
     stray pixels the spheres missed are not the object), at the expected tilt.
   * tilt and height: an object held at two handles hangs a few degrees off and a few millimetres lower than
     planned (cans 3-7 deg, drills 1-2 deg on the training instances' looks). The planar pose is refined in
@@ -20,7 +20,7 @@ the pose it was at), where it is believed to be now, and where the robot's own b
     stays where it was. The refined pose is taken when it tilts the object by at least MIN_TILT_CHANGE_RAD
     from the belief; a smaller tilt is within what one look tells (the refinement's median tilt error on
     those looks: 1.0-1.6 deg) and the planar pose stands.
-  * refused (found False, the reason said) when fewer than MIN_POINTS points remain, the fit is poorer
+  * refused (found False, the reason said) when fewer than MIN_TRACK_POINTS points remain, the fit is poorer
     than MAX_FIT_ERROR_M, or it moves the object more than MAX_CORRECTION_M / MAX_CORRECTION_RAD: a
     look that disagrees that much is not trusted over the first one.
 """
@@ -43,20 +43,22 @@ from systems.planning.sphere_model import off_the_robot
 
 CROP_MARGIN = 0.03  # m
 SUPPORT_CLEARANCE = 0.01  # m: points lower than this over the object's origin are the table
-SELF_MARGIN = 0.01  # m
-MIN_POINTS = 50
-INLIER_M = 0.015
-ITERATIONS = 15
-MAX_FIT_ERROR_M = 0.006  # mean distance of the inliers to the reconstruction (the looks at held cans: 3.8-4.1 mm)
-MIN_INLIER_FRACTION = 0.8  # (those looks: 94-95 %; a fit stuck 35 deg or 8 cm off a test shape: 59-60 %)
+TRACK_SELF_MARGIN_M = 0.01  # m: the robot's sphere model grown by this
+MIN_TRACK_POINTS = 50
+TRACK_INLIER_M = 0.015
+PLANAR_FIT_ITERATIONS = 15
+# The fit's mean inlier distance to the reconstruction (m) and share of inliers: above what good looks at held cans
+# show, below a fit stuck far off (docs/history/perception_parameters.md).
+MAX_FIT_ERROR_M = 0.006
+MIN_INLIER_FRACTION = 0.8
 MAX_CORRECTION_M = 0.05
 MAX_CORRECTION_RAD = np.radians(30.0)
 FAR_FROM_ROBOT_M = 0.03
 MIN_FAR_POINTS = 100
-# refine_pose: Tukey weights of this width on the point-to-plane residuals (m), over pairs within INLIER_M; the
+# refine_pose: Tukey weights of this width on the point-to-plane residuals (m), over pairs within TRACK_INLIER_M; the
 # residuals' noise (m); neighbouring points share the reconstruction's shape error, so the points count as at most
 # EFFECTIVE_POINTS independent measurements; and the priors' standard deviations about the planar pose.
-TUKEY_M = INLIER_M / 3
+TUKEY_M = TRACK_INLIER_M / 3
 RESIDUAL_SIGMA_M = 0.002
 EFFECTIVE_POINTS = 50
 TILT_PRIOR_RAD = np.radians(3.0)
@@ -64,8 +66,7 @@ YAW_PRIOR_RAD = np.radians(5.0)
 XY_PRIOR_M = 0.01
 HEIGHT_PRIOR_M = 0.01
 REFINE_ITERATIONS = 20
-# (Chosen on looks at training cans and drills carried over the box, not on the test instances; taking every
-# refined tilt put drills, which hang 1-2 deg, 9 mm off in x-y instead of 7 mm.)
+# Chosen on looks at training cans and drills carried over the box (docs/history/perception_parameters.md).
 MIN_TILT_CHANGE_RAD = np.radians(2.0)
 
 
@@ -92,8 +93,8 @@ def _planar_fit(points_W, model_O, X_from: RigidTransform) -> RigidTransform:
     field = _ModelField(tilt.multiply(model_O.T).T)
     p = X_from.translation()
     yaw_from = RollPitchYaw(X_from.rotation()).yaw_angle()
-    yaw, xy, _ = fit_yaw_translation(points_W, yaw_from, p[:2], p[2], field, ITERATIONS, INLIER_M)
-    return RigidTransform(RotationMatrix.MakeZRotation(yaw) @ tilt, [*xy, p[2]])
+    planar = fit_yaw_translation(points_W, yaw_from, p[:2], p[2], field, PLANAR_FIT_ITERATIONS, TRACK_INLIER_M)
+    return RigidTransform(RotationMatrix.MakeZRotation(planar.yaw) @ tilt, [*planar.xy, p[2]])
 
 
 def _skew(a: np.ndarray) -> np.ndarray:
@@ -129,7 +130,7 @@ def refine_pose(points_W: np.ndarray, model_O: np.ndarray, X_WO: RigidTransform)
     for _ in range(REFINE_ITERATIONS):
         R = _rotation(x[:3]).matrix()
         moved = (model_W - c) @ R.T + c + x[3:]
-        distance, index = cKDTree(moved).query(points_W, distance_upper_bound=INLIER_M)
+        distance, index = cKDTree(moved).query(points_W, distance_upper_bound=TRACK_INLIER_M)
         paired = np.isfinite(distance)
         if np.count_nonzero(paired) < MIN_FAR_POINTS:
             break
@@ -154,7 +155,7 @@ def track(
     """Planar ICP of observed points (N x 3 in W, already cropped) onto the model (M x 3 in O) from the
     expected pose, then the 6-DoF refinement of the points away from the robot (spheres S x 4, centre in W and
     radius, m) where it tilts the object clearly; the refined X_WO, or why not."""
-    if len(points_W) < MIN_POINTS:
+    if len(points_W) < MIN_TRACK_POINTS:
         return ObjectEstimate(False, message=f"only {len(points_W)} points where the object was expected")
     points_W = voxel_thin(points_W)
     X = _planar_fit(points_W, model_O, X_WO_expected)
@@ -171,13 +172,15 @@ def track(
             tilt_said = f"tilt kept ({said}: within what one look tells)"
     field = _ModelField(model_O)
     distance, _ = field.query(X.inverse().multiply(points_W.T).T)
-    inlier = distance < INLIER_M
-    if np.count_nonzero(inlier) < MIN_POINTS:
+    inlier = distance < TRACK_INLIER_M
+    if np.count_nonzero(inlier) < MIN_TRACK_POINTS:
         return ObjectEstimate(False, message=f"only {np.count_nonzero(inlier)} points lie on the expected shape")
     error, fraction = float(distance[inlier].mean()), float(inlier.mean())
     moved = float(np.linalg.norm(X.translation()[:2] - X_WO_expected.translation()[:2]))
     turned = abs(RollPitchYaw(X_WO_expected.rotation().inverse() @ X.rotation()).yaw_angle())
-    summary = f"{len(points_W)} points, {100 * fraction:.0f}% within {1000 * INLIER_M:.0f} mm at {1000 * error:.1f} mm"
+    summary = (
+        f"{len(points_W)} points, {100 * fraction:.0f}% within {1000 * TRACK_INLIER_M:.0f} mm at {1000 * error:.1f} mm"
+    )
     change = f"moved {100 * moved:.1f} cm and {np.degrees(turned):.1f} deg from where it was expected; {tilt_said}"
     if error > MAX_FIT_ERROR_M or fraction < MIN_INLIER_FRACTION:
         return ObjectEstimate(False, X_WO=X, points_W=points_W, message=f"a poor fit: {summary}")
@@ -230,7 +233,7 @@ class ObjectTracker(LeafSystem):
         )
 
     def estimate(self, depth, X_WB, robot_spheres_W, X_WO_expected, model_cloud_W, model_X_WO) -> ObjectEstimate:
-        if len(model_cloud_W) < MIN_POINTS:
+        if len(model_cloud_W) < MIN_TRACK_POINTS:
             return ObjectEstimate(False, message="no reconstructed shape to track")
         model_O = model_X_WO.inverse().multiply(np.asarray(model_cloud_W).T).T
         X_WC = X_WB @ self.X_BC
@@ -240,7 +243,7 @@ class ObjectTracker(LeafSystem):
         lower, upper = model_O.min(axis=0) - CROP_MARGIN, model_O.max(axis=0) + CROP_MARGIN
         lower[2] = max(lower[2], SUPPORT_CLEARANCE)
         inside = np.all((in_O >= lower) & (in_O <= upper), axis=1)
-        points_W = off_the_robot(points_W[inside], robot_spheres_W, SELF_MARGIN)
+        points_W = off_the_robot(points_W[inside], robot_spheres_W, TRACK_SELF_MARGIN_M)
         return track(points_W, model_O, X_WO_expected, robot_spheres_W)
 
     def _calc(self, context, output):

@@ -38,10 +38,10 @@ from systems.messages import DepthView, ObjectEstimate, PartRole, SeenPart, Segm
 from systems.paths import cache_dir, save_npz_atomically
 from systems.perception.depth_cleaning import flying_pixels
 
-MIN_POINTS = 50
+MIN_POSE_POINTS = 50
 MAX_OBJECT_RADIUS = 0.35  # m from the points' median: farther points are strays
 BORDER_PIXELS = 3  # a part with pixels this near the image's border was cut by it
-VOXEL = 0.006  # m: the points are thinned to one per voxel before fitting
+FIT_VOXEL_M = 0.006  # m: the points are thinned to one per voxel before fitting
 GRID_CELL = 0.004  # m: resolution of the template's nearest-point field
 MAX_FIT_POINTS = 400
 COARSE_ITERATIONS = 4
@@ -83,7 +83,7 @@ def depth_to_points(depth: np.ndarray, mask: np.ndarray, intrinsics: CameraInfo)
     return np.column_stack([x, y, z])
 
 
-def voxel_thin(points: np.ndarray, size: float = VOXEL) -> np.ndarray:
+def voxel_thin(points: np.ndarray, size: float = FIT_VOXEL_M) -> np.ndarray:
     """One point (the first) per occupied voxel: near surfaces no longer outweigh far ones."""
     cells = np.floor(points / size).astype(np.int64)
     cells -= cells.min(axis=0)
@@ -147,14 +147,25 @@ def _rotation_2d(angle: float) -> np.ndarray:
     return np.array([[c, -s], [s, c]])
 
 
-def fit_yaw_translation(points_W, yaw, xy, z, field: NearestPointField, iterations, inlier_m: float = np.inf):
+@dataclass
+class PlanarFit:
+    """An upright pose X_WO = (Rz(yaw), [x, y, z]) fitted to observed points, and how well it fits."""
+
+    yaw: float  # rad, about W's z
+    xy: np.ndarray  # (2,): the origin's x, y in W, m
+    error: float  # the points' mean distance to the template, m (estimate_pose adds its free-space cost)
+
+
+def fit_yaw_translation(
+    points_W, yaw, xy, z, field: NearestPointField, iterations, inlier_m: float = np.inf
+) -> PlanarFit:
     """Planar ICP (yaw about z, translation in x-y; the origin at height z) of the observed points onto the
     template (`field`: its .points in O and .query(points in O) -> (distance, index)).
 
     Every observed point within inlier_m of the template counts (by default all: the spout and handles are few
     points, but they fix the yaw; the object tracker leaves out the fingers and strays around a held object).
 
-    Returns (yaw, xy, mean distance of all the points in metres).
+    Returns the fit, its error over all the points.
     """
 
     in_O = np.empty_like(points_W)  # (filled in place: the small arrays' calls are most of the time)
@@ -179,7 +190,7 @@ def fit_yaw_translation(points_W, yaw, xy, z, field: NearestPointField, iteratio
         yaw = np.arctan2(H[0, 1] - H[1, 0], H[0, 0] + H[1, 1])
         xy = b_mean - _rotation_2d(yaw) @ a_mean
     distance, _ = nearest(yaw, xy)  # the error of the pose returned
-    return yaw, xy, float(distance.mean())
+    return PlanarFit(yaw, xy, float(distance.mean()))
 
 
 def estimate_pose(
@@ -207,20 +218,21 @@ def estimate_pose(
     box_centre = np.asarray(prior.box_centre)
     coarse = thinned[np.linspace(0, len(thinned) - 1, min(len(thinned), COARSE_POINTS)).astype(int)]
 
-    def fit(points, yaw, xy, iterations):
-        yaw, xy, error = fit_yaw_translation(points, yaw, xy, z, field, iterations)
+    def fit(points, yaw, xy, iterations) -> PlanarFit:
+        planar = fit_yaw_translation(points, yaw, xy, z, field, iterations)
         if see_through is not None:
-            X_WO = RigidTransform(RotationMatrix.MakeZRotation(yaw), [xy[0], xy[1], z])
-            error += FREE_SPACE_WEIGHT * see_through(X_WO.multiply(template[::4].T).T)
-        return error, yaw, xy
+            X_WO = RigidTransform(RotationMatrix.MakeZRotation(planar.yaw), [planar.xy[0], planar.xy[1], z])
+            planar.error += FREE_SPACE_WEIGHT * see_through(X_WO.multiply(template[::4].T).T)
+        return planar
 
     candidates = []
     for k in range(YAW_CANDIDATES):
         yaw = axis_yaw + k * 2 * np.pi / YAW_CANDIDATES
         candidates.append(fit(coarse, yaw, extent_centre - _rotation_2d(yaw) @ box_centre, COARSE_ITERATIONS))
-    candidates.sort(key=lambda candidate: candidate[0])
-    refined = [fit(thinned, yaw, xy, FINE_ITERATIONS) for _, yaw, xy in candidates[:FINE_CANDIDATES]]
-    _, yaw, xy = min(refined, key=lambda candidate: candidate[0])
+    candidates.sort(key=lambda candidate: candidate.error)
+    refined = [fit(thinned, c.yaw, c.xy, FINE_ITERATIONS) for c in candidates[:FINE_CANDIDATES]]
+    best = min(refined, key=lambda candidate: candidate.error)
+    yaw, xy = best.yaw, best.xy
     if prior.symmetric_about_yaw is not None:
         yaw = folded_yaw(yaw, prior.symmetric_about_yaw)
     return RigidTransform(RotationMatrix.MakeZRotation(yaw), [xy[0], xy[1], z])
@@ -298,7 +310,7 @@ class PoseEstimator(LeafSystem):
         X_WC = X_WB @ self.X_BC
         depth = np.where(flying_pixels(depth), np.nan, depth)
         points_W = self._object_points_W(segmentation.mask, depth, X_WC)
-        if len(points_W) < MIN_POINTS:
+        if len(points_W) < MIN_POSE_POINTS:
             return ObjectEstimate(
                 False,
                 segmentation.category,
@@ -306,13 +318,13 @@ class PoseEstimator(LeafSystem):
             )
         # The pose fit takes the mask's interior: edge pixels mix object and background depth. The
         # estimate keeps every point: the silhouette's edge is the shape's extent, and the shape
-        # registration weighs strays down itself (cans' Chamfer 6.8 -> 5.6 mm with the edges, thinned at random).
+        # registration weighs strays down itself.
         fit_points_W = points_W
         if self.erode_pixels:
             kernel = np.ones((2 * self.erode_pixels + 1,) * 2, np.uint8)
             eroded = cv2.erode(segmentation.mask.astype(np.uint8), kernel).astype(bool)
             interior_W = self._object_points_W(eroded, depth, X_WC)
-            if len(interior_W) >= MIN_POINTS:
+            if len(interior_W) >= MIN_POSE_POINTS:
                 fit_points_W = interior_W
         support = self.support_height(segmentation.mask, depth, X_WC, fit_points_W)
         X_WO = estimate_pose(fit_points_W, prior, support, self._free_space_test(segmentation.mask, depth, X_WC))
@@ -350,11 +362,11 @@ class PoseEstimator(LeafSystem):
     def _object_points_W(self, mask, depth, X_WC) -> np.ndarray:
         """The mask's pixels with a valid depth, in W (N x 3), less far strays."""
         points_W = X_WC.multiply(depth_to_points(depth, mask, self.intrinsics).T).T
-        if len(points_W) < MIN_POINTS:
+        if len(points_W) < MIN_POSE_POINTS:
             return points_W
         # Far strays (a wrongly segmented patch of wall or table) are not part of the object.
         near = np.linalg.norm(points_W - np.median(points_W, axis=0), axis=1) < MAX_OBJECT_RADIUS
-        return points_W[near] if np.count_nonzero(near) >= MIN_POINTS else points_W
+        return points_W[near] if np.count_nonzero(near) >= MIN_POSE_POINTS else points_W
 
     def _free_space_test(self, mask, depth, X_WC):
         """f(points_W) -> fraction of the points the camera would have seen but sees through.
@@ -393,7 +405,7 @@ class PoseEstimator(LeafSystem):
         ring_W = X_WC.multiply(depth_to_points(depth, (far > near), self.intrinsics).T).T
         bottom = np.percentile(points_W[:, 2], 2.0)
         table = ring_W[(ring_W[:, 2] < bottom + 0.02) & (ring_W[:, 2] > bottom - 0.15), 2]
-        return float(np.median(table)) if len(table) >= MIN_POINTS else None
+        return float(np.median(table)) if len(table) >= MIN_POSE_POINTS else None
 
     def _calc(self, context, output):
         segmentation = self.segmentation_port.Eval(context)

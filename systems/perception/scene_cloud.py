@@ -11,10 +11,10 @@ From one depth image:
     box), within reach (WORKSPACE_RADIUS_M of the robot's torso axis) and off the robot (its sphere model,
     SELF_MARGIN_M);
   * thinned to one measured point per SEEN_SPACING_M cube (the planner measures its distance to these points: a
-    face is where the camera saw it, not up to a cube beyond); then, behind each VOXEL_M cube of them, the space
-    hidden from the camera along its ray, up to HIDDEN_DEPTH_M further (and never below the table top), as the
-    centres of VOXEL_M cubes: the camera cannot tell how deep an object is, so the space behind what it sees counts
-    as occupied that far;
+    face is where the camera saw it, not up to a cube beyond); then, behind each SCENE_VOXEL_M cube of them, the
+    space hidden from the camera along its ray, up to HIDDEN_DEPTH_M further (and never below the table top), as the
+    centres of SCENE_VOXEL_M cubes: the camera cannot tell how deep an object is, so the space behind what it sees
+    counts as occupied that far;
   * hidden space within TARGET_MARGIN_M of the object's reconstruction is the object's (where the far hand goes),
     and within SELF_MARGIN_M of the robot the robot's: not an obstacle. Only space hidden by other things is.
 """
@@ -34,7 +34,7 @@ from systems.perception.pose_estimator import depth_to_points, voxel_thin
 from systems.planning.sphere_model import off_the_robot
 
 SEEN_SPACING_M = 0.005
-VOXEL_M = 0.01
+SCENE_VOXEL_M = 0.01
 HIDDEN_DEPTH_M = 0.10
 MASK_GROWTH_PX = 4
 TABLE_MARGIN_M = 0.012  # m above the known table top: below, a point is the table itself (or its noise)
@@ -56,8 +56,8 @@ def scene_points(
     object_cloud_W: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """(seen, hidden): the scene's occupied points in W, as the module docstring says: N x 3 measured points (one per
-    SEEN_SPACING_M cube) and M x 3 centres of VOXEL_M cubes. object_mask: H x W bool (may be empty: nothing to leave
-    out); object_cloud_W: the object's reconstruction (N x 3 in W), or None."""
+    SEEN_SPACING_M cube) and M x 3 centres of SCENE_VOXEL_M cubes. object_mask: H x W bool (may be empty: nothing to
+    leave out); object_cloud_W: the object's reconstruction (N x 3 in W), or None."""
     depth = np.where(np.isfinite(depth), depth, 0.0).astype(np.float32)
     mask = np.zeros(depth.shape, bool)
     if object_mask.shape == depth.shape and object_mask.any():
@@ -77,12 +77,12 @@ def scene_points(
     cubes = voxel_centres(points_W)
     rays = cubes - X_WC.translation()
     rays /= np.linalg.norm(rays, axis=1, keepdims=True)
-    steps = np.arange(1, int(round(HIDDEN_DEPTH_M / VOXEL_M)) + 1) * VOXEL_M
+    steps = np.arange(1, int(round(HIDDEN_DEPTH_M / SCENE_VOXEL_M)) + 1) * SCENE_VOXEL_M
     behind = (cubes[:, None, :] + steps[None, :, None] * rays[:, None, :]).reshape(-1, 3)
     behind = behind[behind[:, 2] > table_top_z + TABLE_MARGIN_M]
     hidden = voxel_centres(behind) if len(behind) else np.zeros((0, 3))
     if len(hidden):
-        hidden = hidden[cKDTree(seen).query(hidden, workers=THREADS)[0] > 0.5 * VOXEL_M]  # (not what is seen already)
+        hidden = hidden[cKDTree(seen).query(hidden, workers=THREADS)[0] > 0.5 * SCENE_VOXEL_M]  # (not seen already)
     if object_cloud_W is not None and len(object_cloud_W) and len(hidden):
         hidden = hidden[cKDTree(object_cloud_W).query(hidden, workers=THREADS)[0] > TARGET_MARGIN_M]
     # The robot's own shadow (behind parts of it the sphere model leaves out, e.g. the fingers) is not an obstacle.
@@ -90,11 +90,11 @@ def scene_points(
 
 
 def voxel_centres(points: np.ndarray) -> np.ndarray:
-    """The centres of the VOXEL_M cubes (on the world's grid) that hold points (N x 3, m; none for none)."""
+    """The centres of the SCENE_VOXEL_M cubes (on the world's grid) that hold points (N x 3, m; none for none)."""
     if not len(points):
         return np.zeros((0, 3))
-    cells = np.unique(np.floor(voxel_thin(points, VOXEL_M) / VOXEL_M).astype(np.int64), axis=0)
-    return (cells + 0.5) * VOXEL_M
+    cells = np.unique(np.floor(voxel_thin(points, SCENE_VOXEL_M) / SCENE_VOXEL_M).astype(np.int64), axis=0)
+    return (cells + 0.5) * SCENE_VOXEL_M
 
 
 class SceneCloud(LeafSystem):

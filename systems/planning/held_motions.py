@@ -55,6 +55,15 @@ class HeldMove:
     X_E1E2: np.ndarray  # 4 x 4: the right grasp frame in the left one's, as at the start
 
 
+@dataclass
+class HeldPath:
+    """Configurations holding the object along a held move's motion: STOMP's first trajectory and its goal."""
+
+    configurations: np.ndarray  # K x n, from q_start
+    reached: float  # the share of the motion the last one reaches, in (0, 1]
+    angle_tolerance: float  # rad: the largest of the hands' angle tolerances used along it
+
+
 class HeldMotions:
     """Plans held moves in a PlanningWorld.
 
@@ -92,7 +101,8 @@ class HeldMotions:
         """
         stomp, end_effectors = self.stomp, self.world.end_effectors
         q_start = np.asarray(q_start, float)
-        path, fraction, tolerance = self.held_path(q_start, X_motion_W, min_fraction)
+        first = self.held_path(q_start, X_motion_W, min_fraction)
+        path = first.configurations
         X_E1E2 = end_effectors.relative(q_start[None])[0]
         R_WE = [X[0, :3, :3] for X in end_effectors.poses(q_start[None])]
         # Project onto the closure manifold alone: the goal keeps its own orientation (a carry may turn the
@@ -124,14 +134,14 @@ class HeldMotions:
         kept = "off" if orientation is None else "upright" if orientation.upright_only else "on"
         logging.info(
             "held move: %.0f %% of the motion, hands within %.2f rad (orientation constraint %s); STOMP %d iterations, "
-            "%.2f s", 100 * fraction, tolerance, kept, result.iterations, result.seconds
+            "%.2f s", 100 * first.reached, first.angle_tolerance, kept, result.iterations, result.seconds
         )  # fmt: skip
         return HeldMove(result.trajectory, X_E1E2)
 
-    def held_path(self, q_start: np.ndarray, X_motion_W: RigidTransform, min_fraction: float):
+    def held_path(self, q_start: np.ndarray, X_motion_W: RigidTransform, min_fraction: float) -> HeldPath:
         """Configurations holding the object along the motion (HELD_PATH_STEPS of it, each solved from the one
         before, so the arms stay on their branch), the share of the motion reached and the hands' angle
-        tolerance used: STOMP's first trajectory and its goal.
+        tolerance used.
 
         Raises:
             PlanningError: not even min_fraction of the motion is reachable.
@@ -155,7 +165,7 @@ class HeldMotions:
         reached = (len(path) - 1) / HELD_PATH_STEPS
         if reached < min_fraction - 1e-9 or len(path) == 1:
             raise PlanningError(f"the moved hands are out of reach ({reached:.0%} of the motion at most)")
-        return np.stack(path), reached, worst
+        return HeldPath(np.stack(path), reached, worst)
 
     def _held_configuration(self, targets, X_E1E2, q_near):
         """Both hands at `targets` (the right one exactly at X_E1E2 from the left), near q_near (no joint more

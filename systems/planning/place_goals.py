@@ -10,8 +10,7 @@ from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 from systems.messages import ObjectBelief, PlaceGoal
 
 # The place task sets the object down to this height above the table: a little into it, so that the object
-# rests on the table before the hands open (held 2 mm above it, the object dropped and turned by 2-4 degrees
-# when let go, and a hand still on its handle then dragged it; three drill picks), m.
+# rests on the table before the hands open (held above it, it drops and turns when let go), m.
 PLACE_CLEARANCE = -0.003
 
 

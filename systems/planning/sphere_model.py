@@ -2,6 +2,7 @@
 placed in batches from BatchedKinematics.body_poses."""
 
 from dataclasses import dataclass
+from enum import IntEnum
 
 import numpy as np
 from pydrake.geometry import Box, Capsule, Cylinder, Sphere
@@ -9,6 +10,14 @@ from pydrake.multibody.plant import MultibodyPlant
 from scipy.spatial import cKDTree
 
 from systems.planning.kinematics import BatchedKinematics
+
+
+class SphereGroup(IntEnum):
+    """The rigid group a robot sphere moves with."""
+
+    TORSO = 0  # pelvis, torso, head
+    LEFT = 1  # the left arm and hand
+    RIGHT = 2  # the right arm and hand
 
 
 def off_the_robot(points_W: np.ndarray, robot_spheres_W: np.ndarray, margin: float) -> np.ndarray:
@@ -28,7 +37,7 @@ class SphereModel:
     body: np.ndarray  # S, position of each sphere's body in BatchedKinematics.links
     centre_B: np.ndarray  # S x 3, in the body frame
     radius: np.ndarray  # S
-    group: np.ndarray  # S, which rigid group (arm side) the sphere belongs to: 0 torso, 1 left, 2 right
+    group: np.ndarray  # S, the SphereGroup (arm side) each sphere moves with, as its int value
     geometry: list  # S, the GeometryId each sphere covers
 
     def __post_init__(self):
@@ -46,7 +55,7 @@ class SphereModel:
             self._column[sphere] = filled[body]
             filled[body] += 1
 
-    def pairs(self, inspector, group_a: int, group_b: int) -> tuple[np.ndarray, np.ndarray]:
+    def pairs(self, inspector, group_a: SphereGroup, group_b: SphereGroup) -> tuple[np.ndarray, np.ndarray]:
         """Index pairs (i in group_a, j in group_b) of spheres whose geometries may collide (not filtered).
 
         With group_a == group_b, the pairs within the group (e.g. a hand and its own upper arm).
@@ -106,7 +115,7 @@ def robot_spheres(plant: MultibodyPlant, scene_graph, kinematics: BatchedKinemat
     """Spheres covering every proximity geometry of the kinematics' bodies.
 
     Args:
-        group_of_body: body name -> group id (0 torso, 1 left arm and hand, 2 right).
+        group_of_body: (body name, model instance) -> its SphereGroup.
     """
     inspector = scene_graph.model_inspector()
     bodies, centres, radii, groups, geometries = [], [], [], [], []

@@ -59,7 +59,7 @@ class DetourConfig:
 
     heights: tuple = (0.0, 0.06, 0.12, 0.18)
     sideways: tuple = (-0.12, -0.06, 0.0, 0.06, 0.12)
-    ramps: tuple = (1.0, 2.0)  # the detours' profiles along the way, tried in turn (stomp_detours.detour_targets)
+    ramps: tuple = (1.0, 2.0)  # the detours' profiles along the way, tried in turn (stomp_detours.Detours.targets)
     # m: where no detour above is collision-free, these heights too (turns of a held object among tall boxes)
     high_heights: tuple = (0.24, 0.30)
     wide_sideways: tuple = (-0.24, -0.18, 0.18, 0.24)  # m: ... and these farther sideways
@@ -70,7 +70,7 @@ class DetourConfig:
     # fraction of the time.
     checks: int = 4
     proxy_points: int = 64
-    moved_steps: int = 3  # (with 2, a set-down's first trajectory no longer solved it)
+    moved_steps: int = 3  # (fewer leave some set-downs' first trajectories unsolved)
 
 
 @dataclass(frozen=True)

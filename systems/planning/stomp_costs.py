@@ -22,6 +22,7 @@ from systems.planning.dynamics import Payload, joint_torques
 from systems.planning.hand_constraints import HandConstraints
 from systems.planning.kinematics import relative_pose
 from systems.planning.obstacles import Groups, Obstacles, placed_each
+from systems.planning.sphere_model import SphereGroup
 from systems.planning.stomp_config import CostConfig
 from systems.planning.world import PlanningWorld
 
@@ -68,7 +69,8 @@ class SphereCosts:
         self.kinematics, self.spheres = world.kinematics, world.spheres
         self.lower, self.upper = np.asarray(world.lower), np.asarray(world.upper)
         self.dof = world.kinematics.dof  # the planned joints: 14 arm joints, and the torso yaw when it is free
-        groups = ((1, 2), (1, 0), (2, 0), (1, 1), (2, 2))
+        left, right, torso = SphereGroup.LEFT, SphereGroup.RIGHT, SphereGroup.TORSO
+        groups = ((left, right), (left, torso), (right, torso), (left, left), (right, right))
         spheres = world.spheres
         pairs = [spheres.pairs(world.inspector, a, b) for a, b in groups]
         self.pair_a = np.concatenate([a for a, _ in pairs])

@@ -25,7 +25,7 @@ from pydrake.systems.framework import Diagram
 from systems.messages import SIDES
 from systems.planning.kinematics import BatchedKinematics, EndEffectors
 from systems.planning.obstacles import Obstacles
-from systems.planning.sphere_model import off_the_robot, robot_spheres
+from systems.planning.sphere_model import SphereGroup, off_the_robot, robot_spheres
 
 # Clearance added around a perceived (reconstructed) object for reach planning, m: a reconstruction is a few
 # millimetres off, and a wider margin left reaches without a path to the pre-grasp in STOMP's time.
@@ -35,8 +35,8 @@ PERCEIVED_SHAPE_MARGIN = 0.01
 # field's interpolation between its nodes (up to about 2 mm at a sphere's radius from an edge). Depth noise
 # makes the nearest points nearer, not farther.
 PERCEIVED_SCENE_MARGIN = 0.005
-# The scene's distance field's grid, m (systems/planning/obstacles.py: DistanceField; scene_cloud.VOXEL_M, the hidden
-# cubes' side).
+# The scene's distance field's grid, m (systems/planning/obstacles.py: DistanceField; scene_cloud.SCENE_VOXEL_M, the
+# hidden cubes' side).
 SCENE_CELL_M = 0.01
 # rad: a configuration may lie this far beyond a joint limit and still count as within it (IK's answers at a limit).
 LIMIT_TOLERANCE_RAD = 1e-9
@@ -191,7 +191,7 @@ def centauro_kinematics(plant: MultibodyPlant, scene_graph, plant_context, arm_j
             it is planned.
         hands: {"left": model instance, "right": model instance} of the hands.
 
-    Groups: 0 pelvis/torso/head, 1 left arm + left hand, 2 right arm + right hand.
+    Sphere groups (SphereGroup): the pelvis, torso and head; the left arm and hand; the right arm and hand.
     """
     joints = [plant.GetJointByName(name) for name in arm_joints]
     bodies = [joint.child_body() for joint in joints]
@@ -200,11 +200,11 @@ def centauro_kinematics(plant: MultibodyPlant, scene_graph, plant_context, arm_j
     bodies += [plant.GetBodyByName("torso"), plant.GetBodyByName("pelvis")]
     kinematics = BatchedKinematics(plant, plant_context, joints, bodies)
 
-    def group(name, model_instance):
+    def group(name, model_instance) -> SphereGroup:
         if model_instance == hands["left"] or name.startswith("arm1_"):
-            return 1
+            return SphereGroup.LEFT
         if model_instance == hands["right"] or name.startswith("arm2_"):
-            return 2
-        return 0
+            return SphereGroup.RIGHT
+        return SphereGroup.TORSO
 
     return kinematics, robot_spheres(plant, scene_graph, kinematics, group)

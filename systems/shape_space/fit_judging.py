@@ -17,13 +17,13 @@ from systems.shape_space.shape_fit import ShapeFit
 from systems.shape_space.space import GRASP_NAMES
 from systems.shape_space.visibility import visible_from
 
-# A fit is poor when fewer than MIN_INLIER_SHARE of the points it saw lie within INLIER_M of the fitted shape (good
-# fits keep over 0.9, fits flying pixels pulled centimetres off under 0.25).
-INLIER_M = 0.01
+# A fit is poor when fewer than MIN_INLIER_SHARE of the points it saw lie within FIT_INLIER_M of the fitted shape
+# (good fits keep over 0.9, fits flying pixels pulled centimetres off under 0.25).
+FIT_INLIER_M = 0.01
 MIN_INLIER_SHARE = 0.8
 # Each grasp must be where its handle was seen: of the fitted surface visible from the camera within SUPPORT_M of
-# a grasp frame, at least MIN_GRASP_SUPPORT must lie within INLIER_M of a seen point. A grasp with too little visible
-# surface about it is not judged: a drill's grip hidden under its housing is no evidence against it.
+# a grasp frame, at least MIN_GRASP_SUPPORT must lie within FIT_INLIER_M of a seen point. A grasp with too little
+# visible surface about it is not judged: a drill's grip hidden under its housing is no evidence against it.
 SUPPORT_M = 0.03
 MIN_GRASP_SUPPORT = 0.6
 MIN_SUPPORT_POINTS = 10  # visible surface points about a grasp that a support share needs
@@ -56,7 +56,7 @@ class Registration:
     grasp_poses_W: dict[str, RigidTransform]  # POSE_NAMES -> X_WG
     fit_error_m: float  # mean distance of the observed points to the fitted model
     iterations: int
-    inlier_share: float  # of the (thinned) observed points, within INLIER_M of the reconstruction
+    inlier_share: float  # of the (thinned) observed points, within FIT_INLIER_M of the reconstruction
     # Per grasp frame (GRASP_NAMES), the share of the visible fitted surface about it that was seen (grasp_support),
     # None where too little of it is visible to judge; empty without a viewpoint.
     grasp_support: dict[str, float | None] = field(default_factory=dict)
@@ -83,8 +83,8 @@ class Registration:
         does not hold for this shape."""
         if self.inlier_share < MIN_INLIER_SHARE:
             return (
-                f"a poor fit: {100 * self.inlier_share:.0f}% of the seen points lie within {1000 * INLIER_M:.0f} mm "
-                f"of the fitted shape (at least {100 * MIN_INLIER_SHARE:.0f}% expected)"
+                f"a poor fit: {100 * self.inlier_share:.0f}% of the seen points lie within "
+                f"{1000 * FIT_INLIER_M:.0f} mm of the fitted shape (at least {100 * MIN_INLIER_SHARE:.0f}% expected)"
             )
         if self.surface_support is not None and self.surface_support < MIN_SURFACE_SUPPORT:
             return (
@@ -119,7 +119,7 @@ def judged(
     """The fit, its whole surface (K x 3, W) and its control poses (POSE_NAMES -> X_WG) as a Registration, with
     the evidence for and against them: the inlier share, and with a viewpoint each grasp's and the whole surface's
     support."""
-    inlier_share = float(np.mean(cKDTree(reconstructed_W).query(seen.thinned_W)[0] < INLIER_M))
+    inlier_share = float(np.mean(cKDTree(reconstructed_W).query(seen.thinned_W)[0] < FIT_INLIER_M))
     support, seen_share = {}, None
     if seen.viewpoint_W is not None:
         seen_model = reconstructed_W[visible_from(reconstructed_W, seen.viewpoint_W)]
@@ -164,8 +164,8 @@ def surface_support(
     visible_model_W: np.ndarray, observed_W: np.ndarray | cKDTree, view: DepthView | None = None, min_points: int = 1
 ) -> float | None:
     """The share of fitted surface points visible from the camera (N x 3, W) that the camera confirms: with a seen
-    point (K x 3, W, or their k-d tree: built once for several calls) within INLIER_M. Given the depth image (view),
-    a point also counts where the camera measured a surface within INLIER_M of its depth (a part the segmenter
+    point (K x 3, W, or their k-d tree: built once for several calls) within FIT_INLIER_M. Given the depth image (view),
+    a point also counts where the camera measured a surface within FIT_INLIER_M of its depth (a part the segmenter
     missed), and the points something other than the object hid are left out (a nearer surface off the object's
     pixels by more than HIDDEN_MARGIN: an arm, the gripper, another object). None with fewer than min_points such
     points."""
@@ -178,7 +178,7 @@ def surface_support(
     if len(points) < min_points:
         return None
     seen = observed_W if isinstance(observed_W, cKDTree) else cKDTree(observed_W)
-    supported = seen.query(points)[0] < INLIER_M
+    supported = seen.query(points)[0] < FIT_INLIER_M
     if view is not None:
-        supported |= np.abs(measured - depth) < INLIER_M
+        supported |= np.abs(measured - depth) < FIT_INLIER_M
     return float(np.mean(supported))

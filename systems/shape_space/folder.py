@@ -33,6 +33,7 @@ few models").
 """
 
 import logging
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -54,9 +55,7 @@ CLOUD_SUFFIXES = {".pcd", ".ply"}
 DENSE_POINTS = 4000
 # A folder's few models are each copied this often, stretched along C's axes with the spread of the category's scale
 # prior (the registrar's: how far its shape may scale beyond its space), unless that spread is below MIN_COPY_SPREAD:
-# such copies nearly repeat their model. 8 training meshes, one annotated, kinect_v2, validation range extra_201-208
-# (24 views per category): cans (0.2) 12.4 -> 9.7 mm grasps, Chamfer 5.3 -> 5.8 mm, grasps over 2 cm off handed on
-# 9 -> 2; drills (0.03) 7.9 -> 8.1 mm, Chamfer 3.8 -> 4.2 mm (and with 0.1, the earlier fixed spread, 7.8 -> 9.8 mm).
+# such copies nearly repeat their model (docs/history/registration_parameters.md).
 FOLDER_SCALED_COPIES = 4
 MIN_COPY_SPREAD = 0.05
 # Centres of extent farther apart than this share of the canonical's size suggest models in different frames.
@@ -104,9 +103,17 @@ def frame_warnings(clouds: dict[str, np.ndarray], canonical: str) -> list[str]:
     return warnings
 
 
-def folder_instances(folder: Path, poses_file: Path):
-    """A folder's model points {file name: N x 3, m}, the control poses its poses file gives {file name: {name:
-    X_OG}} and the canonical model's file name (its points densified where sparse).
+@dataclass
+class FolderModels:
+    """A folder of a category's models, read."""
+
+    clouds: dict[str, np.ndarray]  # {file name: N x 3 model points, m}; the canonical one's densified where sparse
+    poses: dict[str, dict[str, RigidTransform]]  # the poses file's control poses {file name: {name: X_OG}}
+    canonical: str  # the canonical model's file name
+
+
+def folder_instances(folder: Path, poses_file: Path) -> FolderModels:
+    """A folder's models and the control poses its poses file gives.
 
     Raises SystemExit naming the problem: not a folder, fewer than 2 models, a poses file that lacks something.
     """
@@ -131,7 +138,7 @@ def folder_instances(folder: Path, poses_file: Path):
     if len(clouds[canonical]) < DENSE_POINTS:
         logging.info("%s has %d points: densifying its surface", canonical, len(clouds[canonical]))
         clouds[canonical] = densified(clouds[canonical], CLOUD_POINTS)
-    return clouds, poses, canonical
+    return FolderModels(clouds, poses, canonical)
 
 
 def parse_poses(spec: dict, poses_file: Path, model: str = "the canonical model") -> dict[str, RigidTransform]:
@@ -159,7 +166,8 @@ def build_from_folder(
         scaled_copies = folder_copies(category)
     if scaled_copies:
         logging.info("%s: %d stretched copies of each model (spread %.2f)", category, scaled_copies, spread)
-    clouds, poses, canonical = folder_instances(folder, poses_file)
+    models = folder_instances(folder, poses_file)
+    clouds, poses, canonical = models.clouds, models.poses, models.canonical
     if align == "none":
         for warning in frame_warnings(clouds, canonical):
             logging.warning("warning: %s; if the models do not share one frame, pass --align vertical", warning)

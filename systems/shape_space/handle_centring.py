@@ -27,7 +27,7 @@ CENTRING_MATCH = 0.004  # m: a fitted point this near a seen point lies on it
 CENTRING_GAIN = 0.15  # the share of the fitted handle on seen points must rise by this much for a move
 HANDLE_TUBE = 0.025  # m: the fitted handle about G: points this near its axis x_G ...
 HANDLE_HALF_LENGTH = 0.03  # m: ... and this near G along it (the fingers' half span)
-VOXEL = 0.002  # m: the seen points' occupancy grid
+OCCUPANCY_CELL_M = 0.002  # m: the seen points' occupancy grid
 NEAR_BEST = 0.05  # of the moves within this share of the best, the shortest is taken
 
 
@@ -67,21 +67,22 @@ _MOVES = _moves()
 
 
 class _Occupancy:
-    """The cells of a VOXEL grid over the box |p| < reach (3,) that lie within `radius` of the points (N x 3)."""
+    """The cells of an OCCUPANCY_CELL_M grid over the box |p| < reach (3,) that lie within `radius` of the points
+    (N x 3)."""
 
     def __init__(self, points: np.ndarray, reach: np.ndarray, radius: float):
         self.low = -reach
-        self.shape = np.ceil(2 * reach / VOXEL).astype(int) + 1
+        self.shape = np.ceil(2 * reach / OCCUPANCY_CELL_M).astype(int) + 1
         cells = self._cells(points)
         cells = cells[np.all((cells >= 0) & (cells < self.shape), axis=1)]
         self.grid = np.zeros(self.shape, dtype=bool)
         self.grid[tuple(cells.T)] = True
-        r = int(round(radius / VOXEL))
+        r = int(round(radius / OCCUPANCY_CELL_M))
         offsets = np.mgrid[-r : r + 1, -r : r + 1, -r : r + 1]
         self.grid = ndimage.binary_dilation(self.grid, structure=np.sum(offsets**2, axis=0) <= r * r)
 
     def _cells(self, points: np.ndarray) -> np.ndarray:
-        return np.floor((points - self.low) / VOXEL).astype(int)
+        return np.floor((points - self.low) / OCCUPANCY_CELL_M).astype(int)
 
     def share(self, point_sets: np.ndarray) -> np.ndarray:
         """For each of S sets of points (S x N x 3), the share in occupied cells (outside the grid: not)."""

@@ -41,7 +41,7 @@ PART_PRIOR = 0.03
 # Beyond the latent space, a yaw hypothesis judged sound replaces the nearest (poor) one only where its mean distance
 # to the seen points is within this factor of the nearest's: one much further off is the shape turned end for end.
 SOUND_FIT_MARGIN = 1.1
-MIN_POINTS = 20  # finite observed points a registration needs
+MIN_REGISTRATION_POINTS = 20  # finite observed points a registration needs
 
 
 class Registrar:
@@ -95,7 +95,7 @@ class Registrar:
         observed = _check_cloud(observed_W)
         # Strays out before the even thinning, which would pick them first.
         inliers = dense_inliers(observed)
-        if np.count_nonzero(inliers) >= MIN_POINTS:
+        if np.count_nonzero(inliers) >= MIN_REGISTRATION_POINTS:
             observed = observed[inliers]
         if viewpoint_W is not None:
             viewpoint_W = np.asarray(viewpoint_W, dtype=float)
@@ -192,8 +192,8 @@ def _check_cloud(points: np.ndarray) -> np.ndarray:
     if points.ndim != 2 or points.shape[1] != 3:
         raise ValueError(f"the observed cloud must be N x 3, got shape {points.shape}")
     points = points[np.all(np.isfinite(points), axis=1)]
-    if len(points) < MIN_POINTS:
+    if len(points) < MIN_REGISTRATION_POINTS:
         raise ValueError(
-            f"the observed cloud has {len(points)} finite points; registration needs at least {MIN_POINTS}"
+            f"the observed cloud has {len(points)} finite points; registration needs at least {MIN_REGISTRATION_POINTS}"
         )
     return points

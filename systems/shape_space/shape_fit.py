@@ -26,7 +26,7 @@ from systems.shape_space.visibility import visible_from
 
 MODEL_POINTS = 800  # mixture centroids, an even choice of the canonical points (fewer cost the test cans accuracy)
 OUTLIER_WEIGHT = 0.1
-ITERATIONS = 40
+EM_ITERATIONS = 40
 INITIAL_SIGMA = 0.02  # m
 MAX_LOG_SCALE = 0.5  # the largest |log| of the shape's scale along an axis
 # A handle part: the model points about a grasp frame of the mean shape, weighted exp(-d^2 / 2 PART_RADIUS^2) by
@@ -147,7 +147,7 @@ class ShapeFitter:
         latent_prior = self.prior_weight * np.diag(self.inverse_variances)
         translation_prior = np.eye(len(translation_dofs)) / TRANSLATION_PRIOR**2
         damping = 1e-9 * np.eye(moved_parts.stop)
-        for iteration in range(1, ITERATIONS + 1):  # noqa: B007 (the count is returned)
+        for iteration in range(1, EM_ITERATIONS + 1):  # noqa: B007 (the count is returned)
             if viewpoint_W is not None and iteration % VISIBILITY_EVERY == 1:
                 rows = np.flatnonzero(visible_from(model, viewpoint_W))
                 squared = None

@@ -231,13 +231,10 @@ def build_shape_space(
             (propagation.propagated_poses) and use those as if given; else its field carries them.
         target_points: at most this many points of each other cloud are CPD's target.
         grasp_weight: scale of the grasp stars' moves (m) against the fields' (m) in the PCA samples;
-            > 1 spends the latent components on what moves the grasps (10: cans' grasps 12.5 -> 8.4 mm
-            median when the true fields of the unseen test cans are projected, 8 components).
+            > 1 spends the latent components on what moves the grasps (docs/history/registration_parameters.md).
         initial_sigma: the CPD mixture's starting width (m). The clouds share the O frame (or are aligned
-            first), so the fields start local: from the clouds' whole spread, CPD slid the points along
-            the surface (37 mm RMS field between two copies of one drill) and the latent components
-            learnt that noise (2 cm -> 10 mm, and the unseen test drills' fields warp the canonical surface
-            to 2.0-2.2 mm Chamfer instead of 4.1-4.3 mm).
+            first), so the fields start local: from the clouds' whole spread, CPD slides the points along
+            the surface and the latent components learn that noise (docs/history/registration_parameters.md).
         scaled_copies: beside each instance, this many copies of it stretched along C's axes (scaled_copy), each
             a sample of its own: a few models then still span the proportions a category varies in.
         copy_spread: the standard deviation of the log of each copy's stretch per axis (drawn from a fixed seed:

@@ -26,7 +26,8 @@ CATALOG_SEED = 2018
 CATEGORIES = {name: importlib.import_module(f"diagrams.generation.objects.{name}") for name in categories.GENERATED}
 # Each generated category's shop family: the module `<name>_shop` (sample_shop_parameters, build).
 SHOP_FAMILIES = {name: importlib.import_module(f"diagrams.generation.objects.{name}_shop") for name in CATEGORIES}
-SPLITS = {"train": 8, "test": 3}
+# The fixed instances: each split and how many it has.
+SPLIT_SIZES = {"train": 8, "test": 3}
 # On-demand instances, any number of each: the paper-like family, the wider one, the shop one. Never reorder.
 ON_DEMAND = ("extra", "wide", "shop")
 # The paper's test cans differ clearly from each other: one body style each.
@@ -36,7 +37,7 @@ TEST_CAN_STYLES = ("cylinder", "oval", "tapered")
 def instance_names(category: str) -> list[str]:
     """The fixed instance names of a category: train_0..train_7, test_0..test_2."""
     category_module(category)
-    return [f"{split}_{i}" for split, count in SPLITS.items() for i in range(count)]
+    return [f"{split}_{i}" for split, count in SPLIT_SIZES.items() for i in range(count)]
 
 
 def category_module(category: str):
@@ -54,7 +55,7 @@ def category_module(category: str):
 def parse_instance_name(name: str) -> tuple[str, int]:
     """Splits 'train_3' into ('train', 3); 'extra_17', 'wide_17' and 'shop_17' name on-demand instances."""
     split, _, index = name.rpartition("_")
-    if split not in (*SPLITS, *ON_DEMAND) or not index.isdigit():
+    if split not in (*SPLIT_SIZES, *ON_DEMAND) or not index.isdigit():
         raise ValueError(
             f"bad instance name {name!r}: expected train_<i>, test_<i>, extra_<seed>, wide_<seed> or shop_<seed>"
         )
@@ -66,9 +67,9 @@ def generate(category: str, name: str) -> ObjectInstance:
     more)."""
     module = category_module(category)
     split, index = parse_instance_name(name)
-    if split in SPLITS and index >= SPLITS[split]:
-        raise ValueError(f"{category} has {SPLITS[split]} {split} instances; {name!r} does not exist")
-    split_id = (*SPLITS, *ON_DEMAND).index(split)
+    if split in SPLIT_SIZES and index >= SPLIT_SIZES[split]:
+        raise ValueError(f"{category} has {SPLIT_SIZES[split]} {split} instances; {name!r} does not exist")
+    split_id = (*SPLIT_SIZES, *ON_DEMAND).index(split)
     category_id = list(CATEGORIES).index(category)
     rng = np.random.default_rng([CATALOG_SEED, category_id, split_id, index])
     if split == "wide":

@@ -14,8 +14,8 @@ from diagrams.generation.objects import geometry
 from diagrams.generation.objects.instance import ObjectInstance, Part, make_grasp
 
 CATEGORY = "pot"
-# The hands come down onto the handles tilted this far outwards from vertical (rad). 0.6 (the can's top handle's)
-# left a hand out of reach with the pot turned by 0.25 rad (oracle picks: 2 of 4 failed); 0.3: 4 of 4 lifted.
+# The hands come down onto the handles tilted this far outwards from vertical (rad): the can's tilt leaves a hand
+# out of reach with the pot turned (docs/history/categories.md).
 APPROACH_TILT = 0.3
 
 

@@ -5,6 +5,8 @@ The left hand grasps the top handle from above; the right hand grasps the rear
 handle from behind (approach about +x_O).
 """
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from diagrams.generation.objects import geometry
@@ -114,17 +116,26 @@ def body_mesh(p: dict[str, float]):
     )
 
 
-def spout_axis(p: dict[str, float]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The spout's start (inside the body's front wall), its direction (unit, up and forward in the xz plane) and
-    its end, where the rose begins; in O, m."""
+@dataclass
+class SpoutAxis:
+    """The spout's axis in O, m."""
+
+    start: np.ndarray  # (3,): inside the body's front wall
+    direction: np.ndarray  # (3,) unit: up and forward in the xz plane
+    end: np.ndarray  # (3,): where the rose begins
+
+
+def spout_axis(p: dict[str, float]) -> SpoutAxis:
+    """The spout's axis of a can with parameters p."""
     start = np.array([radius_at(p, p["spout_base"]) - 0.03, 0.0, p["spout_base"]])
     direction = np.array([np.cos(p["spout_angle"]), 0.0, np.sin(p["spout_angle"])])
-    return start, direction, start + p["spout_length"] * direction
+    return SpoutAxis(start, direction, start + p["spout_length"] * direction)
 
 
 def spout_and_rose(p: dict[str, float]):
     """The spout (a frustum narrowing from the body's front wall to its end) and the rose on its end."""
-    start, direction, end = spout_axis(p)
+    axis = spout_axis(p)
+    start, direction, end = axis.start, axis.direction, axis.end
     tip_radius = 0.6 * p["spout_radius"]
     spout = geometry.frustum(start, end, p["spout_radius"], tip_radius)
     rose = geometry.frustum(end - 0.01 * direction, end + 0.025 * direction, tip_radius, 1.9 * tip_radius)
