@@ -59,7 +59,7 @@ def validation_iou(scenario: Scenario, model, frames: int) -> dict[str, dict]:
         for family in np.unique(families):
             chosen = families == family
             rgb, labels = _windows(data)
-            record[table][family] = segmenter_training.part_iou(model, rgb[chosen], labels[chosen])
+            record[table][str(family)] = segmenter_training.part_iou(model, rgb[chosen], labels[chosen])
     return record
 
 
