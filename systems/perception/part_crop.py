@@ -12,8 +12,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-PART_INPUT = 128  # px: the part network's input is PART_INPUT x PART_INPUT
-MARGIN = 0.15  # of the mask's larger side, added on every side of the window
+PART_INPUT = 192  # px: the part network's input is PART_INPUT x PART_INPUT
+MARGIN = 0.1  # of the mask's larger side, added on every side of the window
 MIN_SIDE = 24  # px: a smaller window is no object the part network can read
 
 
