@@ -24,6 +24,7 @@ from pydrake.math import RigidTransform
 from pydrake.systems.framework import Diagram, DiagramBuilder
 
 from diagrams.generation.objects.library import resolve_object
+from diagrams.generation.part_labels import PartSurface, on_handles, true_part_surface
 from diagrams.hardware_station import MakeHardwareStation
 from diagrams.perception import MakeGroundTruthPerception, MakeObjectTracker, MakePerception, latch_offset
 from diagrams.pick_simulation import PickOutcome, PlaceJudge, pose_error, simulate_pick, station_plant
@@ -288,7 +289,8 @@ def run_pick(
         plant = station_plant(diagram.GetSubsystemByName("robot_driver"))
     else:
         raise ValueError(f"unknown backend {backend!r}: sim or lcm-memq")
-    watch = PickWatcher(pick, true_grasps_O(scenario))
+    truth = true_part_surface(scenario.object) if scenario.object.present else None
+    watch = PickWatcher(pick, true_grasps_O(scenario), truth)
 
     def mode_of(context):
         return watch.status(context).mode
@@ -326,10 +328,17 @@ def grasp_errors(poses_W: dict, X_WO: RigidTransform, true_O: dict) -> dict[str,
 class PickWatcher:
     """Follows the PickSupervisor during a simulation: logs mode changes and says when the pick has ended."""
 
-    def __init__(self, pick: Diagram, true_grasps_O: dict[str, RigidTransform] | None = None):
+    def __init__(
+        self,
+        pick: Diagram,
+        true_grasps_O: dict[str, RigidTransform] | None = None,
+        true_parts: PartSurface | None = None,
+    ):
         """true_grasps_O: the object's true control poses in O, where known: the perceived grasps are judged on them
-        (the outcome's perception["grasp_errors_m"])."""
-        self.pick, self.mode, self.true_grasps_O = pick, "", true_grasps_O
+        (the outcome's perception["grasp_errors_m"]); true_parts: its true part surface in O, where known: whether
+        each grasp lay on its own handle (perception["grasps_on_handles"])."""
+        self.pick, self.mode = pick, ""
+        self.true_grasps_O, self.true_parts = true_grasps_O, true_parts
 
     def status(self, context) -> PickStatus:
         return pick_status(self.pick, context)
@@ -362,6 +371,10 @@ class PickWatcher:
                 outcome.perception["grasp_errors_m"] = grasp_errors(
                     report.grasps.poses_W, outcome.object_rest_W, self.true_grasps_O
                 )
+            if report.grasps.found and self.true_parts is not None and outcome.object_rest_W is not None:
+                X_OW = outcome.object_rest_W.inverse()
+                grasps_O = {h: (X_OW @ report.grasps.poses_W[f"{h}_grasp"]).translation() for h in ("left", "right")}
+                outcome.perception["grasps_on_handles"] = on_handles(self.true_parts, grasps_O)
         outcome.attempts_made, outcome.attempt_failures = status.attempt, attempt_failures(status)
         if outcome.place:
             outcome.place["corrections"] = status.place_corrections  # in the last attempt: set down again

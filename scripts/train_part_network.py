@@ -30,7 +30,9 @@ def main():
     logging.basicConfig(level=logging.INFO, format="%(message)s")
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--data", type=Path, nargs="+", required=True, help="datasets rendered with --parts")
-    parser.add_argument("--init", type=Path, default=DEFAULT_WEIGHTS, help="the segmenter whose trunk starts it")
+    parser.add_argument(
+        "--init", type=Path, default=DEFAULT_WEIGHTS, help="the segmenter whose trunk starts it, or a part network"
+    )
     parser.add_argument("--epochs", type=int, default=30)
     parser.add_argument("--learning-rate", dest="learning_rate", type=float, default=2e-3, help="the peak rate")
     parser.add_argument("--seed", type=int, default=0)

@@ -77,11 +77,12 @@ def train_part_network(
     seed: int,
     validation_frames: int,
 ) -> dict:
-    """Trains the part network from the segmenter `init`'s trunk on the datasets' part windows, validates it and
-    saves it to `out` with its record (returned)."""
+    """Trains the part network on the datasets' part windows from `init` (a segmenter: its trunk; or a part network
+    to train further), validates it and saves it to `out` with its record (returned)."""
     windows = load_windows(data)
-    segmenter, _ = segmentation_network.load(init)
-    model = segmentation_network.with_new_classifier(segmenter, len(PART_CLASSES), seed)
+    model, start_metadata = segmentation_network.load(init)
+    if tuple(start_metadata.get("classes", ())) != PART_CLASSES:  # a segmenter: its trunk, a new classifier
+        model = segmentation_network.with_new_classifier(model, len(PART_CLASSES), seed)
     start = time.perf_counter()
     model, history = segmenter_training.fit(
         model,
