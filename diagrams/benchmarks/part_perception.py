@@ -16,18 +16,22 @@ from pathlib import Path
 
 import numpy as np
 import trimesh
+from pydrake.common.value import AbstractValue
+from pydrake.math import RigidTransform
+from pydrake.systems.sensors import CameraInfo, ImageDepth32F, ImageRgba8U
 
 from diagrams.benchmarks.registration import NOMINAL_XY
 from diagrams.generation.objects import catalog
 from diagrams.generation.objects.library import mesh_to_sdf
 from diagrams.generation.part_labels import PartSurface, face_role_surface, part_image, part_surface
 from diagrams.generation.synthetic_scenes import SyntheticScene
-from diagrams.perception import MakeSegmenter
+from diagrams.perception import MakePoseEstimator, MakeSegmenter
 from diagrams.scenario import Scenario
-from systems.messages import PartRole
-from systems.perception.images import to_rgba_image
+from systems.messages import GraspPoses, ObjectEstimate, PartRole, Segmentation
+from systems.perception.images import to_depth_image, to_rgba_image
 from systems.perception.parts import part_name
-from systems.perception.rgbd_noise import noisy_color, sensor_model
+from systems.perception.rgbd_noise import noisy_color, noisy_depth, sensor_model
+from systems.perception.shape_registrar import ShapeRegistrar
 
 PAPER_YAWS = (0.25, 0.0, -0.25)  # rad, about the category's presentation
 ROLES = (PartRole.BODY, PartRole.LEFT_HANDLE, PartRole.RIGHT_HANDLE, PartRole.TOOL)
@@ -67,6 +71,54 @@ def folder_subjects(folder: Path) -> list[Subject]:
             sdf = mesh_to_sdf(path, 1.0, 1.0, category)
             subjects.append(Subject(folder.name, category, path.stem, sdf, surface))
     return subjects
+
+
+@dataclasses.dataclass
+class PerceivedView:
+    """One kinect_v2 view of an object through the pick's perception (see perceive_view)."""
+
+    X_WO: RigidTransform  # the object's true pose (for judging only)
+    rgb: np.ndarray  # the colour image the segmenter read (H x W x 3, uint8)
+    X_WC: RigidTransform  # the depth camera's pose (its images are registered to the colour camera's)
+    intrinsics: CameraInfo
+    segmentation: Segmentation
+    estimate: ObjectEstimate
+    grasps: GraspPoses
+
+
+def perceive_view(scenario: Scenario, category: str, instance: str, yaw: float, seed: int = 3) -> PerceivedView:
+    """A frame of the generated instance where a pick finds it (NOMINAL_XY, `yaw` from its presentation), with
+    the sensor model's noise, through the pick's segmenter (with its part network), pose estimator and shape
+    registrar, as LeafSystems."""
+    scene = SyntheticScene(
+        scenario,
+        np.random.default_rng(seed),
+        cameras=1,
+        camera_jitter=False,
+        instances=(instance,),
+        classes=("background", category),
+    )
+    frame = scene.render(placement=(category, instance, catalog.presentation_yaw(category) + yaw, np.array(NOMINAL_XY)))
+    sensor, noise = sensor_model("kinect_v2"), np.random.default_rng(seed)
+    depth_camera = scenario.camera.MakeCameras()[1].core()
+    depth = noisy_depth(frame.depth, frame.rgb, depth_camera.intrinsics(), sensor, noise)
+    rgb = noisy_color(frame.rgb, sensor, noise)
+    segmentation = _evaluated(MakeSegmenter(scenario, category=category), {"color_image": to_rgba_image(rgb)})
+    inputs = {"segmentation": segmentation, "depth_image": to_depth_image(depth), "camera_pose": frame.X_WC}
+    estimate = _evaluated(MakePoseEstimator(scenario), inputs, "estimate")
+    grasps = _evaluated(ShapeRegistrar((category,)), {"estimate": estimate}, "grasp_poses")
+    X_WC = frame.X_WC @ depth_camera.sensor_pose_in_camera_body()
+    return PerceivedView(frame.objects[0][2], rgb, X_WC, depth_camera.intrinsics(), segmentation, estimate, grasps)
+
+
+def _evaluated(system, inputs: dict, output: str = "segmentation"):
+    """The system's output port `output` with its input ports fixed to `inputs` (images as they are, other values
+    as abstract values)."""
+    context = system.CreateDefaultContext()
+    for name, value in inputs.items():
+        port = system.GetInputPort(name)
+        port.FixValue(context, value if isinstance(value, (ImageRgba8U, ImageDepth32F)) else AbstractValue.Make(value))
+    return system.GetOutputPort(output).Eval(context)
 
 
 def run(scenario: Scenario, subjects: list[Subject], seed: int, sensor_name: str | None) -> dict:

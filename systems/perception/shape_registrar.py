@@ -88,23 +88,11 @@ class ShapeRegistrar(LeafSystem):
     @staticmethod
     def _on_seen_parts(estimate, registrar: Registrar, registration: Registration, fit: str) -> "_Result":
         """The grasps built on the handles the camera saw, the fit their prior (part_grasps.py)."""
-        R_WO = registration.X_WO.rotation()
-        approaches_W = {
-            hand: R_WO.multiply(registrar.space.control_poses[f"{hand}_grasp"].rotation().col(2)) for hand in HAND_PARTS
-        }
-        grasps = grasps_on_seen_parts(
-            estimate.parts,
-            estimate.viewpoint_W,
-            registration.grasp_poses_W,
-            approaches_W,
-            prior_sound=not registration.poor_fit,
-            prior_poor=registration.poor_fit,
-        )
-        if not grasps.found:
-            return _Result(estimate.X_WO, message=grasps.poor)
+        poses_W, message = seen_part_grasps(estimate, registrar, registration)
+        if poses_W is None:
+            return _Result(estimate.X_WO, message=message)
         prior = f"the fit poor ({registration.poor_fit})" if registration.poor_fit else fit
-        message = f"{grasps.summary()}; {prior}"
-        return _Result(registration.X_WO, grasps.poses_W, registration.reconstructed_W, message)
+        return _Result(registration.X_WO, poses_W, registration.reconstructed_W, f"{message}; {prior}")
 
     def _result(self, context) -> "_Result":
         return self._registration.Eval(context)
@@ -121,6 +109,26 @@ class ShapeRegistrar(LeafSystem):
 
     def _calc_cloud(self, context, output):
         output.set_value(self._result(context).reconstructed_W)
+
+
+def seen_part_grasps(
+    estimate: ObjectEstimate, registrar: Registrar, registration: Registration
+) -> tuple[dict[str, RigidTransform] | None, str]:
+    """The grasps (POSE_NAMES -> X_WG) built on the handles the camera saw (estimate.parts), the registration their
+    prior (part_grasps.py), and where each came from; None and why where they cannot be built."""
+    R_WO = registration.X_WO.rotation()
+    approaches_W = {
+        hand: R_WO.multiply(registrar.space.control_poses[f"{hand}_grasp"].rotation().col(2)) for hand in HAND_PARTS
+    }
+    grasps = grasps_on_seen_parts(
+        estimate.parts,
+        estimate.viewpoint_W,
+        registration.grasp_poses_W,
+        approaches_W,
+        prior_sound=not registration.poor_fit,
+        prior_poor=registration.poor_fit,
+    )
+    return (grasps.poses_W, grasps.summary()) if grasps.found else (None, grasps.poor)
 
 
 def _registrar(category: str) -> Registrar:
