@@ -144,7 +144,7 @@ def run(scenario: Scenario, subjects: list[Subject], seed: int, sensor_name: str
         if subject.category not in segmenters:
             segmenters[subject.category] = MakeSegmenter(scenario, category=subject.category)
         segmenter = segmenters[subject.category]
-        for yaw in PAPER_YAWS:
+        for j, yaw in enumerate(PAPER_YAWS):
             placement = (subject.category, subject.name, catalog.presentation_yaw(subject.category) + yaw)
             frame = scene.render(placement=(*placement, np.array(NOMINAL_XY)))
             mask = frame.object_masks[0]
@@ -152,7 +152,7 @@ def run(scenario: Scenario, subjects: list[Subject], seed: int, sensor_name: str
             truth = part_image(subject.surface, frame.objects[0][2], frame.depth, mask, K, X_WC)
             rgb = frame.rgb
             if sensor is not None:  # (the segmenter reads colour alone)
-                rgb = noisy_color(frame.rgb, sensor, np.random.default_rng([seed, k, round(1000 * yaw)]))
+                rgb = noisy_color(frame.rgb, sensor, np.random.default_rng([seed, k, j]))
             context = segmenter.CreateDefaultContext()
             segmenter.GetInputPort("color_image").FixValue(context, to_rgba_image(rgb))
             segmentation = segmenter.GetOutputPort("segmentation").Eval(context)
