@@ -92,6 +92,17 @@ def test_a_handle_the_image_cut_keeps_the_prior_place_moved_into_the_seen_stretc
     assert 0.13 + FINGER_HALF_SPAN - 0.005 < origin[2] < 0.17  # the fingers' span on the seen stretch
 
 
+def test_a_sound_prior_where_its_handle_was_not_seen_stands_as_it_is():
+    rng = np.random.default_rng(5)
+    # Only the rear handle's upper 7 cm is seen (its foot hidden); the sound prior grasps it 6 cm below that.
+    seen = seen_can(rng, rear=((-0.18, 0.0, 0.13), (-0.18, 0.0, 0.2)))
+    prior = prior_poses([0.0, 0.0, 0.35], [-0.18, 0.0, 0.07])
+    grasps = grasps_on_seen_parts(seen, VIEWPOINT, prior, APPROACHES, prior_sound=True)
+    assert grasps.sources == {"left": "seen part", "right": "shape prior"}
+    assert "not seen" in grasps.fits["right"].reason
+    assert grasps.poses_W["right_grasp"].IsExactlyEqualTo(prior["right_grasp"])
+
+
 def test_an_unseen_handle_takes_the_prior_only_where_the_prior_is_sound():
     rng = np.random.default_rng(4)
     seen = {LEFT: SeenPart(seen_tube(rng, *TOP))}  # the rear handle not seen

@@ -14,16 +14,18 @@ behind. The pre-grasp backs off along -z_G as the prior's does.
 Where along the handle (the seed), and the rules between the seen part and the prior:
 - The prior is sound (the fit is not poor: Registration.poor_fit) and its grasp lies on the seen handle (within
   PRIOR_ACROSS of the tube's axis): the grasp stays at the prior's place along the handle, moved onto the seen
-  axis, and into the seen stretch until the fingers' span lies on it. The part corrects the prior across the
-  handle; it does not move a sound grasp along it.
+  axis. The part corrects the prior across the handle; it does not move a sound grasp along it. Where the camera
+  did not see the handle there (no seen point within FINGER_HALF_SPAN of that place, or the grasp on the seen
+  tube more than PRIOR_ACROSS from the prior's: hidden behind the body, beyond the image, or a few stray pixels
+  given the handle's role), the sound prior's grasp stands as it is.
 - The prior is poor, or its grasp is not on the seen handle: the handle's middle decides (handle_middle: halfway
   between the ends of the part's points along their longest direction, an arch's or a D's chord, a grip's axis;
   where the generators put a grasp, and where a hand holds).
-- The image's border cut the part (SeenPart.cut_off): its middle is not seen, so the prior's place along it is
-  taken as above, sound or not (the part puts it on the handle).
-- A part not seen well (fewer than MIN_PART_POINTS, no tube of a handle's radius, its points more than
-  MAX_TUBE_RMS off the tube, or an approach running along it) leaves its hand to the prior, and only where the
-  prior is sound; else the grasps are poor, and perception names why.
+- The image's border cut the part (SeenPart.cut_off) and the prior is poor: the handle's middle is not seen, so
+  the prior's place along it is taken, moved into the seen stretch until the fingers' span lies on it.
+- A part not seen well (fewer than MIN_PART_POINTS, no tube of a handle's radius, a tube seen over less than
+  MIN_SEEN_LENGTH, its points more than MAX_TUBE_RMS off the tube, or an approach running along it) leaves its
+  hand to the prior, and only where the prior is sound; else the grasps are poor, and perception names why.
 """
 
 from dataclasses import dataclass, field, replace
@@ -39,6 +41,7 @@ HAND_PARTS = {"left": PartRole.LEFT_HANDLE, "right": PartRole.RIGHT_HANDLE}
 MIN_PART_POINTS = 40  # seen points of a part, fewer: the part is not seen
 MAX_TUBE_RMS = 0.005  # m: a part's points farther from the fitted tube than this (RMS) are no handle seen well
 MIN_TUBE_POINTS = 30  # points the tube is fitted to, about the seed
+MIN_SEEN_LENGTH = 0.02  # m: a tube whose points span less than this along its axis is no handle seen well
 FINGER_HALF_SPAN = 0.03  # m: the fingers' half width along the handle (sdf/centauro/hand.sdf: 6 cm pads)
 STRETCH_MARGIN = 0.006  # m: a part's point this near the fitted tube's surface lies on its straight stretch
 PRIOR_ACROSS = 0.03  # m: a prior grasp farther than this across the seen handle's axis is not on it
@@ -109,36 +112,51 @@ def fit_part(
     cut_off = part.cut_off
     tube = None
     if prior_sound or cut_off:
-        tube = _at_prior_place(points_W, viewpoint_W, prior_W.translation())
+        tube = _at_prior_place(points_W, viewpoint_W, prior_W.translation(), into_seen_stretch=not prior_sound)
+        if tube is not None and prior_sound and not _sees_prior_place(points_W, tube, prior_W.translation()):
+            return PartFit(hand, count, tube, "the prior's place on the handle is not seen", cut_off)
     if tube is None and not cut_off:
         tube = fit_tube(points_W, viewpoint_W, handle_middle(points_W))
     if tube is None or tube.points < MIN_TUBE_POINTS:
         return PartFit(hand, count, tube, f"no tube of a handle's radius fits the {count} points", cut_off)
+    if tube.extent[1] - tube.extent[0] < MIN_SEEN_LENGTH:
+        reason = f"{1000 * (tube.extent[1] - tube.extent[0]):.0f} mm of it seen"
+        return PartFit(hand, count, tube, reason, cut_off)
     if tube.rms_m > MAX_TUBE_RMS:
         reason = f"the points lie {1000 * tube.rms_m:.1f} mm (RMS) off the fitted tube"
         return PartFit(hand, count, tube, reason, cut_off)
     return PartFit(hand, count, tube, cut_off=cut_off)
 
 
-def _at_prior_place(points_W: np.ndarray, viewpoint_W: np.ndarray, prior: np.ndarray) -> Tube | None:
-    """The tube about the seen point nearest the prior grasp, its point at the prior's place along it moved into the
-    seen stretch by the fingers' half span; None where no tube fits there or the prior lies farther across the
-    seen axis than PRIOR_ACROSS (then the prior's place is not on this handle)."""
+def _at_prior_place(
+    points_W: np.ndarray, viewpoint_W: np.ndarray, prior: np.ndarray, into_seen_stretch: bool
+) -> Tube | None:
+    """The tube about the seen point nearest the prior grasp, its point at the prior's place along it (with
+    into_seen_stretch, moved into the seen stretch by the fingers' half span); None where no tube fits there or the
+    prior lies farther across the seen axis than PRIOR_ACROSS (then the prior's place is not on this handle)."""
     tube = fit_tube(points_W, viewpoint_W, _nearest(points_W, prior))
     if tube is None:
         return None
     along = tube.along(prior)
     if np.linalg.norm(prior - tube.point - along * tube.axis) > PRIOR_ACROSS:
         return None
-    low, high = _seen_stretch(points_W, tube)
-    along = (
-        0.5 * (low + high)
-        if high - low < 2 * FINGER_HALF_SPAN
-        else np.clip(along, low + FINGER_HALF_SPAN, high - FINGER_HALF_SPAN)
-    )
+    if into_seen_stretch:
+        low, high = _seen_stretch(points_W, tube)
+        along = (
+            0.5 * (low + high)
+            if high - low < 2 * FINGER_HALF_SPAN
+            else np.clip(along, low + FINGER_HALF_SPAN, high - FINGER_HALF_SPAN)
+        )
     moved = tube.point + along * tube.axis
     tube = fit_tube(points_W, viewpoint_W, _nearest(points_W, moved)) or tube
     return replace(tube, point=tube.point + tube.along(moved) * tube.axis)
+
+
+def _sees_prior_place(points_W: np.ndarray, tube: Tube, prior: np.ndarray) -> bool:
+    """Whether the camera saw the handle where the sound prior grasps it: the grasp on the tube lies within
+    PRIOR_ACROSS of the prior's, and a seen point within FINGER_HALF_SPAN of it."""
+    near = np.min(np.linalg.norm(points_W - tube.point, axis=1)) <= FINGER_HALF_SPAN
+    return near and np.linalg.norm(tube.point - prior) <= PRIOR_ACROSS
 
 
 def _seen_stretch(points_W: np.ndarray, tube: Tube) -> tuple[float, float]:
