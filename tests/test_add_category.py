@@ -43,6 +43,7 @@ def taught(tmp_path_factory):
     return root, pots, result
 
 
+@pytest.mark.slow
 def test_teaching_writes_the_category_and_a_segmenter_that_knows_it(taught, monkeypatch):
     root, _, result = taught
     monkeypatch.setenv("DUALARM_CATEGORIES", str(root))
@@ -123,6 +124,7 @@ def test_a_bad_category_name_is_refused(name):
         teaching.check_name(name)
 
 
+@pytest.mark.slow
 def test_a_point_cloud_canonical_model_gets_a_surface_in_the_categorys_frame(tmp_path):
     """A folder whose canonical model is a scan (a .pcd point cloud, lifted 5 cm off its frame's origin): the
     template is a reconstructed surface standing on z = 0 of O, centred on its extent."""

@@ -281,12 +281,14 @@ def test_autonomous_pick_of_an_unseen_drill_lifts_it_with_the_closure_kept(scena
     assert 0 <= outcome.closure["max_orientation_dev_rad"] < 0.05
 
 
+@pytest.mark.slow
 def test_ground_truth_pick_lifts_a_can(scenario):
     outcome = run_pick(replace_object(scenario, instance="test_2", yaw=0.25), perception="ground_truth")
     assert outcome.success, outcome.message
     assert outcome.hands_in_contact == ["left", "right"]
 
 
+@pytest.mark.slow
 def test_ground_truth_place_sets_the_object_down_upright_on_the_target(scenario):
     """Beyond the paper: lift, carry (a held move that turns nothing here), set down, let go, back off."""
     place = dataclasses.replace(scenario, task="place")
@@ -304,6 +306,7 @@ def test_ground_truth_place_sets_the_object_down_upright_on_the_target(scenario)
     assert 0 <= executed["max_translation_dev_m"] < 0.01 and 0 <= executed["max_orientation_dev_rad"] < 0.05
 
 
+@pytest.mark.slow
 def test_ground_truth_place_carries_a_drill_over_the_box_between(scenario):
     """The drill's place-over-a-box layout: carried 17.5 cm over a 6 cm board that lies between where it rests
     and the target (touching neither); set down upright within the tolerance, never dropped."""
@@ -314,6 +317,7 @@ def test_ground_truth_place_carries_a_drill_over_the_box_between(scenario):
     assert outcome.closure["max_translation_dev_m"] < 0.01 and outcome.closure["max_orientation_dev_rad"] < 0.05
 
 
+@pytest.mark.slow
 def test_the_looks_correct_what_the_hands_moved_the_can_by(scenario):
     """The hands move a can as they close and carry it. Placed from the first look alone, this one is set down
     2.2 cm and 4.9 deg off and ends turned by 8.7 deg; the looks at the held object (object tracker) find
@@ -335,6 +339,7 @@ def test_the_looks_correct_what_the_hands_moved_the_can_by(scenario):
     assert outcome.place["set_down_error_m"] < 0.01 and outcome.place["set_down_yaw_error_rad"] < np.radians(5)
 
 
+@pytest.mark.slow
 def test_unreachable_carry_ends_named_with_the_object_still_held(scenario):
     far = dataclasses.replace(scenario, task="place", place=PlaceConfig(xy=[-0.12, -0.6]))
     outcome = run_pick(far, perception="ground_truth")
@@ -343,6 +348,7 @@ def test_unreachable_carry_ends_named_with_the_object_still_held(scenario):
     assert not outcome.place["dropped"]
 
 
+@pytest.mark.slow
 def test_empty_table_stops_at_segmentation(scenario):
     empty = replace_object(scenario, present=False)
     outcome = run_pick(empty)
@@ -350,6 +356,7 @@ def test_empty_table_stops_at_segmentation(scenario):
     assert outcome.sim_time_s < PERCEIVE_AT_S + 0.2  # stopped right there
 
 
+@pytest.mark.slow
 def test_object_out_of_reach_stops_at_planning(scenario):
     far = replace_object(scenario, category="drill", instance="test_0", xy=[0.3, 0.0])
     outcome = run_pick(far)
@@ -371,6 +378,7 @@ def _pick_json(tmp_path, name: str) -> dict:
     return report
 
 
+@pytest.mark.slow
 def test_same_seed_same_outcome_on_an_idle_and_a_busy_machine(tmp_path):
     idle = _pick_json(tmp_path, "idle")
     burn = "import time\nend = time.monotonic() + 300\nwhile time.monotonic() < end: pass"
@@ -399,6 +407,7 @@ LOOK = (
 )
 
 
+@pytest.mark.slow
 def test_the_looks_at_the_held_object_have_their_own_latch_and_tracker(scenario):
     _assert_wired(MakePickDiagram(dataclasses.replace(scenario, task="place")), LOOK)
 

@@ -4,6 +4,7 @@ diagrams/benchmarks/pick_frames.py."""
 import dataclasses
 
 import numpy as np
+import pytest
 
 from diagrams.benchmarks import pick_frames
 from diagrams.benchmarks.pick_frames import first_pick_frame, pick_frame_trials
@@ -22,6 +23,7 @@ def yaw(X) -> float:
     return float(np.arctan2(R[1, 0], R[0, 0]))
 
 
+@pytest.mark.slow
 def test_the_picks_first_frame_is_its_camera_frame_with_the_papers_yaw_noise_and_registers_near_the_truth():
     """evaluate.py's third pick of the test cans (seed 2: test_0 at yaw -0.25): the frame is the same with and
     without the registration noise, and the noise turns the initial pose by the seed's draw, as in the pick."""
@@ -47,6 +49,7 @@ def test_the_picks_first_frame_is_its_camera_frame_with_the_papers_yaw_noise_and
         assert np.linalg.norm(result.grasp_poses_W[name].translation() - (X_WO @ X_OG).translation()) < 0.015, name
 
 
+@pytest.mark.slow
 def test_pick_frame_trials_judge_every_pick_of_the_campaign():
     rows = pick_frame_trials(load_scenario(), "drill", {"test_1": {"instance": "test_1", "file": ""}}, 1, [0.0])
     (row,) = rows
@@ -55,6 +58,7 @@ def test_pick_frame_trials_judge_every_pick_of_the_campaign():
     assert row["handed_on"] and not row["handed_on_off"]  # the grasps the pick builds on the seen parts
 
 
+@pytest.mark.slow
 def test_a_frame_in_which_perception_finds_nothing_is_a_row_with_its_reason(monkeypatch):
     nothing = ObjectEstimate(False, message="no")
     monkeypatch.setattr(pick_frames, "first_pick_frame", lambda scenario: (nothing, None))

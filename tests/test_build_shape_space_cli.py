@@ -66,6 +66,7 @@ def transfer_errors(space: ShapeSpace) -> dict[str, float]:
     }
 
 
+@pytest.mark.slow
 def test_a_folder_with_the_canonical_models_poses_builds_a_space_that_transfers_grasps(folder, tmp_path):
     models, poses = folder
     canonical = "train_0.obj"
@@ -81,6 +82,7 @@ def test_a_folder_with_the_canonical_models_poses_builds_a_space_that_transfers_
     assert max(errors.values()) < 0.025, errors
 
 
+@pytest.mark.slow
 def test_a_folder_with_every_models_poses_transfers_grasps_closer(folder, tmp_path):
     models, poses = folder
     spec = {"canonical": "train_0.obj", "poses": pose_entries(poses["train_0.obj"])}
@@ -91,6 +93,7 @@ def test_a_folder_with_every_models_poses_transfers_grasps_closer(folder, tmp_pa
     assert max(errors.values()) < 0.013, errors  # 7.8-9.9 mm
 
 
+@pytest.mark.slow
 def test_a_folder_with_bad_poses_gives_clear_errors(folder, tmp_path):
     models, poses = folder
     spec = {"canonical": "train_0.obj", "poses": pose_entries(poses["train_0.obj"])}
@@ -118,6 +121,7 @@ def test_a_folder_in_millimetres_is_rejected_with_the_unit_named(folder, tmp_pat
     assert "millimetres" in run.stderr and "scale it by 0.001" in run.stderr, run.stderr
 
 
+@pytest.mark.slow
 def test_a_folder_left_in_frames_of_their_own_is_flagged_when_not_aligned(folder, tmp_path):
     """--align none (the default) keeps each model where its file puts it, and says which models look misplaced."""
     models, poses = folder

@@ -50,6 +50,7 @@ def test_a_users_model_files_are_picked_as_the_category_the_user_gave_generated_
     assert generated.scenario.requested_category == scenario.requested_category == ""
 
 
+@pytest.mark.slow
 def test_ray_and_one_process_give_the_same_records_seed_by_seed(scenario, tmp_path):
     """4 picks as Ray tasks on a local Ray with 2 workers, and one at a time: the same records."""
     trials = lift_trials(scenario, 4)
@@ -63,6 +64,7 @@ def test_ray_and_one_process_give_the_same_records_seed_by_seed(scenario, tmp_pa
     assert sorted(r["seed"] for r in streamed) == [r["seed"] for r in on_ray]
 
 
+@pytest.mark.slow
 def test_a_stopped_campaign_resumes_without_redoing_finished_picks(scenario, tmp_path, capsys):
     """A records file with one finished pick and a record cut off mid-write: --resume keeps the first
     (marked, so a rerun would show) and runs only the second; --summarize makes the tables from the file."""
@@ -113,6 +115,7 @@ def test_resume_needs_a_records_file():
     assert refused.returncode == 2 and "--resume needs --records or --json" in refused.stderr
 
 
+@pytest.mark.slow
 def test_segmentation_frames_rendered_on_ray_are_the_frames_rendered_here(scenario):
     """Two scenes of two frames each, as Ray tasks and in this process: the same dataset, pixel for pixel."""
     here = segmentation_data.generate(scenario, frames=3, frames_per_scene=2, split="train", seed=7)

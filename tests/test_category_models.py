@@ -36,6 +36,7 @@ def test_coordinates_out_of_metres_are_rejected_naming_the_likely_unit():
         check_metres(1e-3 * drill, "drill.ply")
 
 
+@pytest.mark.slow
 def test_vertical_alignment_turns_only_about_z_and_recovers_a_models_heading_and_origin():
     can = surface("watering_can", "train_0", 2000)
     X_FC = RigidTransform(RotationMatrix.MakeZRotation(2.0), [0.3, -0.2, 0.05])  # the file's frame F
@@ -47,6 +48,7 @@ def test_vertical_alignment_turns_only_about_z_and_recovers_a_models_heading_and
     assert alignment(moved, can, "none").IsExactlyIdentity()  # a shared upright frame is kept as it is
 
 
+@pytest.mark.slow
 def test_a_sparse_scan_is_densified_on_its_surface_without_inventing_parts():
     mesh = trimesh.load(generated_instance_directory("drill", "train_2") / "visual.obj", force="mesh")
     rng = np.random.default_rng(4)
@@ -62,6 +64,7 @@ def test_a_sparse_scan_is_densified_on_its_surface_without_inventing_parts():
     assert gap[1] < 0.7 * gap[0], gap
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("category", ["watering_can", "drill"])
 def test_grasp_frames_carried_from_one_annotated_model_land_closer_than_the_field_carries_them(category):
     """On three other training models, both grasps. On all seven others (benchmark_registration.py --annotation
@@ -86,6 +89,7 @@ def test_grasp_frames_carried_from_one_annotated_model_land_closer_than_the_fiel
     assert np.median(carried_errors) < min(0.010, 0.7 * np.median(field_errors)), (carried_errors, field_errors)
 
 
+@pytest.mark.slow
 def test_on_sparse_noisy_scans_the_latent_fit_beats_the_nearest_training_scan():
     """Real-scan-like input: 500 noisy points per drill (2 mm), all in one upright frame, one drill annotated.
     Measured: the fitted shapes 3.9-5.3 mm (Chamfer to the true surfaces), the nearest training scans 6.4-8.6."""

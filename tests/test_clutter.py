@@ -26,6 +26,7 @@ from systems.planning.world import SCENE_CELL_M
 BOX = ClutterObjectConfig(kind="box", size=[0.1, 0.12, 0.08], color=[0.8, 0.2, 0.2], xy=[-0.3, 0.0])
 
 
+@pytest.mark.slow
 def test_cluttered_tables_are_seeded_and_keep_their_promises(scenario):
     fronts = 0
     for category in ("watering_can", "drill"):
@@ -103,6 +104,7 @@ def test_the_planner_avoids_an_obstacle_only_the_camera_saw(scenario):
     assert motions.stomp.clearance(np.linspace(straight[0], straight[1], 40), seen).min() < 0
 
 
+@pytest.mark.slow
 def test_the_named_category_is_picked_from_a_table_with_both_and_nothing_else_moves(scenario):
     """A drill to pick and a can beside it (both unseen): the user names the drill; the pick lifts it and the can
     stays where it stood."""
@@ -115,6 +117,7 @@ def test_the_named_category_is_picked_from_a_table_with_both_and_nothing_else_mo
     assert max(outcome.others_moved_m) < 0.02
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("category, k", [("drill", 27), ("watering_can", 26)])
 def test_completing_the_object_in_3d_takes_nothing_of_its_neighbours(scenario, category, k):
     """Two tables of the tuning range where looser completion rules took a neighbour's part: a box in front of the

@@ -5,6 +5,7 @@ import time
 
 import lcm
 import numpy as np
+import pytest
 from drake import lcmt_iiwa_command
 
 from diagrams.benchmarks.command_stream import benchmark
@@ -18,6 +19,7 @@ def _sent(log_path):
     return [(event.timestamp / 1e6, lcmt_iiwa_command.decode(event.data)) for event in events]
 
 
+@pytest.mark.slow
 def test_stream_sends_nothing_before_a_command_then_every_period_while_this_process_is_busy(tmp_path):
     log_path = tmp_path / "commands.lcmlog"
     stream = CommandStream(f"file://{log_path}?mode=w", "CENTAURO_COMMAND", 14, PERIOD_S)
@@ -62,6 +64,7 @@ def test_sender_system_hands_the_guards_command_to_the_stream(tmp_path):
     assert sent and sent[-1][1].utime == 250_000 and list(sent[-1][1].joint_position) == [0.5] * 14
 
 
+@pytest.mark.slow
 def test_stream_benchmark_reports_idle_and_loaded_runs():
     runs = benchmark(1.5, 1)["runs"]
     assert [run["busy_processes"] for run in runs] == [0, 1]

@@ -64,6 +64,7 @@ def test_pose_yaw_offset_turns_the_estimate_about_the_object_origin():
     assert not dut.get_output_port().Eval(context).found
 
 
+@pytest.mark.slow
 def test_pick_diagram_inserts_the_noise_only_when_asked(scenario):
     assert not MakePickDiagram(scenario).GetSubsystemByName("perception").HasSubsystemNamed("registration_yaw_noise")
     noisy = MakePickDiagram(dataclasses.replace(scenario, registration_yaw_noise=0.2, random_seed=3))
@@ -187,6 +188,7 @@ def test_the_paper_placements_with_ground_truth_table_what_the_true_grasps_lift_
     assert refused.returncode == 2 and "--ground-truth is for one object" in refused.stderr
 
 
+@pytest.mark.slow
 def test_evaluate_script_end_to_end(tmp_path):
     """One pick of one unseen can at one yaw, with the registration's yaw noise: tables, JSON and figure."""
     report = tmp_path / "evaluation.json"

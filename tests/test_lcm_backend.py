@@ -227,6 +227,7 @@ def test_driver_rejects_bad_commands_and_holds(scenario):
     np.testing.assert_allclose(statuses[-1].joint_position_measured, initial_positions(scenario), atol=0.01)
 
 
+@pytest.mark.slow
 def test_autonomous_pick_through_lcm_in_process(scenario):
     outcome = run_pick(replace_object(scenario, category="drill", instance="test_1", yaw=0.25), backend="lcm-memq")
     assert outcome.success, outcome.message
@@ -238,6 +239,7 @@ needs_namespaces = pytest.mark.skipif(
 )
 
 
+@pytest.mark.slow
 @needs_namespaces
 def test_driver_across_processes_over_udp_in_a_private_namespace(tmp_path):
     """The driver in its own process; this side only waits for status and images, bounded in time."""
@@ -263,6 +265,7 @@ print("robot answered")
     assert json.loads((tmp_path / "driver.json").read_text())["sim_time_s"] > 0
 
 
+@pytest.mark.slow
 @needs_namespaces
 def test_pick_with_a_spawned_driver_lifts_the_object(tmp_path):
     """The headline command on the default scenario (an unseen can): the driver as a subprocess,

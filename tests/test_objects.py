@@ -31,6 +31,7 @@ def generated(request):
     return _generated(request)
 
 
+@pytest.mark.slow
 def test_mesh_is_watertight_with_positive_definite_inertia(generated):
     instance, mesh = generated
     assert mesh.is_watertight and mesh.is_volume
@@ -142,6 +143,7 @@ def test_a_cache_folder_is_never_seen_half_written(tmp_path):
     assert sorted(p.name for p in target.iterdir()) == ["model.sdf"]
 
 
+@pytest.mark.slow
 def test_the_wider_family_reaches_past_the_paper_like_one():
     """wide_<seed> instances are reproducible, and their parameters leave the ranges train_*, test_* and
     extra_* are drawn from (watering_can.py, drill.py)."""
@@ -156,6 +158,7 @@ def test_the_wider_family_reaches_past_the_paper_like_one():
         assert outside >= 6, f"only {outside} of 12 wide {category}s leave the paper-like family's ranges"
 
 
+@pytest.mark.slow
 def test_a_users_mesh_becomes_a_model_placed_like_the_category(tmp_path, monkeypatch):
     """Any origin and units in, a model on its bottom face with its extent centred like the category's out."""
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))

@@ -109,6 +109,7 @@ def _shop(category: str, wanted) -> list:
     return [instance for k in range(10) if wanted((instance := _shop_instance(category, k)).parameters)]
 
 
+@pytest.mark.slow
 def test_a_shop_can_with_its_top_handle_across_the_body_is_grasped_along_y_from_above():
     across = _shop("watering_can", lambda p: p["top_across"] and TOP_SHAPES[int(p["top_shape"])] != "loop")
     assert len(across) >= 2
@@ -122,6 +123,7 @@ def test_a_shop_can_with_its_top_handle_across_the_body_is_grasped_along_y_from_
         assert depth == pytest.approx(instance.parameters["tube_radius"], abs=2e-3), "on the handle's centre line"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("category", sorted(catalog.CATEGORIES))
 def test_every_shop_grasp_lies_in_its_hands_part_and_the_hands_fit(category):
     for k in range(6):

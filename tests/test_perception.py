@@ -179,6 +179,7 @@ def test_the_category_the_user_names_wins_over_the_networks(station_frame):
     assert np.count_nonzero(result.mask & truth) / np.count_nonzero(result.mask | truth) > 0.85
 
 
+@pytest.mark.slow
 def test_segmenter_finds_nothing_object_sized_in_empty_scenes(segmenter):
     """Eight held-out backgrounds without an object: no region as large as an object at the table (a can or
     drill there covers 10000-13000 px). The network does label small patches of some backgrounds (up to about
@@ -269,6 +270,7 @@ def perception_at_the_station(scenario):
     return context, perception, estimate
 
 
+@pytest.mark.slow
 def test_perception_subsystem_wired_to_station_localises_the_object():
     scenario = load_scenario()
     context, perception, estimate = perception_at_the_station(scenario)
@@ -284,6 +286,7 @@ def test_perception_subsystem_wired_to_station_localises_the_object():
     assert result.points_W is estimate.points_W and len(result.reconstruction_W) > 1000
 
 
+@pytest.mark.slow
 def test_the_named_category_is_registered_though_the_network_says_otherwise():
     """pick.py --object watering_can on a drill: the chain registers it in the cans' shape space (which names the
     fit poor, as it should) and reports the network's class beside, rather than obeying the network."""
@@ -297,6 +300,7 @@ def test_the_named_category_is_registered_though_the_network_says_otherwise():
     assert not result.found and "a poor fit" in result.message  # a can's shape does not explain a drill
 
 
+@pytest.mark.slow
 def test_a_tall_can_the_latent_fit_turns_end_for_end_is_registered_with_its_scale_the_right_way_round(tmp_path):
     """The tuning can stretched_4 (28 cm tall) as a user's OBJ at yaw -0.4, at the station: the latent fit nearest
     the points is turned end for end, its rear grasp hidden behind the body 20 cm off, and not poor. A grasp the
@@ -320,6 +324,7 @@ def test_a_tall_can_the_latent_fit_turns_end_for_end_is_registered_with_its_scal
     assert largest_error(result.grasps.poses_W) < 0.015
 
 
+@pytest.mark.slow
 def test_a_wide_can_whose_rear_handle_the_scale_cannot_place_is_registered_with_the_handles_moved_on_their_own(
     tmp_path,
 ):
@@ -343,6 +348,7 @@ def test_a_wide_can_whose_rear_handle_the_scale_cannot_place_is_registered_with_
         assert np.linalg.norm(parts.grasp_poses_W[name].translation() - X_WG.translation()) < 0.015, name
 
 
+@pytest.mark.slow
 def test_tiny_training_run_reduces_loss():
     data = segmentation_data.generate(load_scenario(), frames=12, frames_per_scene=12, split="train", seed=5)
     assert all(name.split("/")[1].startswith("train") for row in data["instances"] for name in row.split(",") if name)
@@ -356,6 +362,7 @@ def test_wide_split_frames_hold_only_the_wider_familys_training_members():
     assert names and names <= set(WIDE_TRAINING)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("key, instances", [("validation", None), ("validation_wide", WIDE_VALIDATION)])
 def test_shipped_weights_reproduce_recorded_validation_iou(key, instances):
     model, metadata = segmentation_network.load(DEFAULT_WEIGHTS)

@@ -96,6 +96,7 @@ def test_planner_names_what_it_could_not_plan(planner, scenario, request_, grasp
     assert plan.message.startswith("reach: ") and reason in plan.message
 
 
+@pytest.mark.slow
 def test_planner_reports_an_unreachable_goal(planner, scenario):
     far = {name: RigidTransform([2.0, 0.0, 1.0]) @ X for name, X in true_grasp_poses(scenario).items()}
     request = PlanRequest(id=5, phase="reach", q_start=initial_positions(scenario))

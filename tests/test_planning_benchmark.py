@@ -52,6 +52,7 @@ def kept(motions, family: str, count: int) -> list[PlanningProblem]:
     return problems
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("family", ["carry", "reach"])
 def test_problems_are_made_from_their_seed_alone(motions, family):
     first = kept(motions, family, 1)[0]
@@ -69,6 +70,7 @@ def test_problems_are_made_from_their_seed_alone(motions, family):
     assert isinstance(other, Dropped) or other.scenario.object.instance != first.scenario.object.instance
 
 
+@pytest.mark.slow
 def test_held_problems_are_feasible_at_start_and_goal(motions):
     for problem in kept(motions, "carry", 3):
         world = problem.check_world
@@ -116,6 +118,7 @@ def test_the_carried_spheres_hold_the_objects_collision_pieces(category):
     assert farthest <= CARRIED_RADIUS + StompConfig().costs.required_clearance, farthest
 
 
+@pytest.mark.slow
 def test_the_dense_checker_rejects_a_box_in_the_way_and_a_broken_closure(motions):
     scenario = replace_object(load_scenario(), category="watering_can", instance="train_1", xy=[-0.12, 0.12])
     free = held_problem(motions, scenario, 0.10, RigidTransform(), [])
@@ -147,6 +150,7 @@ def test_the_dense_checker_rejects_a_box_in_the_way_and_a_broken_closure(motions
     assert not first.success and first.iterations == 0, first.message
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("family", "index", "coarse_solves"), [("carry", 0, True), ("set_down", 1, False)])
 def test_a_held_move_is_drawn_with_fewer_keyframes_first(motions, family, index, coarse_solves):
     """Tuning carry 0: its first trajectory with first_trajectories.keyframes keyframes is a solution, returned with
@@ -229,6 +233,7 @@ def test_a_held_move_starts_from_the_first_solution_in_the_ranking_of_its_detour
     np.testing.assert_array_equal(result.trajectory, expected)
 
 
+@pytest.mark.slow
 def test_a_reach_stuck_under_the_table_restarts_from_the_hands_cartesian_vias(motions):
     """Tuning reach 70: from under the table past a box at its edge. From its joint-space first trajectories STOMP
     stays in collision; restarted from paths that take both hands back, up and across, it gets out."""
@@ -244,6 +249,7 @@ def test_a_reach_stuck_under_the_table_restarts_from_the_hands_cartesian_vias(mo
     assert check_path(problem, result.trajectory)["valid"]
 
 
+@pytest.mark.slow
 def test_a_reach_stuck_past_every_restart_is_solved_from_a_path_rrt_connect_samples(motions):
     """Tuning reach 378: STOMP from its first trajectories and from the hands' Cartesian vias is still in collision
     after 300 iterations; at its first restart a path RRT-Connect samples in the sphere model solves it."""
@@ -260,6 +266,7 @@ def test_a_reach_stuck_past_every_restart_is_solved_from_a_path_rrt_connect_samp
     assert check_path(problem, result.trajectory)["valid"]
 
 
+@pytest.mark.slow
 def test_stomp_checks_between_keyframes_densely_enough_for_the_exact_judge(motions):
     """Tuning reach 54: checked 4 times per segment (states 0.06 rad apart), STOMP returns a path on which a finger
     pad passes through a box between two checked states; checked every 0.02 rad it does not."""
@@ -286,6 +293,7 @@ def test_ompl_solves_a_small_carry_that_passes_the_dense_check(motions):
     assert check["closure_translation_dev_m"] < ClosureConstraint().t_max
 
 
+@pytest.mark.slow
 def test_the_benchmark_writes_its_rows(tmp_path):
     script = Path(__file__).resolve().parents[1] / "scripts" / "benchmark_planner.py"
     out = tmp_path / "planner.json"

@@ -140,6 +140,7 @@ def test_scenario_checks_attempts_and_faults():
         load_scenario(scenario_text="{faults: {nudge_xy: [0.03]}}")
 
 
+@pytest.mark.slow
 def test_grasps_off_by_5_cm_the_empty_hand_is_found_and_the_next_attempt_lifts(scenario):
     """The first attempt's grasps are moved 5 cm back (injected): a hand closes on nothing, the robot backs
     off, looks again and lifts the object with the grasps perceived anew."""
@@ -285,6 +286,7 @@ def test_a_grasp_lost_while_taking_the_object_again_starts_the_next_attempt_at_t
     assert status.task == TaskName.PLACE and modes[1:4] == ["reach", "check", "approach"]
 
 
+@pytest.mark.slow
 def test_an_object_nudged_3_cm_while_the_arms_reach_is_found_and_lifted(scenario):
     """The drill is moved 3 cm sideways at 1 s (injected), while the arms reach for where it was seen. The look
     before the approach finds it moved; the hands back off and reach for it where it is. (Without the look,
@@ -298,6 +300,7 @@ def test_an_object_nudged_3_cm_while_the_arms_reach_is_found_and_lifted(scenario
     assert outcome.attempts_made == 1 and "look" in outcome.stages
 
 
+@pytest.mark.slow
 def test_an_object_nudged_off_its_place_target_is_taken_again_and_set_down_on_it(scenario):
     """The can is set down on the place target, let go, and moved 3 cm sideways (injected at 23.9 s, as the hands
     finish backing off: the look after the place comes at 24.0 s). The look finds it off the target; the hands

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import open3d as o3d
+import pytest
 import trimesh
 from pydrake.math import RigidTransform, RotationMatrix
 
@@ -18,6 +19,7 @@ from systems.shape_space.visibility import visible_from
 REPO = Path(__file__).resolve().parents[1]
 
 
+@pytest.mark.slow
 def test_register_cli_places_the_grasps_of_an_unseen_drill_seen_from_one_side(tmp_path):
     directory = catalog.instance_directory("drill", "test_1")
     mesh = trimesh.load(directory / "visual.obj", force="mesh")

@@ -74,6 +74,7 @@ def test_bad_numbers_are_refused_before_anything_is_built(text, named):
         load_scenario(scenario_text=text)
 
 
+@pytest.mark.slow
 def test_pick_script_names_a_bad_field(tmp_path):
     report = tmp_path / "r.json"
     done = subprocess.run(
@@ -85,6 +86,7 @@ def test_pick_script_names_a_bad_field(tmp_path):
     assert json.loads(report.read_text())["error"] == "object.yaw must be finite, got nan"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("category", ["watering_can", "drill"])
 def test_place_over_box_layouts_keep_the_box_clear_of_the_object_at_both_ends(category):
     """The box lies between where each test instance rests and its target, touching neither (1 cm to spare),

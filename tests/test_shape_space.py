@@ -64,6 +64,7 @@ def test_rigid_cpd_estimates_scale(cloud):
     assert result.s == pytest.approx(1.3, abs=1e-3)
 
 
+@pytest.mark.slow
 def test_deformable_cpd_recovers_a_smooth_deformation(cloud):
     target = smooth_warp(cloud)[np.random.default_rng(2).permutation(len(cloud))]
     result = deformable_cpd(cloud, target, beta=0.2, lam=0.5, max_iterations=200)
@@ -122,6 +123,7 @@ def box_space():
     return build_shape_space("box", clouds, poses, components=4, canonical_points=300, beta=0.08), sizes
 
 
+@pytest.mark.slow
 def test_shape_space_round_trips_through_its_file(box_space, tmp_path):
     space, _ = box_space
     space.save(tmp_path / "space.npz")
@@ -135,6 +137,7 @@ def test_shape_space_round_trips_through_its_file(box_space, tmp_path):
         ShapeSpace.load(tmp_path / "missing.npz")
 
 
+@pytest.mark.slow
 def test_scaled_copies_let_a_few_models_span_a_proportion_they_lack():
     """Three boxes that differ only in length: without scaled copies no latent shape is taller, with them a taller
     box is fitted and the grasp on its lid follows it (measured 7 mm off; 40 mm without)."""

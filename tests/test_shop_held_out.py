@@ -45,6 +45,7 @@ def test_the_family_has_the_designs_the_issue_names(designs):
     assert any("d_grip" in n or "hammer" in n for n in names) and any("top" in n or "carry" in n for n in names)
 
 
+@pytest.mark.slow
 def test_every_design_stands_its_hands_fit_and_its_grasps_lie_in_their_handles(designs):
     for instance in designs["watering_can"] + designs["drill"]:
         assert hands_fit(instance), instance.name
@@ -54,6 +55,7 @@ def test_every_design_stands_its_hands_fit_and_its_grasps_lie_in_their_handles(d
             assert depth > 0.008, f"{instance.name}: its {side} grasp is not inside its handle"
 
 
+@pytest.mark.slow
 def test_the_files_read_back_as_written_watertight_with_a_role_for_every_face(written, designs):
     for category, paths in written.items():
         assert [p.stem for p in paths] == [d.name for d in designs[category]]

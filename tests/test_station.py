@@ -114,6 +114,7 @@ def test_gravity_compensation_alone_cancels_gravity(station):
     assert np.linalg.norm(tau) > 1.0
 
 
+@pytest.mark.slow
 def test_the_object_stands_on_a_patch_and_stops_turning(station, scenario):
     """The table top is compliant hydroelastic and the object rigid hydroelastic: the can stands on a contact
     patch, not on one point. On one point, a can kicked into a wobbling spin here was still turning 0.2-1.0 s

@@ -28,6 +28,7 @@ def test_locked_torso_is_the_arms_alone():
         load_scenario(scenario_text="{robot: {torso: loose}}")
 
 
+@pytest.mark.slow
 def test_the_station_turns_the_torso_and_the_camera_with_it(scenario):
     station = MakeStation(scenario)
     simulator = Simulator(station)

@@ -34,6 +34,7 @@ def held_out():
     return {category: instances(category, "held_out") for category in DESIGNS}
 
 
+@pytest.mark.slow
 def test_every_held_out_grasp_sits_inside_its_handle_and_the_split_is_reproducible(held_out):
     for category, objects in held_out.items():
         assert len(objects) >= 6, category
@@ -146,6 +147,7 @@ def test_a_fit_that_puts_surface_where_the_camera_saw_through_is_a_poor_fit():
     assert "the shape does not explain the view" in fitted(fit_judging.MIN_SURFACE_SUPPORT - 0.1).poor_fit
 
 
+@pytest.mark.slow
 def test_a_mesh_coacds_default_mode_aborts_on_is_still_decomposed(held_out):
     (slim,) = [i for i in held_out["watering_can"] if i.name == "held_out_slim_can"]
     mesh = slim.visual_mesh()
@@ -260,6 +262,7 @@ def test_a_sound_hypothesis_replaces_the_nearest_only_about_as_near_the_points()
     assert winner([0.0103, 0.0100, 0.0102, 0.0101], sound={0.0101, 0.0102}).fit_error_m == 0.0101
 
 
+@pytest.mark.slow
 def test_a_drill_the_network_labels_in_pieces_is_completed_in_3d(held_out, scenario, tmp_path):
     """The held-out centre-grip drill (its grip under the housing's middle, a battery block below it: no generator
     makes it) in the first frame of a pick at its presentation, sensor on: the network labels under half of it, and

@@ -6,6 +6,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+import pytest
 from pydrake.geometry import Meshcat, MeshcatParams
 
 from diagrams.autonomous_pick import run_pick
@@ -45,6 +46,7 @@ def coloured_pixels(hsv: np.ndarray, hue_range: tuple[int, int]) -> int:
     return int(np.count_nonzero((saturation > 100) & (value > 60) & (hue >= hue_range[0]) & (hue <= hue_range[1])))
 
 
+@pytest.mark.slow
 def test_recorded_pick_shows_the_scene_in_headless_chromium(scenario, tmp_path):
     meshcat = Meshcat(MeshcatParams(host="localhost"))
     html = tmp_path / "pick.html"
