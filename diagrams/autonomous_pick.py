@@ -20,8 +20,11 @@ from pathlib import Path
 import numpy as np
 from pydrake.geometry import Meshcat
 from pydrake.lcm import DrakeLcm, DrakeLcmInterface
+from pydrake.math import RigidTransform
 from pydrake.systems.framework import Diagram, DiagramBuilder
 
+from diagrams.generation.objects.library import resolve_object
+from diagrams.generation.part_labels import PartSurface, on_handles, true_part_surface
 from diagrams.hardware_station import MakeHardwareStation
 from diagrams.perception import MakeGroundTruthPerception, MakeObjectTracker, MakePerception, latch_offset
 from diagrams.pick_simulation import PickOutcome, PlaceJudge, pose_error, simulate_pick, station_plant
@@ -29,7 +32,7 @@ from diagrams.planning_scene import make_planning_world
 from diagrams.robot_driver import MakeRobotDriver
 from diagrams.scenario import Scenario
 from diagrams.station import HAND_INSTANCES, MakeStation, place_target
-from systems.messages import Mode, PickStatus
+from systems.messages import GraspPoses, Mode, PickStatus
 from systems.perception.camera_latch import CameraLatch
 from systems.perception.grasp_offset import GraspOffset
 from systems.perception.robot_spheres import RobotSpheres
@@ -217,16 +220,18 @@ class PickReport:
     closure: dict[str, float]
     category: str = ""
     network_category: str = ""
+    grasps: GraspPoses | None = None  # the grasps perceived in the attempt's frame (None where it did not perceive)
 
 
 def pick_report(diagram: Diagram, context) -> PickReport:
     status = pick_status(diagram, context)
-    stages, category, network_category, result = {}, "", "", None
+    stages, category, network_category, result, grasps = {}, "", "", None, None
     if status.perceived:  # (perception's result is cached: reading it again computes nothing)
         supervisor = diagram.GetSubsystemByName("pick_supervisor")
         result = supervisor.GetInputPort("perception").Eval(supervisor.GetMyContextFromRoot(context))
         stages.update(result.stage_seconds)
         category, network_category = result.category, result.network_category
+        grasps = result.grasps
     plans = _subsystem_output(diagram, context, "plan_telemetry", "telemetry")
     if plans.plans:
         stages["planning"] = plans.first_planning_s
@@ -239,7 +244,7 @@ def pick_report(diagram: Diagram, context) -> PickReport:
         )
     if status.looks_read:  # (the tracker's last estimate is cached: its inputs change only with a new look)
         stages["look"] = _subsystem_output(diagram, context, "object_tracker", "estimate").compute_s
-    return PickReport(status, stages, plans.closure, category, network_category)
+    return PickReport(status, stages, plans.closure, category, network_category, grasps)
 
 
 def attempt_failures(status: PickStatus) -> list[dict[str, str]]:
@@ -284,7 +289,8 @@ def run_pick(
         plant = station_plant(diagram.GetSubsystemByName("robot_driver"))
     else:
         raise ValueError(f"unknown backend {backend!r}: sim or lcm-memq")
-    watch = PickWatcher(pick)
+    truth = true_part_surface(scenario.object) if scenario.object.present else None
+    watch = PickWatcher(pick, true_grasps_O(scenario), truth)
 
     def mode_of(context):
         return watch.status(context).mode
@@ -301,11 +307,38 @@ def run_pick(
     return watch.finish(outcome)
 
 
+def true_grasps_O(scenario: Scenario) -> dict[str, RigidTransform] | None:
+    """The scenario's object's true control poses in O (POSE_NAMES -> X_OG), for judging; None where its model has
+    none (a user's mesh without an info.yaml beside it)."""
+    if not scenario.object.present:
+        return None
+    model = resolve_object(scenario.object)
+    return None if model.info is None else model.info.control_poses()
+
+
+def grasp_errors(poses_W: dict, X_WO: RigidTransform, true_O: dict) -> dict[str, float]:
+    """How far each perceived grasp frame's origin lies from the true one on the object at rest, m."""
+    hands = ("left", "right")
+    return {
+        h: float(np.linalg.norm(poses_W[f"{h}_grasp"].translation() - (X_WO @ true_O[f"{h}_grasp"]).translation()))
+        for h in hands
+    }
+
+
 class PickWatcher:
     """Follows the PickSupervisor during a simulation: logs mode changes and says when the pick has ended."""
 
-    def __init__(self, pick: Diagram):
+    def __init__(
+        self,
+        pick: Diagram,
+        true_grasps_O: dict[str, RigidTransform] | None = None,
+        true_parts: PartSurface | None = None,
+    ):
+        """true_grasps_O: the object's true control poses in O, where known: the perceived grasps are judged on them
+        (the outcome's perception["grasp_errors_m"]); true_parts: its true part surface in O, where known: whether
+        each grasp lay on its own handle (perception["grasps_on_handles"])."""
         self.pick, self.mode = pick, ""
+        self.true_grasps_O, self.true_parts = true_grasps_O, true_parts
 
     def status(self, context) -> PickStatus:
         return pick_status(self.pick, context)
@@ -332,6 +365,16 @@ class PickWatcher:
             outcome.perception["category"] = report.category
         if report.network_category:
             outcome.perception["network_category"] = report.network_category
+        if report.grasps is not None:
+            outcome.perception["grasps"] = report.grasps.message
+            if report.grasps.found and self.true_grasps_O and outcome.object_rest_W is not None:
+                outcome.perception["grasp_errors_m"] = grasp_errors(
+                    report.grasps.poses_W, outcome.object_rest_W, self.true_grasps_O
+                )
+            if report.grasps.found and self.true_parts is not None and outcome.object_rest_W is not None:
+                X_OW = outcome.object_rest_W.inverse()
+                grasps_O = {h: (X_OW @ report.grasps.poses_W[f"{h}_grasp"]).translation() for h in ("left", "right")}
+                outcome.perception["grasps_on_handles"] = on_handles(self.true_parts, grasps_O)
         outcome.attempts_made, outcome.attempt_failures = status.attempt, attempt_failures(status)
         if outcome.place:
             outcome.place["corrections"] = status.place_corrections  # in the last attempt: set down again

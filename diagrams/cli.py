@@ -10,6 +10,7 @@ from pathlib import Path
 from diagrams.generation.clutter_scenes import clutter_scene
 from diagrams.scenario import DEFAULT_SCENARIO, Scenario, load_scenario, replace_object
 from systems.perception.rgbd_noise import PRESETS
+from systems.shape_space.units import MESH_UNITS, MESH_UP_AXES
 
 
 def add_scenario_options(parser: argparse.ArgumentParser) -> None:
@@ -21,7 +22,10 @@ def add_scenario_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--instance", help="generated instance: train_<i>, test_<i>, extra_<seed>, wide_<seed> (the wider family)"
     )
-    parser.add_argument("--object-file", dest="object_file", help="your own model: .sdf, .urdf, .obj/.ply/.stl")
+    parser.add_argument(
+        "--object-file", dest="object_file", help="your own model: .sdf, .urdf, or a mesh (.obj/.ply/.stl/.glb)"
+    )
+    add_mesh_options(parser)
     parser.add_argument("--yaw", type=float, help="object yaw relative to the category's presentation, rad")
     parser.add_argument("--seed", type=int, help="random seed of the run")
     parser.add_argument(
@@ -35,6 +39,16 @@ def add_scenario_options(parser: argparse.ArgumentParser) -> None:
         "--clutter-index", dest="clutter_index", type=int, default=0, help="which cluttered table (--scene clutter)"
     )
     add_sensor_option(parser)
+
+
+def add_mesh_options(parser: argparse.ArgumentParser) -> None:
+    """--mesh-units and --mesh-up: how to read a user's mesh file (default: detected, and said)."""
+    parser.add_argument(
+        "--mesh-units", dest="mesh_units", choices=MESH_UNITS, help="a mesh file's units (default auto: from its size)"
+    )
+    parser.add_argument(
+        "--mesh-up", dest="mesh_up", choices=MESH_UP_AXES, help="a mesh file's up axis (default auto: how it stands)"
+    )
 
 
 def add_sensor_option(parser: argparse.ArgumentParser, default: str | None = None) -> None:
@@ -81,6 +95,7 @@ def scenario_from_args(args: argparse.Namespace) -> Scenario:
             scenario = dataclasses.replace(scenario, random_seed=args.seed)
         return with_sensor(scenario, args.sensor)
     changes = {"category": args.object, "instance": args.instance, "file": args.object_file, "yaw": args.yaw}
+    changes |= {"units": args.mesh_units, "up": args.mesh_up}
     scenario = replace_object(scenario, **{k: v for k, v in changes.items() if v is not None})
     if args.object is not None:
         scenario = dataclasses.replace(scenario, requested_category=args.object)
@@ -92,7 +107,8 @@ def scenario_from_args(args: argparse.Namespace) -> Scenario:
 def scenario_arguments(args: argparse.Namespace) -> list[str]:
     """These options as given, to start another script on the same scenario."""
     forwarded = ["--scenario", str(args.scenario), "--scenario_text", args.scenario_text]
-    for name in ("object", "instance", "object_file", "yaw", "seed", "sensor", "scene", "clutter_index"):
+    names = ("object", "instance", "object_file", "mesh_units", "mesh_up", "yaw", "seed", "sensor", "scene")
+    for name in (*names, "clutter_index"):
         value = getattr(args, name)
         if value is not None:
             forwarded += [f"--{name.replace('_', '-')}", str(value)]

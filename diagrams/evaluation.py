@@ -58,8 +58,9 @@ def generated_objects(category: str, split: str = "test") -> dict[str, dict]:
     return {n: {"instance": n, "file": ""} for n in catalog.instance_names(category) if n.startswith(f"{split}_")}
 
 
-def file_objects(paths: list[Path]) -> dict[str, dict]:
-    """{name: ObjectConfig changes} of a user's model files, named by their stems (made unique)."""
+def file_objects(paths: list[Path], units: str = "auto", up: str = "auto") -> dict[str, dict]:
+    """{name: ObjectConfig changes} of a user's model files, named by their stems (made unique); a mesh file's
+    `units` and `up` as ObjectConfig's."""
     objects = {}
     for path in paths:
         if not path.is_file():
@@ -68,7 +69,7 @@ def file_objects(paths: list[Path]) -> dict[str, dict]:
         while name in objects:
             n += 1
             name = f"{path.stem}_{n}"
-        objects[name] = {"file": str(path)}
+        objects[name] = {"file": str(path), "units": units, "up": up}
     return objects
 
 
@@ -290,6 +291,7 @@ def summarize(records: list[dict]) -> dict:
             if cluttered
             else {}
         ),
+        **_grasps_on_handles(records),
         "success_rate": _rate(successes, len(records)),
         "success_rate_ci95": wilson_interval(successes, len(records)),
         # Over the picks that lifted (a held move was played), m and rad.
@@ -311,6 +313,16 @@ def summarize(records: list[dict]) -> dict:
         "components": components,
         "stages": stages,
     }
+
+
+def _grasps_on_handles(records: list[dict]) -> dict:
+    """Where the objects' true parts are known: {"grasps_judged_on_handles": picks whose grasps were judged on them,
+    "lifts_off_handle": picks that lifted with a grasp off its own handle}; {} where none was judged."""
+    judged = [r for r in records if "grasps_on_handles" in r.get("perception", {})]
+    if not judged:
+        return {}
+    off = [r for r in judged if r["success"] and not all(r["perception"]["grasps_on_handles"].values())]
+    return {"grasps_judged_on_handles": len(judged), "lifts_off_handle": len(off)}
 
 
 def _per_instance(records: list[dict], succeeded) -> dict:

@@ -299,6 +299,11 @@ def report(
             f"{100 * OTHERS_MOVED_LIMIT_M:.0f} cm); perception took the named category in "
             f"{100 * summary['requested_category_share']:.0f} % of the picks that perceived"
         )
+    if "lifts_off_handle" in summary:
+        print(
+            f"\ngrasps judged on the true handles in {summary['grasps_judged_on_handles']} picks: "
+            f"{summary['lifts_off_handle']} lifted with a grasp off its handle (> 2.5 cm from it)"
+        )
     t_dev, o_dev = summary["closure_translation_dev_m_max"], summary["closure_orientation_dev_rad_max"]
     print(f"\nclosure along the played held moves (picks that lifted): largest {1000 * t_dev:.1f} mm, {o_dev:.4f} rad")
     if campaign.task == "place":

@@ -1,6 +1,7 @@
 """Perception as one subsystem: camera latch -> segmenter -> pose estimator -> shape registrar, one result;
 and the ground-truth source with the same output ports."""
 
+import logging
 from pathlib import Path
 
 from pydrake.common.value import AbstractValue
@@ -16,6 +17,7 @@ from systems import categories
 from systems.messages import GraspPoses, PerceptionResult
 from systems.perception.camera_latch import CameraLatch
 from systems.perception.object_tracker import ObjectTracker
+from systems.perception.part_segmenter import DEFAULT_PART_WEIGHTS, PartSegmenter
 from systems.perception.perception_result import PerceptionResultCollector
 from systems.perception.pose_estimator import CategoryPrior, PoseEstimator
 from systems.perception.pose_noise import PoseYawOffset, draw_yaw_offset
@@ -74,7 +76,18 @@ def MakeSegmenter(scenario: Scenario, weights: Path | None = None, category: str
         intrinsics=intrinsics,
         X_BC=X_BC,
         table_top_z=scenario.table_xyz[2] + TABLE_HEIGHT,
+        part_segmenter=MakePartSegmenter(scenario),
     )
+
+
+def MakePartSegmenter(scenario: Scenario) -> PartSegmenter | None:
+    """The part network, where the scenario builds grasps on the seen parts (and its weights are there)."""
+    if not scenario.part_grasps:
+        return None
+    if not DEFAULT_PART_WEIGHTS.is_file():
+        logging.warning("no part network (%s): grasps from the shape-space fit alone", DEFAULT_PART_WEIGHTS)
+        return None
+    return PartSegmenter(DEFAULT_PART_WEIGHTS)
 
 
 def MakePoseEstimator(scenario: Scenario) -> PoseEstimator:
@@ -115,7 +128,7 @@ def MakePerception(
     latch = builder.AddNamedSystem("camera_latch", CameraLatch(robot_positions=dof, offset_s=latch_offset(scenario)))
     segmenter = builder.AddNamedSystem("segmenter", MakeSegmenter(scenario, weights))
     pose_estimator = builder.AddNamedSystem("pose_estimator", MakePoseEstimator(scenario))
-    registrar = builder.AddNamedSystem("shape_registrar", ShapeRegistrar())
+    registrar = builder.AddNamedSystem("shape_registrar", ShapeRegistrar(part_grasps=scenario.part_grasps))
     collector = builder.AddNamedSystem("perception_result", PerceptionResultCollector())
     for port in ("color_image", "depth_image", "camera_pose", "trigger"):
         builder.ExportInput(latch.GetInputPort(port), port)

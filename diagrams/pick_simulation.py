@@ -77,7 +77,10 @@ class PickOutcome:
     place: dict = field(default_factory=dict)
     # How far the perceived object pose was from the true one when the camera saw it: {"position_error_m": xy
     # distance, "yaw_error_rad"}, the "category" perception took and, where the user named it, the
-    # "network_category" the segmenter's network gave (empty when the pick did not perceive).
+    # "network_category" the segmenter's network gave (empty when the pick did not perceive), the "grasps" message
+    # (where each grasp came from, or why there were none) and, where the object's true grasps are known,
+    # "grasp_errors_m": {hand: how far its perceived grasp frame lay from the true one} (the last attempt's frame)
+    # and, where its true parts are known, "grasps_on_handles": {hand: whether that frame lay on the hand's handle}.
     perception: dict = field(default_factory=dict)
     # How far each other object on the table (scenario.clutter, in order) ever was from where it had settled, m.
     others_moved_m: list[float] = field(default_factory=list)

@@ -19,6 +19,7 @@ from pydrake.visualization import VisualizationConfig
 
 from diagrams.generation.centauro_description import robot_joint_names
 from systems.perception.rgbd_noise import noise_parameters
+from systems.shape_space.units import MESH_UNITS, MESH_UP_AXES
 
 SCENARIO_DIR = Path(__file__).resolve().parent
 DEFAULT_SCENARIO = SCENARIO_DIR / "default.yaml"
@@ -34,14 +35,18 @@ class ObjectConfig:
     category: str = "watering_can"
     # A generated instance: train_<i>, test_<i> (the fixed seeded ones), extra_<seed> or wide_<seed>.
     instance: str = "test_0"
-    # A user's own model instead of a generated instance: .sdf, .urdf, or .obj
-    # (then `mass` and `scale` apply). Relative paths are relative to the working
+    # A user's own model instead of a generated instance: .sdf, .urdf, or a mesh: .obj, .ply, .stl, .glb
+    # (then `mass`, `scale`, `units` and `up` apply). Relative paths are relative to the working
     # directory. Empty: use `instance`.
     file: str = ""
     # Mass of an .obj model, kg.
     mass: float = 1.0
-    # Uniform scale of an .obj model (e.g. 0.001 for millimetres).
+    # Uniform scale of a mesh model, applied before its units are read.
     scale: float = 1.0
+    # A mesh model's units: "auto" (read from its size), "m", "cm", "mm" or "in".
+    units: str = "auto"
+    # A mesh model's up axis: "auto" (the face it stands on), "z" or "y" (then turned z up, x kept).
+    up: str = "auto"
     # Object frame origin in the table_top frame, metres.
     xy: list[float] = field(default_factory=lambda: [-0.12, 0.0])
     # Rotation about the world z axis relative to the category's presentation
@@ -214,6 +219,9 @@ class Scenario:
     # Before the approach, look at the object again (the object tracker) and, where it moved since it was seen,
     # reach for it where it is now.
     look_before_approach: bool = True
+    # Build each hand's grasp on the handle the camera sees (the part network's parts, a tube fitted to each; the
+    # shape-space fit their prior: systems/shape_space/part_grasps.py); false: the shape-space fit's grasps alone.
+    part_grasps: bool = True
     # The category the user names for the object to pick (pick.py --object): perception registers the object to
     # it and reports what the segmenter's network made of it; "": the network's classes decide.
     requested_category: str = ""
@@ -367,6 +375,8 @@ def validate(scenario: Scenario) -> None:
         _validate_clutter(f"clutter[{index}]", other)
     if obj.scale <= 0:
         raise ValueError(f"object.scale must be positive, got {obj.scale}")
+    if obj.units not in MESH_UNITS or obj.up not in MESH_UP_AXES:
+        raise ValueError(f"object.units must be one of {MESH_UNITS} and object.up one of {MESH_UP_AXES}")
     if not 0 <= scenario.planning.latency_s <= 10:
         raise ValueError(f"planning.latency_s must lie in [0, 10] s, got {scenario.planning.latency_s}")
     try:

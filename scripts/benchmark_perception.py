@@ -11,6 +11,9 @@ among others, and empty tables with distractors only.
 python scripts/benchmark_perception.py --scenes 60 --json perception.json
 python scripts/benchmark_perception.py --scenes 60 --no-noise
 python scripts/benchmark_perception.py --scene clutter --scenes 30 --empty-tables 20 --json clutter_perception.json
+python scripts/benchmark_perception.py --parts --json parts.json      # per-part IoU, the test instances
+python scripts/benchmark_perception.py --parts --part-folders held_out shop_held_out --json parts.json
+    # ... and the held-out families' models (make_unfamiliar_objects.py, make_shop_held_out.py folders)
 """
 
 import argparse
@@ -19,7 +22,7 @@ from pathlib import Path
 
 import torch
 
-from diagrams.benchmarks import perception, perception_in_clutter
+from diagrams.benchmarks import part_perception, perception, perception_in_clutter
 from diagrams.cli import add_sensor_option, with_sensor, write_json
 from diagrams.scenario import load_scenario
 from systems.perception.segmenter import DEFAULT_WEIGHTS, TEST_TIME_FLIP
@@ -47,8 +50,21 @@ def main():
         choices=("on", "off"),
         help=f"the segmenter's test-time flip (default: the pick's, {'on' if TEST_TIME_FLIP else 'off'})",
     )
+    parser.add_argument("--parts", action="store_true", help="per-part IoU of the part network (part_perception.py)")
+    parser.add_argument(
+        "--part-folders", dest="part_folders", type=Path, nargs="*", default=[], help="with --parts: families' folders"
+    )
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
+    if args.parts:
+        subjects = part_perception.generated_subjects()
+        for folder in args.part_folders:
+            subjects += part_perception.folder_subjects(folder)
+        results = part_perception.run(with_sensor(load_scenario(), args.sensor), subjects, args.seed, args.sensor)
+        part_perception.print_table(results)
+        if args.json:
+            write_json(args.json, results)
+        return
     if args.scene == "clutter":
         base = with_sensor(load_scenario(), args.sensor)
         results = perception_in_clutter.run(base, args.weights, args.scenes, args.empty_tables)

@@ -76,6 +76,12 @@ def parse_args() -> tuple[argparse.ArgumentParser, argparse.Namespace]:
         "part_prior, e.g. 0.03; the pick does not)",
     )
     parser.add_argument(
+        "--fit-grasps",
+        dest="part_grasps",
+        action="store_false",
+        help="with --pick-frames: judge the fit's own grasps, not those the pick builds on the handles it saw",
+    )
+    parser.add_argument(
         "--annotation",
         choices=("canonical", "all"),
         help="build the spaces first, as a user's folder of the 8 training meshes with only the canonical model "
@@ -136,7 +142,9 @@ def pick_frame_rows(parser, args, categories, space_dir: Path | None) -> list[di
     return [
         row
         for category in categories
-        for row in pick_frame_trials(base, category, objects, args.trials, args.yaws, space_dir, args.part_prior)
+        for row in pick_frame_trials(
+            base, category, objects, args.trials, args.yaws, space_dir, args.part_prior, args.part_grasps
+        )
     ]
 
 
@@ -149,6 +157,7 @@ def settings(args, copies: dict, propagation: dict) -> dict:
     results["annotation"] = args.annotation or "generated (48 models, all annotated)"
     results["scaled_copies"] = copies
     results["part_prior_m"] = args.part_prior
+    results["part_grasps"] = args.part_grasps
     results["propagation"] = propagation
     if args.object_files:
         results["instances"] = [str(path) for path in args.object_files]

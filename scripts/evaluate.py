@@ -27,7 +27,7 @@ import sys
 from pathlib import Path
 
 from diagrams.campaign import read_records, run_campaign
-from diagrams.cli import add_sensor_option, with_sensor
+from diagrams.cli import add_mesh_options, add_sensor_option, with_sensor
 from diagrams.evaluation import (
     PAPER_YAW_NOISE,
     PAPER_YAWS,
@@ -111,6 +111,7 @@ def parse_args(argv=None):
     parser.add_argument("--scenario", type=Path, default=DEFAULT_SCENARIO, help="scenario YAML file")
     parser.add_argument("--scenario_text", default="", help="YAML overlaid on the scenario file")
     add_sensor_option(parser)
+    add_mesh_options(parser)
     parser.add_argument("--json", type=Path, help="write the summary and every trial as JSON")
     parser.add_argument("--figure", type=Path, help="PNG figure (default: --json's name, .png)")
     args = parser.parse_args(argv)
@@ -154,7 +155,7 @@ def base_scenario(args):
 def campaign_trials(args, base) -> tuple[list, dict]:
     """The trials (the paper's placements, random placements or cluttered tables) and the objects they pick."""
     if args.object_files:
-        objects = file_objects(args.object_files)
+        objects = file_objects(args.object_files, args.mesh_units or "auto", args.mesh_up or "auto")
     elif args.instances:
         objects = {n: {"instance": n, "file": ""} for n in args.instances}
     else:

@@ -31,10 +31,12 @@ def main():
     )
     parser.add_argument(
         "--split",
-        choices=("train", "test", "wide"),
+        choices=("train", "test", "wide", "parts"),
         default="train",
-        help="which object instances (wide: the wider family's training members, wide_0..15)",
+        help="which object instances (wide: the wider family's training members, wide_0..15; parts: the train_, wide_ "
+        "and shop_ training members, for the part network)",
     )
+    parser.add_argument("--parts", action="store_true", help="also each object's part window, for the part network")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--out", type=Path, default=segmentation_data.DEFAULT_DATASET)
     parser.add_argument("--jobs", type=int, default=1, help="worker processes (or a local Ray's CPUs with --ray)")
@@ -67,6 +69,7 @@ def main():
         args.seed,
         run_jobs,
         crowded=args.crowded,
+        parts=args.parts,
     )
     segmentation_data.save(args.out, dataset)
     print(f"wrote {args.out}: {args.frames} {'crowded ' if args.crowded else ''}frames of {args.split} instances")

@@ -17,16 +17,19 @@ Two splits, apart on purpose:
 The pipeline reaches these objects only through `--object-file` (and the benchmarks' `--object-files`). Each mesh
 stands in the category's object frame O (origin at the centre of its bottom face, z up, x along the functional
 axis: spout or chuck), already where `--object-file` recentres a mesh, so `<name>.info.yaml` beside it (its true
-grasp frames and mass, for judging, never read by the pick) is in the frame the pick uses.
+grasp frames and mass, for judging, never read by the pick) is in the frame the pick uses; `<name>.parts.npz` beside
+it holds each face's functional part (face_roles, systems/messages.py's PartRole), for judging part perception.
 """
 
 import argparse
 from pathlib import Path
 
+import numpy as np
 from pydrake.common.yaml import yaml_dump_typed
 
 from diagrams.generation.objects.instance import export_obj
-from diagrams.generation.objects.unfamiliar import DESIGNS, instances
+from diagrams.generation.objects.unfamiliar import DESIGNS, instances, parts_surface
+from diagrams.generation.part_labels import face_roles
 
 
 def main():
@@ -38,8 +41,11 @@ def main():
         folder = args.out / category
         folder.mkdir(parents=True, exist_ok=True)
         for instance in instances(category, args.split):
-            export_obj(instance.visual_mesh(), folder / f"{instance.name}.obj")
+            mesh = instance.visual_mesh()
+            export_obj(mesh, folder / f"{instance.name}.obj")
             (folder / f"{instance.name}.info.yaml").write_text(yaml_dump_typed(instance.info()))
+            roles = face_roles(mesh, parts_surface(instance))
+            np.savez_compressed(folder / f"{instance.name}.parts.npz", face_roles=roles)
             print(f"wrote {folder / instance.name}.obj ({instance.mass:.2f} kg)")
 
 

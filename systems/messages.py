@@ -120,6 +120,9 @@ class Segmentation:
     compute_s: float = 0.0  # wall time of the segmentation alone
     # Where the user named the category: the class the network gave most of the region (reported, not obeyed).
     network_category: str = ""
+    # H x W uint8: each of the object's pixels' functional part (systems/perception/parts.py's PartRole values; 0
+    # off the mask); None where there is no part network.
+    parts: np.ndarray | None = None
 
 
 @dataclass
@@ -160,6 +163,29 @@ class DepthLookup:
     on_object: np.ndarray  # (N,) bool: their pixels are the object's
 
 
+class PartRole(enum.IntEnum):
+    """What a part of an object is for; the value is its id in a part image (uint8)."""
+
+    # Not the object (a part image's background).
+    NONE = 0
+    # The rest of the object: what no hand holds and no tool is.
+    BODY = 1
+    # The part the left hand's grasp lies on.
+    LEFT_HANDLE = 2
+    # The part the right hand's grasp lies on.
+    RIGHT_HANDLE = 3
+    # What the object works with: a can's spout (with its rose), a drill's chuck.
+    TOOL = 4
+
+
+@dataclass(frozen=True)
+class SeenPart:
+    """A functional part as the camera saw it: its points (N x 3, m, W), and whether the image's border cut it."""
+
+    points_W: np.ndarray
+    cut_off: bool = False
+
+
 @dataclass
 class ObjectEstimate:
     """The object's point cloud and initial pose, or why there is none."""
@@ -172,6 +198,8 @@ class ObjectEstimate:
     viewpoint_W: np.ndarray | None = None  # where the points were seen from: the camera's position in W, m
     compute_s: float = 0.0  # wall time of the estimate alone (its inputs' stages excluded)
     view: DepthView | None = None  # the depth image the points came from (None: unknown)
+    # The object's functional parts as seen (a part not seen has none); empty without a part network.
+    parts: dict[PartRole, SeenPart] = field(default_factory=dict)
 
 
 @dataclass

@@ -55,6 +55,7 @@ def test_pick_frame_trials_judge_every_pick_of_the_campaign():
     (row,) = rows
     assert row["instance"] == "test_1" and row["seed"] == 0 and row["yaw"] == 0.0
     assert not row["poor_fit"] and row["grasp_translation_error_m"] < 0.015 and row["chamfer_m"] < 0.01
+    assert row["handed_on"] and not row["handed_on_off"]  # the grasps the pick builds on the seen parts
 
 
 @pytest.mark.slow

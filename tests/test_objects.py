@@ -7,6 +7,7 @@ from scipy.spatial import Delaunay
 
 from diagrams.generation.objects import catalog
 from diagrams.generation.objects.library import load_info, resolve_object, written_whole
+from diagrams.generation.objects.user_mesh import Y_UP_TO_Z_UP, read_user_mesh
 from diagrams.scenario import ObjectConfig
 
 INSTANCES = [(c, n) for c in sorted(catalog.CATEGORIES) for n in catalog.instance_names(c)]
@@ -179,5 +180,38 @@ def test_a_users_mesh_becomes_a_model_placed_like_the_category(tmp_path, monkeyp
     (tmp_path / "notes.txt").write_text("not a model")
     with pytest.raises(ValueError, match="unsupported object file"):
         resolve_object(ObjectConfig(file=str(tmp_path / "notes.txt")))
-    with pytest.raises(ValueError, match="looks like millimetres"):  # the scale forgotten
-        resolve_object(ObjectConfig(category="watering_can", file=str(tmp_path / "my_can.obj"), mass=0.8))
+    with pytest.raises(ValueError, match="looks like millimetres"):  # said to be metres: the error names the unit
+        resolve_object(ObjectConfig(category="watering_can", file=str(tmp_path / "my_can.obj"), mass=0.8, units="m"))
+
+
+@pytest.mark.parametrize("category", ["watering_can", "drill"])
+def test_a_mesh_in_millimetres_with_y_up_is_read_in_metres_z_up(category, tmp_path):
+    """A glTF-style file (y up) in millimetres, in two pieces: read back as the instance it was, and said so."""
+    mesh = catalog.generate(category, "extra_7").visual_mesh()
+    y_up = mesh.copy()
+    y_up.apply_transform(np.block([[Y_UP_TO_Z_UP.T, np.zeros((3, 1))], [np.zeros((1, 3)), np.ones((1, 1))]]))
+    y_up.apply_scale(1000.0)
+    pieces = y_up.split(only_watertight=False)
+    trimesh.Scene(list(pieces) if len(pieces) > 1 else [y_up, y_up.copy()]).export(tmp_path / "model.glb")
+    read, reading = read_user_mesh(tmp_path / "model.glb")
+    assert (reading.units, reading.up, reading.units_detected, reading.up_detected) == ("mm", "y", True, True)
+    np.testing.assert_allclose(read.bounds, mesh.bounds, atol=1e-6)
+    assert "millimetres" in reading.describe("model.glb") and "y up" in reading.describe("model.glb")
+    given, reading = read_user_mesh(tmp_path / "model.glb", units="mm", up="z")  # said: taken as said
+    assert not reading.up_detected and np.ptp(given.vertices[:, 1]) == pytest.approx(np.ptp(mesh.vertices[:, 2]))
+
+
+def test_a_mesh_that_cannot_be_simulated_or_read_gets_a_clear_error(tmp_path, monkeypatch):
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    sheet = trimesh.Trimesh([[0, 0, 0], [0.3, 0, 0], [0.3, 0.2, 0], [0, 0.2, 0]], [[0, 1, 2], [0, 2, 3]])
+    sheet.export(tmp_path / "sheet.obj")
+    with pytest.raises(ValueError, match="sheet.obj cannot be simulated: it is 0 mm thick"):
+        resolve_object(ObjectConfig(file=str(tmp_path / "sheet.obj")))
+    (tmp_path / "broken.stl").write_bytes(b"solid nothing\nendsolid nothing\n")
+    with pytest.raises(ValueError, match="broken.stl"):
+        resolve_object(ObjectConfig(file=str(tmp_path / "broken.stl")))
+    tiny = catalog.generate("drill", "extra_7").visual_mesh()
+    tiny.apply_scale(1e-4)  # 3 hundredths of a millimetre in metres: no unit makes it an object
+    tiny.export(tmp_path / "tiny.obj")
+    with pytest.raises(ValueError, match="tiny.obj .* in none of metres, centimetres, millimetres"):
+        resolve_object(ObjectConfig(file=str(tmp_path / "tiny.obj")))

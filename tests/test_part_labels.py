@@ -12,8 +12,16 @@ from pydrake.math import RigidTransform
 from diagrams.generation.objects import catalog, watering_can
 from diagrams.generation.objects.hand_clearance import hands_fit
 from diagrams.generation.objects.watering_can_shop import TOP_SHAPES
-from diagrams.generation.part_labels import face_role_surface, face_roles, part_image, part_surface
+from diagrams.generation.part_labels import (
+    face_role_surface,
+    face_roles,
+    on_handles,
+    part_image,
+    part_surface,
+    true_part_surface,
+)
 from diagrams.generation.synthetic_scenes import SyntheticScene
+from diagrams.scenario import ObjectConfig
 from systems.perception.parts import PartRole, part_name
 
 LEFT, RIGHT, TOOL, BODY = PartRole.LEFT_HANDLE, PartRole.RIGHT_HANDLE, PartRole.TOOL, PartRole.BODY
@@ -169,3 +177,16 @@ SHAPE_DIGESTS = {
 @pytest.mark.parametrize("key", sorted(SHAPE_DIGESTS), ids=lambda key: "/".join(key))
 def test_every_existing_instance_keeps_its_shape(key):
     assert _shape_digest(*key) == SHAPE_DIGESTS[key]
+
+
+def test_a_grasp_is_judged_on_its_own_handle_and_off_it_a_few_centimetres_away():
+    config = ObjectConfig(category="watering_can", instance="shop_3")
+    surface = true_part_surface(config)
+    instance = catalog.generate("watering_can", "shop_3")
+    grasps_O = {s: instance.grasps[s].grasp.GetDeterministicValue().translation() for s in ("left", "right")}
+    assert on_handles(surface, grasps_O) == {"left": True, "right": True}
+    swapped = {"left": grasps_O["right"], "right": grasps_O["left"]}  # each on the other hand's handle
+    assert on_handles(surface, swapped) == {"left": False, "right": False}
+    beside = {"left": grasps_O["left"] + [0.0, 0.0, 0.06], "right": grasps_O["right"]}  # 6 cm above the top handle
+    assert on_handles(surface, beside) == {"left": False, "right": True}
+    assert true_part_surface(ObjectConfig(category="watering_can", file="my_can.sdf")) is None  # parts unknown

@@ -23,7 +23,7 @@ from diagrams.generation.objects.library import generated_instance_directory, lo
 from diagrams.pick_simulation import object_body, station_plant
 from diagrams.scenario import Scenario
 from systems.messages import ObjectEstimate
-from systems.perception.shape_registrar import registrar_of
+from systems.perception.shape_registrar import registrar_of, seen_part_grasps
 
 FRAME_POLL_S = 0.01  # s: the pick's simulation steps while it waits for its first frame
 
@@ -36,12 +36,15 @@ def pick_frame_trials(
     yaws,
     space_dir: Path | None = None,
     part_prior: float | None = None,
+    part_grasps: bool = True,
 ):
     """One row per pick of evaluate.py's campaign (make_trials: every object at every yaw, `trials` each, pick n
     with the seed base.random_seed + n): the registration of the first frame the autonomous pick itself takes
     (the station's camera and sensor model, the segmenter's mask, the pose estimator, the paper's registration
-    yaw noise), without running the pick past it. objects: evaluate.py's (file_objects, or instances). A frame in
-    which perception finds no object is a row with "found": False and the reason (the pick would stop there)."""
+    yaw noise), without running the pick past it; with part_grasps, where the frame has the object's parts, the
+    grasps judged are those the pick builds on them (ShapeRegistrar's). objects: evaluate.py's (file_objects, or
+    instances). A frame in which perception finds no object is a row with "found": False and the reason (the pick
+    would stop there)."""
     # The pick registers the object to the category perception gives it (the network's, or the one the user named).
     registrars = {c: registrar_of(c, *space_files(c, space_dir), part_prior=part_prior) for c in catalog.CATEGORIES}
     rows, meshes = [], {}
@@ -73,7 +76,12 @@ def pick_frame_trials(
             estimate.points_W, estimate.X_WO, estimate.viewpoint_W, estimate.view
         )
         seconds = time.perf_counter() - start
-        row = judged_row(result, estimate.X_WO, X_WO_true, true, meshes[mesh_file])
+        grasps_W, handed = None, None
+        if part_grasps and estimate.parts:
+            grasps_W, message = seen_part_grasps(estimate, registrars[estimate.category], result)
+            handed = grasps_W is not None
+            logging.info("   on the seen parts: %s", message)
+        row = judged_row(result, estimate.X_WO, X_WO_true, true, meshes[mesh_file], grasps_W, handed)
         rows.append({**pick, "found": True, "perceived_category": estimate.category, "registration_s": seconds, **row})
         log_row(n, rows[-1], result)
     return rows

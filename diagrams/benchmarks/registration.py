@@ -87,12 +87,24 @@ def space_files(category: str, space_dir: Path | None) -> tuple[Path, Path | Non
     return space_dir / shape_space_file(category).name, wider_shape_space_file(category, space_dir)
 
 
-def judged_row(result, X_WO_initial, X_WO_true, true: dict, mesh: trimesh.Trimesh) -> dict:
+def judged_row(
+    result,
+    X_WO_initial,
+    X_WO_true,
+    true: dict,
+    mesh: trimesh.Trimesh,
+    grasps_W: dict | None = None,
+    handed: bool | None = None,
+) -> dict:
     """A registration judged on ground truth: its grasps against the true control poses (`true`, X_OG by name), its
-    reconstruction against the true surface (`mesh`, in O), its initial and final pose against X_WO_true."""
+    reconstruction against the true surface (`mesh`, in O), its initial and final pose against X_WO_true.
+    grasps_W: the grasps judged where they are not the registration's (those built on the seen parts:
+    seen_part_grasps); handed: whether the pick hands them on (default: unless the fit is poor)."""
     rotation_error = pose_errors(result.X_WO, X_WO_true)[1]  # (over 90 deg: registered end for end)
     reconstructed_O = X_WO_true.inverse().multiply(result.reconstructed_W.T).T
-    errors = {name: pose_errors(result.grasp_poses_W[name], X_WO_true @ X_OG) for name, X_OG in true.items()}
+    grasps_W = grasps_W or result.grasp_poses_W
+    handed = not result.poor_fit if handed is None else handed
+    errors = {name: pose_errors(grasps_W[name], X_WO_true @ X_OG) for name, X_OG in true.items()}
     row = {
         "xyz": X_WO_true.translation().tolist(),  # where the object stood (W, m)
         "initial_translation_error_m": pose_errors(X_WO_initial, X_WO_true)[0],
@@ -105,15 +117,16 @@ def judged_row(result, X_WO_initial, X_WO_true, true: dict, mesh: trimesh.Trimes
         "rotation_error_rad": rotation_error,
         "flipped": rotation_error > np.pi / 2,
         "poor_fit": bool(result.poor_fit),
+        "handed_on": handed,
         "inlier_share": result.inlier_share,
         "grasp_support": {name: share for name, share in result.grasp_support.items()},
     }
     # Across its handle (off the true handle's axis x_G) a grasp misses; along it, it may still hold.
-    across = [handle_offsets(result.grasp_poses_W[n], X_WO_true @ true[n])[1] for n in ("left_grasp", "right_grasp")]
+    across = [handle_offsets(grasps_W[n], X_WO_true @ true[n])[1] for n in ("left_grasp", "right_grasp")]
     row["grasp_across_handle_m"] = dict(zip(("left_grasp", "right_grasp"), across, strict=True))
     row["grasp_across_handle_max_m"] = max(across)
     row["grasp_off"] = max(errors[n][0] for n in ("left_grasp", "right_grasp")) > GRASP_OFF_M
-    row["handed_on_off"] = row["grasp_off"] and not row["poor_fit"]
+    row["handed_on_off"] = row["grasp_off"] and handed
     return row
 
 

@@ -8,6 +8,7 @@ the nearest surface sample decides.
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 import trimesh
@@ -16,7 +17,10 @@ from pydrake.systems.sensors import CameraInfo
 from scipy import ndimage
 from scipy.spatial import cKDTree
 
+from diagrams.generation.objects import catalog
 from diagrams.generation.objects.instance import Part
+from diagrams.generation.objects.library import recentred
+from diagrams.generation.objects.user_mesh import read_user_mesh
 from systems.perception.parts import PartRole
 
 # Surface samples per square metre: about one per square millimetre, so the nearest sample of the part a seen
@@ -122,3 +126,35 @@ def part_image(
         _, (near_rows, near_cols) = ndimage.distance_transform_edt(image == PartRole.NONE, return_indices=True)
         image[missing] = image[near_rows[missing], near_cols[missing]]
     return image
+
+
+# m: a grasp frame's origin (on its handle's axis) this near its hand's true handle surface lies on that handle
+ON_HANDLE_M = 0.025
+
+
+def true_part_surface(object_config) -> PartSurface | None:
+    """The true part surface of a scenario's object (its ObjectConfig) in O, for judging: a generated instance's
+    parts, or a user's mesh with `<name>.parts.npz` beside it (its face roles; the mesh moved as --object-file
+    moves it); None where the parts are not known."""
+    if not object_config.file:
+        return part_surface(catalog.generate(object_config.category, object_config.instance).parts)
+    path = Path(object_config.file).expanduser()
+    roles_file = path.with_suffix(".parts.npz")
+    if path.suffix.lower() != ".obj" or not roles_file.is_file():
+        return None
+    mesh, _ = read_user_mesh(path, object_config.units, object_config.up, object_config.scale, process=False)
+    mesh.apply_translation(recentred(mesh, catalog.mean_box_centre(object_config.category)).bounds[0] - mesh.bounds[0])
+    with np.load(roles_file) as data:
+        return face_role_surface(mesh, data["face_roles"])
+
+
+def on_handles(surface: PartSurface, grasps_O: dict[str, np.ndarray]) -> dict[str, bool]:
+    """Whether each hand's grasp origin (in O, m) lies on its own handle (within ON_HANDLE_M of its part's surface):
+    {"left": ..., "right": ...}."""
+    roles = {"left": PartRole.LEFT_HANDLE, "right": PartRole.RIGHT_HANDLE}
+    on = {}
+    for hand, role in roles.items():
+        handle = surface.points_O[surface.roles == role]
+        distance = np.min(np.linalg.norm(handle - grasps_O[hand], axis=1)) if len(handle) else np.inf
+        on[hand] = bool(distance <= ON_HANDLE_M)
+    return on

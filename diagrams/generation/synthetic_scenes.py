@@ -11,7 +11,7 @@ Class ids of the label images: 0 background, then CLASSES' order.
 
 import re
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from enum import IntEnum
 from pathlib import Path
 
@@ -48,6 +48,12 @@ CROWDED_OBJECTS = 3  # at most this many objects in a frame of a crowded scene
 # wide_0..39), and those it is validated on (the wider shape space's validation range too).
 WIDE_TRAINING = tuple(f"wide_{i}" for i in range(16))
 WIDE_VALIDATION = tuple(f"wide_{i}" for i in range(100, 108))
+# The shop family's (handles in every form) members the part network learns from, and those it is validated on.
+SHOP_TRAINING = tuple(f"shop_{i}" for i in range(40))
+SHOP_VALIDATION = tuple(f"shop_{i}" for i in range(100, 120))
+# Split "parts": every family's training members, for the part network.
+PART_TRAINING = tuple(f"train_{i}" for i in range(8)) + WIDE_TRAINING + SHOP_TRAINING
+PART_VALIDATION = tuple(f"test_{i}" for i in range(3)) + WIDE_VALIDATION + SHOP_VALIDATION
 
 
 class ClutterShape(IntEnum):
@@ -67,10 +73,13 @@ class Frame:
     X_WC: RigidTransform  # the colour camera's pose
     # Ground truth of each placed object: (category, instance name, X_WO).
     objects: list[tuple[str, str, RigidTransform]]
+    # Each placed object's pixels (H x W bool each, in `objects`' order): what of it the camera sees.
+    object_masks: list[np.ndarray] = field(default_factory=list)
 
 
 def category_models(category: str, split: str, instances: Sequence[str] | None = None) -> list[tuple[str, Path]]:
-    """(name, model file) of the category's instances of a split ("train", "test", or "wide": WIDE_TRAINING), or
+    """(name, model file) of the category's instances of a split ("train", "test", "wide": WIDE_TRAINING, or
+    "parts": PART_TRAINING), or
     the named generated instances; a taught category's training models whatever the split (it has no other)."""
     if category not in catalog.CATEGORIES:
         folder = categories.category_directory(category) / "training"
@@ -82,6 +91,8 @@ def category_models(category: str, split: str, instances: Sequence[str] | None =
         names = instances
     elif split == "wide":
         names = WIDE_TRAINING
+    elif split == "parts":
+        names = PART_TRAINING
     else:
         names = [n for n in catalog.instance_names(category) if n.startswith(split)]
     return [(name, generated_instance_directory(category, name) / "model.sdf") for name in names]
@@ -288,11 +299,12 @@ class SyntheticScene:
             max_objects = CROWDED_OBJECTS
         if count is None:
             count = rng.choice(max_objects + 1, p=[0.1] + [0.9 / max_objects] * max_objects)
-        placed, occupied = [], []
+        placed, occupied, placed_bodies = [], [], []
         if placement is not None:
             category, name, yaw, xy = placement
             (body,) = [b for c, n, b in self.objects if (c, n) == (category, name)]
             placed.append((category, name, self._place_on_table(body, xy, yaw)))
+            placed_bodies.append(body)
             occupied.append(np.asarray(xy))
             count = 1
         for index in rng.permutation(len(self.objects)):
@@ -303,6 +315,7 @@ class SyntheticScene:
                 continue
             category, name, body = self.objects[index]
             placed.append((category, name, self._place_on_table(body, xy, rng.uniform(-np.pi, np.pi))))
+            placed_bodies.append(body)
             occupied.append(xy)
         centre, half = self.table_extent
         objects = list(occupied)
@@ -327,7 +340,8 @@ class SyntheticScene:
         labels = np.zeros(label_image.shape, np.uint8)
         for label, class_id in self.class_of_label.items():
             labels[label_image == label] = class_id
-        return Frame(rgb, labels, depth, X_WC, placed)
+        masks = [label_image == int(body.index()) for body in placed_bodies]
+        return Frame(rgb, labels, depth, X_WC, placed, masks)
 
     def _random_arms(self):
         """Arms near the ready pose (the hands in view, as during a pick)."""

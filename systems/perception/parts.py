@@ -4,22 +4,9 @@ A part image holds one `PartRole` per pixel. The roles are the same for every ca
 belongs to, the tool, the rest); what a role is called depends on the category (`part_name`).
 """
 
-import enum
+from systems.messages import PartRole
 
-
-class PartRole(enum.IntEnum):
-    """What a part of an object is for; the value is its id in a part image (uint8)."""
-
-    # Not the object (a part image's background).
-    NONE = 0
-    # The rest of the object: what no hand holds and no tool is.
-    BODY = 1
-    # The part the left hand's grasp lies on.
-    LEFT_HANDLE = 2
-    # The part the right hand's grasp lies on.
-    RIGHT_HANDLE = 3
-    # What the object works with: a can's spout (with its rose), a drill's chuck.
-    TOOL = 4
+__all__ = ["PartRole", "part_name"]
 
 
 # What each role is called on an object of the category (a taught category's roles go by the generic names).

@@ -34,12 +34,13 @@ from pydrake.systems.framework import LeafSystem
 from pydrake.systems.sensors import CameraInfo, ImageDepth32F
 from scipy.spatial import cKDTree
 
-from systems.messages import DepthView, ObjectEstimate, Segmentation
+from systems.messages import DepthView, ObjectEstimate, PartRole, SeenPart, Segmentation
 from systems.paths import cache_dir, save_npz_atomically
 from systems.perception.depth_cleaning import flying_pixels
 
 MIN_POSE_POINTS = 50
 MAX_OBJECT_RADIUS = 0.35  # m from the points' median: farther points are strays
+BORDER_PIXELS = 3  # a part with pixels this near the image's border was cut by it
 FIT_VOXEL_M = 0.006  # m: the points are thinned to one per voxel before fitting
 GRID_CELL = 0.004  # m: resolution of the template's nearest-point field
 MAX_FIT_POINTS = 400
@@ -330,8 +331,33 @@ class PoseEstimator(LeafSystem):
         K = self.intrinsics
         view = DepthView(depth, X_WC, (K.focal_x(), K.focal_y()), (K.center_x(), K.center_y()), segmentation.mask)
         return ObjectEstimate(
-            True, segmentation.category, X_WO, points_W, f"{len(points_W)} points", X_WC.translation(), view=view
+            True,
+            segmentation.category,
+            X_WO,
+            points_W,
+            f"{len(points_W)} points",
+            X_WC.translation(),
+            view=view,
+            parts=self.seen_parts(segmentation.parts, depth, X_WC, points_W),
         )
+
+    def seen_parts(self, parts: np.ndarray | None, depth, X_WC, points_W) -> dict[PartRole, SeenPart]:
+        """Each functional part's points in W (those of the object's points' stray-free extent), and whether the
+        image's border cut it; nothing without a part image."""
+        if parts is None:
+            return {}
+        seen = {}
+        centre = np.median(points_W, axis=0)
+        for role in (PartRole.LEFT_HANDLE, PartRole.RIGHT_HANDLE, PartRole.TOOL):
+            mask = parts == role
+            if not mask.any():
+                continue
+            part_W = X_WC.multiply(depth_to_points(depth, mask, self.intrinsics).T).T
+            part_W = part_W[np.linalg.norm(part_W - centre, axis=1) < MAX_OBJECT_RADIUS]
+            edge = BORDER_PIXELS
+            cut_off = bool(mask[:edge].any() or mask[-edge:].any() or mask[:, :edge].any() or mask[:, -edge:].any())
+            seen[role] = SeenPart(part_W, cut_off)
+        return seen
 
     def _object_points_W(self, mask, depth, X_WC) -> np.ndarray:
         """The mask's pixels with a valid depth, in W (N x 3), less far strays."""

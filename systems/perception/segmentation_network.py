@@ -135,6 +135,16 @@ def with_classes(model: RefineNetLite, num_classes: int) -> RefineNetLite:
     return widened
 
 
+def with_new_classifier(model: RefineNetLite, num_classes: int, seed: int) -> RefineNetLite:
+    """A copy of the model with a fresh classifier of num_classes (seeded): its encoder and decoder as a start for
+    another per-pixel task (the part network starts from the segmenter)."""
+    torch.manual_seed(seed)
+    copied = copy.deepcopy(model)
+    copied.classifier = nn.Conv2d(model.classifier.in_channels, num_classes, 1)
+    copied.num_classes = num_classes
+    return copied
+
+
 def resize_to_input(rgb: np.ndarray) -> np.ndarray:
     """A camera-resolution colour image (H x W x 3 or 4, uint8) at the network's INPUT_SIZE, RGB."""
     return cv2.resize(rgb[:, :, :3], INPUT_SIZE, interpolation=cv2.INTER_AREA)

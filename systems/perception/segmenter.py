@@ -19,6 +19,7 @@ from systems.paths import MODELS_DIR
 from systems.perception import segmentation_network
 from systems.perception.instances import Instance, TableView, named_object, object_instances
 from systems.perception.object_completion import completed_mask
+from systems.perception.part_segmenter import PartSegmenter
 
 DEFAULT_WEIGHTS = MODELS_DIR / "segmenter.pt"
 # The network also on the mirror image, its scores summed (see Segmenter.segment).
@@ -81,7 +82,8 @@ class Segmenter(LeafSystem):
     Inputs ``color_image`` (ImageRgba8U from the camera) and, optionally, ``depth_image`` (ImageDepth32F, m, the
     same view) and ``camera_pose`` (RigidTransform X_WB of the camera body, as the PoseEstimator's). Outputs
     ``labels`` (H x W uint8 class ids at the camera's resolution: 0 background, then ``classes``) and
-    ``segmentation`` (a Segmentation of the object to pick; its compute_s counts the network too).
+    ``segmentation`` (a Segmentation of the object to pick, with its parts where there is a part network; its
+    compute_s counts the networks too).
     Without a named category that is the dominant object, the largest region of one class (dominant_object).
     With one, it is the nearest object the network labelled that category, objects cut apart in 3D where the depth
     image and the intrinsics are given (systems/perception/instances.py: a cluttered table), and where the camera's
@@ -102,6 +104,8 @@ class Segmenter(LeafSystem):
             standing object below it (instances.TableView).
         flip: also run the network on the mirror image and sum the two score maps (test-time flip: twice the
             network's time).
+        part_segmenter: with it, the object's pixels are labelled with their functional parts too
+            (Segmentation.parts; part_segmenter.py).
 
     Raises:
         ValueError: the weights' network knows no such category.
@@ -116,8 +120,10 @@ class Segmenter(LeafSystem):
         flip: bool = TEST_TIME_FLIP,
         X_BC: RigidTransform | None = None,
         table_top_z: float | None = None,
+        part_segmenter: PartSegmenter | None = None,
     ):
         super().__init__()
+        self.part_segmenter = part_segmenter
         self.model, metadata = segmentation_network.load(weights)
         # Channels-last: the CPU's convolutions take about a third of the time (the scores the same within 1e-5)
         self.model = self.model.to(memory_format=torch.channels_last)
@@ -194,6 +200,9 @@ class Segmenter(LeafSystem):
         if self.camera_pose_port.HasValue(context):
             X_WB = self.camera_pose_port.Eval(context)
         segmentation = self.object_of(labels, depth, X_WB)
+        if segmentation.found and self.part_segmenter is not None:
+            rgb = np.asarray(self.color_image_port.Eval(context).data)
+            segmentation.parts = self.part_segmenter.parts_of(rgb, segmentation.mask)
         if segmentation.network_category and segmentation.network_category != self.category:
             logging.warning("segmentation: %s", segmentation.message)
         segmentation.compute_s = time.perf_counter() - started

@@ -5,10 +5,12 @@ import torch
 from torch.nn import functional as F
 from tqdm import tqdm
 
+from systems.perception.parts import PartRole
 from systems.perception.segmentation_network import RefineNetLite, to_input
 
 # Background pixels dominate; weigh them down so thin spouts and handles count (every object class 1.0).
 BACKGROUND_WEIGHT = 0.4
+UNKNOWN_LABEL = 255  # a pixel whose label is not known (a part of a taught category's object): no loss
 
 
 def augment(rgb: torch.Tensor, labels: torch.Tensor, generator: torch.Generator):
@@ -49,15 +51,17 @@ def fit(
     batch_size: int = 8,
     learning_rate: float = 3e-3,
     description: str = "training the segmenter",
+    class_weights: tuple[float, ...] | None = None,
 ) -> tuple[RefineNetLite, list[float]]:
     """Trains `model` (fresh, or a trained one to fine-tune: see segmentation_network.with_classes) on the
-    frames (N x H x W x 3 uint8, N x H x W class ids); returns it (eval mode) and each epoch's mean loss."""
+    frames (N x H x W x 3 uint8, N x H x W class ids); returns it (eval mode) and each epoch's mean loss.
+    class_weights: each class's weight in the loss (default: BACKGROUND_WEIGHT for class 0, 1 for the others)."""
     generator = torch.Generator().manual_seed(seed)
     num_classes = model.num_classes
     optimizer = torch.optim.AdamW(model.parameters(), lr=learning_rate, weight_decay=1e-4)
     steps = epochs * int(np.ceil(len(rgb) / batch_size))
     schedule = torch.optim.lr_scheduler.OneCycleLR(optimizer, learning_rate, total_steps=steps, pct_start=0.15)
-    weights = torch.tensor([BACKGROUND_WEIGHT] + [1.0] * (num_classes - 1))
+    weights = torch.tensor(class_weights or [BACKGROUND_WEIGHT] + [1.0] * (num_classes - 1))
     history = []
     bar = tqdm(range(epochs), unit="epoch", desc=description, dynamic_ncols=True)
     for _ in bar:
@@ -67,7 +71,7 @@ def fit(
         for first in range(0, len(order), batch_size):
             batch = order[first : first + batch_size]
             x, y = augment(to_input(rgb[batch]), torch.from_numpy(labels[batch]).long(), generator)
-            loss = F.cross_entropy(model(x), y, weight=weights)
+            loss = F.cross_entropy(model(x), y, weight=weights, ignore_index=UNKNOWN_LABEL)
             optimizer.zero_grad()
             loss.backward()
             optimizer.step()
@@ -117,3 +121,15 @@ def intersection_over_union(predicted: np.ndarray, truth: np.ndarray, num_classe
         if union:
             iou[c] = np.count_nonzero((predicted == c) & (truth == c)) / union
     return iou
+
+
+def part_iou(model: RefineNetLite, rgb: np.ndarray, parts: np.ndarray) -> dict[str, float]:
+    """{role name: IoU} of the part network's roles over the object pixels of part windows (N x S x S x 3 uint8,
+    N x S x S PartRole values; pixels of no known part, 255, left out): the roles the network gives an object
+    pixel are those of its scores without NONE, as the pick reads them (part_segmenter)."""
+    with torch.no_grad():
+        scores = torch.cat([model(to_input(rgb[i : i + 16])) for i in range(0, len(rgb), 16)]).numpy()
+    on_object = (parts != PartRole.NONE) & (parts != UNKNOWN_LABEL)
+    predicted = np.argmax(scores[:, 1:], axis=1) + 1
+    iou = intersection_over_union(predicted[on_object], parts[on_object], len(PartRole))
+    return {role.name: float(iou[role]) for role in PartRole if role != PartRole.NONE}

@@ -13,6 +13,7 @@ from systems import categories
 from systems.categories import shape_space_file, wider_shape_space_file
 from systems.messages import GraspPoses, ObjectEstimate
 from systems.shape_space.fit_judging import Registration
+from systems.shape_space.part_grasps import HAND_PARTS, grasps_on_seen_parts
 from systems.shape_space.registration import Registrar
 from systems.shape_space.space import ShapeSpace
 
@@ -32,14 +33,21 @@ class ShapeRegistrar(LeafSystem):
 
     ``estimate``: ObjectEstimate from the PoseEstimator (its points_W, category and initial X_WO).
     ``X_WO``: the refined RigidTransform (the initial one if registration was impossible or poor).
-    ``grasp_poses``: GraspPoses, the canonical control poses warped to this instance, in W; not found, with
-    the reason, when there was nothing to register or the fit is poor (Registration.poor_fit).
+    ``grasp_poses``: GraspPoses, the canonical control poses warped to this instance, in W, or, where the estimate
+    has the object's parts, built on the handles the camera saw with those as their prior (part_grasps.py); not
+    found, with the reason, when there was nothing to register, or the fit is poor (Registration.poor_fit) and
+    the parts cannot stand in for it.
     ``reconstructed_cloud_W``: N x 3 numpy array, the whole inferred shape (also the unseen side), m.
     """
 
-    def __init__(self, category_names=None):
-        """category_names: the categories to register (default: every known one, generated and taught)."""
+    def __init__(self, category_names=None, part_grasps: bool = True):
+        """Args:
+        category_names: the categories to register (default: every known one, generated and taught).
+        part_grasps: build the grasps on the handles the camera saw, where the estimate has its parts
+            (systems/shape_space/part_grasps.py); else the fit's grasps alone.
+        """
         super().__init__()
+        self.part_grasps = part_grasps
         self.registrars = {c: _registrar(c) for c in category_names or categories.known_categories()}
         self.estimate_port = self.DeclareAbstractInputPort("estimate", AbstractValue.Make(ObjectEstimate(False)))
         self._registration = self.DeclareCacheEntry(
@@ -62,18 +70,29 @@ class ShapeRegistrar(LeafSystem):
 
     def _register(self, estimate) -> "_Result":
         if not estimate.found:
-            return _Result(estimate.X_WO, None, f"nothing to register: {estimate.message}")
+            return _Result(estimate.X_WO, message=f"nothing to register: {estimate.message}")
         registrar = self.registrars.get(estimate.category)
         if registrar is None:
-            return _Result(estimate.X_WO, None, f"no shape space for category {estimate.category!r}")
+            return _Result(estimate.X_WO, message=f"no shape space for category {estimate.category!r}")
         try:
             registration = registrar.register(estimate.points_W, estimate.X_WO, estimate.viewpoint_W, estimate.view)
         except ValueError as error:
-            return _Result(estimate.X_WO, None, str(error))
-        if registration.poor_fit:  # named, not passed on: a grasp 30 cm off is worse than no grasp
-            return _Result(estimate.X_WO, None, registration.poor_fit)
+            return _Result(estimate.X_WO, message=str(error))
         fit = f"fit error {registration.fit_error_m:.4f} m, {100 * registration.inlier_share:.0f}% of the points on it"
-        return _Result(registration.X_WO, registration, fit)
+        if self.part_grasps and estimate.parts:
+            return self._on_seen_parts(estimate, registrar, registration, fit)
+        if registration.poor_fit:  # named, not passed on: a grasp 30 cm off is worse than no grasp
+            return _Result(estimate.X_WO, message=registration.poor_fit)
+        return _Result(registration.X_WO, registration.grasp_poses_W, registration.reconstructed_W, fit)
+
+    @staticmethod
+    def _on_seen_parts(estimate, registrar: Registrar, registration: Registration, fit: str) -> "_Result":
+        """The grasps built on the handles the camera saw, the fit their prior (part_grasps.py)."""
+        poses_W, message = seen_part_grasps(estimate, registrar, registration)
+        if poses_W is None:
+            return _Result(estimate.X_WO, message=message)
+        prior = f"the fit poor ({registration.poor_fit})" if registration.poor_fit else fit
+        return _Result(registration.X_WO, poses_W, registration.reconstructed_W, f"{message}; {prior}")
 
     def _result(self, context) -> "_Result":
         return self._registration.Eval(context)
@@ -83,14 +102,33 @@ class ShapeRegistrar(LeafSystem):
 
     def _calc_grasps(self, context, output):
         result = self._result(context)
-        if result.registration is None:
+        if result.grasp_poses_W is None:
             output.set_value(GraspPoses(False, message=result.message, compute_s=result.compute_s))
         else:
-            output.set_value(GraspPoses(True, result.registration.grasp_poses_W, result.message, result.compute_s))
+            output.set_value(GraspPoses(True, result.grasp_poses_W, result.message, result.compute_s))
 
     def _calc_cloud(self, context, output):
-        result = self._result(context)
-        output.set_value(np.zeros((0, 3)) if result.registration is None else result.registration.reconstructed_W)
+        output.set_value(self._result(context).reconstructed_W)
+
+
+def seen_part_grasps(
+    estimate: ObjectEstimate, registrar: Registrar, registration: Registration
+) -> tuple[dict[str, RigidTransform] | None, str]:
+    """The grasps (POSE_NAMES -> X_WG) built on the handles the camera saw (estimate.parts), the registration their
+    prior (part_grasps.py), and where each came from; None and why where they cannot be built."""
+    R_WO = registration.X_WO.rotation()
+    approaches_W = {
+        hand: R_WO.multiply(registrar.space.control_poses[f"{hand}_grasp"].rotation().col(2)) for hand in HAND_PARTS
+    }
+    grasps = grasps_on_seen_parts(
+        estimate.parts,
+        estimate.viewpoint_W,
+        registration.grasp_poses_W,
+        approaches_W,
+        prior_sound=not registration.poor_fit,
+        prior_poor=registration.poor_fit,
+    )
+    return (grasps.poses_W, grasps.summary()) if grasps.found else (None, grasps.poor)
 
 
 def _registrar(category: str) -> Registrar:
@@ -129,6 +167,7 @@ def scale_prior(category: str) -> float:
 @dataclass
 class _Result:
     X_WO: RigidTransform = field(default_factory=RigidTransform)
-    registration: Registration | None = None
+    grasp_poses_W: dict[str, RigidTransform] | None = None  # POSE_NAMES -> X_WG; None: no grasps (message says why)
+    reconstructed_W: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))  # N x 3, m
     message: str = ""
     compute_s: float = 0.0  # wall time of the registration

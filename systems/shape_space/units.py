@@ -1,4 +1,5 @@
-"""Checks that a model's or a cloud's coordinates are in metres, as every stage expects.
+"""The units of a model's or a cloud's coordinates: checked to be metres, as every stage expects, or read from
+the model's size.
 
 An object two hands pick up spans a few centimetres to a metre or so. A file written in
 millimetres spans a thousand times that: left unchecked it is accepted and fails later in
@@ -12,6 +13,19 @@ MAX_EXTENT_M = 3.0  # larger than this neither
 TYPICAL_EXTENT_M = 0.3  # where several units would do, the likeliest makes the object about this size
 # Units a file may have been written in, and what one of them is in metres.
 UNIT_SCALES = {"millimetres": 1e-3, "centimetres": 1e-2, "inches": 0.0254}
+# The units a mesh file may be given in (--mesh-units): short name, and its name in UNIT_SCALES or metres.
+UNIT_NAMES = {"m": "metres", "cm": "centimetres", "mm": "millimetres", "in": "inches"}
+# The units read from a model's size. Not inches: an inch is 2.54 cm, closer than objects differ in size (an
+# 18 cm can in centimetres is a 46 cm one in inches), so inches are only taken when given.
+DETECTED_UNITS = ("m", "cm", "mm")
+# What a user may say of a mesh file: its units and its up axis ("auto": read from the mesh).
+MESH_UNITS = ("auto", *UNIT_NAMES)
+MESH_UP_AXES = ("auto", "z", "y")
+
+
+def metres_per_unit(unit: str) -> float:
+    """One `unit` (a UNIT_NAMES key: m, cm, mm, in) in metres."""
+    return 1.0 if unit == "m" else UNIT_SCALES[UNIT_NAMES[unit]]
 
 
 def largest_extent(points: np.ndarray) -> float:
@@ -21,6 +35,25 @@ def largest_extent(points: np.ndarray) -> float:
     if len(finite) == 0:
         raise ValueError("no finite points")
     return float(np.ptp(finite, axis=0).max())
+
+
+def likely_units(extent: float) -> str:
+    """The unit (a DETECTED_UNITS entry) of coordinates whose largest extent is `extent`: metres where that is an
+    object's size in metres (MIN_EXTENT_M to MAX_EXTENT_M), else the one of centimetres and millimetres that makes
+    it one, the size nearer TYPICAL_EXTENT_M where both do (below 95 units: centimetres).
+
+    Raises:
+        ValueError: no unit makes it an object's size.
+    """
+    fits = [unit for unit in DETECTED_UNITS if MIN_EXTENT_M <= extent * metres_per_unit(unit) <= MAX_EXTENT_M]
+    if "m" in fits:
+        return "m"
+    if not fits:
+        raise ValueError(
+            f"spans {extent:.4g} units: in none of {', '.join(UNIT_NAMES[u] for u in DETECTED_UNITS)} is that an "
+            f"object two hands lift ({MIN_EXTENT_M:g}-{MAX_EXTENT_M:g} m)"
+        )
+    return min(fits, key=lambda unit: abs(np.log(extent * metres_per_unit(unit) / TYPICAL_EXTENT_M)))
 
 
 def check_metres(points: np.ndarray, what: str) -> None:

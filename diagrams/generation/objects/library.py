@@ -22,11 +22,13 @@ from pydrake.common.yaml import yaml_load_typed
 
 from diagrams.generation.objects import catalog
 from diagrams.generation.objects.instance import ObjectInfo, export_obj, object_sdf
+from diagrams.generation.objects.user_mesh import read_user_mesh
 from systems.paths import cache_dir
-from systems.shape_space.units import check_metres
 
-MESH_SUFFIXES = (".obj", ".ply", ".stl")
+MESH_SUFFIXES = (".obj", ".ply", ".stl", ".glb", ".gltf")
 MODEL_SUFFIXES = (".sdf", ".urdf")
+# m: a mesh thinner than this everywhere across (its oriented box's least extent) is a sheet, not a body to simulate
+MIN_THICKNESS_M = 0.002
 
 
 @dataclass
@@ -113,29 +115,36 @@ def _user_model(path: Path, config, yaw: float) -> ObjectModel:
         return ObjectModel(path, info, yaw)
     if suffix not in MESH_SUFFIXES:
         raise ValueError(f"unsupported object file {path.name}: use one of {MODEL_SUFFIXES + MESH_SUFFIXES}")
-    return ObjectModel(mesh_to_sdf(path, config.mass, config.scale, config.category), info, yaw)
+    sdf = mesh_to_sdf(path, config.mass, config.scale, config.category, config.units, config.up)
+    return ObjectModel(sdf, info, yaw)
 
 
-def mesh_to_sdf(path: Path, mass: float, scale: float, category: str) -> Path:
+def mesh_to_sdf(path: Path, mass: float, scale: float, category: str, units: str = "auto", up: str = "auto") -> Path:
     """Converts a mesh into a cached SDF with convex collision pieces; returns the SDF path.
 
-    The mesh is taken as z up and x along the category's functional axis (can: spout). Its
-    frame is moved onto its bottom face, with the centre of its extent where the category's
-    training instances have theirs (catalog.mean_box_centre): a scenario's object.xy then
-    puts a user's can where it puts a generated one.
+    The mesh is read in metres with z up (user_mesh.read_user_mesh: `units` and `up` detected where "auto", and
+    said), and taken as x along the category's functional axis (can: spout). Its frame is moved onto its bottom
+    face, with the centre of its extent where the category's training instances have theirs
+    (catalog.mean_box_centre): a scenario's object.xy then puts a user's can where it puts a generated one.
+
+    Raises:
+        ValueError: the file cannot be read as an object's mesh, or cannot be made convex pieces to simulate.
     """
     box_centre_xy = catalog.mean_box_centre(category)
-    key = f"{mass}:{scale}:{category}:{box_centre_xy[0]:.6f}:{box_centre_xy[1]:.6f}"
+    key = f"{mass}:{scale}:{category}:{box_centre_xy[0]:.6f}:{box_centre_xy[1]:.6f}:{units}:{up}"
     digest = hashlib.sha256(path.read_bytes() + key.encode()).hexdigest()[:16]
     directory = cache_dir() / "user_objects" / f"{path.stem}_{digest}"
     sdf_path = directory / "model.sdf"
     if sdf_path.is_file():
         return sdf_path
-    mesh = trimesh.load(path, force="mesh")
-    if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
-        raise ValueError(f"{path} holds no triangle mesh")
-    mesh.apply_scale(scale)
-    check_metres(mesh.vertices, f"{path} (scaled by {scale:g})")
+    mesh, reading = read_user_mesh(path, units, up, scale)
+    logging.info(reading.describe(path.name))
+    thickness = float(mesh.bounding_box_oriented.primitive.extents.min())
+    if thickness < MIN_THICKNESS_M:
+        raise ValueError(
+            f"{path} cannot be simulated: it is {1000 * thickness:.2g} mm thick, a sheet rather than a solid "
+            f"(at least {1000 * MIN_THICKNESS_M:g} mm)"
+        )
     mesh = recentred(mesh, box_centre_xy)
     pieces = convex_decomposition(mesh)
     com, inertia = mass_properties(mesh, pieces, mass)

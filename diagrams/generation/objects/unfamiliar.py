@@ -17,6 +17,8 @@ axis: spout or chuck), already where `--object-file` recentres a mesh, so `<name
 grasp frames and mass, for judging, never read by the pick) is in the frame the pick uses.
 """
 
+from dataclasses import replace
+
 import numpy as np
 from pydrake.common.schema import Transform
 from pydrake.math import RigidTransform
@@ -26,6 +28,8 @@ from diagrams.generation.objects import drill as drill_convention
 from diagrams.generation.objects import watering_can as can_convention
 from diagrams.generation.objects.instance import ObjectInstance, Part, make_grasp
 from diagrams.generation.objects.library import recentred
+from diagrams.generation.part_labels import PartSurface, part_surface
+from systems.messages import PartRole
 
 CAN_MASS = 0.9  # kg
 DRILL_MASS = 1.6  # kg
@@ -334,6 +338,43 @@ DESIGNS = {
     "watering_can": (jerrycan, bulb_can, slim_can, squat_can, one_loop_can, bucket_can),
     "drill": (hammer_drill, compact_drill, sloped_handle_drill, corded_drill, centre_grip_drill, round_pack_drill),
 }
+
+
+# What each named part of the designs is for (systems/messages.py's PartRole); a design's one "handle" (the can
+# whose one handle runs from the lid round to the back) belongs to both hands: each stretch of it to the hand whose
+# grasp is nearer (parts_surface).
+ROLE_BY_NAME = {
+    "top_handle": PartRole.LEFT_HANDLE,
+    "rear_handle": PartRole.RIGHT_HANDLE,
+    "spout": PartRole.TOOL,
+    "rose": PartRole.TOOL,
+    "grip": PartRole.RIGHT_HANDLE,
+    "side_handle": PartRole.LEFT_HANDLE,
+    "knob": PartRole.LEFT_HANDLE,
+    "chuck": PartRole.TOOL,
+}
+SHARED_HANDLE = "handle"
+
+
+def parts_surface(instance: ObjectInstance) -> PartSurface:
+    """The design's part surface with each sample's role (ROLE_BY_NAME, else the part's own), its one shared
+    handle split between the hands by the nearer grasp."""
+    grasps = {
+        role: instance.grasps[hand].grasp.GetDeterministicValue().translation()
+        for hand, role in (("left", PartRole.LEFT_HANDLE), ("right", PartRole.RIGHT_HANDLE))
+    }
+    pieces = []
+    for part in instance.parts:
+        if part.name != SHARED_HANDLE:
+            pieces.append(replace(part, role=ROLE_BY_NAME.get(part.name, part.role)))
+            continue
+        centres = part.mesh.triangles_center
+        nearer_left = np.linalg.norm(centres - grasps[PartRole.LEFT_HANDLE], axis=1) < np.linalg.norm(
+            centres - grasps[PartRole.RIGHT_HANDLE], axis=1
+        )
+        for role, faces in ((PartRole.LEFT_HANDLE, nearer_left), (PartRole.RIGHT_HANDLE, ~nearer_left)):
+            pieces.append(replace(part, mesh=part.mesh.submesh([np.flatnonzero(faces)], append=True), role=role))
+    return part_surface(pieces)
 
 
 def instances(category: str, split: str) -> list[ObjectInstance]:

@@ -1,0 +1,229 @@
+"""Grasp frames built on the handles the camera sees, with the shape-space fit as their prior.
+
+The part network labels the object's pixels with their functional parts (systems/messages.py's PartRole); each
+hand takes one part: the left hand the LEFT_HANDLE (a can's top handle, a drill's side handle), the right hand the
+RIGHT_HANDLE (a can's rear handle, a drill's pistol grip). For each hand, a straight tube is fitted to its part's
+points about a seed (systems/perception/tube_fit.py: axis, radius, where the points lie along it; along an arch,
+the tangent tube there), and the grasp frame G is built on it (x_G along the handle, y_G the fingers' closing
+direction, z_G the approach: the generators' convention, diagrams/generation/objects/instance.py): its origin on
+the axis; x_G the axis, turned to agree with the prior's x_G (a hand is symmetric about z_G: either way is one
+grasp); z_G the category's approach for that hand (the canonical grasp's approach in O, turned by the fitted pose
+X_WO) made perpendicular to x_G, so a top handle is taken from above whichever way it runs and a rear handle from
+behind. The pre-grasp backs off along -z_G as the prior's does.
+
+Where along the handle (the seed), and the rules between the seen part and the prior:
+- The prior is sound (the fit is not poor: Registration.poor_fit) and its grasp lies on the seen handle (within
+  PRIOR_ACROSS of the tube's axis): the grasp stays at the prior's place along the handle, moved onto the seen
+  axis. The part corrects the prior across the handle; it does not move a sound grasp along it. Where the camera
+  did not see the handle there (no seen point within FINGER_HALF_SPAN of that place, or the grasp on the seen
+  tube more than PRIOR_ACROSS from the prior's: hidden behind the body, beyond the image, or a few stray pixels
+  given the handle's role), the sound prior's grasp stands as it is.
+- The prior is poor, or its grasp is not on the seen handle: the handle's middle decides (handle_middle: halfway
+  between the ends of the part's points along their longest direction, an arch's or a D's chord, a grip's axis;
+  where the generators put a grasp, and where a hand holds).
+- The image's border cut the part (SeenPart.cut_off) and the prior is poor: the handle's middle is not seen, so
+  the prior's place along it is taken, moved into the seen stretch until the fingers' span lies on it.
+- A part not seen well (fewer than MIN_PART_POINTS, no tube of a handle's radius, a tube seen over less than
+  MIN_SEEN_LENGTH, its points more than MAX_TUBE_RMS off the tube, or an approach running along it) leaves its
+  hand to the prior, and only where the prior is sound; else the grasps are poor, and perception names why.
+"""
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+from pydrake.math import RigidTransform, RotationMatrix
+
+from systems.messages import SeenPart
+from systems.perception.parts import PartRole
+from systems.perception.tube_fit import Tube, fit_tube
+
+HAND_PARTS = {"left": PartRole.LEFT_HANDLE, "right": PartRole.RIGHT_HANDLE}
+MIN_PART_POINTS = 40  # seen points of a part, fewer: the part is not seen
+MAX_TUBE_RMS = 0.005  # m: a part's points farther from the fitted tube than this (RMS) are no handle seen well
+MIN_TUBE_POINTS = 30  # points the tube is fitted to, about the seed
+MIN_SEEN_LENGTH = 0.02  # m: a tube whose points span less than this along its axis is no handle seen well
+FINGER_HALF_SPAN = 0.03  # m: the fingers' half width along the handle (sdf/centauro/hand.sdf: 6 cm pads)
+STRETCH_MARGIN = 0.006  # m: a part's point this near the fitted tube's surface lies on its straight stretch
+PRIOR_ACROSS = 0.03  # m: a prior grasp farther than this across the seen handle's axis is not on it
+MIDDLE_BAND = 0.01  # m: a handle's middle slice, this far either side of halfway along it
+# rad: an approach within this of the handle's axis cannot close the fingers across the handle
+MAX_APPROACH_ALONG_AXIS = np.radians(20.0)
+
+
+@dataclass(frozen=True)
+class PartFit:
+    """One hand's part as seen: the tube fitted to it (None where none was found) and how many points it had."""
+
+    hand: str
+    points: int
+    tube: Tube | None = None
+    reason: str = ""  # why the part does not decide the grasp ("" where it does)
+    cut_off: bool = False  # the image's border cut the part: its place along the handle is the prior's
+
+    @property
+    def sound(self) -> bool:
+        return self.tube is not None and not self.reason
+
+
+@dataclass
+class PartGrasps:
+    """Each hand's grasp and pre-grasp (POSE_NAMES -> X_WG), where each came from, and why a hand has none."""
+
+    poses_W: dict[str, RigidTransform] = field(default_factory=dict)
+    sources: dict[str, str] = field(default_factory=dict)  # hand -> "seen part" or "shape prior"
+    fits: dict[str, PartFit] = field(default_factory=dict)
+    poor: str = ""  # why a hand has no grasp to use ("" when both have one)
+
+    @property
+    def found(self) -> bool:
+        return not self.poor
+
+    def summary(self) -> str:
+        return ", ".join(f"{hand} grasp from the {source}" for hand, source in self.sources.items())
+
+
+def handle_middle(points_W: np.ndarray) -> np.ndarray:
+    """The point of a handle's seen points (N x 3, m) in its middle: along the part's longest principal direction
+    (an arch's or a D's chord, a grip's or a bar's axis), the slice of points halfway between its ends, and of that
+    slice the point nearest its centre."""
+    centred = points_W - points_W.mean(axis=0)
+    _, vectors = np.linalg.eigh(centred.T @ centred)
+    along = centred @ vectors[:, -1]
+    low, high = np.percentile(along, [2, 98])
+    middle = 0.5 * (low + high)
+    band = points_W[np.abs(along - middle) < MIDDLE_BAND]
+    if len(band) == 0:
+        band = points_W[[np.argmin(np.abs(along - middle))]]
+    return band[np.argmin(np.linalg.norm(band - band.mean(axis=0), axis=1))]
+
+
+def fit_part(
+    hand: str, part: SeenPart | None, viewpoint_W: np.ndarray, prior_W: RigidTransform, prior_sound: bool
+) -> PartFit:
+    """The hand's part as seen, fitted as a tube, and where along it the grasp goes (PartFit.tube.point): about the
+    handle's middle (handle_middle); or, where the prior is sound and its grasp lies on the seen handle, or where
+    the image's border cut the part (its middle unseen), about the seen point nearest the prior grasp, at the
+    prior's place along the handle moved into the seen stretch until the fingers' span lies on it."""
+    points_W = np.zeros((0, 3)) if part is None else np.asarray(part.points_W, float).reshape(-1, 3)
+    points_W = points_W[np.all(np.isfinite(points_W), axis=1)]
+    count = len(points_W)
+    if count < MIN_PART_POINTS:
+        return PartFit(hand, count, reason=f"{count} points seen (at least {MIN_PART_POINTS} expected)")
+    cut_off = part.cut_off
+    tube = None
+    if prior_sound or cut_off:
+        tube = _at_prior_place(points_W, viewpoint_W, prior_W.translation(), into_seen_stretch=not prior_sound)
+        if tube is not None and prior_sound and not _sees_prior_place(points_W, tube, prior_W.translation()):
+            return PartFit(hand, count, tube, "the prior's place on the handle is not seen", cut_off)
+    if tube is None and not cut_off:
+        tube = fit_tube(points_W, viewpoint_W, handle_middle(points_W))
+    if tube is None or tube.points < MIN_TUBE_POINTS:
+        return PartFit(hand, count, tube, f"no tube of a handle's radius fits the {count} points", cut_off)
+    if tube.extent[1] - tube.extent[0] < MIN_SEEN_LENGTH:
+        reason = f"{1000 * (tube.extent[1] - tube.extent[0]):.0f} mm of it seen"
+        return PartFit(hand, count, tube, reason, cut_off)
+    if tube.rms_m > MAX_TUBE_RMS:
+        reason = f"the points lie {1000 * tube.rms_m:.1f} mm (RMS) off the fitted tube"
+        return PartFit(hand, count, tube, reason, cut_off)
+    return PartFit(hand, count, tube, cut_off=cut_off)
+
+
+def _at_prior_place(
+    points_W: np.ndarray, viewpoint_W: np.ndarray, prior: np.ndarray, into_seen_stretch: bool
+) -> Tube | None:
+    """The tube about the seen point nearest the prior grasp, its point at the prior's place along it (with
+    into_seen_stretch, moved into the seen stretch by the fingers' half span); None where no tube fits there or the
+    prior lies farther across the seen axis than PRIOR_ACROSS (then the prior's place is not on this handle)."""
+    tube = fit_tube(points_W, viewpoint_W, _nearest(points_W, prior))
+    if tube is None:
+        return None
+    along = tube.along(prior)
+    if np.linalg.norm(prior - tube.point - along * tube.axis) > PRIOR_ACROSS:
+        return None
+    if into_seen_stretch:
+        low, high = _seen_stretch(points_W, tube)
+        along = (
+            0.5 * (low + high)
+            if high - low < 2 * FINGER_HALF_SPAN
+            else np.clip(along, low + FINGER_HALF_SPAN, high - FINGER_HALF_SPAN)
+        )
+    moved = tube.point + along * tube.axis
+    tube = fit_tube(points_W, viewpoint_W, _nearest(points_W, moved)) or tube
+    return replace(tube, point=tube.point + tube.along(moved) * tube.axis)
+
+
+def _sees_prior_place(points_W: np.ndarray, tube: Tube, prior: np.ndarray) -> bool:
+    """Whether the camera saw the handle where the sound prior grasps it: the grasp on the tube lies within
+    PRIOR_ACROSS of the prior's, and a seen point within FINGER_HALF_SPAN of it."""
+    near = np.min(np.linalg.norm(points_W - tube.point, axis=1)) <= FINGER_HALF_SPAN
+    return near and np.linalg.norm(tube.point - prior) <= PRIOR_ACROSS
+
+
+def _seen_stretch(points_W: np.ndarray, tube: Tube) -> tuple[float, float]:
+    """Where along the tube's axis (from its point, m) the part's points on the tube lie (within STRETCH_MARGIN of
+    its surface; 2nd and 98th percentiles): the straight stretch seen, not only the points about the seed."""
+    offset = points_W - tube.point
+    along = offset @ tube.axis
+    across = np.linalg.norm(offset - np.outer(along, tube.axis), axis=1)
+    on_tube = np.abs(across - tube.radius) < STRETCH_MARGIN
+    if np.count_nonzero(on_tube) < MIN_TUBE_POINTS:
+        return tube.extent
+    low, high = np.percentile(along[on_tube], [2, 98])
+    return float(low), float(high)
+
+
+def _nearest(points: np.ndarray, point: np.ndarray) -> np.ndarray:
+    return points[np.argmin(np.linalg.norm(points - point, axis=1))]
+
+
+def grasp_on_tube(tube: Tube, approach_W: np.ndarray, prior_W: RigidTransform, pregrasp_m: float):
+    """(grasp X_WG, pre-grasp X_WP) on the tube, or None where the approach runs along it: origin on the axis at the
+    tube's point, x_G along the axis (the prior's way round), z_G the approach made perpendicular to the axis."""
+    x = tube.axis if np.dot(tube.axis, prior_W.rotation().col(0)) >= 0 else -tube.axis
+    a = np.asarray(approach_W, float) / np.linalg.norm(approach_W)
+    if abs(np.dot(a, x)) > np.cos(MAX_APPROACH_ALONG_AXIS):
+        return None
+    z = a - np.dot(a, x) * x
+    z /= np.linalg.norm(z)
+    X_WG = RigidTransform(RotationMatrix(np.column_stack([x, np.cross(z, x), z])), tube.point)
+    return X_WG, X_WG @ RigidTransform([0.0, 0.0, -pregrasp_m])
+
+
+def grasps_on_seen_parts(
+    parts: dict[PartRole, SeenPart],
+    viewpoint_W: np.ndarray,
+    prior_poses_W: dict[str, RigidTransform],
+    approaches_W: dict[str, np.ndarray],
+    prior_sound: bool,
+    prior_poor: str = "",
+) -> PartGrasps:
+    """Each hand's grasp on its seen part, or from the prior where the part is not seen well (module docstring).
+
+    Args:
+        parts: the object's parts as seen (by role; parts not seen may be missing).
+        viewpoint_W: the camera's position (3,), m.
+        prior_poses_W: the shape-space fit's control poses (POSE_NAMES -> X_WG).
+        approaches_W: each hand's approach direction by the category's rule (3,), in W.
+        prior_sound: whether the prior's grasps may be used alone (the fit is not poor, its grasps confirmed).
+        prior_poor: why the prior is not sound (for the message).
+    """
+    result = PartGrasps()
+    for hand, role in HAND_PARTS.items():
+        prior_grasp, prior_pregrasp = prior_poses_W[f"{hand}_grasp"], prior_poses_W[f"{hand}_pregrasp"]
+        fit = fit_part(hand, parts.get(role), viewpoint_W, prior_grasp, prior_sound)
+        grasp = None
+        if fit.sound:
+            pregrasp_m = float(np.linalg.norm(prior_grasp.translation() - prior_pregrasp.translation()))
+            grasp = grasp_on_tube(fit.tube, approaches_W[hand], prior_grasp, pregrasp_m)
+            if grasp is None:
+                fit = PartFit(hand, fit.points, fit.tube, "the approach runs along the seen handle")
+        result.fits[hand] = fit
+        if grasp is not None:
+            result.poses_W[f"{hand}_grasp"], result.poses_W[f"{hand}_pregrasp"] = grasp
+            result.sources[hand] = "seen part"
+        elif prior_sound:
+            result.poses_W[f"{hand}_grasp"], result.poses_W[f"{hand}_pregrasp"] = prior_grasp, prior_pregrasp
+            result.sources[hand] = "shape prior"
+        elif not result.poor:
+            result.poor = f"the {hand} hand's handle is not seen well ({fit.reason}), and {prior_poor or 'the prior'}"
+    return result
