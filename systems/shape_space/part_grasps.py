@@ -14,7 +14,8 @@ behind. The pre-grasp backs off along -z_G as the prior's does.
 Where along the handle (the seed), and the rules between the seen part and the prior:
 - The prior is sound (the fit is not poor: Registration.poor_fit) and its grasp lies on the seen handle (within
   PRIOR_ACROSS of the tube's axis): the grasp stays at the prior's place along the handle, moved onto the seen
-  axis. The part corrects the prior across the handle; it does not move a sound grasp along it. Where the camera
+  axis, its orientation kept (a handle's axis fitted to a partial, noisy view is less sure than a sound fit's
+  frame). The part corrects the prior across the handle; it does not move a sound grasp along it. Where the camera
   did not see the handle there (no seen point within FINGER_HALF_SPAN of that place, or the grasp on the seen
   tube more than PRIOR_ACROSS from the prior's: hidden behind the body, beyond the image, or a few stray pixels
   given the handle's role), the sound prior's grasp stands as it is.
@@ -258,7 +259,11 @@ def grasps_on_seen_parts(
         grasp = None
         if fit.sound:
             pregrasp_m = float(np.linalg.norm(prior_grasp.translation() - prior_pregrasp.translation()))
-            grasp = grasp_on_tube(fit.tube, approaches_W[hand], prior_grasp, pregrasp_m)
+            if prior_sound:  # moved across its handle onto the seen axis; the sound prior's orientation kept
+                X_WG = RigidTransform(prior_grasp.rotation(), fit.tube.point)
+                grasp = X_WG, X_WG @ RigidTransform([0.0, 0.0, -pregrasp_m])
+            else:
+                grasp = grasp_on_tube(fit.tube, approaches_W[hand], prior_grasp, pregrasp_m)
             if grasp is None:
                 fit = PartFit(hand, fit.points, fit.tube, "the approach runs along the seen handle")
         result.fits[hand] = fit
