@@ -6,7 +6,7 @@ import pytest
 from pydrake.math import RigidTransform, RotationMatrix
 
 from systems.messages import PartRole, SeenPart
-from systems.shape_space.part_grasps import FINGER_HALF_SPAN, grasps_on_seen_parts
+from systems.shape_space.part_grasps import FINGER_HALF_SPAN, grasps_on_seen_parts, turned_end_for_end
 
 VIEWPOINT = np.array([-0.6, 0.0, 1.4])
 LEFT, RIGHT = PartRole.LEFT_HANDLE, PartRole.RIGHT_HANDLE
@@ -129,3 +129,14 @@ def test_an_approach_along_the_seen_handle_does_not_use_it():
     along_rear = {"left": DOWN, "right": np.array([0.0, 0.0, 1.0])}  # up the vertical rear handle
     grasps = grasps_on_seen_parts(seen_can(rng), VIEWPOINT, prior, along_rear, prior_sound=False)
     assert not grasps.found and "approach runs along" in grasps.poor
+
+
+def test_a_fit_turned_end_for_end_is_told_by_the_seen_spout_and_rear_handle():
+    rng = np.random.default_rng(6)
+    spout = seen_tube(rng, (0.15, 0.0, 0.15), (0.25, 0.0, 0.3))
+    seen = seen_can(rng) | {PartRole.TOOL: SeenPart(spout)}
+    body = np.concatenate([seen_tube(rng, (0.0, 0.0, 0.0), (0.0, 0.0, 0.3), radius=0.1), spout])
+    prior_right = np.array([-0.18, 0.0, 0.14])  # the fit's own rear grasp, behind the centre as it should be
+    assert not turned_end_for_end(seen, body, np.array([1.0, 0.0, 0.0]), prior_right)
+    assert turned_end_for_end(seen, body, np.array([-1.0, 0.0, 0.0]), -prior_right * [1, 1, -1])  # x_O backwards
+    assert not turned_end_for_end({}, body, np.array([-1.0, 0.0, 0.0]), prior_right)  # no part seen: no word

@@ -6,14 +6,14 @@ from pathlib import Path
 
 import numpy as np
 from pydrake.common.value import AbstractValue
-from pydrake.math import RigidTransform
+from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.systems.framework import LeafSystem, ValueProducer
 
 from systems import categories
 from systems.categories import shape_space_file, wider_shape_space_file
 from systems.messages import GraspPoses, ObjectEstimate
 from systems.shape_space.fit_judging import Registration
-from systems.shape_space.part_grasps import HAND_PARTS, grasps_on_seen_parts
+from systems.shape_space.part_grasps import HAND_PARTS, grasps_on_seen_parts, turned_end_for_end
 from systems.shape_space.registration import Registrar
 from systems.shape_space.space import ShapeSpace
 
@@ -117,18 +117,20 @@ def seen_part_grasps(
     """The grasps (POSE_NAMES -> X_WG) built on the handles the camera saw (estimate.parts), the registration their
     prior (part_grasps.py), and where each came from; None and why where they cannot be built."""
     R_WO = registration.X_WO.rotation()
+    poor = registration.poor_fit
+    prior_right_W = registration.grasp_poses_W["right_grasp"].translation()
+    if turned_end_for_end(estimate.parts, estimate.points_W, R_WO.col(0), prior_right_W):
+        R_WO = RotationMatrix.MakeZRotation(np.pi) @ R_WO
+        poor = "the fit is turned end for end (the seen parts face the other way)"
     approaches_W = {
         hand: R_WO.multiply(registrar.space.control_poses[f"{hand}_grasp"].rotation().col(2)) for hand in HAND_PARTS
     }
     grasps = grasps_on_seen_parts(
-        estimate.parts,
-        estimate.viewpoint_W,
-        registration.grasp_poses_W,
-        approaches_W,
-        prior_sound=not registration.poor_fit,
-        prior_poor=registration.poor_fit,
+        estimate.parts, estimate.viewpoint_W, registration.grasp_poses_W, approaches_W, not poor, poor
     )
-    return (grasps.poses_W, grasps.summary()) if grasps.found else (None, grasps.poor)
+    if not grasps.found:
+        return None, grasps.poor
+    return grasps.poses_W, grasps.summary() + (f" ({poor})" if poor and not registration.poor_fit else "")
 
 
 def _registrar(category: str) -> Registrar:

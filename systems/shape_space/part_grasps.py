@@ -14,7 +14,8 @@ behind. The pre-grasp backs off along -z_G as the prior's does.
 Where along the handle (the seed), and the rules between the seen part and the prior:
 - The prior is sound (the fit is not poor: Registration.poor_fit) and its grasp lies on the seen handle (within
   PRIOR_ACROSS of the tube's axis): the grasp stays at the prior's place along the handle, moved onto the seen
-  axis. The part corrects the prior across the handle; it does not move a sound grasp along it. Where the camera
+  axis, its orientation kept (a handle's axis fitted to a partial, noisy view is less sure than a sound fit's
+  frame). The part corrects the prior across the handle; it does not move a sound grasp along it. Where the camera
   did not see the handle there (no seen point within FINGER_HALF_SPAN of that place, or the grasp on the seen
   tube more than PRIOR_ACROSS from the prior's: hidden behind the body, beyond the image, or a few stray pixels
   given the handle's role), the sound prior's grasp stands as it is.
@@ -23,6 +24,8 @@ Where along the handle (the seed), and the rules between the seen part and the p
   where the generators put a grasp, and where a hand holds).
 - The image's border cut the part (SeenPart.cut_off) and the prior is poor: the handle's middle is not seen, so
   the prior's place along it is taken, moved into the seen stretch until the fingers' span lies on it.
+- A fit turned end for end (the seen spout or chuck lies behind it, or the rear handle ahead: turned_end_for_end)
+  is a poor prior, and the approaches are turned back with it (half a turn about the vertical).
 - A part not seen well (fewer than MIN_PART_POINTS, no tube of a handle's radius, a tube seen over less than
   MIN_SEEN_LENGTH, its points more than MAX_TUBE_RMS off the tube, or an approach running along it) leaves its
   hand to the prior, and only where the prior is sound; else the grasps are poor, and perception names why.
@@ -41,11 +44,13 @@ HAND_PARTS = {"left": PartRole.LEFT_HANDLE, "right": PartRole.RIGHT_HANDLE}
 MIN_PART_POINTS = 40  # seen points of a part, fewer: the part is not seen
 MAX_TUBE_RMS = 0.005  # m: a part's points farther from the fitted tube than this (RMS) are no handle seen well
 MIN_TUBE_POINTS = 30  # points the tube is fitted to, about the seed
+SIDE_M = 0.03  # m: a part this far ahead of or behind the object's centre says which way the object faces
 MIN_SEEN_LENGTH = 0.02  # m: a tube whose points span less than this along its axis is no handle seen well
 FINGER_HALF_SPAN = 0.03  # m: the fingers' half width along the handle (sdf/centauro/hand.sdf: 6 cm pads)
 STRETCH_MARGIN = 0.006  # m: a part's point this near the fitted tube's surface lies on its straight stretch
 PRIOR_ACROSS = 0.03  # m: a prior grasp farther than this across the seen handle's axis is not on it
 MIDDLE_BAND = 0.01  # m: a handle's middle slice, this far either side of halfway along it
+MIDDLE_STEPS = (0.015, -0.015, 0.03, -0.03)  # m along the part, where to try when no tube fits at its middle
 # rad: an approach within this of the handle's axis cannot close the fingers across the handle
 MAX_APPROACH_ALONG_AXIS = np.radians(20.0)
 
@@ -116,7 +121,7 @@ def fit_part(
         if tube is not None and prior_sound and not _sees_prior_place(points_W, tube, prior_W.translation()):
             return PartFit(hand, count, tube, "the prior's place on the handle is not seen", cut_off)
     if tube is None and not cut_off:
-        tube = fit_tube(points_W, viewpoint_W, handle_middle(points_W))
+        tube = _tube_near_middle(points_W, viewpoint_W)
     if tube is None or tube.points < MIN_TUBE_POINTS:
         return PartFit(hand, count, tube, f"no tube of a handle's radius fits the {count} points", cut_off)
     if tube.extent[1] - tube.extent[0] < MIN_SEEN_LENGTH:
@@ -152,6 +157,20 @@ def _at_prior_place(
     return replace(tube, point=tube.point + tube.along(moved) * tube.axis)
 
 
+def _tube_near_middle(points_W: np.ndarray, viewpoint_W: np.ndarray) -> Tube | None:
+    """The tube about the handle's middle (handle_middle) or, where none fits there (a few of the body's pixels
+    given the handle's role can leave the middle on the body), about the nearest of the points MIDDLE_STEPS along
+    the part's longest direction from it that gives one of a handle's radius, seen well."""
+    middle = handle_middle(points_W)
+    centred = points_W - points_W.mean(axis=0)
+    longest = np.linalg.eigh(centred.T @ centred)[1][:, -1]
+    for step in (0.0, *MIDDLE_STEPS):
+        tube = fit_tube(points_W, viewpoint_W, _nearest(points_W, middle + step * longest))
+        if tube is not None and tube.points >= MIN_TUBE_POINTS and tube.rms_m <= MAX_TUBE_RMS:
+            return tube
+    return fit_tube(points_W, viewpoint_W, middle)
+
+
 def _sees_prior_place(points_W: np.ndarray, tube: Tube, prior: np.ndarray) -> bool:
     """Whether the camera saw the handle where the sound prior grasps it: the grasp on the tube lies within
     PRIOR_ACROSS of the prior's, and a seen point within FINGER_HALF_SPAN of it."""
@@ -174,6 +193,32 @@ def _seen_stretch(points_W: np.ndarray, tube: Tube) -> tuple[float, float]:
 
 def _nearest(points: np.ndarray, point: np.ndarray) -> np.ndarray:
     return points[np.argmin(np.linalg.norm(points - point, axis=1))]
+
+
+def turned_end_for_end(
+    parts: dict[PartRole, SeenPart], points_W: np.ndarray, x_WO: np.ndarray, prior_right_W: np.ndarray
+) -> bool:
+    """Whether the seen parts say a fitted pose whose x axis is x_WO is turned end for end. Along x_WO's horizontal
+    part, from the seen points' centre: the tool (a can's spout, a drill's chuck) lies ahead in every category's
+    frame, and the right hand's handle on the side the fit's own right grasp (prior_right_W) lies. Each part seen
+    well (MIN_PART_POINTS) and more than SIDE_M from the centre votes; turned where more vote against the fit."""
+    forward = np.array([x_WO[0], x_WO[1], 0.0])
+    if np.linalg.norm(forward) < 0.5:
+        return False
+    forward /= np.linalg.norm(forward)
+    centre = np.median(points_W, axis=0)
+    expected_right = (np.asarray(prior_right_W) - centre) @ forward
+    expected = {PartRole.TOOL: 1.0, PartRole.RIGHT_HANDLE: np.sign(expected_right) * (abs(expected_right) > SIDE_M)}
+    votes = 0.0
+    for role, sign in expected.items():
+        part = parts.get(role)
+        seen_W = np.zeros((0, 3)) if part is None else np.asarray(part.points_W, float).reshape(-1, 3)
+        if len(seen_W) < MIN_PART_POINTS or not sign:
+            continue
+        side = (np.median(seen_W, axis=0) - centre) @ forward
+        if abs(side) > SIDE_M:
+            votes += np.sign(side) * sign
+    return bool(votes < 0)
 
 
 def grasp_on_tube(tube: Tube, approach_W: np.ndarray, prior_W: RigidTransform, pregrasp_m: float):
@@ -214,7 +259,11 @@ def grasps_on_seen_parts(
         grasp = None
         if fit.sound:
             pregrasp_m = float(np.linalg.norm(prior_grasp.translation() - prior_pregrasp.translation()))
-            grasp = grasp_on_tube(fit.tube, approaches_W[hand], prior_grasp, pregrasp_m)
+            if prior_sound:  # moved across its handle onto the seen axis; the sound prior's orientation kept
+                X_WG = RigidTransform(prior_grasp.rotation(), fit.tube.point)
+                grasp = X_WG, X_WG @ RigidTransform([0.0, 0.0, -pregrasp_m])
+            else:
+                grasp = grasp_on_tube(fit.tube, approaches_W[hand], prior_grasp, pregrasp_m)
             if grasp is None:
                 fit = PartFit(hand, fit.points, fit.tube, "the approach runs along the seen handle")
         result.fits[hand] = fit
