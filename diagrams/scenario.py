@@ -219,8 +219,9 @@ class Scenario:
     # Before the approach, look at the object again (the object tracker) and, where it moved since it was seen,
     # reach for it where it is now.
     look_before_approach: bool = True
-    # Build each hand's grasp on the handle the camera sees (the part network's parts, a tube fitted to each; the
-    # shape-space fit their prior: systems/shape_space/part_grasps.py); false: the shape-space fit's grasps alone.
+    # Where the shape-space fit is poor, build each hand's grasp on the handle the camera sees (the part network's
+    # parts, a tube fitted to each; the fit their prior: systems/shape_space/part_grasps.py); false: a poor fit
+    # is refused, as before part perception.
     part_grasps: bool = True
     # The category the user names for the object to pick (pick.py --object): perception registers the object to
     # it and reports what the segmenter's network made of it; "": the network's classes decide.

@@ -41,10 +41,10 @@ def pick_frame_trials(
     """One row per pick of evaluate.py's campaign (make_trials: every object at every yaw, `trials` each, pick n
     with the seed base.random_seed + n): the registration of the first frame the autonomous pick itself takes
     (the station's camera and sensor model, the segmenter's mask, the pose estimator, the paper's registration
-    yaw noise), without running the pick past it; with part_grasps, where the frame has the object's parts, the
-    grasps judged are those the pick builds on them (ShapeRegistrar's). objects: evaluate.py's (file_objects, or
-    instances). A frame in which perception finds no object is a row with "found": False and the reason (the pick
-    would stop there)."""
+    yaw noise), without running the pick past it; with part_grasps, where the fit is poor and the frame has the
+    object's parts, the grasps judged are those the pick builds on them (ShapeRegistrar's). objects: evaluate.py's
+    (file_objects, or instances). A frame in which perception finds no object is a row with "found": False and the
+    reason (the pick would stop there)."""
     # The pick registers the object to the category perception gives it (the network's, or the one the user named).
     registrars = {c: registrar_of(c, *space_files(c, space_dir), part_prior=part_prior) for c in catalog.CATEGORIES}
     rows, meshes = [], {}
@@ -77,7 +77,7 @@ def pick_frame_trials(
         )
         seconds = time.perf_counter() - start
         grasps_W, handed = None, None
-        if part_grasps and estimate.parts:
+        if part_grasps and estimate.parts and result.poor_fit:
             grasps_W, message = seen_part_grasps(estimate, registrars[estimate.category], result)
             handed = grasps_W is not None
             logging.info("   on the seen parts: %s", message)

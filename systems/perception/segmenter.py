@@ -200,7 +200,10 @@ class Segmenter(LeafSystem):
         if self.camera_pose_port.HasValue(context):
             X_WB = self.camera_pose_port.Eval(context)
         segmentation = self.object_of(labels, depth, X_WB)
-        if segmentation.found and self.part_segmenter is not None:
+        # The parts of an object the network took for another category than the one named would be that other
+        # category's parts given this one's roles: the named category's shape alone must explain it.
+        agreed = segmentation.network_category in ("", segmentation.category)
+        if segmentation.found and self.part_segmenter is not None and agreed:
             rgb = np.asarray(self.color_image_port.Eval(context).data)
             segmentation.parts = self.part_segmenter.parts_of(rgb, segmentation.mask)
         if segmentation.network_category and segmentation.network_category != self.category:
