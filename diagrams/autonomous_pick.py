@@ -24,13 +24,13 @@ from pydrake.math import RigidTransform
 from pydrake.systems.framework import Diagram, DiagramBuilder
 
 from diagrams.generation.objects.library import resolve_object
-from diagrams.generation.part_labels import PartSurface, on_handles, true_part_surface
+from diagrams.generation.part_labels import on_handles, true_part_surface
 from diagrams.hardware_station import MakeHardwareStation
 from diagrams.perception import MakeGroundTruthPerception, MakeObjectTracker, MakePerception, latch_offset
 from diagrams.pick_simulation import PickOutcome, PlaceJudge, pose_error, simulate_pick, station_plant
 from diagrams.planning_scene import make_planning_world
 from diagrams.robot_driver import MakeRobotDriver
-from diagrams.scenario import Scenario
+from diagrams.scenario import ObjectConfig, Scenario
 from diagrams.station import HAND_INSTANCES, MakeStation, place_target
 from systems.messages import GraspPoses, Mode, PickStatus
 from systems.perception.camera_latch import CameraLatch
@@ -289,8 +289,7 @@ def run_pick(
         plant = station_plant(diagram.GetSubsystemByName("robot_driver"))
     else:
         raise ValueError(f"unknown backend {backend!r}: sim or lcm-memq")
-    truth = true_part_surface(scenario.object) if scenario.object.present else None
-    watch = PickWatcher(pick, true_grasps_O(scenario), truth)
+    watch = PickWatcher(pick, true_grasps_O(scenario), scenario.object if scenario.object.present else None)
 
     def mode_of(context):
         return watch.status(context).mode
@@ -332,13 +331,13 @@ class PickWatcher:
         self,
         pick: Diagram,
         true_grasps_O: dict[str, RigidTransform] | None = None,
-        true_parts: PartSurface | None = None,
+        judged_object: ObjectConfig | None = None,
     ):
         """true_grasps_O: the object's true control poses in O, where known: the perceived grasps are judged on them
-        (the outcome's perception["grasp_errors_m"]); true_parts: its true part surface in O, where known: whether
-        each grasp lay on its own handle (perception["grasps_on_handles"])."""
+        (the outcome's perception["grasp_errors_m"]); judged_object: the object, whose true parts (where known) say
+        whether each grasp lay on its own handle (perception["grasps_on_handles"]; read only once grasps exist)."""
         self.pick, self.mode = pick, ""
-        self.true_grasps_O, self.true_parts = true_grasps_O, true_parts
+        self.true_grasps_O, self.judged_object = true_grasps_O, judged_object
 
     def status(self, context) -> PickStatus:
         return pick_status(self.pick, context)
@@ -371,10 +370,13 @@ class PickWatcher:
                 outcome.perception["grasp_errors_m"] = grasp_errors(
                     report.grasps.poses_W, outcome.object_rest_W, self.true_grasps_O
                 )
-            if report.grasps.found and self.true_parts is not None and outcome.object_rest_W is not None:
+            truth = None
+            if report.grasps.found and self.judged_object is not None and outcome.object_rest_W is not None:
+                truth = true_part_surface(self.judged_object)
+            if truth is not None:
                 X_OW = outcome.object_rest_W.inverse()
                 grasps_O = {h: (X_OW @ report.grasps.poses_W[f"{h}_grasp"]).translation() for h in ("left", "right")}
-                outcome.perception["grasps_on_handles"] = on_handles(self.true_parts, grasps_O)
+                outcome.perception["grasps_on_handles"] = on_handles(truth, grasps_O)
         outcome.attempts_made, outcome.attempt_failures = status.attempt, attempt_failures(status)
         if outcome.place:
             outcome.place["corrections"] = status.place_corrections  # in the last attempt: set down again
