@@ -4,8 +4,9 @@ python scripts/add_category.py --folder my_pots/ --poses my_pots/poses.yaml --na
 python scripts/pick.py --object pot --object-file new_pot.obj                 # then pick an unseen one
 python scripts/evaluate.py --category pot --object-files pots/test/*.obj --trials 1
 
-The folder and the poses file are build_shape_space.py's (meshes or point clouds in metres, sharing one
-upright frame; the poses YAML names the canonical model and its control poses). The steps:
+The folder and the poses file are build_shape_space.py's (meshes or point clouds sharing one frame, in
+metres, centimetres or millimetres, z or y up: read and said, or given by --mesh-units / --mesh-up; the poses
+YAML names the canonical model and its control poses, in its file's frame and units). The steps:
 
   1. the models are read and checked (units, frames); the category's frame O is the folder's frame moved
      so that the canonical model's bottom face is at z = 0 and its extent centred on x = y = 0;
@@ -28,7 +29,7 @@ from pathlib import Path
 
 import torch
 
-from diagrams.cli import add_sensor_option
+from diagrams.cli import add_mesh_options, add_sensor_option
 from diagrams.generation.teaching import check_name, teach_category
 from systems.shape_space.space import ALIGNMENTS
 
@@ -55,6 +56,7 @@ def parse_args(argv=None):
     )  # fmt: skip
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--threads", type=int, default=2, help="torch CPU threads")
+    add_mesh_options(parser)
     add_sensor_option(parser)
     args = parser.parse_args(argv)
     try:

@@ -5,14 +5,15 @@ python scripts/build_shape_space.py --category drill --extra 8       # only 8 mo
 python scripts/build_shape_space.py --folder my_cans/ --poses my_cans/poses.yaml --category my_cans
 python scripts/build_shape_space.py --folder scans/ --poses scans/poses.yaml --category my_drills --align vertical
 
-A folder holds one model per file: meshes (.obj, .ply, .stl; surface-sampled) or point
-clouds (.ply, .pcd), in metres (a model 1000 times too large is an error naming the unit).
-The models are taken as sharing one upright frame (z up), kept as it is; --align vertical
+A folder holds one model per file: meshes (.obj, .ply, .stl, .glb; surface-sampled) or point
+clouds (.ply, .pcd), in metres, centimetres or millimetres, z up or y up: read from the canonical
+model (its size, and the face it stands on) and said, or given (--mesh-units, --mesh-up).
+The models are taken as sharing one upright frame, kept as it is; --align vertical
 turns each about z and shifts it in x, y onto the canonical model, bottom on bottom;
 --align rigid moves each freely in 3D. A canonical model of fewer than 4000 points (a
 sparse scan) is densified (a Poisson surface, kept near the scan): it is the surface every
 reconstruction warps. The poses YAML names the canonical model and its control poses
-in that model's frame (metres, degrees):
+in that model's file's frame and units (degrees):
 
   canonical: can_a.obj
   poses:
@@ -41,6 +42,7 @@ import logging
 import time
 from pathlib import Path
 
+from diagrams.cli import add_mesh_options
 from diagrams.generation.objects.clouds import generated_instances
 from diagrams.paths import MODELS_DIR
 from systems.shape_space.drawing import draw_space
@@ -77,6 +79,7 @@ def main():
         action="store_true",
         help="plain CPD fields carry the canonical poses: other models' poses are neither used nor propagated",
     )
+    add_mesh_options(parser)
     parser.add_argument(
         "--out", type=Path, help="default: models/shape_space_<category>.npz (and a figure of it beside, .png)"
     )
@@ -97,6 +100,8 @@ def main():
             args.align,
             landmarks=not args.no_landmarks,
             scaled_copies=args.scaled_copies,
+            units=args.mesh_units or "auto",
+            up=args.mesh_up or "auto",
         )
     else:
         clouds, poses = generated_instances(args.category, args.extra, args.wide)

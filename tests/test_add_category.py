@@ -21,6 +21,7 @@ from systems import categories
 from systems.perception import segmentation_network
 from systems.perception.pose_estimator import folded_yaw
 from systems.perception.shape_registrar import ShapeRegistrar
+from systems.shape_space.file_frame import Y_UP_TO_Z_UP
 from systems.shape_space.registration import Registrar
 from systems.shape_space.space import ShapeSpace
 
@@ -126,8 +127,9 @@ def test_a_bad_category_name_is_refused(name):
 
 @pytest.mark.slow
 def test_a_point_cloud_canonical_model_gets_a_surface_in_the_categorys_frame(tmp_path):
-    """A folder whose canonical model is a scan (a .pcd point cloud, lifted 5 cm off its frame's origin): the
-    template is a reconstructed surface standing on z = 0 of O, centred on its extent."""
+    """A folder whose canonical model is a scan (a .pcd point cloud, lifted 5 cm off its frame's origin), all of it
+    in millimetres with y up: the folder is read in metres, z up; the template is a reconstructed surface standing
+    on z = 0 of O, centred on its extent; the poses are turned with it."""
     import argparse
 
     import open3d as o3d
@@ -138,28 +140,38 @@ def test_a_point_cloud_canonical_model_gets_a_surface_in_the_categorys_frame(tmp
 
     folder = tmp_path / "pots"
     folder.mkdir()
+    X_FM = RigidTransform(RotationMatrix(Y_UP_TO_Z_UP.T), np.zeros(3))  # the files are y up, in millimetres
     for i in range(3):
         instance = build(f"pot_{i}", sample_parameters(np.random.default_rng([5, i])))
         mesh = instance.visual_mesh()
         mesh.apply_translation([0.0, 0.0, 0.05])
         if i == 0:
             points, _ = trimesh.sample.sample_surface_even(mesh, 3000, seed=0)
+            points = 1000.0 * X_FM.multiply(points.T).T
             o3d.io.write_point_cloud(
                 str(folder / "pot_0.pcd"), o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points))
             )
-            poses = {n: RigidTransform([0.0, 0.0, 0.05]) @ X for n, X in instance.info().control_poses().items()}
+            poses = {n: X_FM @ RigidTransform([0.0, 0.0, 0.05]) @ X for n, X in instance.info().control_poses().items()}
+            poses = {n: RigidTransform(X.rotation(), 1000.0 * X.translation()) for n, X in poses.items()}
             spec = {"canonical": "pot_0.pcd", "poses": pose_entries(poses)}
             (folder / "poses.yaml").write_text(yaml.safe_dump(spec))
         else:
+            mesh.apply_transform(1000.0 * X_FM.GetAsMatrix4())
             mesh.export(folder / f"pot_{i}.obj")
     args = argparse.Namespace(
         folder=folder, poses=folder / "poses.yaml", name="pot", components=2, align="none", presentation_yaw=0.0,
-        symmetric=True,
+        symmetric=True, mesh_units=None, mesh_up=None,
     )  # fmt: skip
     record = teaching.write_models(args, tmp_path)
     assert record.models == ["pot_0.pcd", "pot_1.obj", "pot_2.obj"] and record.annotated_models == 1
     lo, hi = trimesh.load(tmp_path / "template.obj", force="mesh").bounds
-    np.testing.assert_allclose([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]], 0.0, atol=5e-3)
+    # The Poisson surface through the scan bulges past its points by a few mm (5.1 mm in y here).
+    np.testing.assert_allclose([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]], 0.0, atol=6e-3)
+    pot = build("pot_0", sample_parameters(np.random.default_rng([5, 0])))
+    np.testing.assert_allclose(hi - lo, pot.visual_mesh().extents, atol=0.02)  # metres, z up (a Poisson surface)
+    grasp, true = ShapeSpace.load(tmp_path / "shape_space.npz").control_poses["left_grasp"], pot.info().control_poses()
+    np.testing.assert_allclose(grasp.rotation().matrix(), true["left_grasp"].rotation().matrix(), atol=1e-6)  # turned
+    assert grasp.translation()[2] == pytest.approx(true["left_grasp"].translation()[2], abs=5e-3)
     assert len(list((tmp_path / "training").glob("*.sdf"))) == 3
 
 

@@ -14,6 +14,7 @@ from pydrake.math import RigidTransform, RotationMatrix
 from diagrams.generation.objects import catalog
 from diagrams.generation.objects.library import load_info
 from systems.shape_space import folder as folder_tools
+from systems.shape_space.file_frame import Y_UP_TO_Z_UP
 from systems.shape_space.folder import FOLDER_SCALED_COPIES, folder_copies, pose_entries
 from systems.shape_space.registration import Registrar
 from systems.shape_space.space import ShapeSpace
@@ -108,15 +109,28 @@ def test_a_folder_with_bad_poses_gives_clear_errors(folder, tmp_path):
     assert run.returncode != 0 and "not a folder" in run.stderr
 
 
-def test_a_folder_in_millimetres_is_rejected_with_the_unit_named(folder, tmp_path):
+def test_a_folder_in_millimetres_with_y_up_is_read_in_metres_z_up(folder, tmp_path):
+    """Two cans as a glTF user has them (millimetres, y up; the poses file in the same frame and units): read back as
+    the metres, z-up models and poses they were, and said; told they are metres, the error names the unit."""
     models, poses = folder
-    millimetres = tmp_path / "mm"
-    millimetres.mkdir()
+    files = tmp_path / "mm"
+    files.mkdir()
+    X_FM = RigidTransform(RotationMatrix(Y_UP_TO_Z_UP.T), np.zeros(3))  # the files' frame F: y up
     for name in ("train_0.obj", "train_1.obj"):
         mesh = trimesh.load(models / name, force="mesh")
-        mesh.apply_scale(1000.0)
-        mesh.export(millimetres / name)
-    run = build(millimetres, {"canonical": "train_0.obj", "poses": pose_entries(poses["train_0.obj"])}, tmp_path)
+        mesh.apply_transform(1000.0 * X_FM.GetAsMatrix4())
+        mesh.export(files / name)
+    in_file = {n: X_FM @ X for n, X in poses["train_0.obj"].items()}
+    in_file = {n: RigidTransform(X.rotation(), 1000.0 * X.translation()) for n, X in in_file.items()}
+    (tmp_path / "poses.yaml").write_text(yaml.safe_dump({"canonical": "train_0.obj", "poses": pose_entries(in_file)}))
+    read = folder_tools.folder_instances(files, tmp_path / "poses.yaml")
+    assert (read.reading.units, read.reading.up) == ("mm", "y")
+    for name in ("train_0.obj", "train_1.obj"):
+        np.testing.assert_allclose(read.clouds[name], folder_tools.load_model_points(models / name), atol=1e-6)
+    for name, X in poses["train_0.obj"].items():
+        np.testing.assert_allclose(read.poses["train_0.obj"][name].GetAsMatrix4(), X.GetAsMatrix4(), atol=1e-9)
+    spec = {"canonical": "train_0.obj", "poses": pose_entries(in_file)}
+    run = build(files, spec, tmp_path, "--mesh-units", "m")
     assert run.returncode != 0
     assert "millimetres" in run.stderr and "scale it by 0.001" in run.stderr, run.stderr
 

@@ -7,8 +7,9 @@ from scipy.spatial import Delaunay
 
 from diagrams.generation.objects import catalog
 from diagrams.generation.objects.library import load_info, resolve_object, written_whole
-from diagrams.generation.objects.user_mesh import Y_UP_TO_Z_UP, read_user_mesh
+from diagrams.generation.objects.user_mesh import read_user_mesh
 from diagrams.scenario import ObjectConfig
+from systems.shape_space.file_frame import Y_UP_TO_Z_UP
 
 INSTANCES = [(c, n) for c in sorted(catalog.CATEGORIES) for n in catalog.instance_names(c)]
 # A few of the wider and the shop families (on demand, not committed): the same checks of shape, grasps and stance.

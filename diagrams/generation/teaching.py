@@ -1,8 +1,9 @@
 """Teaches the robot a new familiar category from a folder of the user's models, one of them annotated
 (scripts/add_category.py).
 
-The folder and the poses file are build_shape_space.py's (meshes or point clouds in metres, sharing one
-upright frame; the poses YAML names the canonical model and its control poses). The steps:
+The folder and the poses file are build_shape_space.py's (meshes or point clouds sharing one frame, in
+metres, centimetres or millimetres, z or y up: read and said, or given by --mesh-units / --mesh-up; the poses
+YAML names the canonical model and its control poses, in its file's frame and units). The steps:
 
   1. the models are read and checked (units, frames); the category's frame O is the folder's frame moved
      so that the canonical model's bottom face is at z = 0 and its extent centred on x = y = 0;
@@ -40,6 +41,7 @@ from systems import categories
 from systems.perception import segmentation_network, segmenter_training
 from systems.shape_space.densify import surface_mesh
 from systems.shape_space.drawing import draw_space
+from systems.shape_space.file_frame import FileReading
 from systems.shape_space.folder import folder_instances, frame_warnings
 from systems.shape_space.space import build_shape_space
 
@@ -54,11 +56,13 @@ def check_name(name: str) -> None:
         raise ValueError(f"--name {name!r} is taken by a built-in class")
 
 
-def model_mesh(path: Path, points: np.ndarray) -> trimesh.Trimesh:
-    """The file's triangle mesh, or a Poisson surface through its points where it is a point cloud."""
+def model_mesh(path: Path, points: np.ndarray, reading: FileReading) -> trimesh.Trimesh:
+    """The file's triangle mesh read as `reading` says (metres, z up), or a Poisson surface through its points
+    (already so) where it is a point cloud."""
     if path.suffix.lower() != ".pcd":
         mesh = trimesh.load(path, force="mesh")
         if isinstance(mesh, trimesh.Trimesh) and len(mesh.faces):
+            mesh.apply_transform(reading.matrix())
             return mesh
     logging.info("%s is a point cloud: its surface is reconstructed for rendering", path.name)
     return surface_mesh(points)
@@ -76,7 +80,7 @@ def visual_sdf(mesh: trimesh.Trimesh, directory: Path, name: str) -> Path:
 
 def write_models(args, directory: Path):
     """Steps 1-3: the category's shape space, template and training models in `directory`; its record."""
-    models = folder_instances(args.folder, args.poses)
+    models = folder_instances(args.folder, args.poses, args.mesh_units or "auto", args.mesh_up or "auto")
     clouds, poses, canonical = models.clouds, models.poses, models.canonical
     if args.align == "none":
         for warning in frame_warnings(clouds, canonical):
@@ -96,7 +100,7 @@ def write_models(args, directory: Path):
     (directory / "training").mkdir()
     for name in sorted(clouds):
         path = args.folder / name
-        mesh = model_mesh(path, folder_clouds[name])  # in the folder's frame
+        mesh = model_mesh(path, folder_clouds[name], models.reading)  # in the folder's frame, metres
         if name == canonical:
             template = mesh.copy()
             template.apply_transform(X_OF.GetAsMatrix4())

@@ -1,14 +1,15 @@
 """A category's latent shape space from a user's folder of models (scripts/build_shape_space.py --folder,
 scripts/add_category.py): reading and checking the models and their poses file, then build_shape_space.
 
-A folder holds one model per file: meshes (.obj, .ply, .stl; surface-sampled) or point
-clouds (.ply, .pcd), in metres (a model 1000 times too large is an error naming the unit).
-The models are taken as sharing one upright frame (z up), kept as it is; --align vertical
+A folder holds one model per file: meshes (.obj, .ply, .stl, .glb; surface-sampled) or point
+clouds (.ply, .pcd), in metres, centimetres or millimetres, z up or y up: read from the canonical
+model (file_frame.py: its size, and the face it stands on) and said, or given (units, up).
+The models are taken as sharing one upright frame, kept as it is; --align vertical
 turns each about z and shifts it in x, y onto the canonical model, bottom on bottom;
 --align rigid moves each freely in 3D. A canonical model of fewer than 4000 points (a
 sparse scan) is densified (a Poisson surface, kept near the scan): it is the surface every
 reconstruction warps. The poses YAML names the canonical model and its control poses
-in that model's frame (metres, degrees):
+in that model's file's frame and units (degrees):
 
   canonical: can_a.obj
   poses:
@@ -40,15 +41,16 @@ import numpy as np
 import open3d as o3d
 import trimesh
 import yaml
-from pydrake.math import RigidTransform, RollPitchYaw
+from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 
 from systems.perception.shape_registrar import scale_prior
 from systems.shape_space.densify import densified
+from systems.shape_space.file_frame import FileReading, read_file_frame
 from systems.shape_space.space import POSE_NAMES, build_shape_space
-from systems.shape_space.units import check_metres
+from systems.shape_space.units import UNIT_NAMES, check_metres, metres_per_unit
 
 CLOUD_POINTS = 8000  # per model: all of them for the canonical surface, a thinned 2000 as CPD's target
-MESH_SUFFIXES = {".obj", ".stl", ".ply"}
+MESH_SUFFIXES = {".obj", ".stl", ".ply", ".glb", ".gltf"}
 CLOUD_SUFFIXES = {".pcd", ".ply"}
 # A canonical model with fewer points than this (a sparse scan) is densified: its points are the surface
 # every reconstruction warps.
@@ -70,9 +72,9 @@ def sample_mesh(path: Path, count: int = CLOUD_POINTS) -> np.ndarray:
 
 
 def load_model_points(path: Path) -> np.ndarray:
-    """Surface points of a mesh file, or the points of a point-cloud file (thinned to CLOUD_POINTS), in metres.
+    """Surface points of a mesh file, or the points of a point-cloud file (thinned to CLOUD_POINTS), in its units.
 
-    Raises SystemExit naming the file if it holds nothing or is not in metres.
+    Raises SystemExit naming the file if it holds nothing.
     """
     points = None
     if path.suffix.lower() in CLOUD_SUFFIXES:
@@ -85,10 +87,6 @@ def load_model_points(path: Path) -> np.ndarray:
     points = points[np.all(np.isfinite(points), axis=1)]
     if len(points) == 0:
         raise SystemExit(f"error: {path}: no surface or points")
-    try:
-        check_metres(points, str(path))
-    except ValueError as error:
-        raise SystemExit(f"error: {error}") from None
     return points
 
 
@@ -108,14 +106,17 @@ class FolderModels:
     """A folder of a category's models, read."""
 
     clouds: dict[str, np.ndarray]  # {file name: N x 3 model points, m}; the canonical one's densified where sparse
-    poses: dict[str, dict[str, RigidTransform]]  # the poses file's control poses {file name: {name: X_OG}}
+    poses: dict[str, dict[str, RigidTransform]]  # the poses file's control poses {file name: {name: X_OG}}, m
     canonical: str  # the canonical model's file name
+    reading: FileReading  # how the files' coordinates were read (units, up axis): the clouds are in metres, z up
 
 
-def folder_instances(folder: Path, poses_file: Path) -> FolderModels:
-    """A folder's models and the control poses its poses file gives.
+def folder_instances(folder: Path, poses_file: Path, units: str = "auto", up: str = "auto") -> FolderModels:
+    """A folder's models and the control poses its poses file gives, in metres with z up: the files' units and up
+    axis (MESH_UNITS, MESH_UP_AXES) as given, or read from the canonical model where "auto" (they share one frame).
 
-    Raises SystemExit naming the problem: not a folder, fewer than 2 models, a poses file that lacks something.
+    Raises SystemExit naming the problem: not a folder, fewer than 2 models, a poses file that lacks something, a
+    model no unit makes an object's, or one whose size in the canonical's units is not an object's.
     """
     if not folder.is_dir():
         raise SystemExit(f"error: {folder} is not a folder")
@@ -135,10 +136,22 @@ def folder_instances(folder: Path, poses_file: Path) -> FolderModels:
         raise SystemExit(f"error: {poses_file} gives poses of {unknown}, not among the models {names}")
     clouds = {p.name: load_model_points(p) for p in files}
     canonical = spec["canonical"]
+    try:
+        reading = read_file_frame(clouds[canonical], clouds[canonical].mean(axis=0), units, up, canonical)
+        for name, points in clouds.items():
+            clouds[name] = points @ reading.matrix()[:3, :3].T
+            check_metres(clouds[name], f"{name} (read in {UNIT_NAMES[reading.units]}, as {canonical} is)")
+    except ValueError as error:
+        raise SystemExit(f"error: {error}") from None
+    logging.info("%s (and every model of %s)", reading.describe(canonical), folder)
+    X_MF = RigidTransform(RotationMatrix(reading.rotation()), np.zeros(3))  # the files' frame F in metres, z up
+    scale = metres_per_unit(reading.units)
+    for name, model_poses in poses.items():
+        poses[name] = {n: X_MF @ RigidTransform(X.rotation(), scale * X.translation()) for n, X in model_poses.items()}
     if len(clouds[canonical]) < DENSE_POINTS:
         logging.info("%s has %d points: densifying its surface", canonical, len(clouds[canonical]))
         clouds[canonical] = densified(clouds[canonical], CLOUD_POINTS)
-    return FolderModels(clouds, poses, canonical)
+    return FolderModels(clouds, poses, canonical, reading)
 
 
 def parse_poses(spec: dict, poses_file: Path, model: str = "the canonical model") -> dict[str, RigidTransform]:
@@ -157,16 +170,18 @@ def build_from_folder(
     align: str = "none",
     landmarks: bool = True,
     scaled_copies: int | None = None,
+    units: str = "auto",
+    up: str = "auto",
 ):
     """The shape space of a folder of models (see the module's doc); models without poses get propagated ones.
     scaled_copies: stretched copies of each model beside it (build_shape_space, with the spread of the category's
-    scale prior); None: folder_copies(category)."""
+    scale prior); None: folder_copies(category). units, up: the files' (folder_instances)."""
     spread = scale_prior(category)
     if scaled_copies is None:
         scaled_copies = folder_copies(category)
     if scaled_copies:
         logging.info("%s: %d stretched copies of each model (spread %.2f)", category, scaled_copies, spread)
-    models = folder_instances(folder, poses_file)
+    models = folder_instances(folder, poses_file, units, up)
     clouds, poses, canonical = models.clouds, models.poses, models.canonical
     if align == "none":
         for warning in frame_warnings(clouds, canonical):
