@@ -6,7 +6,8 @@ python scripts/evaluate.py --category pot --object-files pots/test/*.obj --trial
 
 The folder and the poses file are build_shape_space.py's (meshes or point clouds sharing one frame, in
 metres, centimetres or millimetres, z or y up: read and said, or given by --mesh-units / --mesh-up; the poses
-YAML names the canonical model and its control poses, in its file's frame and units). The steps:
+YAML names the canonical model and its control poses, and its tool frame where it has one, in its file's frame
+and units). The steps:
 
   1. the models are read and checked (units, frames); the category's frame O is the folder's frame moved
      so that the canonical model's bottom face is at z = 0 and its extent centred on x = y = 0;

@@ -23,6 +23,7 @@ in that model's file's frame and units (degrees):
     right_grasp:    {...}
   others:           # optional: other models' control poses, each in its own file's frame
     can_b.obj: {left_pregrasp: {...}, left_grasp: {...}, right_pregrasp: {...}, right_grasp: {...}}
+  tool: {tip: [0.25, 0.0, 0.21], axis: [0.8, 0.0, 0.6]}   # optional: the canonical model's tool frame
 
 Every other model's grasp frames guide its CPD field (landmarks: handle onto handle) and are
 learnt as its grasp frames. Where the YAML does not give them, they are carried from the
@@ -104,8 +105,10 @@ def main():
             up=args.mesh_up or "auto",
         )
     else:
-        clouds, poses = generated_instances(args.category, args.extra, args.wide)
-        space = build_shape_space(args.category, clouds, poses, args.components, landmarks=not args.no_landmarks)
+        clouds, poses, tools = generated_instances(args.category, args.extra, args.wide)
+        space = build_shape_space(
+            args.category, clouds, poses, args.components, landmarks=not args.no_landmarks, tools=tools
+        )
     out = args.out or MODELS_DIR / f"shape_space_{args.category}.npz"
     space.save(out)
     explained = space.pca.variances / space.pca.variances.sum()

@@ -83,9 +83,12 @@ def main(argv=None) -> int:
         "grasp_poses_W": {name: X.GetAsMatrix4().tolist() for name, X in result.grasp_poses_W.items()},
         "fit_error_m": result.fit_error_m,
         "registration_s": seconds,
+        "tool_W": result.tool_W.entries() if result.tool_W else None,
     }
     print(f"registered to {space.category} in {seconds:.2f} s, mean fit error {1000 * result.fit_error_m:.1f} mm")
     print(f"X_WO translation {np.round(result.X_WO.translation(), 4).tolist()}")
+    if result.tool_W:
+        print(f"tool tip {np.round(result.tool_W.tip, 4).tolist()}, axis {np.round(result.tool_W.axis, 3).tolist()}")
     if result.poor_fit:
         print(f"warning: {result.poor_fit}: its grasps cannot be trusted")
     if args.reconstruction:

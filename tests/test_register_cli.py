@@ -41,6 +41,8 @@ def test_register_cli_places_the_grasps_of_an_unseen_drill_seen_from_one_side(tm
     for name, X_OG in truth.items():
         error = np.linalg.norm(np.array(report["grasp_poses_W"][name])[:3, 3] - (X_WO @ X_OG).translation())
         assert error < 0.02, (name, error)
+    tool = load_info(directory / "info.yaml").tool_frame().moved(X_WO)  # the bit's tip and axis, carried too
+    assert np.linalg.norm(np.array(report["tool_W"]["tip"]) - tool.tip) < 0.02 and report["tool_W"]["axis"][0] > 0.99
 
     bad = subprocess.run(command[:-4] + ["--viewpoint", "0", "nan", "1"], cwd=REPO, capture_output=True, text=True)
     assert bad.returncode == 2 and "viewpoint" in bad.stderr

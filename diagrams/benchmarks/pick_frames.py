@@ -16,7 +16,7 @@ from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 from pydrake.systems.framework import Context, Diagram
 
 from diagrams.autonomous_pick import PERCEIVE_AT_S, MakePickDiagram
-from diagrams.benchmarks.registration import judged_row, log_row, space_files, true_grasps
+from diagrams.benchmarks.registration import judged_row, log_row, space_files, true_info
 from diagrams.evaluation import make_trials
 from diagrams.generation.objects import catalog
 from diagrams.generation.objects.library import generated_instance_directory, load_info
@@ -65,9 +65,9 @@ def pick_frame_trials(
             continue
         if scenario.object.file:
             path = Path(scenario.object.file)
-            true, mesh_file = load_info(path.with_suffix(".info.yaml")).control_poses(), path
+            info, mesh_file = load_info(path.with_suffix(".info.yaml")), path
         else:
-            true = true_grasps(category, scenario.object.instance)
+            info = true_info(category, scenario.object.instance)
             mesh_file = generated_instance_directory(category, scenario.object.instance) / "visual.obj"
         if mesh_file not in meshes:
             meshes[mesh_file] = trimesh.load(mesh_file, force="mesh")
@@ -81,7 +81,16 @@ def pick_frame_trials(
             grasps_W, message = seen_part_grasps(estimate, registrars[estimate.category], result)
             handed = grasps_W is not None
             logging.info("   on the seen parts: %s", message)
-        row = judged_row(result, estimate.X_WO, X_WO_true, true, meshes[mesh_file], grasps_W, handed)
+        row = judged_row(
+            result,
+            estimate.X_WO,
+            X_WO_true,
+            info.control_poses(),
+            meshes[mesh_file],
+            grasps_W,
+            handed,
+            info.tool_frame(),
+        )
         rows.append({**pick, "found": True, "perceived_category": estimate.category, "registration_s": seconds, **row})
         log_row(n, rows[-1], result)
     return rows

@@ -23,6 +23,7 @@ import yaml
 from scipy.spatial import cKDTree
 
 from diagrams.generation.objects import catalog
+from diagrams.generation.objects.instance import ObjectInfo
 from diagrams.generation.objects.library import generated_instance_directory, load_info, mesh_to_sdf
 from diagrams.generation.synthetic_scenes import SyntheticScene
 from diagrams.perception import MakePoseEstimator
@@ -33,6 +34,7 @@ from systems.perception.shape_registrar import registrar_of, shape_space_file, w
 from systems.shape_space.cpd import thinned
 from systems.shape_space.folder import build_from_folder, pose_entries, sample_mesh
 from systems.shape_space.space import choose_canonical
+from systems.shape_space.tool_frame import ToolFrame
 
 NOMINAL_XY = (0.73, 0.0)  # m, where the scenario puts the object
 DEPTH_NOISE = 0.002  # m, standard deviation
@@ -45,6 +47,8 @@ METRICS = (
     "grasp_angle_error_rad",
     "chamfer_m",
     "registration_s",
+    "tool_tip_error_m",
+    "tool_axis_error_rad",
 )
 # grasp_off: a grasp frame more than GRASP_OFF_M from the truth; handed_on_off: so, and not named a poor fit (the
 # pick would go on with it).
@@ -54,7 +58,12 @@ GRASP_OFF_M = 0.02
 
 def true_grasps(category: str, instance: str):
     """A generated instance's true control poses, {name: X_OG}."""
-    return load_info(generated_instance_directory(category, instance) / "info.yaml").control_poses()
+    return true_info(category, instance).control_poses()
+
+
+def true_info(category: str, instance: str) -> ObjectInfo:
+    """What the generator knows of a generated instance (its true control poses and tool frame, in O)."""
+    return load_info(generated_instance_directory(category, instance) / "info.yaml")
 
 
 def pose_errors(X_est, X_true) -> tuple[float, float]:
@@ -95,9 +104,11 @@ def judged_row(
     mesh: trimesh.Trimesh,
     grasps_W: dict | None = None,
     handed: bool | None = None,
+    true_tool: ToolFrame | None = None,
 ) -> dict:
     """A registration judged on ground truth: its grasps against the true control poses (`true`, X_OG by name), its
-    reconstruction against the true surface (`mesh`, in O), its initial and final pose against X_WO_true.
+    reconstruction against the true surface (`mesh`, in O), its initial and final pose against X_WO_true, its tool
+    frame against `true_tool` (in O; None: not judged, the errors None).
     grasps_W: the grasps judged where they are not the registration's (those built on the seen parts:
     seen_part_grasps); handed: whether the pick hands them on (default: unless the fit is poor)."""
     rotation_error = pose_errors(result.X_WO, X_WO_true)[1]  # (over 90 deg: registered end for end)
@@ -127,6 +138,10 @@ def judged_row(
     row["grasp_across_handle_max_m"] = max(across)
     row["grasp_off"] = max(errors[n][0] for n in ("left_grasp", "right_grasp")) > GRASP_OFF_M
     row["handed_on_off"] = row["grasp_off"] and handed
+    tool_errors = (None, None)
+    if true_tool is not None and result.tool_W is not None:
+        tool_errors = result.tool_W.errors(true_tool.moved(X_WO_true))
+    row["tool_tip_error_m"], row["tool_axis_error_rad"] = tool_errors
     return row
 
 
@@ -144,13 +159,17 @@ def log_row(trial: int, row: dict, result) -> None:
         ("  FLIPPED" if row["flipped"] else "") + ("  " + result.poor_fit if result.poor_fit else ""),
     )
     frames, across = row["grasp_frame_errors_m"], row["grasp_across_handle_m"]
+    tool = row["tool_tip_error_m"] is not None
     logging.info(
-        "   inliers %.0f%%; grasp frames %.1f / %.1f mm (across the handle %.1f / %.1f mm)",
+        "   inliers %.0f%%; grasp frames %.1f / %.1f mm (across the handle %.1f / %.1f mm)%s",
         100 * result.inlier_share,
         1000 * frames["left_grasp"],
         1000 * frames["right_grasp"],
         1000 * across["left_grasp"],
         1000 * across["right_grasp"],
+        f"; tool tip {1000 * row['tool_tip_error_m']:.1f} mm, axis {np.degrees(row['tool_axis_error_rad']):.1f} deg"
+        if tool
+        else "",
     )
 
 
@@ -173,19 +192,19 @@ def registration_trials(
     rng = np.random.default_rng(seed)
     estimator = MakePoseEstimator(scenario)
     registrars = {c: registrar_of(c, *space_files(c, space_dir), part_prior=part_prior) for c in categories}
-    # (category, instance) -> (its true control poses, the folder of its visual.obj)
+    # (category, instance) -> (what the generator knows of it: ObjectInfo, the folder of its visual.obj)
     models, truth = None, {}
     if files:
         (category,) = categories
         models = {category: [(path.stem, mesh_to_sdf(path, 1.0, 1.0, category)) for path in files]}
         instances = [path.stem for path in files]
         for path, (_, sdf) in zip(files, models[category], strict=True):
-            truth[(category, path.stem)] = (load_info(path.with_suffix(".info.yaml")).control_poses(), sdf.parent)
+            truth[(category, path.stem)] = (load_info(path.with_suffix(".info.yaml")), sdf.parent)
     else:
         for category in categories:
             for instance in instances:
                 directory = generated_instance_directory(category, instance)
-                truth[(category, instance)] = (true_grasps(category, instance), directory)
+                truth[(category, instance)] = (true_info(category, instance), directory)
     meshes = {}
     rows = []
     scene = None
@@ -218,7 +237,15 @@ def registration_trials(
 
         if (category, instance) not in meshes:
             meshes[(category, instance)] = trimesh.load(truth[(category, instance)][1] / "visual.obj", force="mesh")
-        row = judged_row(result, estimate.X_WO, X_WO_true, truth[(category, instance)][0], meshes[(category, instance)])
+        info = truth[(category, instance)][0]
+        row = judged_row(
+            result,
+            estimate.X_WO,
+            X_WO_true,
+            info.control_poses(),
+            meshes[(category, instance)],
+            true_tool=info.tool_frame(),
+        )
         rows.append({"category": category, "instance": instance, "yaw": float(yaw), "registration_s": seconds, **row})
         log_row(trial, rows[-1], result)
     return rows
@@ -282,17 +309,24 @@ def summarize(results: dict, rows: list[dict], cpd_rows: list[dict], categories)
     for category in categories:
         subset = [r for r in rows if r["category"] == category]
         for key in METRICS:
-            results.setdefault(key + "_median", {})[category] = float(np.median([r[key] for r in subset]))
+            results.setdefault(key + "_median", {})[category] = median_of(subset, key)
         for key in COUNTS:
             results.setdefault(key, {})[category] = int(sum(r[key] for r in subset))
     for key in METRICS:
-        results[key + "_median"]["all"] = float(np.median([r[key] for r in rows]))
+        results[key + "_median"]["all"] = median_of(rows, key)
     by_size = {r["points"]: r for r in cpd_rows}
     if 1000 in by_size:
         results["cpd_speedup_vs_pycpd_1000"] = by_size[1000]["speedup"]
     results["cpd"] = cpd_rows
     results["rows"] = all_rows
     return results
+
+
+def median_of(rows: list[dict], key: str) -> float | None:
+    """The median of the rows' `key` where they have one (a tool frame's errors only where both frames are known);
+    None where none has."""
+    values = [r[key] for r in rows if r.get(key) is not None]
+    return float(np.median(values)) if values else None
 
 
 def print_summary(results: dict, categories, sensor: str) -> None:
@@ -305,10 +339,13 @@ def print_summary(results: dict, categories, sensor: str) -> None:
         ("grasp_angle_error_rad", 180 / np.pi, "deg", "<= 5 deg"),
         ("chamfer_m", 1000, "mm", "<= 5 mm (<= 6 mm with the sensor)"),
         ("registration_s", 1, "s", "<= 0.5 s"),
+        ("tool_tip_error_m", 1000, "mm", "<= 10 mm (spout tip, bit tip)"),
+        ("tool_axis_error_rad", 180 / np.pi, "deg", "<= 3 deg (the bit's axis)"),
     ):
         values = results[key + "_median"]
         label = f"{key} [{unit}]"
-        print(f"{label:37s}" + "".join(f" {values[c] * scale:13.2f}" for c in categories) + f"  {target}")
+        cells = "".join(f" {'-':>13s}" if values[c] is None else f" {values[c] * scale:13.2f}" for c in categories)
+        print(f"{label:37s}{cells}  {target}")
     for key, target in (
         ("flipped", "0 (end for end)"),
         ("poor_fit", "(named failures)"),

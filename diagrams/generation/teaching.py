@@ -3,7 +3,8 @@
 
 The folder and the poses file are build_shape_space.py's (meshes or point clouds sharing one frame, in
 metres, centimetres or millimetres, z or y up: read and said, or given by --mesh-units / --mesh-up; the poses
-YAML names the canonical model and its control poses, in its file's frame and units). The steps:
+YAML names the canonical model and its control poses, and its tool frame where it has one, in its file's frame
+and units). The steps:
 
   1. the models are read and checked (units, frames); the category's frame O is the folder's frame moved
      so that the canonical model's bottom face is at z = 0 and its extent centred on x = y = 0;
@@ -92,7 +93,10 @@ def write_models(args, directory: Path):
     box_centre = np.mean([(c.min(axis=0) + c.max(axis=0))[:2] / 2 for c in clouds.values()], axis=0)
 
     logging.info("[2/5] the shape space of %d models (%d annotated)", len(clouds), len(poses))
-    space = build_shape_space(args.name, clouds, poses, args.components, canonical=canonical, align=args.align)
+    tools = {canonical: models.tool.moved(X_OF)} if models.tool else None
+    space = build_shape_space(
+        args.name, clouds, poses, args.components, canonical=canonical, align=args.align, tools=tools
+    )
     space.save(directory / "shape_space.npz")
     draw_space(space, directory / "shape_space.png")
 

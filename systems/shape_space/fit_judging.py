@@ -15,6 +15,7 @@ from scipy.spatial import cKDTree
 from systems.messages import DepthView
 from systems.shape_space.shape_fit import ShapeFit
 from systems.shape_space.space import GRASP_NAMES
+from systems.shape_space.tool_frame import ToolFrame
 from systems.shape_space.visibility import visible_from
 
 # A fit is poor when fewer than MIN_INLIER_SHARE of the points it saw lie within FIT_INLIER_M of the fitted shape
@@ -68,6 +69,7 @@ class Registration:
     scaled: bool = False  # fitted beyond the latent space with the shape's scale (and perhaps each handle's offset)
     # Each grasp's handle moved on its own (GRASP_NAMES x 3, m in O; Registrar's part pass), None where it was not.
     part_offsets_O: np.ndarray | None = None
+    tool_W: ToolFrame | None = None  # the tool frame decoded with the fit, in W; None where the space has none
 
     @property
     def unconfirmed(self) -> bool:
@@ -114,11 +116,15 @@ class Registration:
 
 
 def judged(
-    fit: ShapeFit, reconstructed_W: np.ndarray, grasp_poses_W: dict[str, RigidTransform], seen: SeenPoints
+    fit: ShapeFit,
+    reconstructed_W: np.ndarray,
+    grasp_poses_W: dict[str, RigidTransform],
+    seen: SeenPoints,
+    tool_W: ToolFrame | None = None,
 ) -> Registration:
-    """The fit, its whole surface (K x 3, W) and its control poses (POSE_NAMES -> X_WG) as a Registration, with
-    the evidence for and against them: the inlier share, and with a viewpoint each grasp's and the whole surface's
-    support."""
+    """The fit, its whole surface (K x 3, W), its control poses (POSE_NAMES -> X_WG) and tool frame (W) as a
+    Registration, with the evidence for and against them: the inlier share, and with a viewpoint each grasp's and
+    the whole surface's support."""
     inlier_share = float(np.mean(cKDTree(reconstructed_W).query(seen.thinned_W)[0] < FIT_INLIER_M))
     support, seen_share = {}, None
     if seen.viewpoint_W is not None:
@@ -142,6 +148,7 @@ def judged(
         seen_share,
         scaled=fit.scaled,
         part_offsets_O=fit.part_offsets_O,
+        tool_W=tool_W,
     )
 
 

@@ -19,6 +19,7 @@ in that model's file's frame and units (degrees):
     right_grasp:    {...}
   others:           # optional: other models' control poses, each in its own file's frame
     can_b.obj: {left_pregrasp: {...}, left_grasp: {...}, right_pregrasp: {...}, right_grasp: {...}}
+  tool: {tip: [0.25, 0.0, 0.21], axis: [0.8, 0.0, 0.6]}   # optional: the canonical model's tool frame
 
 Every other model's grasp frames guide its CPD field (landmarks: handle onto handle) and are
 learnt as its grasp frames. Where the YAML does not give them, they are carried from the
@@ -47,6 +48,7 @@ from systems.perception.shape_registrar import scale_prior
 from systems.shape_space.densify import densified
 from systems.shape_space.file_frame import FileReading, read_file_frame
 from systems.shape_space.space import POSE_NAMES, build_shape_space
+from systems.shape_space.tool_frame import ToolFrame
 from systems.shape_space.units import UNIT_NAMES, check_metres, metres_per_unit
 
 CLOUD_POINTS = 8000  # per model: all of them for the canonical surface, a thinned 2000 as CPD's target
@@ -108,6 +110,7 @@ class FolderModels:
     clouds: dict[str, np.ndarray]  # {file name: N x 3 model points, m}; the canonical one's densified where sparse
     poses: dict[str, dict[str, RigidTransform]]  # the poses file's control poses {file name: {name: X_OG}}, m
     canonical: str  # the canonical model's file name
+    tool: ToolFrame | None  # the canonical model's tool frame (m, in its frame), None where the poses file has none
     reading: FileReading  # how the files' coordinates were read (units, up axis): the clouds are in metres, z up
 
 
@@ -128,6 +131,7 @@ def folder_instances(folder: Path, poses_file: Path, units: str = "auto", up: st
         raise SystemExit(f"error: {poses_file} needs 'canonical' (a model's file name) and its 'poses'")
     # The pose file is checked before any model is sampled: a mistake in it costs nothing.
     poses = {spec["canonical"]: parse_poses(spec["poses"], poses_file)}
+    tool = parse_tool(spec.get("tool"), poses_file)
     for model, model_poses in (spec.get("others") or {}).items():
         poses[model] = parse_poses(model_poses, poses_file, model)
     names = sorted(p.name for p in files)
@@ -148,10 +152,12 @@ def folder_instances(folder: Path, poses_file: Path, units: str = "auto", up: st
     scale = metres_per_unit(reading.units)
     for name, model_poses in poses.items():
         poses[name] = {n: X_MF @ RigidTransform(X.rotation(), scale * X.translation()) for n, X in model_poses.items()}
+    if tool is not None:
+        tool = ToolFrame(scale * tool.tip, tool.axis).moved(X_MF)
     if len(clouds[canonical]) < DENSE_POINTS:
         logging.info("%s has %d points: densifying its surface", canonical, len(clouds[canonical]))
         clouds[canonical] = densified(clouds[canonical], CLOUD_POINTS)
-    return FolderModels(clouds, poses, canonical, reading)
+    return FolderModels(clouds, poses, canonical, tool, reading)
 
 
 def parse_poses(spec: dict, poses_file: Path, model: str = "the canonical model") -> dict[str, RigidTransform]:
@@ -196,6 +202,7 @@ def build_from_folder(
         landmarks=landmarks,
         scaled_copies=scaled_copies,
         copy_spread=spread,
+        tools={canonical: models.tool} if models.tool else None,
     )
 
 
@@ -203,6 +210,19 @@ def folder_copies(category: str) -> int:
     """How many stretched copies of each of a folder's models its space gets by default: FOLDER_SCALED_COPIES, none
     where the category's scale prior is below MIN_COPY_SPREAD."""
     return FOLDER_SCALED_COPIES if scale_prior(category) >= MIN_COPY_SPREAD else 0
+
+
+def parse_tool(spec: dict | None, poses_file: Path) -> ToolFrame | None:
+    """The canonical model's tool frame from {tip: [x, y, z], axis: [x, y, z]} (its file's frame and units), None
+    where not given."""
+    if spec is None:
+        return None
+    try:
+        return ToolFrame(spec["tip"], spec["axis"])
+    except (KeyError, TypeError, ValueError) as error:
+        raise SystemExit(
+            f"error: {poses_file}: tool needs a tip [x, y, z] and a non-zero axis [x, y, z] ({error})"
+        ) from None
 
 
 def pose_entries(poses: dict[str, RigidTransform]) -> dict:

@@ -31,6 +31,7 @@ from systems.shape_space.fit_judging import Registration, SeenPoints, judged
 from systems.shape_space.grasp_placement import placed_on_seen_handles
 from systems.shape_space.shape_fit import ShapeFit, ShapeFitter
 from systems.shape_space.space import ShapeSpace
+from systems.shape_space.tool_placement import tool_on_seen_surface
 
 # The seen points kept by the even thinning (more: slower, the grasps within 0.1 mm).
 OBSERVED_POINTS = 300
@@ -150,9 +151,13 @@ class Registrar:
     def _judged(self, fit: ShapeFit, seen: SeenPoints) -> Registration:
         """One hypothesis's fit made a Registration: its grasps placed on what was seen, and judged."""
         shape_W, poses_W = self.fitter.surface_and_poses_W(fit)
+        tool_W = self.fitter.tool_W(fit)
         if seen.viewpoint_W is not None:
             shape_W, poses_W = placed_on_seen_handles(shape_W, poses_W, seen.observed_W, seen.viewpoint_W)
-        return judged(fit, shape_W, poses_W, seen)
+            if tool_W is not None:
+                beyond = self.space.tool_beyond
+                tool_W = tool_on_seen_surface(tool_W, beyond, shape_W, seen.observed_W, seen.viewpoint_W)
+        return judged(fit, shape_W, poses_W, seen, tool_W)
 
 
 def nearest_sound(fits: list[ShapeFit], judge: Callable[[ShapeFit], Registration]) -> Registration:

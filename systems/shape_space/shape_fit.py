@@ -22,6 +22,7 @@ from scipy.spatial.distance import cdist
 
 from systems.shape_space.cpd import gmm_posteriors, squared_distances
 from systems.shape_space.space import GRASP_NAMES, ShapeSpace, scaled_poses
+from systems.shape_space.tool_frame import ToolFrame
 from systems.shape_space.visibility import visible_from
 
 MODEL_POINTS = 800  # mixture centroids, an even choice of the canonical points (fewer cost the test cans accuracy)
@@ -101,6 +102,14 @@ class ShapeFitter:
                     poses_O[pose] = RigidTransform(parts[k]) @ poses_O[pose]
         shape_W = fit.X_WO.multiply(shape_O.T).T
         return shape_W, {name: fit.X_WO @ X_OG for name, X_OG in poses_O.items()}
+
+    def tool_W(self, fit: ShapeFit) -> ToolFrame | None:
+        """The tool frame decoded with the fit (scaled as the shape is), in W; None where the space has none. (A
+        handle part's offset leaves it: the tool is no handle.)"""
+        tool_O = self.space.tool_at(fit.latent)
+        if tool_O is None:
+            return None
+        return (tool_O.scaled(fit.scale) if fit.scaled else tool_O).moved(fit.X_WO)
 
     def fit(
         self,

@@ -24,6 +24,7 @@ from tqdm import tqdm
 from systems.shape_space.cpd import FieldInterpolator, deformable_cpd, rigid_cpd, thinned
 from systems.shape_space.pca_em import PcaModel, pca_em
 from systems.shape_space.propagation import propagated_poses
+from systems.shape_space.tool_frame import ToolFrame
 
 # The control poses: the pre-grasp and grasp frame of each hand.
 POSE_NAMES = ("left_pregrasp", "left_grasp", "right_pregrasp", "right_grasp")
@@ -39,6 +40,11 @@ SURFACE_WARP_WIDTH = 0.02
 # of C, and the seed they are drawn from (build_shape_space(scaled_copies=..., copy_spread=...)).
 SCALED_COPY_SIGMA = 0.1
 SCALED_COPY_SEED = 0
+# The tool's surface (ShapeSpace.tool_at): the canonical surface within TOOL_RADIUS (m) of the last TOOL_REACH (m) of
+# the tool's axis up to its tip; its far end, the points within TOOL_END_BAND (m) of the farthest along the axis.
+TOOL_RADIUS = 0.03
+TOOL_REACH = 0.12
+TOOL_END_BAND = 0.005
 
 
 @dataclass
@@ -56,6 +62,7 @@ class ShapeSpace:
     # Control poses carried from the canonical model onto instances that had none ({name: {pose: X_CG}}, in the
     # canonical frame C), while the space was built; not saved.
     propagated: dict = dataclass_field(default_factory=dict)
+    tool: ToolFrame | None = None  # the canonical tool frame, in O; None: the category has none
 
     @property
     def latent_size(self) -> int:
@@ -95,6 +102,38 @@ class ShapeSpace:
         moved = moved.reshape(K, -1, 3).transpose(1, 0, 2)  # (1 + q) x K x 3
         return self.canonical_surface + moved[0], moved[1:]
 
+    def tool_at(self, latent: np.ndarray) -> ToolFrame | None:
+        """The tool frame at `latent`, in O (None where the space has none), from the tool's surface there: the
+        canonical surface within TOOL_RADIUS of the last TOOL_REACH of the tool's axis (the spout's end and rose, a
+        drill's chuck) is carried by the field, the axis turned as that surface turned (its best rigid fit), and the
+        tip put as far beyond the surface's far end, along the axis, as the canonical tip lies beyond its own."""
+        if self.tool is None:
+            return None
+        reference = self.canonical_surface[self._tool_points]
+        moved = self.reconstruct(latent)[self._tool_points]
+        turn, _ = Rotation.align_vectors(moved - moved.mean(axis=0), reference - reference.mean(axis=0))
+        axis = turn.apply(self.tool.axis)
+        along = moved @ axis
+        end = moved[along >= along.max() - TOOL_END_BAND].mean(axis=0)
+        return ToolFrame(end + (along.max() - end @ axis + self.tool_beyond) * axis, axis)
+
+    @functools.cached_property
+    def _tool_points(self) -> np.ndarray:
+        """Which canonical surface points (K bools) make up the tool's surface (tool_at)."""
+        offset = self.canonical_surface - self.tool.tip
+        along = np.clip(offset @ -self.tool.axis, 0.0, TOOL_REACH)
+        across = np.linalg.norm(offset + along[:, None] * self.tool.axis, axis=1)
+        points = across < TOOL_RADIUS
+        if np.count_nonzero(points) < 3:
+            raise ValueError(f"the {self.category} space's tool frame lies off its canonical surface")
+        return points
+
+    @functools.cached_property
+    def tool_beyond(self) -> float:
+        """How far (m) the canonical tip lies beyond its tool surface's far end, along the axis (a drill's bit)."""
+        surface = self.canonical_surface[self._tool_points]
+        return float(self.tool.tip @ self.tool.axis - np.max(surface @ self.tool.axis))
+
     def control_poses_at(self, latent: np.ndarray) -> dict[str, RigidTransform]:
         """All control poses at `latent`, in O.
 
@@ -127,6 +166,7 @@ class ShapeSpace:
             instance_names=np.array(self.instance_names),
             canonical_surface=self.canonical_surface.astype(np.float32),
             grasp_weight=self.grasp_weight,
+            **({"tool_tip": self.tool.tip, "tool_axis": self.tool.axis} if self.tool else {}),
         )
 
     @staticmethod
@@ -153,6 +193,7 @@ class ShapeSpace:
                     [str(n) for n in data["instance_names"]],
                     data["canonical_surface"].astype(float),
                     float(data["grasp_weight"]),
+                    tool=ToolFrame(data["tool_tip"], data["tool_axis"]) if "tool_tip" in data else None,
                 )
         except (KeyError, ValueError, OSError) as error:
             raise ValueError(
@@ -206,6 +247,7 @@ def build_shape_space(
     initial_sigma: float = 0.02,
     scaled_copies: int = 0,
     copy_spread: float = SCALED_COPY_SIGMA,
+    tools: dict[str, ToolFrame] | None = None,
 ) -> ShapeSpace:
     """Builds the space from surface clouds (each in its own O frame) of a category's instances.
 
@@ -239,6 +281,7 @@ def build_shape_space(
             a sample of its own: a few models then still span the proportions a category varies in.
         copy_spread: the standard deviation of the log of each copy's stretch per axis (drawn from a fixed seed:
             the same draws scaled).
+        tools: instance name -> its tool frame in its O (the canonical one's is the space's; none: no tool frame).
     """
     if len(clouds) < 2:
         raise ValueError(f"a shape space needs at least 2 instances, got {len(clouds)}")
@@ -299,8 +342,9 @@ def build_shape_space(
             samples.append(sample_of(version, target, grasps_C, fit))
     bar.close()
     pca = pca_em(np.array(samples), min(components, len(samples) - 1))
+    tool = (tools or {}).get(canonical)
     return ShapeSpace(
-        category, canonical, source, pca, beta, canonical_grasps, list(clouds), surface, grasp_weight, propagated
+        category, canonical, source, pca, beta, canonical_grasps, list(clouds), surface, grasp_weight, propagated, tool
     )
 
 

@@ -7,13 +7,16 @@ from systems.shape_space.folder import sample_mesh
 
 
 def generated_instances(category: str, extra: int, wide: int = 0):
-    """Clouds and true control poses of the training instances, `extra` more of their family (extra_0..) and
-    `wide` of the generator's wider family (wide_0..)."""
+    """Clouds, true control poses and true tool frames (where the category has them) of the training instances,
+    `extra` more of their family (extra_0..) and `wide` of the generator's wider family (wide_0..)."""
     names = [n for n in catalog.instance_names(category) if n.startswith("train")]
     names += [f"extra_{i}" for i in range(extra)] + [f"wide_{i}" for i in range(wide)]
-    clouds, poses = {}, {}
+    clouds, poses, tools = {}, {}, {}
     for name in names:
         directory = generated_instance_directory(category, name)
         clouds[name] = sample_mesh(directory / "visual.obj")
-        poses[name] = load_info(directory / "info.yaml").control_poses()
-    return clouds, poses
+        info = load_info(directory / "info.yaml")
+        poses[name] = info.control_poses()
+        if (tool := info.tool_frame()) is not None:
+            tools[name] = tool
+    return clouds, poses, tools

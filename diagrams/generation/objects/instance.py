@@ -18,7 +18,9 @@ from pydrake.common.yaml import yaml_dump_typed
 from pydrake.math import RigidTransform, RotationMatrix
 
 from diagrams.generation.objects import geometry
+from diagrams.generation.objects.tool_frames import tool_of
 from systems.perception.parts import PartRole
+from systems.shape_space.tool_frame import ToolFrame
 
 # How far the pre-grasp pose backs off from the grasp along -z_G, in metres.
 PREGRASP_DISTANCE = 0.10
@@ -70,6 +72,16 @@ class HandGrasp:
 
 
 @dataclass
+class ToolInfo:
+    """A tool frame as info.yaml holds it (systems/shape_space/tool_frame.py); empty lists: none."""
+
+    # m, in O: the spout's tip (where the water leaves), the tip of a drill's bit.
+    tip: list[float] = field(default_factory=list)
+    # Unit, in O: the outflow direction, the bit's axis out of the chuck.
+    axis: list[float] = field(default_factory=list)
+
+
+@dataclass
 class ObjectInfo:
     """What the generator knows about an instance; stored as info.yaml beside its SDF."""
 
@@ -85,6 +97,8 @@ class ObjectInfo:
     parameters: dict[str, float] = field(default_factory=dict)
     # Ground-truth grasps keyed by hand: "left" and "right".
     grasps: dict[str, HandGrasp] = field(default_factory=dict)
+    # The ground-truth tool frame (empty where the category has none).
+    tool: ToolInfo = field(default_factory=ToolInfo)
 
     def control_poses(self) -> dict[str, RigidTransform]:
         """X_OG by control pose name, "<side>_pregrasp" and "<side>_grasp" (as in a shape space)."""
@@ -93,6 +107,10 @@ class ObjectInfo:
             for side, grasp in self.grasps.items()
             for kind in ("pregrasp", "grasp")
         }
+
+    def tool_frame(self) -> ToolFrame | None:
+        """The tool frame in O, None where the info has none."""
+        return ToolFrame(self.tool.tip, self.tool.axis) if self.tool.tip else None
 
 
 # A handle grasp's approach leans at least this far from the handle's axis (rad): closer to parallel, no hand comes
@@ -179,7 +197,12 @@ class ObjectInstance:
             com=[float(c) for c in com],
             parameters={k: float(v) for k, v in self.parameters.items()},
             grasps=self.grasps,
+            tool=ToolInfo(**tool.entries()) if (tool := self.tool_frame()) else ToolInfo(),
         )
+
+    def tool_frame(self) -> ToolFrame | None:
+        """The true tool frame in O (tool_frames.tool_of: from the tool parts), None where the category has none."""
+        return tool_of(self.category, self.parts)
 
     def write(self, directory: Path) -> Path:
         """Writes visual.obj, collision_*.obj, model.sdf and info.yaml; returns the SDF path."""

@@ -27,6 +27,9 @@ from systems.paths import cache_dir
 
 MESH_SUFFIXES = (".obj", ".ply", ".stl", ".glb", ".gltf")
 MODEL_SUFFIXES = (".sdf", ".urdf")
+# The cache folder of the on-demand generated instances: renamed whenever what is written of them changes, so that
+# an old cache is not read as new (v2: info.yaml holds the tool frame).
+GENERATED_CACHE = "objects_v2"
 # m: a mesh thinner than this everywhere across (its oriented box's least extent) is a sheet, not a body to simulate
 MIN_THICKNESS_M = 0.002
 
@@ -78,7 +81,7 @@ def generated_instance_directory(category: str, name: str) -> Path:
     if split not in catalog.ON_DEMAND:
         catalog.generate(category, name)  # raises a clear error for names that cannot exist (e.g. test_9)
         raise FileNotFoundError(f"{directory / 'model.sdf'} is missing; run scripts/generate_objects.py")
-    directory = cache_dir() / "objects" / category / name
+    directory = cache_dir() / GENERATED_CACHE / category / name
     if not (directory / "model.sdf").is_file():
         logging.info("generating %s/%s into %s", category, name, directory)
         written_whole(directory, catalog.generate(category, name).write)

@@ -390,6 +390,7 @@ def instances(category: str, split: str) -> list[ObjectInstance]:
         for part in instance.parts:
             part.mesh = part.mesh.copy()
             part.mesh.apply_translation(shift)
+            part.role = ROLE_BY_NAME.get(part.name, part.role)  # (the tool frame is the tool parts')
         for grasp in instance.grasps.values():
             grasp.pregrasp = Transform(RigidTransform(shift) @ grasp.pregrasp.GetDeterministicValue())
             grasp.grasp = Transform(RigidTransform(shift) @ grasp.grasp.GetDeterministicValue())
