@@ -1,0 +1,70 @@
+"""The cores of a pour (issue 80): a container's opening found in the points seen of it, and the poses that pour a
+held can into it."""
+
+import numpy as np
+import pytest
+import trimesh
+from pydrake.math import RigidTransform, RotationMatrix
+
+from diagrams.generation.objects import catalog
+from diagrams.generation.objects.bowl import bowl_mesh
+from systems.perception.container_opening import Opening, opening_of
+from systems.planning.pour_goals import POUR_CLEARANCE_M, outflow_elevation, pour_poses
+from systems.shape_space.tool_frame import ToolFrame
+from systems.shape_space.visibility import visible_from
+
+CAMERA_W = np.array([0.1, 0.0, 1.6])  # m: about where the station's camera looks from
+
+
+def seen_points(mesh: trimesh.Trimesh, xyz, seed: int = 0) -> np.ndarray:
+    """The points of a mesh (moved to xyz, W) a camera at CAMERA_W sees: an even sampling, its hidden points out."""
+    points = trimesh.sample.sample_surface_even(mesh, 8000, seed=seed)[0] + xyz
+    return points[visible_from(points, CAMERA_W)]
+
+
+@pytest.mark.parametrize(
+    ("diameter", "height", "xyz"), [(0.16, 0.07, (0.6, 0.25, 0.76)), (0.25, 0.1, (0.8, -0.2, 0.76))]
+)
+def test_a_bowls_opening_is_found_from_one_view(diameter, height, xyz):
+    """Seen from the camera's side: the centre within 5 mm, at the rim's height within 5 mm, the radius between the
+    rim's inner and outer one."""
+    opening = opening_of(seen_points(bowl_mesh(diameter, height), xyz))
+    np.testing.assert_allclose(opening.centre_W[:2], xyz[:2], atol=0.005)
+    assert opening.centre_W[2] == pytest.approx(xyz[2] + height, abs=0.005)
+    assert diameter / 2 - 0.008 <= opening.radius <= diameter / 2 + 0.002
+
+
+def test_what_is_no_opening_is_said_so():
+    with pytest.raises(ValueError, match="points seen"):
+        opening_of(np.full((10, 3), 0.5))
+    box = trimesh.creation.box([0.2, 0.1, 0.08])
+    box.apply_translation([0.0, 0.0, 0.04])
+    with pytest.raises(ValueError, match="no opening|no circle|across its radius"):
+        opening_of(seen_points(box, (0.7, 0.0, 0.76)), "the box")
+    with pytest.raises(ValueError, match="the box"):
+        opening_of(seen_points(box, (0.7, 0.0, 0.76)), "the box")
+
+
+@pytest.mark.parametrize("yaw", [0.3, -0.6])
+def test_the_pour_poses_put_the_spout_tip_over_the_opening_pointing_down(yaw):
+    can = catalog.generate("watering_can", "test_0")
+    tool, grasps = can.tool_frame(), can.info().control_poses()
+    pivot_O = 0.5 * (grasps["left_grasp"].translation() + grasps["right_grasp"].translation())
+    X_WO = RigidTransform(RotationMatrix.MakeZRotation(yaw), [0.7, 0.0, 0.86])
+    opening = Opening(np.array([0.7, -0.3, 0.85]), 0.08, 100)
+    poses = pour_poses(X_WO, tool, pivot_O, opening, np.radians(40))
+    assert outflow_elevation(poses.poured_W, tool) == pytest.approx(np.radians(-40))
+    np.testing.assert_allclose(tool.moved(poses.poured_W).tip, opening.centre_W + [0, 0, POUR_CLEARANCE_M], atol=1e-9)
+    # Over the container the can stands upright, at its yaw; the tilt turns it about the pivot, which stays.
+    np.testing.assert_allclose(poses.over_W.rotation().matrix(), X_WO.rotation().matrix(), atol=1e-12)
+    np.testing.assert_allclose(poses.over_W.multiply(pivot_O), poses.poured_W.multiply(pivot_O), atol=1e-9)
+    motion = poses.tilt_motion_W @ poses.over_W
+    np.testing.assert_allclose(motion.GetAsMatrix4(), poses.poured_W.GetAsMatrix4(), atol=1e-12)
+    # The tilt's axis is horizontal: the spout turns down in its own vertical plane, never sideways.
+    axis = poses.tilt_motion_W.rotation().ToAngleAxis().axis()
+    assert abs(axis[2]) < 1e-9 and abs(axis @ tool.moved(X_WO).axis) < 1e-9
+
+
+def test_a_vertical_outflow_has_no_direction_to_pour_in():
+    with pytest.raises(ValueError, match="nearly vertical"):
+        pour_poses(RigidTransform(), ToolFrame([0, 0, 0.3], [0, 0, 1]), np.zeros(3), Opening(np.zeros(3), 0.1, 50), 0.7)
