@@ -68,3 +68,18 @@ def test_the_pour_poses_put_the_spout_tip_over_the_opening_pointing_down(yaw):
 def test_a_vertical_outflow_has_no_direction_to_pour_in():
     with pytest.raises(ValueError, match="nearly vertical"):
         pour_poses(RigidTransform(), ToolFrame([0, 0, 0.3], [0, 0, 1]), np.zeros(3), Opening(np.zeros(3), 0.1, 50), 0.7)
+
+
+@pytest.mark.slow
+def test_the_arms_tilt_a_held_can_some_way_but_not_to_a_steep_pour():
+    """benchmark_pour_reach.py's rows: with the paper's grasps the arms reach a 15 deg tilt about the grasps'
+    midpoint, not a 90 deg one (which a pour 40 deg below the horizontal needs from a spout 35-47 deg up)."""
+    from diagrams.benchmarks.pour_reach import pour_reach_rows
+    from diagrams.generation.planning_problems import DRAWN_WITH
+    from diagrams.planning_scene import make_pick_motions
+    from diagrams.scenario import load_scenario
+
+    motions = make_pick_motions(load_scenario(), DRAWN_WITH)
+    (row,) = pour_reach_rows(motions, ["test_1"], [0.25], [45.0], [15.0, 90.0])
+    assert row["tilts"]["15.0"] == "reached" and row["tilts"]["90.0"] != "reached"
+    assert row["largest_tilt_deg"] == 15.0 and row["outflow_at_largest_deg"] == pytest.approx(35 - 15, abs=1)

@@ -1,0 +1,63 @@
+"""How far the arms can tilt a held can to pour (scripts/benchmark_pour_reach.py): for each can and each turn of its
+spout about the vertical before the pour, the turns about the grasps' midpoint (pour_goals: across the outflow's
+plane, the spout down) whose goal the arms reach holding the can (IK under the closure from the held start, as the
+planner benchmark's problems are drawn), and where the outflow then points.
+
+The can starts as a pick leaves it: lifted LIFT_M above where it stood at the default placement, at its yaw; the
+turn about the vertical and the tilt are both about the pivot. Ground truth (the generator's grasps and tool frame)
+places it: the question is the arms' reach, not perception's.
+"""
+
+import numpy as np
+from pydrake.common.eigen_geometry import AngleAxis
+from pydrake.math import RigidTransform, RotationMatrix
+
+from diagrams.generation.objects.library import resolve_object
+from diagrams.generation.planning_problems import held_problem
+from diagrams.scenario import load_scenario, replace_object
+from diagrams.station import object_pose_on_table
+from systems.planning.pick_motions import PickMotions
+from systems.planning.pour_goals import outflow_elevation
+
+LIFT_M = 0.10  # m: how high the can is held above where it stood
+
+
+def pour_reach_rows(
+    motions: PickMotions, instances: list[str], yaws: list[float], turns_deg: list[float], tilts_deg: list[float]
+) -> list[dict]:
+    """One row per can, yaw (rad, its placement's) and turn (deg): the outflow's elevation before the tilt, each
+    tilt's answer (reached or why not), the largest tilt reached from the smallest up without a gap, and the outflow's
+    elevation there (deg; None where none is reached)."""
+    rows = []
+    for instance in instances:
+        for yaw in yaws:
+            scenario = replace_object(load_scenario(), category="watering_can", instance=instance, yaw=yaw)
+            model = resolve_object(scenario.object)
+            X_WO = RigidTransform([0.0, 0.0, LIFT_M]) @ object_pose_on_table(scenario, model)
+            tool, grasps = model.info.tool_frame(), model.info.control_poses()
+            pivot_W = X_WO.multiply(0.5 * (grasps["left_grasp"].translation() + grasps["right_grasp"].translation()))
+            for turn in turns_deg:
+                turned = _about(pivot_W, RotationMatrix.MakeZRotation(np.radians(turn))) @ X_WO
+                outflow = tool.moved(turned).axis
+                across = np.cross([0.0, 0.0, 1.0], np.append(outflow[:2] / np.linalg.norm(outflow[:2]), 0.0))
+                answers, largest = {}, None
+                for tilt in sorted(tilts_deg):
+                    tilted = _about(pivot_W, RotationMatrix(AngleAxis(np.radians(tilt), across))) @ turned
+                    problem = held_problem(motions, scenario, LIFT_M, tilted @ X_WO.inverse(), [])
+                    answers[tilt] = "reached" if not isinstance(problem, str) else problem
+                for tilt in sorted(tilts_deg):  # the largest reached with every smaller one reached too
+                    if answers[tilt] != "reached":
+                        break
+                    largest = tilt
+                elevation = np.degrees(outflow_elevation(turned, tool))
+                rows.append({
+                    "instance": instance, "yaw_rad": yaw, "turn_deg": turn, "elevation_deg": float(elevation),
+                    "tilts": {str(t): a for t, a in answers.items()}, "largest_tilt_deg": largest,
+                    "outflow_at_largest_deg": None if largest is None else float(elevation - largest),
+                })  # fmt: skip
+    return rows
+
+
+def _about(point_W: np.ndarray, rotation: RotationMatrix) -> RigidTransform:
+    """The turn by `rotation` about a point (W)."""
+    return RigidTransform(point_W) @ RigidTransform(rotation) @ RigidTransform(-point_W)
