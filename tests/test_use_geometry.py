@@ -1,5 +1,5 @@
-"""The cores of a pour (issue 80): a container's opening found in the points seen of it, and the poses that pour a
-held can into it."""
+"""The cores of using what is held (issue 80): a container's opening and a board's target found in the points seen
+of them, and the poses that pour a held can into the container and aim a held drill at the target."""
 
 import numpy as np
 import pytest
@@ -8,7 +8,9 @@ from pydrake.math import RigidTransform, RotationMatrix
 
 from diagrams.generation.objects import catalog
 from diagrams.generation.objects.bowl import bowl_mesh
+from systems.perception.board_target import board_of
 from systems.perception.container_opening import Opening, opening_of
+from systems.planning.aim_goals import AIM_STANDOFF_M, aim_pose
 from systems.planning.pour_goals import POUR_CLEARANCE_M, outflow_elevation, pour_poses
 from systems.shape_space.tool_frame import ToolFrame
 from systems.shape_space.visibility import visible_from
@@ -72,9 +74,9 @@ def test_a_vertical_outflow_has_no_direction_to_pour_in():
 
 @pytest.mark.slow
 def test_the_arms_tilt_a_held_can_some_way_but_not_to_a_steep_pour():
-    """benchmark_pour_reach.py's rows: with the paper's grasps the arms reach a 15 deg tilt about the grasps'
+    """benchmark_use_reach.py --task pour's rows: with the paper's grasps the arms reach a 15 deg tilt about the grasps'
     midpoint, not a 90 deg one (which a pour 40 deg below the horizontal needs from a spout 35-47 deg up)."""
-    from diagrams.benchmarks.pour_reach import pour_reach_rows
+    from diagrams.benchmarks.use_reach import pour_reach_rows
     from diagrams.generation.planning_problems import DRAWN_WITH
     from diagrams.planning_scene import make_pick_motions
     from diagrams.scenario import load_scenario
@@ -83,3 +85,44 @@ def test_the_arms_tilt_a_held_can_some_way_but_not_to_a_steep_pour():
     (row,) = pour_reach_rows(motions, ["test_1"], [0.25], [45.0], [15.0, 90.0])
     assert row["tilts"]["15.0"] == "reached" and row["tilts"]["90.0"] != "reached"
     assert row["largest_tilt_deg"] == 15.0 and row["outflow_at_largest_deg"] == pytest.approx(35 - 15, abs=1)
+
+
+def board_points(rng: np.random.Generator, centre, normal, count: int, radius: float | None = None) -> np.ndarray:
+    """Points on a vertical board's face (a 40 x 30 cm patch about `centre`, m, W) with 1 mm noise, or on a disc of
+    `radius` about it; `normal`: the face's, horizontal."""
+    along = np.cross([0.0, 0.0, 1.0], normal)
+    if radius is None:
+        u, v = rng.uniform(-0.2, 0.2, count), rng.uniform(-0.15, 0.15, count)
+    else:
+        r, a = radius * np.sqrt(rng.uniform(0, 1, count)), rng.uniform(0, 2 * np.pi, count)
+        u, v = r * np.cos(a), r * np.sin(a)
+    noise = rng.normal(0.0, 0.001, (count, 1)) * normal
+    return np.asarray(centre) + u[:, None] * along + v[:, None] * [0.0, 0.0, 1.0] + noise
+
+
+def test_a_boards_plane_and_target_are_found_with_the_normal_towards_the_camera():
+    rng = np.random.default_rng(4)
+    normal = np.array([-1.0, 0.0, 0.0])
+    target = np.array([1.25, 0.1, 0.96])
+    board = np.vstack([board_points(rng, [1.25, 0.0, 0.95], normal, 2000), rng.uniform(-1, 1, (50, 3)) + [1.25, 0, 1]])
+    found = board_of(board, board_points(rng, target, normal, 200, radius=0.03), CAMERA_W)
+    np.testing.assert_allclose(found.normal_W, normal, atol=0.01)
+    np.testing.assert_allclose(found.target_W, target, atol=0.004)
+    with pytest.raises(ValueError, match="target"):
+        board_of(board, board[:3], CAMERA_W)
+    with pytest.raises(ValueError, match="no plane"):
+        board_of(rng.uniform(-0.2, 0.2, (500, 3)) + [1.2, 0, 1], board[:50], CAMERA_W)
+
+
+@pytest.mark.parametrize("normal", [(-1.0, 0.0, 0.0), (0.0, 1.0, 0.0)])
+def test_the_aim_pose_puts_the_bit_along_the_boards_normal_its_tip_off_the_target(normal):
+    drill = catalog.generate("drill", "test_0")
+    tool, grasps = drill.tool_frame(), drill.info().control_poses()
+    pivot_O = 0.5 * (grasps["left_grasp"].translation() + grasps["right_grasp"].translation())
+    X_WO = RigidTransform(RotationMatrix.MakeZRotation(0.2), [0.7, 0.0, 0.86])
+    target = np.array([1.25, 0.1, 0.96])
+    X_aim = aim_pose(X_WO, tool, pivot_O, target, np.array(normal))
+    aimed = tool.moved(X_aim)
+    np.testing.assert_allclose(aimed.axis, -np.array(normal), atol=1e-9)
+    np.testing.assert_allclose(aimed.tip, target + AIM_STANDOFF_M * np.array(normal), atol=1e-9)
+    assert X_aim.rotation().matrix()[2, 2] == pytest.approx(1.0)  # an upright drill at a vertical board stays upright

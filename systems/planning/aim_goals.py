@@ -1,0 +1,39 @@
+"""Where a held drill goes to aim at a target on a board: its bit's axis along the board's normal, into it, through
+the target, the bit's tip a standoff off the surface.
+
+Frames: W the world, O the object (origin on its support surface, z up). The drill turns the least that brings its
+bit's axis onto the board's inward normal (about their cross product, through the grasps' midpoint, so both hands
+turn with it), then moves so the tip lies `standoff` in front of the target. For an upright drill and a vertical
+board that turn is a yaw: the drill stays upright.
+"""
+
+import numpy as np
+from pydrake.common.eigen_geometry import AngleAxis
+from pydrake.math import RigidTransform, RotationMatrix
+
+from systems.shape_space.tool_frame import ToolFrame
+
+AIM_STANDOFF_M = 0.005  # m: the bit's tip this far off the board's surface
+
+
+def aim_pose(
+    X_WO: RigidTransform,
+    tool_O: ToolFrame,
+    pivot_O: np.ndarray,
+    target_W: np.ndarray,
+    normal_W: np.ndarray,
+    standoff: float = AIM_STANDOFF_M,
+) -> RigidTransform:
+    """X_WO aiming the held object (at X_WO now) at `target_W` (3, m) on a surface whose outward normal is `normal_W`
+    (3, towards the robot), its tool's tip `standoff` (m) off it; pivot_O (3,): the turn's centre (the grasps'
+    midpoint), in O."""
+    normal = np.asarray(normal_W, dtype=float) / np.linalg.norm(normal_W)
+    axis = tool_O.moved(X_WO).axis
+    cross = np.cross(axis, -normal)
+    angle = float(np.arctan2(np.linalg.norm(cross), axis @ -normal))
+    if np.linalg.norm(cross) < 1e-9:  # already along it, or straight away from it: turn about the vertical
+        cross = np.array([0.0, 0.0, 1.0])
+    pivot_W = X_WO.multiply(np.asarray(pivot_O, dtype=float))
+    turn = RigidTransform(RotationMatrix(AngleAxis(angle, cross / np.linalg.norm(cross))))
+    turned = RigidTransform(pivot_W) @ turn @ RigidTransform(-pivot_W) @ X_WO
+    return RigidTransform(np.asarray(target_W) + standoff * normal - turned.multiply(tool_O.tip)) @ turned
