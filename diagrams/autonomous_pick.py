@@ -45,6 +45,7 @@ from systems.planning.stomp_config import StompConfig
 from systems.planning.stomp_planner import StompPlanner
 from systems.robot_io.hand_command import HandCommandSource
 from systems.robot_io.trajectory_source import JointTrajectorySource
+from systems.shape_space.tool_frame import ToolFrame
 
 # Perceive once the object has settled on the table, s.
 PERCEIVE_AT_S = 0.5
@@ -289,7 +290,8 @@ def run_pick(
         plant = station_plant(diagram.GetSubsystemByName("robot_driver"))
     else:
         raise ValueError(f"unknown backend {backend!r}: sim or lcm-memq")
-    watch = PickWatcher(pick, true_grasps_O(scenario), scenario.object if scenario.object.present else None)
+    judged = scenario.object if scenario.object.present else None
+    watch = PickWatcher(pick, true_grasps_O(scenario), judged, true_tool_O(scenario))
 
     def mode_of(context):
         return watch.status(context).mode
@@ -315,6 +317,14 @@ def true_grasps_O(scenario: Scenario) -> dict[str, RigidTransform] | None:
     return None if model.info is None else model.info.control_poses()
 
 
+def true_tool_O(scenario: Scenario) -> ToolFrame | None:
+    """The scenario's object's true tool frame in O, for judging; None where its model has none."""
+    if not scenario.object.present:
+        return None
+    model = resolve_object(scenario.object)
+    return None if model.info is None else model.info.tool_frame()
+
+
 def grasp_errors(poses_W: dict, X_WO: RigidTransform, true_O: dict) -> dict[str, float]:
     """How far each perceived grasp frame's origin lies from the true one on the object at rest, m."""
     hands = ("left", "right")
@@ -332,12 +342,15 @@ class PickWatcher:
         pick: Diagram,
         true_grasps_O: dict[str, RigidTransform] | None = None,
         judged_object: ObjectConfig | None = None,
+        true_tool_O: ToolFrame | None = None,
     ):
         """true_grasps_O: the object's true control poses in O, where known: the perceived grasps are judged on them
         (the outcome's perception["grasp_errors_m"]); judged_object: the object, whose true parts (where known) say
-        whether each grasp lay on its own handle (perception["grasps_on_handles"]; read only once grasps exist)."""
+        whether each grasp lay on its own handle (perception["grasps_on_handles"]; read only once grasps exist);
+        true_tool_O: its true tool frame in O, where known: the perceived one is judged on it
+        (perception["tool_errors"])."""
         self.pick, self.mode = pick, ""
-        self.true_grasps_O, self.judged_object = true_grasps_O, judged_object
+        self.true_grasps_O, self.judged_object, self.true_tool_O = true_grasps_O, judged_object, true_tool_O
 
     def status(self, context) -> PickStatus:
         return pick_status(self.pick, context)
@@ -373,6 +386,10 @@ class PickWatcher:
             truth = None
             if report.grasps.found and self.judged_object is not None and outcome.object_rest_W is not None:
                 truth = true_part_surface(self.judged_object)
+            tool = report.grasps.tool_W
+            if tool is not None and self.true_tool_O is not None and outcome.object_rest_W is not None:
+                tip, axis = tool.errors(self.true_tool_O.moved(outcome.object_rest_W))
+                outcome.perception["tool_errors"] = {"tip_m": tip, "axis_rad": axis}
             if truth is not None:
                 X_OW = outcome.object_rest_W.inverse()
                 grasps_O = {h: (X_OW @ report.grasps.poses_W[f"{h}_grasp"]).translation() for h in ("left", "right")}

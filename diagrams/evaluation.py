@@ -292,6 +292,7 @@ def summarize(records: list[dict]) -> dict:
             else {}
         ),
         **_grasps_on_handles(records),
+        **_tool_errors(records),
         "success_rate": _rate(successes, len(records)),
         "success_rate_ci95": wilson_interval(successes, len(records)),
         # Over the picks that lifted (a held move was played), m and rad.
@@ -323,6 +324,19 @@ def _grasps_on_handles(records: list[dict]) -> dict:
         return {}
     off = [r for r in judged if r["success"] and not all(r["perception"]["grasps_on_handles"].values())]
     return {"grasps_judged_on_handles": len(judged), "lifts_off_handle": len(off)}
+
+
+def _tool_errors(records: list[dict]) -> dict:
+    """Where a tool frame was perceived and the true one is known: {"tool_frames_judged": how many picks,
+    "tool_tip_error_m_median", "tool_axis_error_rad_median"}; {} where none was."""
+    judged = [r["perception"]["tool_errors"] for r in records if "tool_errors" in r.get("perception", {})]
+    if not judged:
+        return {}
+    return {
+        "tool_frames_judged": len(judged),
+        "tool_tip_error_m_median": float(np.median([e["tip_m"] for e in judged])),
+        "tool_axis_error_rad_median": float(np.median([e["axis_rad"] for e in judged])),
+    }
 
 
 def _per_instance(records: list[dict], succeeded) -> dict:

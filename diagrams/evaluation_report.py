@@ -304,6 +304,12 @@ def report(
             f"\ngrasps judged on the true handles in {summary['grasps_judged_on_handles']} picks: "
             f"{summary['lifts_off_handle']} lifted with a grasp off its handle (> 2.5 cm from it)"
         )
+    if "tool_frames_judged" in summary:
+        print(
+            f"tool frames perceived in {summary['tool_frames_judged']} picks: tip "
+            f"{1000 * summary['tool_tip_error_m_median']:.1f} mm, axis "
+            f"{math.degrees(summary['tool_axis_error_rad_median']):.1f} deg off the true one (medians)"
+        )
     t_dev, o_dev = summary["closure_translation_dev_m_max"], summary["closure_orientation_dev_rad_max"]
     print(f"\nclosure along the played held moves (picks that lifted): largest {1000 * t_dev:.1f} mm, {o_dev:.4f} rad")
     if campaign.task == "place":

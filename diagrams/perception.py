@@ -191,7 +191,8 @@ def MakeGroundTruthPerception(scenario: Scenario, surface_points: int = TRUE_SUR
     model = resolve_object(scenario.object)
     X_WO = object_pose_on_table(scenario, model)
     surface, _ = object_surface_W(model, X_WO, surface_points)
-    grasps = GraspPoses(True, poses, "ground truth")
+    tool_O = model.info.tool_frame()
+    grasps = GraspPoses(True, poses, "ground truth", tool_W=None if tool_O is None else tool_O.moved(X_WO))
     result = PerceptionResult(True, None, "ground truth", scenario.object.category, X_WO, grasps, None, surface)
     builder = DiagramBuilder()
     for name, value in (

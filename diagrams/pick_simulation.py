@@ -80,7 +80,8 @@ class PickOutcome:
     # "network_category" the segmenter's network gave (empty when the pick did not perceive), the "grasps" message
     # (where each grasp came from, or why there were none) and, where the object's true grasps are known,
     # "grasp_errors_m": {hand: how far its perceived grasp frame lay from the true one} (the last attempt's frame)
-    # and, where its true parts are known, "grasps_on_handles": {hand: whether that frame lay on the hand's handle}.
+    # and, where its true parts are known, "grasps_on_handles": {hand: whether that frame lay on the hand's handle};
+    # where a tool frame was perceived and the true one is known, "tool_errors": {"tip_m", "axis_rad"}.
     perception: dict = field(default_factory=dict)
     # How far each other object on the table (scenario.clutter, in order) ever was from where it had settled, m.
     others_moved_m: list[float] = field(default_factory=list)

@@ -14,6 +14,8 @@ import numpy as np
 from pydrake.math import RigidTransform
 from pydrake.trajectories import PiecewisePolynomial
 
+from systems.shape_space.tool_frame import ToolFrame
+
 SIDES = ("left", "right")
 OPEN_WIDTH = 0.1  # m: the hands' opening while reaching (and the hand command's default)
 CLOSED_WIDTH = 0.0  # m: the fingers stop on the handle; the joint effort limit sets the squeeze
@@ -210,6 +212,7 @@ class GraspPoses:
     poses_W: dict[str, RigidTransform] = field(default_factory=dict)  # left/right pregrasp/grasp -> X_WG
     message: str = ""
     compute_s: float = 0.0  # wall time of the registration alone
+    tool_W: ToolFrame | None = None  # the object's tool frame (the spout's tip, a bit's), where a sound fit gave one
 
 
 @dataclass

@@ -124,6 +124,17 @@ def test_summary_counts_success_per_object_yaw_and_component():
     assert stages["image_to_trajectory_s_mean"] == pytest.approx(2.5)
     assert stages["image_to_trajectory_s_std"] == pytest.approx(np.std([1, 2, 3, 4]))
     assert stages["segmentation_s_mean"] == pytest.approx(0.1)
+    assert "tool_frames_judged" not in summary  # no pick perceived a tool frame
+
+
+def test_summary_gives_the_perceived_tool_frames_errors_where_they_were_judged():
+    records = [_record("a", 0.0, True), _record("a", 0.25, True), _record("b", 0.0, False, "segmentation")]
+    for record, tip, axis in zip(records[:2], (0.004, 0.012), (0.01, 0.03), strict=True):
+        record["perception"] = {"tool_errors": {"tip_m": tip, "axis_rad": axis}}
+    summary = summarize(records)
+    assert summary["tool_frames_judged"] == 2
+    assert summary["tool_tip_error_m_median"] == pytest.approx(0.008)
+    assert summary["tool_axis_error_rad_median"] == pytest.approx(0.02)
 
 
 def test_random_placements_are_seeded_unseen_and_within_the_region(scenario):

@@ -16,6 +16,7 @@ from systems.shape_space.fit_judging import Registration
 from systems.shape_space.part_grasps import HAND_PARTS, grasps_on_seen_parts, turned_end_for_end
 from systems.shape_space.registration import Registrar
 from systems.shape_space.space import ShapeSpace
+from systems.shape_space.tool_frame import ToolFrame
 
 
 class ShapeRegistrar(LeafSystem):
@@ -85,7 +86,9 @@ class ShapeRegistrar(LeafSystem):
             return self._on_seen_parts(estimate, registrar, registration, fit)
         if registration.poor_fit:  # named, not passed on: a grasp 30 cm off is worse than no grasp
             return _Result(estimate.X_WO, message=registration.poor_fit)
-        return _Result(registration.X_WO, registration.grasp_poses_W, registration.reconstructed_W, fit)
+        return _Result(
+            registration.X_WO, registration.grasp_poses_W, registration.reconstructed_W, fit, tool_W=registration.tool_W
+        )
 
     @staticmethod
     def _on_seen_parts(estimate, registrar: Registrar, registration: Registration, fit: str) -> "_Result":
@@ -107,7 +110,7 @@ class ShapeRegistrar(LeafSystem):
         if result.grasp_poses_W is None:
             output.set_value(GraspPoses(False, message=result.message, compute_s=result.compute_s))
         else:
-            output.set_value(GraspPoses(True, result.grasp_poses_W, result.message, result.compute_s))
+            output.set_value(GraspPoses(True, result.grasp_poses_W, result.message, result.compute_s, result.tool_W))
 
     def _calc_cloud(self, context, output):
         output.set_value(self._result(context).reconstructed_W)
@@ -175,3 +178,4 @@ class _Result:
     reconstructed_W: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))  # N x 3, m
     message: str = ""
     compute_s: float = 0.0  # wall time of the registration
+    tool_W: ToolFrame | None = None  # a sound fit's tool frame (grasps on the seen parts stand in for a poor fit: none)
