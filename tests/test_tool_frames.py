@@ -119,3 +119,8 @@ def test_a_poses_file_gives_the_canonical_models_tool_frame_in_its_files_frame_a
     (tmp_path / "poses.yaml").write_text(yaml.safe_dump(spec))
     with pytest.raises(SystemExit, match="tool needs a tip"):
         folder_tools.folder_instances(tmp_path, tmp_path / "poses.yaml")
+    spec["tool"] = {"tip": (1000.0 * tool_F.tip).tolist(), "axis": tool_F.axis.tolist()}
+    spec["tool"]["tip"][0] += 300.0  # 30 cm off the spout: a tool frame off the model, said at once
+    (tmp_path / "poses.yaml").write_text(yaml.safe_dump(spec))
+    with pytest.raises(SystemExit, match="poses.yaml: the tool frame .* lies off the model"):
+        folder_tools.folder_instances(tmp_path, tmp_path / "poses.yaml")

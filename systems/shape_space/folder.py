@@ -47,7 +47,7 @@ from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 from systems.perception.shape_registrar import scale_prior
 from systems.shape_space.densify import densified
 from systems.shape_space.file_frame import FileReading, read_file_frame
-from systems.shape_space.space import POSE_NAMES, build_shape_space
+from systems.shape_space.space import POSE_NAMES, build_shape_space, tool_surface
 from systems.shape_space.tool_frame import ToolFrame
 from systems.shape_space.units import UNIT_NAMES, check_metres, metres_per_unit
 
@@ -154,6 +154,10 @@ def folder_instances(folder: Path, poses_file: Path, units: str = "auto", up: st
         poses[name] = {n: X_MF @ RigidTransform(X.rotation(), scale * X.translation()) for n, X in model_poses.items()}
     if tool is not None:
         tool = ToolFrame(scale * tool.tip, tool.axis).moved(X_MF)
+        try:
+            tool_surface(clouds[canonical], tool)
+        except ValueError as error:
+            raise SystemExit(f"error: {poses_file}: {error} ({canonical}, read as said above)") from None
     if len(clouds[canonical]) < DENSE_POINTS:
         logging.info("%s has %d points: densifying its surface", canonical, len(clouds[canonical]))
         clouds[canonical] = densified(clouds[canonical], CLOUD_POINTS)

@@ -45,6 +45,7 @@ SCALED_COPY_SEED = 0
 TOOL_RADIUS = 0.03
 TOOL_REACH = 0.12
 TOOL_END_BAND = 0.005
+MIN_TOOL_POINTS = 10
 
 
 @dataclass
@@ -120,13 +121,7 @@ class ShapeSpace:
     @functools.cached_property
     def _tool_points(self) -> np.ndarray:
         """Which canonical surface points (K bools) make up the tool's surface (tool_at)."""
-        offset = self.canonical_surface - self.tool.tip
-        along = np.clip(offset @ -self.tool.axis, 0.0, TOOL_REACH)
-        across = np.linalg.norm(offset + along[:, None] * self.tool.axis, axis=1)
-        points = across < TOOL_RADIUS
-        if np.count_nonzero(points) < 3:
-            raise ValueError(f"the {self.category} space's tool frame lies off its canonical surface")
-        return points
+        return tool_surface(self.canonical_surface, self.tool)
 
     @functools.cached_property
     def tool_beyond(self) -> float:
@@ -200,6 +195,25 @@ class ShapeSpace:
                 f"{path} is not a shape space file of this version ({error}); "
                 "rebuild it with scripts/build_shape_space.py"
             ) from None
+
+
+def tool_surface(points: np.ndarray, tool: ToolFrame) -> np.ndarray:
+    """Which of a model's surface points (N x 3, in its frame) make up its tool's surface (N bools): those within
+    TOOL_RADIUS of the last TOOL_REACH of the tool's axis up to its tip.
+
+    Raises:
+        ValueError: fewer than MIN_TOOL_POINTS of them (the tool frame lies off the model).
+    """
+    offset = points - tool.tip
+    along = np.clip(offset @ -tool.axis, 0.0, TOOL_REACH)
+    near = np.linalg.norm(offset + along[:, None] * tool.axis, axis=1) < TOOL_RADIUS
+    if np.count_nonzero(near) < MIN_TOOL_POINTS:
+        raise ValueError(
+            f"the tool frame (tip {np.round(tool.tip, 3).tolist()} m) lies off the model: {np.count_nonzero(near)} of "
+            f"its surface points within {100 * TOOL_RADIUS:.0f} cm of the last {100 * TOOL_REACH:.0f} cm of its axis "
+            f"(at least {MIN_TOOL_POINTS})"
+        )
+    return near
 
 
 def chamfer(a: np.ndarray, b: np.ndarray) -> float:
@@ -343,6 +357,8 @@ def build_shape_space(
     bar.close()
     pca = pca_em(np.array(samples), min(components, len(samples) - 1))
     tool = (tools or {}).get(canonical)
+    if tool is not None:
+        tool_surface(surface, tool)  # (a tool frame off the canonical model: said now, not at every registration)
     return ShapeSpace(
         category, canonical, source, pca, beta, canonical_grasps, list(clouds), surface, grasp_weight, propagated, tool
     )
