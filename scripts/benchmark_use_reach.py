@@ -22,7 +22,7 @@ import logging
 import time
 from pathlib import Path
 
-from diagrams.benchmarks.use_reach import BOARDS, aim_reach_rows, pour_reach_rows
+from diagrams.benchmarks.use_reach import BOARDS, LIFT_M, PIVOTS, aim_reach_rows, pour_reach_rows
 from diagrams.cli import write_json
 from diagrams.generation.planning_problems import DRAWN_WITH
 from diagrams.planning_scene import make_pick_motions
@@ -39,6 +39,8 @@ def main():
     parser.add_argument("--yaws", type=float, nargs="+", default=[-0.25, 0.0, 0.25], help="placement yaws, rad")
     parser.add_argument("--turns", type=float, nargs="+", default=[-45.0, 0.0, 45.0], help="pour: spout turns, deg")
     parser.add_argument("--tilts", type=float, nargs="+", default=[15.0, 30.0, 45.0, 60.0, 75.0, 90.0], help="deg")
+    parser.add_argument("--pivot", choices=PIVOTS, default="middle", help="pour: what the can turns about")
+    parser.add_argument("--lift", type=float, default=LIFT_M, help="pour: how high the can is held, m")
     parser.add_argument("--heights", type=float, nargs="+", default=[0.15, 0.25], help="aim: targets above the table")
     parser.add_argument("--offsets", type=float, nargs="+", default=[-0.15, 0.0, 0.15], help="aim: along the board")
     parser.add_argument(
@@ -49,7 +51,7 @@ def main():
     start = time.perf_counter()
     motions = make_pick_motions(load_scenario(), DRAWN_WITH)
     if args.task == "pour":
-        rows = pour_reach_rows(motions, args.instances, args.yaws, args.turns, args.tilts)
+        rows = pour_reach_rows(motions, args.instances, args.yaws, args.turns, args.tilts, args.pivot, args.lift)
         print(f"\n{'can':8s} {'yaw':>6s} {'turn':>5s} {'outflow':>8s} {'largest tilt':>13s} {'outflow then':>13s}")
         for row in rows:
             largest, then = row["largest_tilt_deg"], row["outflow_at_largest_deg"]

@@ -33,20 +33,32 @@ BOARDS = {
 }
 
 
+# The pour's pivot: the grasps' midpoint, or one hand's grasp.
+PIVOTS = ("middle", "right", "left")
+
+
 def pour_reach_rows(
-    motions: PickMotions, instances: list[str], yaws: list[float], turns_deg: list[float], tilts_deg: list[float]
+    motions: PickMotions,
+    instances: list[str],
+    yaws: list[float],
+    turns_deg: list[float],
+    tilts_deg: list[float],
+    pivot: str = "middle",
+    lift: float = LIFT_M,
 ) -> list[dict]:
     """Pour: one row per can, yaw (rad, its placement's) and turn (deg): the outflow's elevation before the tilt, each
     tilt's answer (reached or why not), the largest tilt reached from the smallest up without a gap, and the outflow's
-    elevation there (deg; None where none is reached)."""
+    elevation there (deg; None where none is reached). pivot: PIVOTS, what the can turns about; lift: how high it is
+    held, m."""
     rows = []
     for instance in instances:
         for yaw in yaws:
             scenario = replace_object(load_scenario(), category="watering_can", instance=instance, yaw=yaw)
             model = resolve_object(scenario.object)
-            X_WO = RigidTransform([0.0, 0.0, LIFT_M]) @ object_pose_on_table(scenario, model)
+            X_WO = RigidTransform([0.0, 0.0, lift]) @ object_pose_on_table(scenario, model)
             tool, grasps = model.info.tool_frame(), model.info.control_poses()
-            pivot_W = X_WO.multiply(0.5 * (grasps["left_grasp"].translation() + grasps["right_grasp"].translation()))
+            hands = [grasps[f"{side}_grasp"].translation() for side in ("left", "right") if pivot in ("middle", side)]
+            pivot_W = X_WO.multiply(np.mean(hands, axis=0))
             for turn in turns_deg:
                 turned = _about(pivot_W, RotationMatrix.MakeZRotation(np.radians(turn))) @ X_WO
                 outflow = tool.moved(turned).axis
@@ -54,7 +66,7 @@ def pour_reach_rows(
                 answers, largest = {}, None
                 for tilt in sorted(tilts_deg):
                     tilted = _about(pivot_W, RotationMatrix(AngleAxis(np.radians(tilt), across))) @ turned
-                    problem = held_problem(motions, scenario, LIFT_M, tilted @ X_WO.inverse(), [])
+                    problem = held_problem(motions, scenario, lift, tilted @ X_WO.inverse(), [])
                     answers[tilt] = "reached" if not isinstance(problem, str) else problem
                 for tilt in sorted(tilts_deg):  # the largest reached with every smaller one reached too
                     if answers[tilt] != "reached":
@@ -62,7 +74,8 @@ def pour_reach_rows(
                     largest = tilt
                 elevation = np.degrees(outflow_elevation(turned, tool))
                 rows.append({
-                    "instance": instance, "yaw_rad": yaw, "turn_deg": turn, "elevation_deg": float(elevation),
+                    "instance": instance, "yaw_rad": yaw, "pivot": pivot, "lift_m": lift, "turn_deg": turn,
+                    "elevation_deg": float(elevation),
                     "tilts": {str(t): a for t, a in answers.items()}, "largest_tilt_deg": largest,
                     "outflow_at_largest_deg": None if largest is None else float(elevation - largest),
                 })  # fmt: skip
