@@ -383,13 +383,13 @@ class PickWatcher:
                 outcome.perception["grasp_errors_m"] = grasp_errors(
                     report.grasps.poses_W, outcome.object_rest_W, self.true_grasps_O
                 )
-            truth = None
-            if report.grasps.found and self.judged_object is not None and outcome.object_rest_W is not None:
-                truth = true_part_surface(self.judged_object)
             tool = report.grasps.tool_W
             if tool is not None and self.true_tool_O is not None and outcome.object_rest_W is not None:
                 tip, axis = tool.errors(self.true_tool_O.moved(outcome.object_rest_W))
                 outcome.perception["tool_errors"] = {"tip_m": tip, "axis_rad": axis}
+            truth = None
+            if report.grasps.found and self.judged_object is not None and outcome.object_rest_W is not None:
+                truth = true_part_surface(self.judged_object)
             if truth is not None:
                 X_OW = outcome.object_rest_W.inverse()
                 grasps_O = {h: (X_OW @ report.grasps.poses_W[f"{h}_grasp"]).translation() for h in ("left", "right")}

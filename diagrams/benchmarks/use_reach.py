@@ -53,10 +53,7 @@ def pour_reach_rows(
     rows = []
     for instance in instances:
         for yaw in yaws:
-            scenario = replace_object(load_scenario(), category="watering_can", instance=instance, yaw=yaw)
-            model = resolve_object(scenario.object)
-            X_WO = RigidTransform([0.0, 0.0, lift]) @ object_pose_on_table(scenario, model)
-            tool, grasps = model.info.tool_frame(), model.info.control_poses()
+            scenario, X_WO, tool, grasps = _held("watering_can", instance, yaw, lift)
             hands = [grasps[f"{side}_grasp"].translation() for side in ("left", "right") if pivot in ("middle", side)]
             pivot_W = X_WO.multiply(np.mean(hands, axis=0))
             for turn in turns_deg:
@@ -96,10 +93,7 @@ def aim_reach_rows(
     rows = []
     for instance in instances:
         for yaw in yaws:
-            scenario = replace_object(load_scenario(), category="drill", instance=instance, yaw=yaw)
-            model = resolve_object(scenario.object)
-            X_WO = RigidTransform([0.0, 0.0, LIFT_M]) @ object_pose_on_table(scenario, model)
-            tool, grasps = model.info.tool_frame(), model.info.control_poses()
+            scenario, X_WO, tool, grasps = _held("drill", instance, yaw, LIFT_M)
             pivot_O = 0.5 * (grasps["left_grasp"].translation() + grasps["right_grasp"].translation())
             centre = np.array(scenario.table_xyz) + [0.0, 0.0, TABLE_HEIGHT]
             for board, (outward, normal) in BOARDS.items():
@@ -116,6 +110,15 @@ def aim_reach_rows(
                             "answer": "reached" if not isinstance(problem, str) else problem,
                         })  # fmt: skip
     return rows
+
+
+def _held(category: str, instance: str, yaw: float, lift: float):
+    """A generated instance at the default placement and `yaw` (rad) held `lift` (m) above where it stands: the
+    scenario, X_WO, its true tool frame and control poses (in O)."""
+    scenario = replace_object(load_scenario(), category=category, instance=instance, yaw=yaw)
+    model = resolve_object(scenario.object)
+    X_WO = RigidTransform([0.0, 0.0, lift]) @ object_pose_on_table(scenario, model)
+    return scenario, X_WO, model.info.tool_frame(), model.info.control_poses()
 
 
 def _about(point_W: np.ndarray, rotation: RotationMatrix) -> RigidTransform:

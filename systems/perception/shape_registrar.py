@@ -133,9 +133,7 @@ def seen_part_grasps(
     grasps = grasps_on_seen_parts(
         estimate.parts, estimate.viewpoint_W, registration.grasp_poses_W, approaches_W, not poor, poor
     )
-    if not grasps.found:
-        return None, grasps.poor
-    return grasps.poses_W, grasps.summary() + (f" ({poor})" if poor and not registration.poor_fit else "")
+    return (grasps.poses_W, grasps.summary()) if grasps.found else (None, grasps.poor)
 
 
 def _registrar(category: str) -> Registrar:

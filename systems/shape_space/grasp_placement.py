@@ -10,7 +10,6 @@ from pydrake.math import RigidTransform
 from scipy.spatial import cKDTree
 
 from systems.shape_space.handle_centring import handle_centring
-from systems.shape_space.visibility import visible_from
 
 GRASP_REGION = 0.04  # m: radius about a grasp frame
 GRASP_MATCH = 0.015  # m: a model point farther than this from every seen point has no match
@@ -48,13 +47,13 @@ def grasp_shift(origin_W: np.ndarray, model_W: np.ndarray, observed_W: np.ndarra
 
 
 def placed_on_seen_handles(
-    shape_W: np.ndarray, poses_W: dict[str, RigidTransform], observed_W: np.ndarray, viewpoint_W: np.ndarray
+    shape_W: np.ndarray, poses_W: dict[str, RigidTransform], observed_W: np.ndarray, seen_model: np.ndarray
 ) -> tuple[np.ndarray, dict[str, RigidTransform]]:
     """The fitted surface (K x 3, W) and control poses (POSE_NAMES -> X_WG) with each grasp and its pre-grasp moved
     onto the points seen about it (N x 3, W; grasp_shift, then handle_centring across its handle), and the surface
-    about each grasp moved with it, fading out over GRASP_REGION / 2. viewpoint_W: the camera's position (3, W)."""
+    about each grasp moved with it, fading out over GRASP_REGION / 2. seen_model: the surface's points visible from
+    the camera (visible_from)."""
     poses = dict(poses_W)
-    seen_model = shape_W[visible_from(shape_W, viewpoint_W)]
     moves = np.zeros_like(shape_W)
     for side in ("left", "right"):
         # The pre-grasp moves with its grasp: the approach between them stays along z_G.

@@ -32,6 +32,7 @@ from systems.shape_space.grasp_placement import placed_on_seen_handles
 from systems.shape_space.shape_fit import ShapeFit, ShapeFitter
 from systems.shape_space.space import ShapeSpace
 from systems.shape_space.tool_placement import tool_on_seen_surface
+from systems.shape_space.visibility import visible_from
 
 # The seen points kept by the even thinning (more: slower, the grasps within 0.1 mm).
 OBSERVED_POINTS = 300
@@ -153,10 +154,10 @@ class Registrar:
         shape_W, poses_W = self.fitter.surface_and_poses_W(fit)
         tool_W = self.fitter.tool_W(fit)
         if seen.viewpoint_W is not None:
-            shape_W, poses_W = placed_on_seen_handles(shape_W, poses_W, seen.observed_W, seen.viewpoint_W)
+            seen_model = shape_W[visible_from(shape_W, seen.viewpoint_W)]  # (the grasps' and the tool's placing)
+            shape_W, poses_W = placed_on_seen_handles(shape_W, poses_W, seen.observed_W, seen_model)
             if tool_W is not None:
-                beyond = self.space.tool_beyond
-                tool_W = tool_on_seen_surface(tool_W, beyond, shape_W, seen.observed_W, seen.viewpoint_W)
+                tool_W = tool_on_seen_surface(tool_W, self.space.tool_beyond, seen_model, seen.observed_W)
         return judged(fit, shape_W, poses_W, seen, tool_W)
 
 

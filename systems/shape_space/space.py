@@ -111,12 +111,19 @@ class ShapeSpace:
         if self.tool is None:
             return None
         reference = self.canonical_surface[self._tool_points]
-        moved = self.reconstruct(latent)[self._tool_points]
+        at_zero, per_component = self._tool_warp
+        moved = at_zero + np.tensordot(np.ravel(latent), per_component, axes=1)
         turn, _ = Rotation.align_vectors(moved - moved.mean(axis=0), reference - reference.mean(axis=0))
         axis = turn.apply(self.tool.axis)
         along = moved @ axis
         end = moved[along >= along.max() - TOOL_END_BAND].mean(axis=0)
         return ToolFrame(end + (along.max() - end @ axis + self.tool_beyond) * axis, axis)
+
+    @functools.cached_property
+    def _tool_warp(self) -> tuple[np.ndarray, np.ndarray]:
+        """The tool's surface as reconstruct() carries it: at z = 0, and what each latent component adds."""
+        at_zero, per_component = self._surface_warp
+        return at_zero[self._tool_points], per_component[:, self._tool_points]
 
     @functools.cached_property
     def _tool_points(self) -> np.ndarray:

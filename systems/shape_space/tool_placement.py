@@ -1,20 +1,20 @@
 """A fitted tool frame moved onto the tool the camera saw (with a viewpoint only).
 
 A latent shape gets a tool's direction right (its surface there turns as the tool does) but often not where the tool
-ends: a spout's or chuck's length is what the few latent components fit least (a test can's spout tip 29 mm short
-from a whole, true cloud). Where the camera sees the tool's end, the frame is moved there: along its axis by as much
-as the seen points about the end reach beyond (or stop short of) the fitted surface's visible points there, and
-across it by as much as their centroids differ across the axis (both sides seen from the same viewpoint, so the
-visible half of a tube biases both alike). Chosen on the tuning range extra_201-208 (48 rendered views, kinect_v2,
-2026-12-03), tip error medians cans / drills: as fitted 19.3 / 6.5 mm, moved along only 19.0 / 5.2 mm, along and
-across 11.0 / 8.8 mm (the drills' chuck is seen with flying pixels about it; a dead band or a fit check of the
-across move helped neither).
+ends: a spout's or chuck's length is what the few latent components fit least (a test can's spout tip 29 mm off
+along its axis from a whole, true cloud). Where the camera sees the tool's end, the frame is moved there: along its
+axis by as much as the seen points about the end reach beyond (or stop short of) the fitted surface's visible points
+there, and across it by as much as their centroids differ across the axis (both sides seen from the same viewpoint,
+so the visible half of a tube biases both alike).
+
+Chosen on the tuning range extra_201-208 (48 rendered views, kinect_v2, 2026-12-03), tip error medians cans / drills:
+as fitted 19.3 / 6.5 mm, moved along only 19.0 / 5.2 mm, along and across 11.0 / 8.8 mm (the drills' chuck is seen
+with flying pixels about it; a dead band or a fit check of the across move helped neither).
 """
 
 import numpy as np
 
 from systems.shape_space.tool_frame import ToolFrame
-from systems.shape_space.visibility import visible_from
 
 # The window about the fitted tool's far end (m): from TOOL_WINDOW_BACK behind it to TOOL_WINDOW_AHEAD beyond it along
 # the axis, within TOOL_WINDOW_RADIUS of the axis.
@@ -29,15 +29,13 @@ TOOL_ITERATIONS = 5  # moves, the seen window following each
 TOOL_END_LENGTH = 0.03  # m: the tool's last stretch, whose centroids say how far across the axis to move
 
 
-def tool_on_seen_surface(
-    tool_W: ToolFrame, beyond: float, shape_W: np.ndarray, observed_W: np.ndarray, viewpoint_W: np.ndarray
-) -> ToolFrame:
+def tool_on_seen_surface(tool_W: ToolFrame, beyond: float, seen_model: np.ndarray, observed_W: np.ndarray) -> ToolFrame:
     """The fitted tool frame (W) moved onto the seen points about its end (N x 3, W), against the fitted surface's
-    points visible from the viewpoint (K x 3 and 3, W); as fitted where too little is seen there. beyond: how far (m)
-    the tip lies beyond the tool's surface along its axis (a drill's bit; ShapeSpace.tool_beyond)."""
+    points visible from the camera (K x 3, W: visible_from); as fitted where too little is seen there. beyond: how
+    far (m) the tip lies beyond the tool's surface along its axis (a drill's bit; ShapeSpace.tool_beyond)."""
     axis = tool_W.axis
     end = tool_W.tip - beyond * axis
-    model_near_end = _window(shape_W[visible_from(shape_W, viewpoint_W)], end, axis)
+    model_near_end = _window(seen_model, end, axis)
     shift = np.zeros(3)
     for _ in range(TOOL_ITERATIONS):  # the window follows the shift: a tool seen far from the fitted one is reached
         seen = _window(observed_W, end + shift, axis)
