@@ -23,6 +23,8 @@ from pydrake.lcm import DrakeLcm, DrakeLcmInterface
 from pydrake.math import RigidTransform
 from pydrake.systems.framework import Diagram, DiagramBuilder
 
+from diagrams.aim_board import board_placement
+from diagrams.aim_judge import AimJudge
 from diagrams.generation.objects.library import resolve_object
 from diagrams.generation.part_labels import on_handles, true_part_surface
 from diagrams.hardware_station import MakeHardwareStation
@@ -37,7 +39,7 @@ from systems.perception.camera_latch import CameraLatch
 from systems.perception.grasp_offset import GraspOffset
 from systems.perception.robot_spheres import RobotSpheres
 from systems.pick_supervisor import PickSupervisor
-from systems.pick_tasks import lift_pick, place_pick
+from systems.pick_tasks import aim_pick, lift_pick, place_pick
 from systems.pick_visualiser import PickVisualiser
 from systems.planning.pick_motions import PickMotions, PlannerConfig, PlanningError
 from systems.planning.plan_telemetry import PlanTelemetryRecorder
@@ -82,6 +84,8 @@ def MakePickDiagram(
     """
     if perception not in PERCEPTION_SOURCES:
         raise ValueError(f"unknown perception {perception!r}: one of {PERCEPTION_SOURCES}")
+    if scenario.task == "aim" and scenario.object.category != "drill":
+        raise ValueError(f"the aim task aims a drill's bit: the object must be a drill, not {scenario.object.category}")
     builder = DiagramBuilder()
     if hardware:
         station = builder.AddNamedSystem("station", MakeHardwareStation(scenario, lcm))
@@ -100,11 +104,13 @@ def MakePickDiagram(
     source = builder.AddNamedSystem("trajectory_source", JointTrajectorySource(n))
     hands = builder.AddNamedSystem("hand_command", HandCommandSource())
     from_camera = perception == "camera"
-    held_looks = scenario.place.looks and scenario.task == "place"
+    held_looks = scenario.place.looks and scenario.task in ("place", "aim")
     looks = from_camera and (held_looks or scenario.look_before_approach)
     if scenario.task == "place":
         tasks = place_pick(check=scenario.look_before_approach, held_looks=scenario.place.looks)
         place_target_W = place_target(scenario)
+    elif scenario.task == "aim":  # (set down again where it was taken)
+        tasks, place_target_W = aim_pick(check=scenario.look_before_approach, held_looks=scenario.place.looks), None
     else:
         tasks, place_target_W = lift_pick(check=scenario.look_before_approach), None
     supervisor = PickSupervisor(
@@ -130,6 +136,8 @@ def MakePickDiagram(
             raise PlanningError(str(error)) from error
     builder.Connect(seen.GetOutputPort("frame_id"), supervisor.GetInputPort("frame_id"))
     builder.Connect(seen.GetOutputPort("result"), supervisor.GetInputPort("perception"))
+    if scenario.task == "aim":
+        builder.Connect(seen.GetOutputPort("board"), supervisor.GetInputPort("board"))
     grasps = seen.GetOutputPort("grasp_poses")
     if any(scenario.faults.grasp_offset_G):
         if hardware:
@@ -301,6 +309,14 @@ def run_pick(
 
         def make_judge(plant, context):
             return PlaceJudge(plant, context, place_target(scenario), mode_of)
+
+    elif scenario.task == "aim":
+        tool_O = true_tool_O(scenario)
+        if tool_O is None:
+            raise ValueError("the aim task is judged on the drill's true tool frame: its model has none")
+
+        def make_judge(plant, context):
+            return AimJudge(plant, context, mode_of, board_placement(scenario), tool_O)
 
     outcome = simulate_pick(
         diagram, scenario, watch.end_time, meshcat, record, plant=plant, make_judge=make_judge, mode_of=mode_of

@@ -8,7 +8,7 @@ import math
 from pathlib import Path
 
 from diagrams.generation.clutter_scenes import clutter_scene
-from diagrams.scenario import DEFAULT_SCENARIO, Scenario, load_scenario, replace_object
+from diagrams.scenario import DEFAULT_SCENARIO, TASKS, Scenario, load_scenario, replace_object
 from systems.perception.rgbd_noise import PRESETS
 from systems.shape_space.units import MESH_UNITS, MESH_UP_AXES
 
@@ -27,6 +27,12 @@ def add_scenario_options(parser: argparse.ArgumentParser) -> None:
     )
     add_mesh_options(parser)
     parser.add_argument("--yaw", type=float, help="object yaw relative to the category's presentation, rad")
+    parser.add_argument(
+        "--task",
+        choices=TASKS,
+        help="lift (the paper's), place (scenario place:) or aim (a drill at the scenario aim: board; "
+        "docs/use.md); default: the scenario's",
+    )
     parser.add_argument("--seed", type=int, help="random seed of the run")
     parser.add_argument(
         "--scene",
@@ -86,6 +92,8 @@ def scenario_from_args(args: argparse.Namespace) -> Scenario:
         ValueError: --scene clutter with an option that places the object itself.
     """
     scenario = load_scenario(args.scenario, args.scenario_text)
+    if getattr(args, "task", None) is not None:
+        scenario = dataclasses.replace(scenario, task=args.task)
     if getattr(args, "scene", "single") == "clutter":
         given = [f"--{n.replace('_', '-')}" for n in ("instance", "object_file", "yaw") if getattr(args, n) is not None]
         if given:
@@ -107,7 +115,7 @@ def scenario_from_args(args: argparse.Namespace) -> Scenario:
 def scenario_arguments(args: argparse.Namespace) -> list[str]:
     """These options as given, to start another script on the same scenario."""
     forwarded = ["--scenario", str(args.scenario), "--scenario_text", args.scenario_text]
-    names = ("object", "instance", "object_file", "mesh_units", "mesh_up", "yaw", "seed", "sensor", "scene")
+    names = ("object", "instance", "object_file", "mesh_units", "mesh_up", "yaw", "seed", "sensor", "scene", "task")
     for name in (*names, "clutter_index"):
         value = getattr(args, name)
         if value is not None:

@@ -202,6 +202,7 @@ def run_trial(trial: Trial) -> dict:
         "closure": outcome.closure,
         "closure_executed": outcome.closure_executed,
         "place": outcome.place,
+        "use": outcome.use,
         "perception": outcome.perception,
         "others_moved_m": outcome.others_moved_m,
         "sim_wall_s": outcome.wall_time_s,
@@ -293,6 +294,7 @@ def summarize(records: list[dict]) -> dict:
         ),
         **_grasps_on_handles(records),
         **_tool_errors(records),
+        **_aims(records),
         "success_rate": _rate(successes, len(records)),
         "success_rate_ci95": wilson_interval(successes, len(records)),
         # Over the picks that lifted (a held move was played), m and rad.
@@ -336,6 +338,22 @@ def _tool_errors(records: list[dict]) -> dict:
         "tool_frames_judged": len(judged),
         "tool_tip_error_m_median": float(np.median([e["tip_m"] for e in judged])),
         "tool_axis_error_rad_median": float(np.median([e["axis_rad"] for e in judged])),
+    }
+
+
+def _aims(records: list[dict]) -> dict:
+    """The aim task (records with a measured hold, diagrams/aim_judge.py): {"aims_held": how many picks held an aim,
+    "aimed_share": the share of all picks whose aim the judge passed, "aim_axis_error_rad_median",
+    "aim_tip_to_target_m_median"} (worst of each hold); {} where no record is an aim."""
+    aims = [r["use"] for r in records if (r.get("use") or {}).get("task") == "aim"]
+    if not aims:
+        return {}
+    held = [use for use in aims if "axis_error_rad" in use]
+    return {
+        "aims_held": len(held),
+        "aimed_share": _rate(sum(use["aimed"] for use in aims), len(records)),
+        "aim_axis_error_rad_median": float(np.median([u["axis_error_rad"] for u in held])) if held else float("nan"),
+        "aim_tip_to_target_m_median": float(np.median([u["tip_to_target_m"] for u in held])) if held else float("nan"),
     }
 
 

@@ -8,13 +8,15 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.systems.primitives import ConstantValueSource, ConstantVectorSource
 
+from diagrams.aim_board import board_placement
 from diagrams.generation.objects import catalog
 from diagrams.generation.objects.library import resolve_object
 from diagrams.planning_scene import clutter_surfaces_W, object_surface_W, true_grasp_poses
 from diagrams.scenario import Scenario
 from diagrams.station import TABLE_HEIGHT, object_pose_on_table
 from systems import categories
-from systems.messages import GraspPoses, PerceptionResult
+from systems.messages import BoardSeen, GraspPoses, PerceptionResult
+from systems.perception.board_finder import BoardFinder
 from systems.perception.camera_latch import CameraLatch
 from systems.perception.object_tracker import ObjectTracker
 from systems.perception.part_segmenter import DEFAULT_PART_WEIGHTS, PartSegmenter
@@ -115,7 +117,7 @@ def MakePerception(
     robot_spheres robot_position (the planned joints, rad: latched with the frame).
     Output ports: frame_id (1: the frame latched), result (PerceptionResult), and the registrar's
     grasp_poses (GraspPoses), reconstructed_cloud_W (N x 3, m) and X_WO (RigidTransform); with robot_spheres,
-    scene_cloud_W (N x 3 in W, m: its occupied points).
+    scene_cloud_W (N x 3 in W, m: its occupied points); for the aim task, board (BoardSeen: board_finder's).
 
     Args:
         weights: the segmenter's; None: the one that knows every taught category (categories.active_segmenter).
@@ -174,9 +176,20 @@ def MakePerception(
         ):
             builder.Connect(source, scene.GetInputPort(port))
         builder.ExportOutput(scene.GetOutputPort("scene_cloud_W"), "scene_cloud_W")
+    if scenario.task == "aim":  # the board and its target, in the same frame
+        board = builder.AddNamedSystem("board_finder", BoardFinder(*depth_camera(scenario)))
+        for port in ("color_image", "depth_image", "camera_pose"):
+            builder.Connect(latch.GetOutputPort(port), board.GetInputPort(port))
+        builder.ExportOutput(board.GetOutputPort("board"), "board")
     diagram = builder.Build()
     diagram.set_name("perception")
     return diagram
+
+
+def true_board(scenario: Scenario) -> BoardSeen:
+    """The aim task's board and target where the station puts them."""
+    placement = board_placement(scenario)
+    return BoardSeen(True, placement.normal_W, placement.target_W, "ground truth")
 
 
 def MakeGroundTruthPerception(scenario: Scenario, surface_points: int = TRUE_SURFACE_POINTS) -> Diagram:
@@ -201,6 +214,7 @@ def MakeGroundTruthPerception(scenario: Scenario, surface_points: int = TRUE_SUR
         ("reconstructed_cloud_W", surface),
         ("X_WO", X_WO),
         ("scene_cloud_W", clutter_surfaces_W(scenario, SEEN_SPACING_M)),
+        *((("board", true_board(scenario)),) if scenario.task == "aim" else ()),
     ):
         source = builder.AddNamedSystem(name, ConstantValueSource(AbstractValue.Make(value)))
         builder.ExportOutput(source.get_output_port(), name)

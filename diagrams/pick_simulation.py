@@ -34,7 +34,10 @@ HOLD_CHECK_S = 2.0
 SAMPLE_S = 0.05
 # The executed closure: sampled this often during the held moves (the supervisor's modes HELD_MOVES), s.
 CLOSURE_SAMPLE_S = 0.01
-HELD_MOVES = (Mode.LIFT, Mode.CARRY, Mode.SET_DOWN)
+HELD_MOVES = (Mode.LIFT, Mode.CARRY, Mode.SET_DOWN, Mode.AIM_APPROACH, Mode.AIM, Mode.AIM_BACK)
+# The modes in which both hands hold the object (a place's, an aim's).
+HELD_MODES = (Mode.LOOK, Mode.LIFT, Mode.CARRY, Mode.LOOK_AGAIN, Mode.SET_DOWN, Mode.AIM_APPROACH, Mode.AIM,
+              Mode.AIM_HOLD, Mode.AIM_BACK)  # fmt: skip
 # The modes of a failed attempt's recovery (systems/pick_tasks.py's recovery_task).
 RECOVERY_MODES = (Mode.RECOVER_OPEN, Mode.RECOVER_RETREAT, Mode.RECOVER_HOME)
 
@@ -75,6 +78,8 @@ class PickOutcome:
     # "release_shift_m": how far letting go and backing off turned it about the vertical and moved it (the last
     # time), "corrections": how often the object was taken again and set down again after a look found it off}.
     place: dict = field(default_factory=dict)
+    # Using the held object (the aim task, diagrams/aim_judge.py): {"task": "aim", the measured figures}.
+    use: dict = field(default_factory=dict)
     # How far the perceived object pose was from the true one when the camera saw it: {"position_error_m": xy
     # distance, "yaw_error_rad"}, the "category" perception took and, where the user named it, the
     # "network_category" the segmenter's network gave (empty when the pick did not perceive), the "grasps" message
@@ -248,11 +253,11 @@ class LiftJudge:
 
 class PlaceJudge(LiftJudge):
     """Judges the place task on ground truth: the object ends resting upright within PLACE_TOLERANCE_M and
-    PLACE_TOLERANCE_RAD of the target, let go by both hands, and never slipped more than DROP_SLIP_M in the
-    hands (its origin against the grasp frames' midpoint, in the left grasp frame) while they held it (the
-    modes `held_modes`, told by mode_of(context); each stretch of them is one grasp: a grasp taken again, after
-    a retry or a set-down off the target, is not a slip, and a failed attempt's slips do not count). The release
-    measured is the last one."""
+    PLACE_TOLERANCE_RAD of the target (X_W_target; None: where it had settled before the pick), let go by both
+    hands, and never slipped more than DROP_SLIP_M in the hands (its origin against the grasp frames' midpoint, in
+    the left grasp frame) while they held it (the modes `held_modes`, told by mode_of(context); each stretch of
+    them is one grasp: a grasp taken again, after a retry or a set-down off the target, is not a slip, and a failed
+    attempt's slips do not count). The release measured is the last one."""
 
     def __init__(
         self,
@@ -260,7 +265,7 @@ class PlaceJudge(LiftJudge):
         context,
         X_W_target,
         mode_of: Callable,
-        held_modes=(Mode.LOOK, Mode.LIFT, Mode.CARRY, Mode.LOOK_AGAIN, Mode.SET_DOWN),
+        held_modes=HELD_MODES,
     ):
         super().__init__(plant, context)
         self.context, self.X_W_target, self.mode_of, self.held_modes = context, X_W_target, mode_of, held_modes
@@ -291,20 +296,24 @@ class PlaceJudge(LiftJudge):
             self.max_slip = max(self.max_slip, float(np.linalg.norm(offset - self.held_offset)))
         return z
 
+    def target(self) -> RigidTransform:
+        """Where the object is to end: the target, or where it had settled."""
+        return self.X_rest if self.X_W_target is None else self.X_W_target
+
     def outcome(self) -> PickOutcome:
         outcome = super().outcome()
-        if self.body is None:
+        if self.body is None or self.target() is None:
             return outcome
         X_WO = self.body.EvalPoseInWorld(self.plant_context)
-        off = pose_error(X_WO, self.X_W_target)
+        off = pose_error(X_WO, self.target())
         error, yaw_error = off["position_error_m"], off["yaw_error_rad"]
         tilt = float(np.arccos(np.clip(X_WO.rotation().matrix()[2, 2], -1.0, 1.0)))
-        resting = abs(X_WO.translation()[2] - self.X_W_target.translation()[2]) < 0.01
+        resting = abs(X_WO.translation()[2] - self.target().translation()[2]) < 0.01
         dropped = self.max_slip > DROP_SLIP_M
         outcome.place = {"error_m": error, "yaw_error_rad": yaw_error, "tilt_rad": tilt,
                          "max_slip_m": self.max_slip, "dropped": dropped}  # fmt: skip
         if self.X_set_down is not None:  # where the set-down left it, before letting go and backing off
-            set_down = pose_error(self.X_set_down, self.X_W_target)
+            set_down = pose_error(self.X_set_down, self.target())
             outcome.place["set_down_error_m"] = set_down["position_error_m"]
             outcome.place["set_down_yaw_error_rad"] = set_down["yaw_error_rad"]
             released = pose_error(X_WO, self.X_set_down)

@@ -146,6 +146,19 @@ class PlaceConfig:
 
 
 @dataclass
+class AimConfig:
+    """The aim task's board (task: aim): a vertical board standing on the table, facing the robot, with a target
+    disc of a colour of its own (systems/perception/board_target.py's TARGET_RGB) marked on its face."""
+
+    # The centre of the bottom edge of its face (the side towards the robot) in the table_top frame, m. The arms
+    # reach a board 20 cm in from the table's far edge, not one at an edge (docs/use.md).
+    board_xyz: list[float] = field(default_factory=lambda: [0.2, 0.0, 0.0])
+    # The target's centre on the face: along the board from its centre (y in W) and above the table, m; []: drawn
+    # from random_seed within AIM_TARGET_RANGE (where the arms reach it: docs/use.md).
+    target_yz: list[float] = field(default_factory=list)
+
+
+@dataclass
 class BoxObstacleConfig:
     """A box fixed on the table (e.g. between the object and the place target), known to the planner as the
     table is. It must not touch the object where it rests or where it is placed: see the layouts
@@ -202,10 +215,12 @@ class Scenario:
     random_seed: int = 0
     # The object on the table.
     object: ObjectConfig = field(default_factory=ObjectConfig)
-    # What the pick does once both hands hold the object: "lift" (lift and hold it, the paper's task) or
-    # "place" (lift, carry it to `place`, set it down upright, open the hands, retreat).
+    # What the pick does once both hands hold the object: "lift" (lift and hold it, the paper's task),
+    # "place" (lift, carry it to `place`, set it down upright, open the hands, retreat) or "aim" (a drill: aim its
+    # bit at the target on the `aim` board, hold, back off, set it down where it stood).
     task: str = "lift"
     place: PlaceConfig = field(default_factory=PlaceConfig)
+    aim: AimConfig = field(default_factory=AimConfig)
     # A box on the table, known to the planner.
     obstacle: BoxObstacleConfig = field(default_factory=BoxObstacleConfig)
     # Other objects on the table, unknown to the planner (it sees them through the camera).
@@ -369,6 +384,7 @@ def validate(scenario: Scenario) -> None:
         raise ValueError(f"place.xy must be 2 entries within {MAX_TABLE_OFFSET_M} m of the table's centre")
     if not abs(scenario.place.yaw) <= 2 * math.pi:
         raise ValueError(f"place.yaw must lie in [-2 pi, 2 pi] rad, got {scenario.place.yaw}")
+    _validate_aim(scenario)
     box = scenario.obstacle
     if len(box.xy) != 2 or len(box.size) != 3 or not all(0 < v <= 1.0 for v in box.size):
         raise ValueError(f"obstacle: xy must have 2 entries and size 3 in (0, 1] m, got {box.xy}, {box.size}")
@@ -390,6 +406,18 @@ def validate(scenario: Scenario) -> None:
         )
 
 
+def _validate_aim(scenario: Scenario) -> None:
+    aim = scenario.aim
+    if len(aim.board_xyz) != 3 or not all(abs(v) <= MAX_TABLE_OFFSET_M for v in aim.board_xyz):
+        raise ValueError(f"aim.board_xyz must be 3 entries within {MAX_TABLE_OFFSET_M} m of the table top's centre")
+    if aim.target_yz and (len(aim.target_yz) != 2 or abs(aim.target_yz[0]) > BOARD_SIZE_M[0] / 2
+                          or not 0 < aim.target_yz[1] < BOARD_SIZE_M[1]):  # fmt: skip
+        raise ValueError(
+            f"aim.target_yz must be [] (drawn) or 2 entries on the board's face: along it within "
+            f"{BOARD_SIZE_M[0] / 2} m of its centre, and (0, {BOARD_SIZE_M[1]}) m above the table; got {aim.target_yz}"
+        )
+
+
 def clutter_name(other: ClutterObjectConfig) -> str:
     """A clutter object's name for reports: its shape, or its category and instance."""
     return f"{other.kind}/{other.instance}" if other.instance else other.kind
@@ -408,7 +436,10 @@ def _validate_clutter(name: str, other: ClutterObjectConfig) -> None:
         raise ValueError(f"{name}.mass must lie in (0, {MAX_OBJECT_MASS_KG}] kg, got {other.mass}")
 
 
-TASKS = ("lift", "place")
+TASKS = ("lift", "place", "aim")
+TABLE_HEIGHT = 0.76  # m: the table_top frame above the table's base (sdf/scene/table.sdf)
+# The aim task's board: width (along y), height and thickness, m.
+BOARD_SIZE_M = (0.5, 0.4, 0.02)
 CLUTTER_SHAPES = ("box", "cylinder", "bowl")
 TORSO_MODES = ("free", "locked")
 # Bounds of the scenario's physical fields.

@@ -46,12 +46,14 @@ from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.systems.primitives import Demultiplexer, MatrixGain, PassThrough, StateInterpolatorWithDiscreteDerivative
 from pydrake.systems.sensors import RgbdSensor
 
+from diagrams.aim_board import AddBoard
 from diagrams.generation.centauro_description import TORSO_JOINT, joint_names, sdf_name
 from diagrams.generation.objects import catalog
 from diagrams.generation.objects.bowl import bowl_file
 from diagrams.generation.objects.library import ObjectModel, resolve_object
 from diagrams.paths import PACKAGE_XML
 from diagrams.scenario import (
+    TABLE_HEIGHT,
     ClutterObjectConfig,
     ObjectConfig,
     Scenario,
@@ -66,7 +68,6 @@ ARM_INSTANCE = "centauro"
 HAND_INSTANCES = {"left": "left_hand", "right": "right_hand"}
 OBJECT_INSTANCE = "object"
 CLUTTER_INSTANCE = "clutter_{}"  # the scenario's other objects, by their index in scenario.clutter
-TABLE_HEIGHT = 0.76  # m: the table_top frame above the table's base (sdf/scene/table.sdf)
 # Lift the object this far above the table at t = 0 so that it settles without penetration.
 OBJECT_DROP_HEIGHT = 0.002
 
@@ -250,6 +251,8 @@ def MakeStation(scenario: Scenario, meshcat: Meshcat | None = None) -> Diagram:
     robot, hands = AddCentauro(plant, scene_graph, scenario)
     AddTable(plant, scenario)
     AddBoxObstacle(plant, scenario)
+    if scenario.task == "aim":
+        AddBoard(plant, scenario)
     if scenario.object.present:
         AddObject(plant, scene_graph, scenario)
     AddClutter(plant, scene_graph, scenario)

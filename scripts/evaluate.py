@@ -38,7 +38,7 @@ from diagrams.evaluation import (
     random_placements,
 )
 from diagrams.evaluation_report import CampaignSettings, describe, recorded_campaign, report
-from diagrams.scenario import DEFAULT_SCENARIO, load_scenario, overlay_scenario, place_over_box_scenario
+from diagrams.scenario import DEFAULT_SCENARIO, TASKS, load_scenario, overlay_scenario, place_over_box_scenario
 
 
 def parse_args(argv=None):
@@ -85,7 +85,10 @@ def parse_args(argv=None):
         "--yaw-noise", dest="yaw_noise", type=float, default=PAPER_YAW_NOISE, help="registration yaw noise, +-rad"
     )
     parser.add_argument(
-        "--task", choices=("lift", "place"), default="lift", help="lift and hold (the paper), or carry and place"
+        "--task",
+        choices=TASKS,
+        default="lift",
+        help="lift and hold (the paper), carry and place, or aim a drill at a board's target (--category drill)",
     )
     parser.add_argument(
         "--obstacle",

@@ -6,6 +6,7 @@ python scripts/pick.py --oracle --object drill --instance test_1 --yaw 0.25 --js
 python scripts/pick.py --oracle --object-file my_can.sdf --object watering_can
 python scripts/pick.py --oracle --meshcat --record pick.html
 python scripts/pick.py --object pot --object-file my_pot.obj       # a category taught by add_category.py
+python scripts/pick.py --object drill --task aim     # aim the drill's bit at the board's target (docs/use.md)
 """
 
 import argparse
@@ -86,6 +87,14 @@ def main(argv=None) -> int:
         if outcome.stages:
             print("stage wall times: " + ", ".join(f"{name} {s:.3f} s" for name, s in outcome.stages.items()))
         summary = f"{'SUCCESS' if outcome.success else 'FAILURE'}: {outcome.message}"
+        if outcome.use.get("axis_error_rad") is not None:
+            use = outcome.use
+            nearest, farthest = use["tip_off_surface_m"]
+            summary += (
+                f"; bit {math.degrees(use['axis_error_rad']):.1f} deg off the normal, tip "
+                f"{1000 * use['tip_to_target_m']:.1f} mm from the target, {1000 * nearest:.1f}-{1000 * farthest:.1f} "
+                "mm off the board"
+            )
         if outcome.place:
             place = outcome.place
             summary += (
@@ -115,6 +124,7 @@ def main(argv=None) -> int:
             "commands": outcome.commands,
             "task": scenario.task,
             "place": outcome.place,
+            "use": outcome.use,
             "perception": outcome.perception,
             "others_moved_m": outcome.others_moved_m,  # each other object's largest move (ground truth)
             "failed_stage": outcome.failed_stage,

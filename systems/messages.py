@@ -39,10 +39,14 @@ class Targets(enum.StrEnum):
 
 
 class PlaceGoal(enum.StrEnum):
-    """The held moves of a place task, towards the place target."""
+    """The held moves towards a goal: a place target's (systems/planning/place_goals.py) or a board's target's
+    (systems/planning/aim_goals.py)."""
 
-    CARRY = "carry"  # over the target, turned to its yaw, at the height the object is carried at
-    SET_DOWN = "set_down"  # straight down onto the target
+    CARRY = "carry"  # over the place target, turned to its yaw, at the height the object is carried at
+    SET_DOWN = "set_down"  # straight down onto the place target
+    AIM_APPROACH = "aim_approach"  # the tool aimed at the board's target, AIM_APPROACH_M short of the aim
+    AIM = "aim"  # on along the board's normal to the aim: the tool's tip its standoff off the target
+    AIM_BACK = "aim_back"  # back along the board's normal by AIM_APPROACH_M
 
 
 class Mode(enum.StrEnum):
@@ -64,6 +68,11 @@ class Mode(enum.StrEnum):
     RELEASE = "release"
     RETREAT = "retreat"
     CONFIRM = "confirm"  # a look at the object set down: does it stand where it was to go?
+    # Aiming a held tool at a board's target: in front of it, onto it, hold, back off.
+    AIM_APPROACH = "aim_approach"
+    AIM = "aim"
+    AIM_HOLD = "aim_hold"
+    AIM_BACK = "aim_back"
     # Recovering from a failed attempt: open the hands, back off, go back to where the pick started.
     RECOVER_OPEN = "recover_open"
     RECOVER_RETREAT = "recover_retreat"
@@ -92,6 +101,8 @@ class TaskName(enum.StrEnum):
     REPLACE = "replace"  # set down off its target: take it again where it stands, set it down on the target
     BACK_OFF = "back_off"  # it moved before the approach: back off before reaching for it again
     RECOVER = "recover"  # a failed attempt: open the hands, back off, go back to where the pick started
+    AIM = "aim"  # grasp a drill, lift it, aim its bit at a board's target, hold, back off, set it down where it stood
+    SET_BACK = "set_back"  # the held object's goal is out of reach: set it down where it was taken, let go
 
 
 class Stage(enum.StrEnum):
@@ -103,6 +114,7 @@ class Stage(enum.StrEnum):
     REGISTRATION = "registration"
     PLANNING = "planning"
     GRASP = "grasp"  # a hand closed on nothing
+    BOARD = "board"  # the aim task's board or its target was not seen
 
 
 # Perception's stages, in the order they run.
@@ -240,6 +252,27 @@ class PerceptionResult:
 
 
 @dataclass
+class BoardSeen:
+    """The aim task's board as perceived (systems/perception/board_finder.py), or why it was not."""
+
+    found: bool = False
+    normal_W: np.ndarray | None = None  # (3,) unit: out of the board's face, towards the camera
+    target_W: np.ndarray | None = None  # (3,) m: the target's centre, on the face
+    message: str = ""
+
+
+@dataclass(frozen=True)
+class AimTarget:
+    """What the aim task aims: the held object's tool frame and the turn's pivot (the grasps' midpoint), in O; the
+    board's target and outward normal, in W."""
+
+    tool_O: ToolFrame
+    pivot_O: np.ndarray  # (3,) m
+    target_W: np.ndarray  # (3,) m
+    normal_W: np.ndarray  # (3,) unit
+
+
+@dataclass
 class PlanRequest:
     """What to plan. Goals are Cartesian: hand poses named in the grasp_poses input, or a held move."""
 
@@ -366,3 +399,6 @@ class PickStatus:
     task: TaskName | None = None  # the phase list under way (None: none yet, or perceiving for the next attempt)
     corrections: int = 0  # reaches planned again this attempt because a look found the object moved
     place_corrections: int = 0  # times the object was taken again after a set-down
+    aim: AimTarget | None = None  # the aim task: what it aims at, once perceived
+    # A move out of reach whose task sets the object back down first: the pick's failure, told once it is down.
+    pending_failure: tuple[str, str] | None = None

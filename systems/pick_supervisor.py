@@ -20,6 +20,10 @@ A place moves the object from where it is in the hands, not from where it was se
 it (closing turned cans by up to 21 degrees, the lift a few more): the object belief and the place goals are
 systems/planning/place_goals.py's. After a place, a look confirms where the object stands; clearly off its
 target, the hands take it again and set it down again (at most MAX_PLACE_CORRECTIONS times per attempt).
+
+An aim reads the board perceived in the same frame (``board``) and aims the tool frame perceived with the grasps
+(systems/planning/aim_goals.py); without either it fails before it moves. Its place target is where the object was
+seen: the drill goes back down where it was taken.
 """
 
 import dataclasses
@@ -34,6 +38,7 @@ from pydrake.systems.framework import BasicVector, EventStatus, LeafSystem
 from systems.messages import (
     OPEN_WIDTH,
     SIDES,
+    BoardSeen,
     HandCommand,
     LookRequest,
     Mode,
@@ -42,6 +47,7 @@ from systems.messages import (
     PerceptionResult,
     PhaseKind,
     PickStatus,
+    PlaceGoal,
     PlanRequest,
     PlanResult,
     Stage,
@@ -49,6 +55,7 @@ from systems.messages import (
     TaskName,
 )
 from systems.pick_tasks import Phase, PickTasks, Task, Then
+from systems.planning.aim_goals import aim_motion, aim_target
 from systems.planning.place_goals import place_motion
 
 CLOSE_S = 1.0  # s: the hands close over this long
@@ -68,6 +75,7 @@ MAX_CORRECTIONS = 2
 PLACED_M = 0.02
 PLACED_RAD = np.radians(6.0)
 MAX_PLACE_CORRECTIONS = 1
+AIM_GOALS = (PlaceGoal.AIM_APPROACH, PlaceGoal.AIM, PlaceGoal.AIM_BACK)
 # A failed check that another attempt can put right: a hand closed on nothing, or lost the object.
 RETRIED_STAGES = (Stage.GRASP,)
 # A hand whose measured opening is still this near its full opening after closing did not close, m.
@@ -89,6 +97,7 @@ class PickSupervisor(LeafSystem):
         - perception
         - look_frame_id (optional)
         - look (optional)
+        - board (optional)
         output_ports:
         - trigger
         - plan_request
@@ -104,12 +113,13 @@ class PickSupervisor(LeafSystem):
     (PickStatus); ``attempt`` (1): the attempt under way. With looks, a look phase asks for a frame of the
     held object (``look_trigger`` (1), answered by ``look_frame_id`` (1)) and reads ``look`` (ObjectEstimate:
     the object tracker's, told where to look by ``expected_X_WO`` (RigidTransform)); without looks it is
-    skipped.
+    skipped. An aim task reads ``board`` (BoardSeen, of the frame perceived).
 
     Args:
         tasks: the pick's tasks (lift_pick() or place_pick()).
         perceive_at_s: when to ask for the camera frame (the object has settled), s.
-        place_target_W: where a place task leaves the object (X_WO on the table).
+        place_target_W: where a place task leaves the object (X_WO on the table); None: where it was seen (the aim
+            task's set-down).
         from_camera: perception needs a camera frame (False: a ground-truth source, read at once).
         looks: the look phases ask the object tracker (False: they are skipped).
         max_attempts: attempts at the task, the first included (a failed check starts the next).
@@ -133,8 +143,6 @@ class PickSupervisor(LeafSystem):
         if max_attempts < 1:
             raise ValueError(f"max_attempts must be at least 1, not {max_attempts}")
         self.max_attempts = max_attempts
-        if any(phase.goal for phase in tasks.phases()) and place_target_W is None:
-            raise ValueError("a task with carry or set_down phases needs place_target_W")
         self.position_port = self.DeclareVectorInputPort("position_measured", num_joints)
         self.hand_state_ports = {side: self.DeclareVectorInputPort(f"{side}_hand_state", 2) for side in SIDES}
         self.plan_port = self.DeclareAbstractInputPort("plan", AbstractValue.Make(PlanResult()))
@@ -142,6 +150,8 @@ class PickSupervisor(LeafSystem):
         self.perception_port = self.DeclareAbstractInputPort("perception", AbstractValue.Make(PerceptionResult()))
         self.look_frame_id_port = self.DeclareVectorInputPort("look_frame_id", 1)
         self.look_port = self.DeclareAbstractInputPort("look", AbstractValue.Make(ObjectEstimate(False)))
+        self.board_port = self.DeclareAbstractInputPort("board", AbstractValue.Make(BoardSeen()))
+        self.aims = any(phase.goal in AIM_GOALS for phase in tasks.phases())
         self._state = self.DeclareAbstractState(AbstractValue.Make(PickStatus()))
         # A look request is state of its own: the tracker's inputs change only when a new look is asked for.
         self._look_state = self.DeclareAbstractState(AbstractValue.Make(LookRequest()))
@@ -233,6 +243,13 @@ class PickSupervisor(LeafSystem):
             self._fail(status, result.failed_stage, result.message)
             return
         status.belief = ObjectBelief.seen(result.X_WO_seen)
+        if self.aims:
+            board = self.board_port.Eval(context)
+            try:
+                status.aim = aim_target(board, result.grasps, result.X_WO_seen)
+            except ValueError as error:
+                self._fail(status, Stage.REGISTRATION if board.found else Stage.BOARD, str(error))
+                return
         self._start_task(context, status, self.tasks.main, 0, t)
 
     def _start_task(
@@ -253,8 +270,10 @@ class PickSupervisor(LeafSystem):
         status.mode = phase.name
         if phase.kind == PhaseKind.MOVE:
             X_motion_W, carried = phase.X_motion_W or RigidTransform(), None
-            if phase.goal is not None:
-                X_motion_W, carried = place_motion(phase.goal, status.belief, self.place_target_W)
+            if phase.goal in AIM_GOALS:
+                X_motion_W, carried = aim_motion(phase.goal, status.belief, status.aim)
+            elif phase.goal is not None:
+                X_motion_W, carried = place_motion(phase.goal, status.belief, self._place_target(status))
             status.request = PlanRequest(
                 status.request.id + 1 if status.request.id >= 0 else 1,
                 phase.name,
@@ -280,6 +299,8 @@ class PickSupervisor(LeafSystem):
         if task.then == Then.NEXT_ATTEMPT:  # backed off and home: the next attempt starts from a new frame
             status.task, status.attempt, status.corrections, status.place_corrections = None, status.attempt + 1, 0, 0
             self._look_at_the_table(context, status, t)
+        elif task.then == Then.FAIL:  # (set back down first) the failure that started the task
+            self._fail(status, *status.pending_failure)
         elif task.then == Then.REACH_AGAIN:  # backed off: reach for the object where the look found it
             main = self.tasks.main
             return self._start_task(context, status, main, self.tasks[main].index(Mode.REACH), t, look)
@@ -299,8 +320,12 @@ class PickSupervisor(LeafSystem):
             if plan.id != status.request.id:
                 return False, look  # not planned yet
             if not plan.success:
-                self._fail(status, Stage.PLANNING, plan.message)
-                return True, look
+                if phase.if_unreachable is None:
+                    self._fail(status, Stage.PLANNING, plan.message)
+                    return True, look
+                logging.warning("%s: %s; setting the object back down", phase.name, plan.message)
+                status.pending_failure = (Stage.PLANNING, f"{phase.name}: {plan.message}")
+                return True, self._start_task(context, status, phase.if_unreachable, 0, t, look)
             applied = status.applied_plan_id != plan.id
             if applied:  # the object moved with the hands; a reach chose the grasps
                 status.applied_plan_id = plan.id
@@ -366,7 +391,7 @@ class PickSupervisor(LeafSystem):
             logging.warning("look after the place: %s; not confirmed", found.message)
             return False
         X_WO = _standing(found.X_WO, status.belief.now_W).X_WO
-        off = _standing(X_WO, self.place_target_W)
+        off = _standing(X_WO, self._place_target(status))
         shift, turn = off.shift_m, off.turn_rad
         logging.info("look after the place: %.1f cm and %.1f deg off the target", 100 * shift, np.degrees(turn))
         if (shift <= PLACED_M and abs(turn) <= PLACED_RAD) or status.place_corrections >= MAX_PLACE_CORRECTIONS:
@@ -374,6 +399,10 @@ class PickSupervisor(LeafSystem):
         logging.warning("the object stands off the place target: taking it again")
         status.belief = status.belief.looked(X_WO)
         return True
+
+    def _place_target(self, status: PickStatus) -> RigidTransform:
+        """Where the object is set down: the place target, or where it was seen."""
+        return status.belief.seen_W if self.place_target_W is None else self.place_target_W
 
     @staticmethod
     def _object_motion(status: PickStatus, phase: Phase) -> RigidTransform | None:

@@ -9,12 +9,18 @@ checks switch to:
             set_down, release, retreat, confirm                              -> done
   replace   reach, approach, close, look, lift, set_down, release, retreat,
             confirm                                                          -> done
+  aim       reach, [check], approach, close, look, lift, aim_approach,
+            look_again, aim, aim_hold, aim_back, carry, set_down, release,
+            retreat, confirm                                                 -> done
   back_off  back_off                                                         -> the pick's task from its reach
   recover   recover_open, recover_retreat, recover_home                      -> the next attempt (a new frame)
+  set_back  carry, set_down, release, retreat                                -> the pick fails
 
 A failed grip check (after the close, after the lift) in lift, place or replace -> recover, while attempts are
 left (else the pick fails). A check that finds the object moved -> back_off; a confirm that finds it off its
-place target -> replace. Any other failure (perception found nothing, no plan) ends the pick.
+place target -> replace. An aim out of the arms' reach (no plan for aim_approach or aim) -> set_back: the drill is set
+down where it was taken, let go, and the pick then fails with the aim's failure. Any other failure (perception found
+nothing, no plan) ends the pick.
 """
 
 import enum
@@ -25,6 +31,7 @@ from pydrake.math import RigidTransform
 
 from systems.messages import CLOSED_WIDTH, OPEN_WIDTH, Mode, MoveKind, PhaseKind, PlaceGoal, Targets, TaskName
 
+AIM_HOLD_S = 2.0  # s: the aim is held this long
 SETTLE_S = 0.5  # s: after the hands close or open, the grip settles before it is checked
 LIFT_HEIGHT = 0.15  # m: aimed for
 MIN_LIFT_FRACTION = 0.8  # of it: near the edge of the arms' reach a lower lift will do (0.12 m)
@@ -62,6 +69,8 @@ class Phase:
     wait_s: float = 0.0  # waits: how long; closing and opening: the settling after the hands' motion
     # Checks and confirms: where the look finds the object off (moved; off its target), the task run next.
     if_off: TaskName | None = None
+    # Held moves: where no plan reaches the goal, the task run next (it ends the pick as failed); None: the pick fails.
+    if_unreachable: TaskName | None = None
 
     def __post_init__(self):
         if (self.path is not None) != (self.kind in _MOVES):
@@ -70,6 +79,8 @@ class Phase:
             raise ValueError(f"phase {self.name}: only closing and opening set a hand width, and they need one")
         if (self.if_off is not None) != (self.kind in _BRANCHES):
             raise ValueError(f"phase {self.name}: only checks and confirms name a task to switch to, and they must")
+        if self.if_unreachable is not None and self.path != MoveKind.HELD:
+            raise ValueError(f"phase {self.name}: only held moves name a task for a goal out of reach")
 
 
 class Then(enum.StrEnum):
@@ -78,6 +89,7 @@ class Then(enum.StrEnum):
     DONE = "done"  # the pick is done
     NEXT_ATTEMPT = "next_attempt"  # a new camera frame, then the pick's task from its start
     REACH_AGAIN = "reach_again"  # the pick's task again from its reach (where the look found the object)
+    FAIL = "fail"  # the pick fails, with the failure that started the task
 
 
 @dataclass(frozen=True)
@@ -105,7 +117,7 @@ class PickTasks:
 
     def __post_init__(self):
         named = {self.main} | {task.if_check_fails for task in self.tasks.values()}
-        named |= {phase.if_off for phase in self.phases()}
+        named |= {phase.if_off for phase in self.phases()} | {phase.if_unreachable for phase in self.phases()}
         if missing := sorted(name for name in named - set(self.tasks) if name is not None):
             raise ValueError(f"the pick's tasks name tasks it lacks: {missing}")
 
@@ -186,6 +198,40 @@ def replace_task(held_looks: bool = True) -> Task:
     return Task(TaskName.REPLACE, phases, Then.DONE, if_check_fails=TaskName.RECOVER)
 
 
+def aim_task(check: bool = True, held_looks: bool = True) -> Task:
+    """Beyond the paper: lift a drill, aim its bit at the board's target (in front of it, [look at the drill in the
+    hands,] onto it), hold AIM_HOLD_S, back off, carry it back over where it was taken and set it down there, let go,
+    back off, [look whether it stands there]. An aim out of reach sets the drill back down (set_back_task)."""
+    phases = (
+        *_grasping(check),
+        _look(Mode.LOOK, held_looks),
+        _lift(PLACE_LIFT_HEIGHT, MIN_LIFT_FRACTION),
+        _aim(Mode.AIM_APPROACH, PlaceGoal.AIM_APPROACH),
+        _look(Mode.LOOK_AGAIN, held_looks),
+        _aim(Mode.AIM, PlaceGoal.AIM),
+        Phase(Mode.AIM_HOLD, PhaseKind.WAIT, wait_s=AIM_HOLD_S),
+        Phase(Mode.AIM_BACK, PhaseKind.MOVE, MoveKind.HELD, goal=PlaceGoal.AIM_BACK),
+        Phase(Mode.CARRY, PhaseKind.MOVE, MoveKind.HELD, goal=PlaceGoal.CARRY),
+        *_letting_go(held_looks),
+    )
+    return Task(TaskName.AIM, phases, Then.DONE, if_check_fails=TaskName.RECOVER)
+
+
+def _aim(name: Mode, goal: PlaceGoal) -> Phase:
+    """A held move towards the aim; out of reach, the object is set back down."""
+    return Phase(name, PhaseKind.MOVE, MoveKind.HELD, goal=goal, if_unreachable=TaskName.SET_BACK)
+
+
+def set_back_task() -> Task:
+    """The held object's goal is out of reach: carry it back over where it was taken, set it down there, let go,
+    back off; then the pick fails with the failure that started this."""
+    phases = (
+        Phase(Mode.CARRY, PhaseKind.MOVE, MoveKind.HELD, goal=PlaceGoal.CARRY),
+        *_letting_go(held_looks=False)[:-1],
+    )
+    return Task(TaskName.SET_BACK, phases, Then.FAIL, if_check_fails=None)
+
+
 def back_off_task() -> Task:
     """The object moved before the approach: back off (a reach from beside it would start in collision); then the
     pick's task again from its reach."""
@@ -212,6 +258,11 @@ def lift_pick(check: bool = True) -> PickTasks:
 def place_pick(check: bool = True, held_looks: bool = True) -> PickTasks:
     """A pick that places the object (place_task) and its re-place, back-off and recovery."""
     return _pick(place_task(check=check, held_looks=held_looks), replace_task(held_looks))
+
+
+def aim_pick(check: bool = True, held_looks: bool = True) -> PickTasks:
+    """A pick that aims a drill at a board (aim_task) and its set-back, re-place, back-off and recovery."""
+    return _pick(aim_task(check=check, held_looks=held_looks), set_back_task(), replace_task(held_looks))
 
 
 def _pick(main: Task, *others: Task) -> PickTasks:

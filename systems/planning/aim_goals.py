@@ -11,9 +11,11 @@ import numpy as np
 from pydrake.common.eigen_geometry import AngleAxis
 from pydrake.math import RigidTransform, RotationMatrix
 
+from systems.messages import AimTarget, BoardSeen, GraspPoses, ObjectBelief, PlaceGoal
 from systems.shape_space.tool_frame import ToolFrame
 
 AIM_STANDOFF_M = 0.005  # m: the bit's tip this far off the board's surface
+AIM_APPROACH_M = 0.10  # m: the aim is approached, and left, along the board's normal over this
 
 
 def aim_pose(
@@ -37,3 +39,32 @@ def aim_pose(
     turn = RigidTransform(RotationMatrix(AngleAxis(angle, cross / np.linalg.norm(cross))))
     turned = RigidTransform(pivot_W) @ turn @ RigidTransform(-pivot_W) @ X_WO
     return RigidTransform(np.asarray(target_W) + standoff * normal - turned.multiply(tool_O.tip)) @ turned
+
+
+def aim_target(board: BoardSeen, grasps: GraspPoses, X_WO: RigidTransform) -> AimTarget:
+    """What to aim (AimTarget) from the board seen and the grasps and tool frame perceived with the object at X_WO.
+
+    Raises:
+        ValueError: no board, or no tool frame (a poor fit's grasps from the seen handles carry none).
+    """
+    if not board.found:
+        raise ValueError(board.message)
+    if grasps.tool_W is None:
+        raise ValueError(f"no tool frame to aim: the registration handed on none ({grasps.message})")
+    X_OW = X_WO.inverse()
+    hands = [grasps.poses_W[f"{side}_grasp"].translation() for side in ("left", "right")]
+    return AimTarget(grasps.tool_W.moved(X_OW), X_OW.multiply(np.mean(hands, axis=0)), board.target_W, board.normal_W)
+
+
+def aim_motion(goal: PlaceGoal, belief: ObjectBelief, aim: AimTarget) -> tuple[RigidTransform, RigidTransform]:
+    """The held move of an aim goal from where the object is believed to be, as (X_motion_W, carried_motion_W: the
+    object's motion since it was seen; the planner keeps the perceived object, moved by it, clear of the scene)."""
+    now = belief.now_W
+    if goal == PlaceGoal.AIM_BACK:
+        X_goal = RigidTransform(AIM_APPROACH_M * aim.normal_W) @ now
+    elif goal in (PlaceGoal.AIM_APPROACH, PlaceGoal.AIM):
+        standoff = AIM_STANDOFF_M + (AIM_APPROACH_M if goal == PlaceGoal.AIM_APPROACH else 0.0)
+        X_goal = aim_pose(now, aim.tool_O, aim.pivot_O, aim.target_W, aim.normal_W, standoff)
+    else:
+        raise ValueError(f"{goal!r} is no aim goal")
+    return X_goal @ now.inverse(), now @ belief.seen_W.inverse()
