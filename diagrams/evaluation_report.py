@@ -310,6 +310,13 @@ def report(
             f"{1000 * summary['tool_tip_error_m_median']:.1f} mm, axis "
             f"{math.degrees(summary['tool_axis_error_rad_median']):.1f} deg off the true one (medians)"
         )
+    if "aims_held" in summary:
+        print(
+            f"aims held in {summary['aims_held']} of {summary['trials']} picks, judged aimed in "
+            f"{100 * summary['aimed_share']:.0f} %: bit axis {math.degrees(summary['aim_axis_error_rad_median']):.1f} "
+            f"deg off the board's normal, tip {1000 * summary['aim_tip_to_target_m_median']:.1f} mm from the target "
+            "(medians of each hold's worst; success also needs the drill set down where it stood)"
+        )
     t_dev, o_dev = summary["closure_translation_dev_m_max"], summary["closure_orientation_dev_rad_max"]
     print(f"\nclosure along the played held moves (picks that lifted): largest {1000 * t_dev:.1f} mm, {o_dev:.4f} rad")
     if campaign.task == "place":

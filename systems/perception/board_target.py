@@ -61,10 +61,10 @@ def board_of(board_points_W: np.ndarray, target_points_W: np.ndarray, viewpoint_
     """
     board = _finite(board_points_W)
     target = _finite(target_points_W)
-    if len(board) < MIN_BOARD_POINTS:
-        raise ValueError(f"the board: {len(board)} points seen; its plane needs at least {MIN_BOARD_POINTS}")
     if len(target) < MIN_TARGET_POINTS:
         raise ValueError(f"the board's target: {len(target)} points seen; at least {MIN_TARGET_POINTS} needed")
+    if len(board) < MIN_BOARD_POINTS:
+        raise ValueError(f"the board: {len(board)} points seen; its plane needs at least {MIN_BOARD_POINTS}")
     o3d.utility.random.seed(PLANE_SEED)
     cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(board))
     _, inliers = cloud.segment_plane(PLANE_INLIER_M, 3, 200)
