@@ -324,7 +324,7 @@ class PickSupervisor(LeafSystem):
                     self._fail(status, Stage.PLANNING, plan.message)
                     return True, look
                 logging.warning("%s: %s; setting the object back down", phase.name, plan.message)
-                status.pending_failure = (Stage.PLANNING, f"{phase.name}: {plan.message}")
+                status.pending_failure = (Stage.PLANNING, plan.message)
                 return True, self._start_task(context, status, phase.if_unreachable, 0, t, look)
             applied = status.applied_plan_id != plan.id
             if applied:  # the object moved with the hands; a reach chose the grasps

@@ -126,7 +126,9 @@ def test_an_aim_out_of_reach_sets_the_drill_back_down_where_it_was_taken_then_fa
         request = dut.GetOutputPort("plan_request").Eval(context)
         if request.id > 0 and request.id != dut.GetInputPort("plan").Eval(context).id:
             if request.phase == "aim_approach":  # out of reach
-                no = PlanResult(request.id, request.phase, False, None, "the moved hands are out of reach")
+                no = PlanResult(
+                    request.id, request.phase, False, None, "aim_approach: the moved hands are out of reach"
+                )
                 dut.GetInputPort("plan").FixValue(context, AbstractValue.Make(no))
             else:
                 _answer(dut, context)
