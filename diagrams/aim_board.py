@@ -52,17 +52,23 @@ def board_placement(scenario: Scenario) -> BoardPlacement:
     return BoardPlacement(X_WF, X_WF.multiply([0.0, -along, up]))
 
 
+def board_box(scenario: Scenario) -> tuple[RigidTransform, np.ndarray]:
+    """The board as a box (X_WB of its centre, its size along B's axes, m): as the planning benchmark's boxes."""
+    X_WF = board_placement(scenario).X_WF
+    width, height, thickness = BOARD_SIZE_M
+    return X_WF @ RigidTransform([-thickness / 2, 0.0, height / 2]), np.array([thickness, width, height])
+
+
 def AddBoard(plant: MultibodyPlant, scenario: Scenario):
     """The board (a body of its own model instance BOARD_INSTANCE, welded) and its target disc (seen only)."""
     placement = board_placement(scenario)
-    width, height, thickness = BOARD_SIZE_M
+    X_WB, size = board_box(scenario)
     instance = plant.AddModelInstance(BOARD_INSTANCE)
     body = plant.AddRigidBody(BOARD_INSTANCE, instance)
     plant.WeldFrames(plant.world_frame(), body.body_frame(), placement.X_WF)
-    X_FB = RigidTransform([-thickness / 2, 0.0, height / 2])
-    plant.RegisterVisualGeometry(body, X_FB, Box(thickness, width, height), "board_visual", np.array(BOARD_RGBA))
-    plant.RegisterCollisionGeometry(body, X_FB, Box(thickness, width, height), "board_collision",
-                                    CoulombFriction(0.6, 0.5))  # fmt: skip
+    X_FB = placement.X_WF.InvertAndCompose(X_WB)
+    plant.RegisterVisualGeometry(body, X_FB, Box(*size), "board_visual", np.array(BOARD_RGBA))
+    plant.RegisterCollisionGeometry(body, X_FB, Box(*size), "board_collision", CoulombFriction(0.6, 0.5))
     target_F = placement.X_WF.inverse().multiply(placement.target_W)
     X_FT = RigidTransform(RotationMatrix.MakeYRotation(np.pi / 2), target_F + [TARGET_PROUD_M / 2, 0.0, 0.0])
     disc = Cylinder(TARGET_RADIUS_M, TARGET_PROUD_M)

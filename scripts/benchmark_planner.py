@@ -3,7 +3,8 @@
 Families (diagrams/generation/planning_problems.py; problem k of a family and split is made from its seed alone):
   lift, carry, turn, set_down: held moves of an object both hands hold (closure and hand orientation kept, the
       object kept clear), with 0-3 boxes standing or hanging where the object's straight path goes;
-  reach: both hands to their pre-grasps from under the table or the ready pose, past boxes.
+  reach: both hands to their pre-grasps from under the table or the ready pose, past boxes;
+  aim: a held drill turned and moved until its bit points at a board's target, 5 mm off it (the board a box).
 Splits: `tune` (training objects; parameters are chosen here) and `report` (unseen objects; never tuned on).
 `--problems N` takes the first N kept problems of the split; the problems dropped on the way (no IK at start or
 goal, or either less than 2 cm clear) are counted in `dropped_share`.

@@ -12,6 +12,7 @@ import trimesh
 from pydrake.math import RigidTransform
 from scipy.spatial import cKDTree
 
+from diagrams.aim_board import board_box, board_placement
 from diagrams.benchmarks.planner_peers import OmplConfig, ompl_plan
 from diagrams.generation.objects.library import resolve_object
 from diagrams.generation.planning_problems import (
@@ -27,6 +28,7 @@ from diagrams.generation.planning_problems import (
 )
 from diagrams.planning_scene import make_pick_motions, object_collision_surface_W
 from diagrams.scenario import load_scenario, replace_object
+from systems.planning.aim_goals import AIM_STANDOFF_M
 from systems.planning.closure import ClosureConstraint, deviations
 from systems.planning.held_motions import CARRIED_MOST_SPHERES, CARRIED_RADIUS
 from systems.planning.obstacles import covering_centres
@@ -90,6 +92,19 @@ def test_held_problems_are_feasible_at_start_and_goal(motions):
         moved = problem.X_WO_goal @ problem.X_WO.inverse() @ X_WG["left"]
         assert np.linalg.norm(X_WG_goal.translation() - moved.translation()) < 1e-6
         assert np.linalg.norm(problem.X_WO_goal.translation() - problem.X_WO.translation()) > 0.15  # a carry
+
+
+def test_an_aim_problem_points_the_drills_bit_at_its_boards_target_and_the_board_is_a_box(motions):
+    problem = kept(motions, "aim", 1)[0]
+    assert problem.scenario.object.category == "drill" and problem.orientation.upright_only
+    board = board_placement(problem.scenario)
+    tool = problem.model.info.tool_frame().moved(problem.X_WO_goal)  # where the goal holds the drill
+    assert np.degrees(np.arccos(tool.axis @ -board.normal_W)) < 1.0  # (IK's and the projection's error)
+    # (the goal's IK holds the hands within 0.04 rad of their poses where it must: the tip 20 cm out moves ~8 mm)
+    np.testing.assert_allclose(tool.tip, board.target_W + AIM_STANDOFF_M * board.normal_W, atol=0.01)
+    X_WB, size = board_box(problem.scenario)
+    assert any(np.allclose(X.GetAsMatrix4(), X_WB.GetAsMatrix4()) and np.allclose(s, size) for X, s in problem.boxes)
+    assert problem.check_world.clearance(problem.q_goal) >= MIN_CLEARANCE_M
 
 
 @pytest.mark.parametrize(("family", "index", "end"), [("turn", 134, "start"), ("reach", 322, "goal")])

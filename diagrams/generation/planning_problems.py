@@ -7,7 +7,11 @@ turn keeping only their tilt; the object moves with the hands and must stay clea
   carry:    lifted 5-15 cm, carried 20-45 cm across the table (its height changing by up to 5 cm);
   turn:     lifted 5-15 cm, turned 0.4-1.2 rad either way about the vertical between the hands (and moved up to
             8 cm);
-  set_down: lifted 10-25 cm, set down 10-35 cm away, LIFT_START_M above the table.
+  set_down: lifted 10-25 cm, set down 10-35 cm away, LIFT_START_M above the table;
+  aim:      a drill lifted AIM_RAISED_M, turned about the vertical between the hands and moved until its bit points
+            along the normal of a vertical board (facing the robot, 15-25 cm in from the table's far edge, 0-10 cm
+            either side of its middle) at a target 25-30 cm up and up to 10 cm along it, the bit's tip 5 mm off it
+            (systems/planning/aim_goals.py, the task's held move; the board is one of its boxes).
 Reaches (no constraint): both hands from the arms under the table top or from the ready pose to their pre-grasps
 of an object standing on the table, past boxes at the table's edge and a board above.
 
@@ -28,13 +32,16 @@ import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
-from pydrake.math import RigidTransform, RollPitchYaw
+from pydrake.common.eigen_geometry import AngleAxis
+from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 
+from diagrams.aim_board import AIM_TARGET_RANGE, board_box, board_placement
 from diagrams.evaluation import PAPER_CATEGORIES, PLACEMENT_HALF_SIZE_M, PLACEMENT_MAX_YAW
 from diagrams.generation.objects.library import ObjectModel, resolve_object
 from diagrams.planning_scene import MakeRobotScene, object_collision_surface_W, object_surface_W
-from diagrams.scenario import Scenario, initial_positions, load_scenario, replace_object
+from diagrams.scenario import AimConfig, Scenario, initial_positions, load_scenario, replace_object
 from diagrams.station import TABLE_HEIGHT, object_pose_on_table
+from systems.planning.aim_goals import aim_pose
 from systems.planning.closure import ClosureConstraint, OrientationConstraint, deviations, orientation_deviations
 from systems.planning.obstacles import Obstacles
 from systems.planning.pick_motions import PickMotions, PlannerConfig
@@ -44,8 +51,8 @@ from systems.planning.world import LIMIT_TOLERANCE_RAD, SIDES, PlanningWorld
 # The planning core the problems are drawn with: SNOPT's IK, as when the families were first drawn (the batched IK
 # finds other, equally valid starts and goals: problem k would change).
 DRAWN_WITH = PlannerConfig(batched_ik=False)
-HELD_FAMILIES = ("lift", "carry", "turn", "set_down")
-FAMILIES = (*HELD_FAMILIES, "reach")
+HELD_FAMILIES = ("lift", "carry", "turn", "set_down", "aim")
+FAMILIES = ("lift", "carry", "turn", "set_down", "reach", "aim")  # (a family's code in the seeds: its index here)
 SPLITS = ("tune", "report")
 TUNE_FIRST_SEED = 0
 REPORT_FIRST_SEED = 100_000
@@ -55,6 +62,7 @@ REPORT_INSTANCES = 40
 # The object stands in evaluation's random-placement region (PLACEMENT_HALF_SIZE_M, PLACEMENT_MAX_YAW) about the
 # default scenario's object.xy (table top frame, m).
 PLACEMENT_CENTRE = (-0.12, 0.0)
+AIM_RAISED_M = 0.10  # an aim starts with the drill this far above where it rests (the aim task's lift)
 LIFT_START_M = 0.03  # a lift starts, and a set-down ends, with the object this far above the table top
 MIN_CLEARANCE_M = 0.02  # start and goal: every pair of robot, held object, table and boxes this far apart at least
 REACH_MIN_CLEARANCE_M = 0.01  # ... in a reach (the open hands come near the object at their pre-grasps)
@@ -156,6 +164,8 @@ def make_problem(motions: PickMotions, family: str, split: str, index: int) -> P
     points_rest, _ = object_surface_W(model, X_WO_rest, CHECK_POINTS)
     if family == "reach":
         return _reach(motions, rng, scenario, model, X_WO_rest, points_rest, index, split)
+    if family == "aim":
+        return _aim(motions, rng, replace_object(scenario, category="drill"), index, split)
     table = np.array(scenario.table_xyz) + [0, 0, TABLE_HEIGHT]  # the table top frame's origin in W
     raised, motion = _held_motion(rng, family, X_WO_rest, model, table[:2])
     X_WO = RigidTransform([0, 0, raised]) @ X_WO_rest
@@ -227,6 +237,36 @@ def _placement(rng: np.random.Generator, split: str) -> Scenario:
     xy = np.array(PLACEMENT_CENTRE) + rng.uniform(-1, 1, 2) * PLACEMENT_HALF_SIZE_M
     yaw = rng.uniform(-PLACEMENT_MAX_YAW, PLACEMENT_MAX_YAW)
     return replace_object(load_scenario(), category=category, instance=instance, xy=list(xy), yaw=float(yaw))
+
+
+def _aim(motions: PickMotions, rng, scenario: Scenario, index: int, split: str) -> PlanningProblem | Dropped:
+    """An aim problem (module docstring): a drill at the scenario's place, lifted, aimed at a board's target."""
+    model = resolve_object(scenario.object)
+    X_WO = RigidTransform([0, 0, AIM_RAISED_M]) @ object_pose_on_table(scenario, model)
+    board_xyz = [TABLE_HALF_SIZE[0] - rng.uniform(0.15, 0.25), rng.uniform(-0.1, 0.1), 0.0]
+    target_yz = [rng.uniform(*AIM_TARGET_RANGE[0]), rng.uniform(*AIM_TARGET_RANGE[1])]
+    scenario = dataclasses.replace(scenario, aim=AimConfig(board_xyz, target_yz))
+    board = board_placement(scenario)
+    grasps = model.info.control_poses()
+    pivot_O = 0.5 * (grasps["left_grasp"].translation() + grasps["right_grasp"].translation())
+    goal = aim_pose(X_WO, model.info.tool_frame(), pivot_O, board.target_W, board.normal_W)
+    motion = goal @ X_WO.inverse()  # a turn about the grasps' midpoint, then a translation
+    pivot = X_WO.multiply(pivot_O)
+    turn = motion.rotation().ToAngleAxis()
+    shift = motion.translation() - pivot + motion.rotation().multiply(pivot)
+
+    def partial(s: float) -> RigidTransform:  # the share s of the turn and of the shift (where the boxes stand)
+        turned = RigidTransform(RotationMatrix(AngleAxis(s * turn.angle(), turn.axis())))
+        return RigidTransform(s * shift + pivot) @ turned @ RigidTransform(-pivot)
+
+    points, _ = object_surface_W(model, X_WO, CHECK_POINTS)
+    arms = _arm_points([X_WO @ grasps[f"{side}_grasp"] for side in SIDES])
+    table_top = scenario.table_xyz[2] + TABLE_HEIGHT
+    boxes = [board_box(scenario), *_held_boxes(rng, table_top, points, arms, partial, points)]
+    problem = held_problem(motions, scenario, AIM_RAISED_M, motion, boxes, upright_only=True)
+    if isinstance(problem, str):
+        return Dropped("aim", split, index, problem)
+    return dataclasses.replace(problem, family="aim", split=split, index=index)
 
 
 def _held_motion(rng, family: str, X_WO_rest: RigidTransform, model: ObjectModel, table_xy):
