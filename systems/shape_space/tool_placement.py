@@ -14,6 +14,7 @@ with flying pixels about it; a dead band or a fit check of the across move helpe
 
 import numpy as np
 
+from systems.messages import DepthView
 from systems.shape_space.tool_frame import ToolFrame
 
 # The window about the fitted tool's far end (m): from TOOL_WINDOW_BACK behind it to TOOL_WINDOW_AHEAD beyond it along
@@ -27,6 +28,9 @@ TOOL_END_PERCENTILE = 98
 TOOL_SHIFT_LIMIT = 0.05  # m: a longer move is not trusted: the frame stays as fitted
 TOOL_ITERATIONS = 5  # moves, the seen window following each
 TOOL_END_LENGTH = 0.03  # m: the tool's last stretch, whose centroids say how far across the axis to move
+MIN_END_PIXELS = (
+    5  # the tool's last TOOL_END_LENGTH spans at least this many pixels along the image for its end to be read there
+)
 
 
 def tool_on_seen_surface(tool_W: ToolFrame, beyond: float, seen_model: np.ndarray, observed_W: np.ndarray) -> ToolFrame:
@@ -52,6 +56,55 @@ def tool_on_seen_surface(tool_W: ToolFrame, beyond: float, seen_model: np.ndarra
     if np.linalg.norm(shift) > TOOL_SHIFT_LIMIT:
         return tool_W
     return ToolFrame(tool_W.tip + shift, axis)
+
+
+def tool_end_in_image(tool_W: ToolFrame, beyond: float, surface_W: np.ndarray, view: DepthView) -> ToolFrame:
+    """The tool frame moved along its axis so that the tool's end face, as the frame puts it, ends in the image where
+    the object's mask does.
+
+    The end face is a circle about the axis at the frame's end (the tip less `beyond`), as wide as the fitted surface
+    (M x 3, W, as the frame was placed) is over the tool's last TOOL_END_LENGTH; its outline reaches as far along the
+    projected axis as its farthest projected point. The mask's pixels are taken in a band about the projected axis;
+    the difference of the two reaches (pixels) is turned into metres along the axis. The colour image's mask ends
+    where the tool does (within a pixel on rendered frames); the depth loses the last millimetres of a tool pointing
+    away from the camera (mixed and grazing pixels), so the seen points end short of it."""
+    if view.mask is None or not view.mask.any():
+        return tool_W
+    X_CW = view.X_WC.inverse()
+    focal, centre = np.asarray(view.focal, dtype=float), np.asarray(view.centre, dtype=float)
+
+    def pixels(points_W):
+        p = X_CW.multiply(np.atleast_2d(points_W).T).T
+        return focal * p[:, :2] / p[:, 2:3] + centre, p[:, 2]
+
+    axis = tool_W.axis
+    end = tool_W.tip - beyond * axis
+    offset = np.asarray(surface_W) - end
+    along = offset @ axis
+    across = np.linalg.norm(offset - along[:, None] * axis, axis=1)
+    last = (along > -TOOL_END_LENGTH) & (along < 0.01) & (across < TOOL_WINDOW_RADIUS)
+    (e0, e1), (depth, _) = pixels(np.array([end, end + 0.01 * axis]))
+    px_per_m = np.linalg.norm(e1 - e0) / 0.01
+    if last.sum() < MIN_TOOL_POINTS or depth <= 0 or px_per_m * TOOL_END_LENGTH < MIN_END_PIXELS:
+        return tool_W  # too little of the tool fitted there, or its axis nearly along the ray: no end to read
+    radius = float(np.median(across[last]))
+    u = np.cross(axis, [1.0, 0.0, 0.0] if abs(axis[0]) < 0.9 else [0.0, 1.0, 0.0])
+    u /= np.linalg.norm(u)
+    angles = np.linspace(0.0, 2 * np.pi, 72, endpoint=False)
+    rim = end + radius * (np.outer(np.cos(angles), u) + np.outer(np.sin(angles), np.cross(axis, u)))
+    along_dir = (e1 - e0) / np.linalg.norm(e1 - e0)
+    across_dir = np.array([-along_dir[1], along_dir[0]])
+    rows, columns = np.nonzero(view.mask)
+    mask = np.column_stack([columns, rows]) - e0
+    band = np.abs(mask @ across_dir) < TOOL_WINDOW_RADIUS * focal.mean() / depth
+    seen = mask[band] @ along_dir
+    seen = seen[(seen > -TOOL_WINDOW_BACK * px_per_m) & (seen < TOOL_WINDOW_AHEAD * px_per_m)]
+    if len(seen) < MIN_TOOL_POINTS:
+        return tool_W
+    shift = (seen.max() - float(((pixels(rim)[0] - e0) @ along_dir).max())) / px_per_m
+    if abs(shift) > TOOL_SHIFT_LIMIT:
+        return tool_W
+    return ToolFrame(tool_W.tip + shift * axis, axis)
 
 
 def _window(points: np.ndarray, end: np.ndarray, axis: np.ndarray) -> np.ndarray:
