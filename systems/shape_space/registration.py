@@ -31,7 +31,7 @@ from systems.shape_space.fit_judging import Registration, SeenPoints, judged
 from systems.shape_space.grasp_placement import placed_on_seen_handles
 from systems.shape_space.shape_fit import ShapeFit, ShapeFitter
 from systems.shape_space.space import ShapeSpace
-from systems.shape_space.tool_placement import tool_end_in_image, tool_on_seen_surface
+from systems.shape_space.tool_placement import returned_points, tool_end_in_image, tool_on_seen_surface
 from systems.shape_space.visibility import visible_from
 
 # The seen points kept by the even thinning (more: slower, the grasps within 0.1 mm).
@@ -157,7 +157,8 @@ class Registrar:
             seen_model = shape_W[visible_from(shape_W, seen.viewpoint_W)]  # (the grasps' and the tool's placing)
             shape_W, poses_W = placed_on_seen_handles(shape_W, poses_W, seen.observed_W, seen_model)
             if tool_W is not None:
-                placed = tool_on_seen_surface(tool_W, self.space.tool_beyond, seen_model, seen.observed_W)
+                returned = returned_points(seen_model, shape_W, seen.viewpoint_W)
+                placed = tool_on_seen_surface(tool_W, self.space.tool_beyond, returned, seen.observed_W)
                 if seen.view is not None:  # along the axis: where the colour mask ends
                     placed = tool_end_in_image(placed, self.space.tool_beyond, shape_W + placed.tip - tool_W.tip,
                                                seen.view)  # fmt: skip

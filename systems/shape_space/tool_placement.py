@@ -13,6 +13,7 @@ with flying pixels about it; a dead band or a fit check of the across move helpe
 """
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from systems.messages import DepthView
 from systems.shape_space.tool_frame import ToolFrame
@@ -28,9 +29,14 @@ TOOL_END_PERCENTILE = 98
 TOOL_SHIFT_LIMIT = 0.05  # m: a longer move is not trusted: the frame stays as fitted
 TOOL_ITERATIONS = 5  # moves, the seen window following each
 TOOL_END_LENGTH = 0.03  # m: the tool's last stretch, whose centroids say how far across the axis to move
-MIN_END_PIXELS = (
-    5  # the tool's last TOOL_END_LENGTH spans at least this many pixels along the image for its end to be read there
-)
+# The tool's last TOOL_END_LENGTH spans at least this many pixels along the image for its end to be read there.
+MIN_END_PIXELS = 5
+# A depth sensor returns little of a surface seen more obliquely than this from its ray (a time-of-flight camera's
+# light, a stereo pair's texture): the sides of a tool's outline. The fitted surface's points compared with the seen
+# ones are those seen less obliquely (returned_points), deg.
+GRAZING_LIMIT_DEG = 75.0
+NORMAL_NEIGHBOURS = 12  # surface points per normal estimate
+MASK_EDGE_PERCENTILE = 5  # of the mask's pixels across the tool's last stretch: its edges (a stray pixel is not one)
 
 
 def tool_on_seen_surface(tool_W: ToolFrame, beyond: float, seen_model: np.ndarray, observed_W: np.ndarray) -> ToolFrame:
@@ -96,15 +102,40 @@ def tool_end_in_image(tool_W: ToolFrame, beyond: float, surface_W: np.ndarray, v
     across_dir = np.array([-along_dir[1], along_dir[0]])
     rows, columns = np.nonzero(view.mask)
     mask = np.column_stack([columns, rows]) - e0
-    band = np.abs(mask @ across_dir) < TOOL_WINDOW_RADIUS * focal.mean() / depth
-    seen = mask[band] @ along_dir
-    seen = seen[(seen > -TOOL_WINDOW_BACK * px_per_m) & (seen < TOOL_WINDOW_AHEAD * px_per_m)]
-    if len(seen) < MIN_TOOL_POINTS:
+    across_px = mask @ across_dir
+    along_px = mask @ along_dir
+    inside = (np.abs(across_px) < TOOL_WINDOW_RADIUS * focal.mean() / depth) & (along_px > -TOOL_WINDOW_BACK * px_per_m)
+    inside &= along_px < TOOL_WINDOW_AHEAD * px_per_m
+    if inside.sum() < MIN_TOOL_POINTS:
         return tool_W
-    shift = (seen.max() - float(((pixels(rim)[0] - e0) @ along_dir).max())) / px_per_m
-    if abs(shift) > TOOL_SHIFT_LIMIT:
+    seen_end = along_px[inside].max()
+    shift = (seen_end - float(((pixels(rim)[0] - e0) @ along_dir).max())) / px_per_m
+    # Across, in the image: the tool's outline is about as wide either side of its projected axis; the mask's last
+    # TOOL_END_LENGTH says where its middle is. That offset is a move perpendicular to the axis and the ray.
+    last_px = inside & (along_px > seen_end - TOOL_END_LENGTH * px_per_m)
+    low, high = np.percentile(across_px[last_px], [MASK_EDGE_PERCENTILE, 100 - MASK_EDGE_PERCENTILE])
+    sideways = np.cross(end - view.X_WC.translation(), axis)
+    sideways /= np.linalg.norm(sideways)
+    if (pixels(end + 0.01 * sideways)[0][0] - e0) @ across_dir < 0:
+        sideways = -sideways
+    move = shift * axis + 0.5 * (low + high) * depth / focal.mean() * sideways
+    if np.linalg.norm(move) > TOOL_SHIFT_LIMIT:
         return tool_W
-    return ToolFrame(tool_W.tip + shift * axis, axis)
+    return ToolFrame(tool_W.tip + move, axis)
+
+
+def returned_points(model_W: np.ndarray, surface_W: np.ndarray, viewpoint_W: np.ndarray) -> np.ndarray:
+    """Of the fitted surface's visible points (N x 3, W), those a depth sensor at viewpoint_W (3,) returns: the
+    surface there (its normal from the NORMAL_NEIGHBOURS nearest of surface_W, M x 3) within GRAZING_LIMIT_DEG of
+    facing the ray."""
+    if len(model_W) == 0 or len(surface_W) < NORMAL_NEIGHBOURS:
+        return model_W
+    _, neighbours = cKDTree(surface_W).query(model_W, NORMAL_NEIGHBOURS)
+    patches = surface_W[neighbours] - surface_W[neighbours].mean(axis=1, keepdims=True)
+    normals = np.linalg.eigh(np.einsum("nki,nkj->nij", patches, patches))[1][:, :, 0]  # the least spread
+    rays = model_W - np.asarray(viewpoint_W, dtype=float)
+    facing = np.abs(np.einsum("ni,ni->n", normals, rays)) / np.linalg.norm(rays, axis=1)
+    return model_W[facing >= np.cos(np.radians(GRAZING_LIMIT_DEG))]
 
 
 def _window(points: np.ndarray, end: np.ndarray, axis: np.ndarray) -> np.ndarray:
