@@ -10,12 +10,14 @@ from pydrake.math import RigidTransform, RotationMatrix
 from diagrams.generation.objects import catalog, shop_held_out, unfamiliar
 from diagrams.generation.objects.library import load_info
 from diagrams.generation.objects.watering_can import spout_axis
+from systems.messages import DepthView
 from systems.perception.shape_registrar import shape_space_file
 from systems.shape_space import folder as folder_tools
 from systems.shape_space.folder import pose_entries
 from systems.shape_space.registration import Registrar
 from systems.shape_space.space import ShapeSpace
 from systems.shape_space.tool_frame import BIT_LENGTH_M, ToolFrame
+from systems.shape_space.tool_placement import returned_points, tool_end_in_image
 from systems.shape_space.visibility import visible_from
 
 
@@ -124,3 +126,51 @@ def test_a_poses_file_gives_the_canonical_models_tool_frame_in_its_files_frame_a
     (tmp_path / "poses.yaml").write_text(yaml.safe_dump(spec))
     with pytest.raises(SystemExit, match="poses.yaml: the tool frame .* lies off the model"):
         folder_tools.folder_instances(tmp_path, tmp_path / "poses.yaml")
+
+
+def _chuck(radius=0.018, length=0.05, points=20000):
+    """A capped cylinder (a chuck) along +x from the origin to x = length: surface points (N x 3), unit normals."""
+    rng = np.random.default_rng(3)
+    side = rng.uniform(0.0, 2 * np.pi, points)
+    x = rng.uniform(0.0, length, points)
+    wall = np.column_stack([x, radius * np.cos(side), radius * np.sin(side)])
+    r, t = radius * np.sqrt(rng.uniform(0, 1, points // 4)), rng.uniform(0, 2 * np.pi, points // 4)
+    cap = np.column_stack([np.full(len(r), length), r * np.cos(t), r * np.sin(t)])
+    normals = np.vstack([np.column_stack([0 * x, np.cos(side), np.sin(side)]), np.tile([1.0, 0, 0], (len(r), 1))])
+    return np.vstack([wall, cap]), normals
+
+
+def test_the_tool_end_is_read_where_the_mask_ends_and_its_middle_across():
+    """A chuck pointing away from a camera behind and above it: a frame 9 mm short and 6 mm aside is moved back onto
+    the chuck its mask shows, within 2 mm."""
+    surface, _ = _chuck()
+    forward = np.array([np.cos(0.6), 0.0, -np.sin(0.6)])  # looking along +x, 0.6 rad down
+    right = np.array([0.0, -1.0, 0.0])
+    X_WC = RigidTransform(RotationMatrix(np.column_stack([right, np.cross(forward, right), forward])), [-0.8, 0, 0.6])
+    focal, centre, shape = (580.0, 580.0), (320.0, 240.0), (480, 640)
+    p = X_WC.inverse().multiply(surface.T).T
+    uv = np.round(np.array(focal) * p[:, :2] / p[:, 2:3] + centre).astype(int)
+    assert p[:, 2].min() > 0 and uv.min() >= 0 and uv[:, 0].max() < shape[1] and uv[:, 1].max() < shape[0]
+    mask = np.zeros(shape, bool)
+    mask[uv[:, 1], uv[:, 0]] = True
+    view = DepthView(np.ones(shape), X_WC, focal, centre, mask)
+    truth = ToolFrame(np.array([0.05 + BIT_LENGTH_M, 0.0, 0.0]), np.array([1.0, 0.0, 0.0]))
+    off = np.array([-0.009, 0.006, 0.0])  # short along the axis, aside
+    placed = tool_end_in_image(ToolFrame(truth.tip + off, truth.axis), BIT_LENGTH_M, surface + off, view)
+    tip, _ = placed.errors(truth)
+    assert tip < 0.002, 1000 * (placed.tip - truth.tip)
+    assert tool_end_in_image(truth, BIT_LENGTH_M, surface, DepthView(np.ones(shape), X_WC, focal, centre)) is truth
+
+
+def test_the_points_a_depth_sensor_returns_face_its_ray_within_the_grazing_limit():
+    surface, normals = _chuck(points=4000)
+    camera = np.array([-0.8, 0.0, 0.6])
+    returned = returned_points(surface, surface, camera)
+    rays = surface - camera
+    facing = np.abs(np.einsum("ni,ni->n", normals, rays)) / np.linalg.norm(rays, axis=1)
+    kept = {tuple(point) for point in returned}
+    inside = np.array([tuple(point) in kept for point in surface])
+    clear = np.abs(facing - np.cos(np.radians(75.0))) > 0.05  # (away from the limit: the estimated normals' noise)
+    agree = inside[clear] == (facing[clear] >= np.cos(np.radians(75.0)))
+    assert agree.mean() > 0.97  # (about the cap's rim a normal from the nearest points mixes the wall's and the cap's)
+    assert 0.2 < inside.mean() < 0.9
