@@ -323,7 +323,7 @@ class PickSupervisor(LeafSystem):
                 if phase.if_unreachable is None:
                     self._fail(status, Stage.PLANNING, plan.message)
                     return True, look
-                logging.warning("%s: %s; setting the object back down", phase.name, plan.message)
+                logging.warning("%s; setting the object back down", plan.message)
                 status.pending_failure = (Stage.PLANNING, plan.message)
                 return True, self._start_task(context, status, phase.if_unreachable, 0, t, look)
             applied = status.applied_plan_id != plan.id
