@@ -29,7 +29,7 @@ from systems.perception.board_finder import find_board
 from systems.perception.board_target import TARGET_RGB, target_pixels
 from systems.pick_supervisor import PickSupervisor
 from systems.pick_tasks import Phase, aim_pick
-from systems.planning.aim_goals import AIM_APPROACH_M, AIM_STANDOFF_M, aim_motion, aim_target
+from systems.planning.aim_goals import AIM_APPROACH_M, AIM_STANDOFF_M, aim_motion, aim_target, level
 from systems.shape_space.tool_frame import ToolFrame
 from tests.test_recovery import Q0, _answer, _hands, _status
 
@@ -90,6 +90,15 @@ def test_the_aim_moves_put_the_bit_along_the_normal_short_of_the_target_then_on_
         aim_target(board, dataclasses.replace(grasps, tool_W=None, message="grasps on the seen handles"), X_WO)
     with pytest.raises(ValueError, match="the board: 3 points"):
         aim_target(BoardSeen(False, message="the board: 3 points seen"), grasps, X_WO)
+
+
+def test_a_bit_axis_near_level_is_taken_level_and_a_steep_one_as_perceived():
+    dipped = ToolFrame(np.array([0.2, 0.0, 0.15]), np.array([np.cos(0.05), 0.0, -np.sin(0.05)]))
+    levelled = level(dipped)
+    np.testing.assert_allclose(levelled.axis, [1.0, 0.0, 0.0], atol=1e-12)
+    np.testing.assert_array_equal(levelled.tip, dipped.tip)
+    steep = ToolFrame(np.zeros(3), np.array([np.cos(0.3), 0.0, np.sin(0.3)]))
+    assert level(steep) is steep
 
 
 def test_only_held_moves_name_a_task_for_a_goal_out_of_reach():
