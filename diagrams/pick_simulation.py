@@ -36,8 +36,7 @@ SAMPLE_S = 0.05
 CLOSURE_SAMPLE_S = 0.01
 HELD_MOVES = (Mode.LIFT, Mode.CARRY, Mode.SET_DOWN, Mode.AIM_APPROACH, Mode.AIM, Mode.AIM_BACK)
 # The modes in which both hands hold the object (a place's, an aim's).
-HELD_MODES = (Mode.LOOK, Mode.LIFT, Mode.CARRY, Mode.LOOK_AGAIN, Mode.SET_DOWN, Mode.AIM_APPROACH, Mode.AIM,
-              Mode.AIM_HOLD, Mode.AIM_BACK)  # fmt: skip
+HELD_MODES = (*HELD_MOVES, Mode.LOOK, Mode.LOOK_AGAIN, Mode.AIM_HOLD)
 # The modes of a failed attempt's recovery (systems/pick_tasks.py's recovery_task).
 RECOVERY_MODES = (Mode.RECOVER_OPEN, Mode.RECOVER_RETREAT, Mode.RECOVER_HOME)
 

@@ -225,10 +225,8 @@ def _aim(name: Mode, goal: PlaceGoal) -> Phase:
 def set_back_task() -> Task:
     """The held object's goal is out of reach: carry it back over where it was taken, set it down there, let go,
     back off; then the pick fails with the failure that started this."""
-    phases = (
-        Phase(Mode.CARRY, PhaseKind.MOVE, MoveKind.HELD, goal=PlaceGoal.CARRY),
-        *_letting_go(held_looks=False)[:-1],
-    )
+    set_down, release, retreat, _ = _letting_go(held_looks=False)  # (no confirm: the pick fails after it)
+    phases = (Phase(Mode.CARRY, PhaseKind.MOVE, MoveKind.HELD, goal=PlaceGoal.CARRY), set_down, release, retreat)
     return Task(TaskName.SET_BACK, phases, Then.FAIL, if_check_fails=None)
 
 

@@ -182,7 +182,6 @@ def test_an_aim_with_the_true_grasps_and_tool_frame_passes_the_plant_judge():
     a 2 s hold, the board untouched, the drill set down where it stood. (Ground truth perceives: the autonomous
     aim's perceived tool frame is off by more than the judge allows in most picks, docs/use.md.)"""
     outcome = run_pick(_aim_scenario(), perception="ground_truth")
-    print(outcome.use)
     use = outcome.use
     assert outcome.success, outcome.message
     assert use["aimed"] and not use["board_touched"] and use["held_s"] >= 1.5

@@ -61,7 +61,7 @@ def aim_target(board: BoardSeen, grasps: GraspPoses, X_WO: RigidTransform) -> Ai
 def level(tool_O: ToolFrame) -> ToolFrame:
     """The tool frame (in O) with its axis level, where it is within LEVEL_AXIS_MAX_DEG of level: a drill standing
     on its base holds its bit level (the generators' drills, the held-out and shop designs), and the perceived
-    axis's dip is the registration's error there (test drills' first pick frames: -1.4 to -4.3 deg, its yaw within
+    axis's dip is the registration's error there (test drills' first pick frames: -4.3 to +0.3 deg, its yaw within
     1.3 deg). The tip keeps its place; a steeper axis is kept as perceived."""
     axis = tool_O.axis
     if abs(axis[2]) > np.sin(np.radians(LEVEL_AXIS_MAX_DEG)):

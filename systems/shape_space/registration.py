@@ -31,7 +31,7 @@ from systems.shape_space.fit_judging import Registration, SeenPoints, judged
 from systems.shape_space.grasp_placement import placed_on_seen_handles
 from systems.shape_space.shape_fit import ShapeFit, ShapeFitter
 from systems.shape_space.space import ShapeSpace
-from systems.shape_space.tool_placement import returned_points, tool_end_in_image, tool_on_seen_surface
+from systems.shape_space.tool_placement import tool_end_in_image, tool_on_seen_surface
 from systems.shape_space.visibility import visible_from
 
 # The seen points kept by the even thinning (more: slower, the grasps within 0.1 mm).
@@ -157,11 +157,10 @@ class Registrar:
             seen_model = shape_W[visible_from(shape_W, seen.viewpoint_W)]  # (the grasps' and the tool's placing)
             shape_W, poses_W = placed_on_seen_handles(shape_W, poses_W, seen.observed_W, seen_model)
             if tool_W is not None:
-                returned = returned_points(seen_model, shape_W, seen.viewpoint_W)
-                placed = tool_on_seen_surface(tool_W, self.space.tool_beyond, returned, seen.observed_W)
+                beyond = self.space.tool_beyond
+                placed = tool_on_seen_surface(tool_W, beyond, seen_model, seen.observed_W, shape_W, seen.viewpoint_W)
                 if seen.view is not None:  # along the axis: where the colour mask ends
-                    placed = tool_end_in_image(placed, self.space.tool_beyond, shape_W + placed.tip - tool_W.tip,
-                                               seen.view)  # fmt: skip
+                    placed = tool_end_in_image(placed, beyond, shape_W + placed.tip - tool_W.tip, seen.view)
                 tool_W = placed
         return judged(fit, shape_W, poses_W, seen, tool_W)
 

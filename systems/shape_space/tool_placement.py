@@ -39,13 +39,21 @@ NORMAL_NEIGHBOURS = 12  # surface points per normal estimate
 MASK_EDGE_PERCENTILE = 5  # of the mask's pixels across the tool's last stretch: its edges (a stray pixel is not one)
 
 
-def tool_on_seen_surface(tool_W: ToolFrame, beyond: float, seen_model: np.ndarray, observed_W: np.ndarray) -> ToolFrame:
+def tool_on_seen_surface(
+    tool_W: ToolFrame,
+    beyond: float,
+    seen_model: np.ndarray,
+    observed_W: np.ndarray,
+    surface_W: np.ndarray,
+    viewpoint_W: np.ndarray,
+) -> ToolFrame:
     """The fitted tool frame (W) moved onto the seen points about its end (N x 3, W), against the fitted surface's
-    points visible from the camera (K x 3, W: visible_from); as fitted where too little is seen there. beyond: how
+    points visible from the camera (K x 3, W: visible_from) that a depth sensor there returns (returned_points, of
+    the whole fitted surface M x 3 and the viewpoint, 3, W); as fitted where too little is seen there. beyond: how
     far (m) the tip lies beyond the tool's surface along its axis (a drill's bit; ShapeSpace.tool_beyond)."""
     axis = tool_W.axis
     end = tool_W.tip - beyond * axis
-    model_near_end = _window(seen_model, end, axis)
+    model_near_end = returned_points(_window(seen_model, end, axis), surface_W, viewpoint_W)
     shift = np.zeros(3)
     for _ in range(TOOL_ITERATIONS):  # the window follows the shift: a tool seen far from the fitted one is reached
         seen = _window(observed_W, end + shift, axis)
