@@ -25,6 +25,7 @@ from pydrake.systems.framework import Diagram, DiagramBuilder
 
 from diagrams.aim_board import board_placement
 from diagrams.aim_judge import AimJudge
+from diagrams.clear_judge import ClearJudge
 from diagrams.generation.objects.library import resolve_object
 from diagrams.generation.part_labels import on_handles, true_part_surface
 from diagrams.hardware_station import MakeHardwareStation
@@ -33,13 +34,13 @@ from diagrams.pick_simulation import PickOutcome, PlaceJudge, pose_error, simula
 from diagrams.planning_scene import make_planning_world
 from diagrams.robot_driver import MakeRobotDriver
 from diagrams.scenario import ObjectConfig, Scenario
-from diagrams.station import HAND_INSTANCES, MakeStation, place_target
-from systems.messages import GraspPoses, Mode, PickStatus
+from diagrams.station import HAND_INSTANCES, MakeStation, drop_zone, place_target
+from systems.messages import ClearedObject, GraspPoses, Mode, PickStatus
 from systems.perception.camera_latch import CameraLatch
 from systems.perception.grasp_offset import GraspOffset
 from systems.perception.robot_spheres import RobotSpheres
 from systems.pick_supervisor import PickSupervisor
-from systems.pick_tasks import aim_pick, lift_pick, place_pick
+from systems.pick_tasks import aim_pick, clear_pick, lift_pick, place_pick
 from systems.pick_visualiser import PickVisualiser
 from systems.planning.pick_motions import PickMotions, PlannerConfig, PlanningError
 from systems.planning.plan_telemetry import PlanTelemetryRecorder
@@ -86,6 +87,8 @@ def MakePickDiagram(
         raise ValueError(f"unknown perception {perception!r}: one of {PERCEPTION_SOURCES}")
     if scenario.task == "aim" and scenario.object.category != "drill":
         raise ValueError(f"the aim task aims a drill's bit: the object must be a drill, not {scenario.object.category}")
+    if scenario.task == "clear" and perception != "camera":
+        raise ValueError("the clear task finds its objects one by one with the camera: no ground-truth perception")
     builder = DiagramBuilder()
     if hardware:
         station = builder.AddNamedSystem("station", MakeHardwareStation(scenario, lcm))
@@ -104,17 +107,27 @@ def MakePickDiagram(
     source = builder.AddNamedSystem("trajectory_source", JointTrajectorySource(n))
     hands = builder.AddNamedSystem("hand_command", HandCommandSource())
     from_camera = perception == "camera"
-    held_looks = scenario.place.looks and scenario.task in ("place", "aim")
+    held_looks = scenario.place.looks and scenario.task in ("place", "aim", "clear")
     looks = from_camera and (held_looks or scenario.look_before_approach)
     if scenario.task == "place":
         tasks = place_pick(check=scenario.look_before_approach, held_looks=scenario.place.looks)
         place_target_W = place_target(scenario)
     elif scenario.task == "aim":  # (set down again where it was taken)
         tasks, place_target_W = aim_pick(check=scenario.look_before_approach, held_looks=scenario.place.looks), None
+    elif scenario.task == "clear":  # (each object to its spot in the drop zone)
+        tasks, place_target_W = clear_pick(check=scenario.look_before_approach, held_looks=scenario.place.looks), None
     else:
         tasks, place_target_W = lift_pick(check=scenario.look_before_approach), None
+    clearing = {"drop_zone": drop_zone(scenario), "max_objects": scenario.clear.max_objects}
     supervisor = PickSupervisor(
-        tasks, PERCEIVE_AT_S, place_target_W, from_camera, looks, scenario.max_attempts, num_joints=n
+        tasks,
+        PERCEIVE_AT_S,
+        place_target_W,
+        from_camera,
+        looks,
+        scenario.max_attempts,
+        num_joints=n,
+        **(clearing if scenario.task == "clear" else {}),
     )
     builder.AddNamedSystem("pick_supervisor", supervisor)
     telemetry = builder.AddNamedSystem("plan_telemetry", PlanTelemetryRecorder())
@@ -138,6 +151,8 @@ def MakePickDiagram(
     builder.Connect(seen.GetOutputPort("result"), supervisor.GetInputPort("perception"))
     if scenario.task == "aim":
         builder.Connect(seen.GetOutputPort("board"), supervisor.GetInputPort("board"))
+    if scenario.task == "clear":
+        builder.Connect(supervisor.GetOutputPort("left_out"), seen.GetInputPort("left_out"))
     grasps = seen.GetOutputPort("grasp_poses")
     if any(scenario.faults.grasp_offset_G):
         if hardware:
@@ -299,7 +314,7 @@ def run_pick(
     else:
         raise ValueError(f"unknown backend {backend!r}: sim or lcm-memq")
     judged = scenario.object if scenario.object.present else None
-    watch = PickWatcher(pick, true_grasps_O(scenario), judged, true_tool_O(scenario))
+    watch = PickWatcher(pick, true_grasps_O(scenario), judged, true_tool_O(scenario), max_time_s(scenario))
 
     def mode_of(context):
         return watch.status(context).mode
@@ -309,6 +324,11 @@ def run_pick(
 
         def make_judge(plant, context):
             return PlaceJudge(plant, context, place_target(scenario), mode_of)
+
+    elif scenario.task == "clear":
+
+        def make_judge(plant, context):
+            return ClearJudge(plant, context, scenario, drop_zone(scenario))
 
     elif scenario.task == "aim":
         tool_O = true_tool_O(scenario)
@@ -322,6 +342,20 @@ def run_pick(
         diagram, scenario, watch.end_time, meshcat, record, plant=plant, make_judge=make_judge, mode_of=mode_of
     )
     return watch.finish(outcome)
+
+
+def max_time_s(scenario: Scenario) -> float:
+    """The simulated time a pick may take (a clear: MAX_PICK_S per object it may take on, and one more), s."""
+    return MAX_PICK_S * (scenario.clear.max_objects + 1) if scenario.task == "clear" else MAX_PICK_S
+
+
+def taken_on(done: ClearedObject) -> dict:
+    """A clear's record of one object it took on, for the outcome JSON."""
+    record = {"category": done.category, "seen_xy_W": list(done.seen_xy_W), "attempts": done.attempts,
+              "cleared": done.cleared, "target_xy_W": list(done.target_xy_W) if done.target_xy_W else None}  # fmt: skip
+    if not done.cleared:
+        record.update(failed_stage=done.failed_stage, message=done.message)
+    return record
 
 
 def true_grasps_O(scenario: Scenario) -> dict[str, RigidTransform] | None:
@@ -359,26 +393,27 @@ class PickWatcher:
         true_grasps_O: dict[str, RigidTransform] | None = None,
         judged_object: ObjectConfig | None = None,
         true_tool_O: ToolFrame | None = None,
+        max_time_s: float = MAX_PICK_S,
     ):
         """true_grasps_O: the object's true control poses in O, where known: the perceived grasps are judged on them
         (the outcome's perception["grasp_errors_m"]); judged_object: the object, whose true parts (where known) say
         whether each grasp lay on its own handle (perception["grasps_on_handles"]; read only once grasps exist);
         true_tool_O: its true tool frame in O, where known: the perceived one is judged on it
-        (perception["tool_errors"])."""
-        self.pick, self.mode = pick, ""
+        (perception["tool_errors"]); max_time_s: the simulated time the pick may take, s."""
+        self.pick, self.mode, self.max_time_s = pick, "", max_time_s
         self.true_grasps_O, self.judged_object, self.true_tool_O = true_grasps_O, judged_object, true_tool_O
 
     def status(self, context) -> PickStatus:
         return pick_status(self.pick, context)
 
     def end_time(self, context) -> float:
-        """When to stop, in context seconds: now if the pick is done or failed, else MAX_PICK_S."""
+        """When to stop, in context seconds: now if the pick is done or failed, else max_time_s."""
         status = self.status(context)
         if status.mode != self.mode:
             note = f": {status.message}" if status.mode == Mode.FAILED else ""
             logging.info("t = %5.2f s  %s%s", context.get_time(), status.mode, note)
             self.mode = status.mode
-        return context.get_time() if status.mode in (Mode.DONE, Mode.FAILED) else MAX_PICK_S
+        return context.get_time() if status.mode in (Mode.DONE, Mode.FAILED) else self.max_time_s
 
     def finish(self, outcome: PickOutcome) -> PickOutcome:
         """The outcome with the stages' times, the closure deviations and, if a stage failed, its name and reason."""
@@ -411,6 +446,9 @@ class PickWatcher:
                 grasps_O = {h: (X_OW @ report.grasps.poses_W[f"{h}_grasp"]).translation() for h in ("left", "right")}
                 outcome.perception["grasps_on_handles"] = on_handles(truth, grasps_O)
         outcome.attempts_made, outcome.attempt_failures = status.attempt, attempt_failures(status)
+        if status.objects:  # a clear: what the robot made of each object it took on
+            outcome.clear["taken_on"] = [taken_on(done) for done in status.objects]
+            outcome.clear["summary"] = status.message
         if outcome.place:
             outcome.place["corrections"] = status.place_corrections  # in the last attempt: set down again
         if status.mode == Mode.FAILED:
@@ -419,7 +457,7 @@ class PickWatcher:
         elif status.mode != Mode.DONE:
             outcome.success = False
             outcome.message = (
-                f"stopped in mode {str(status.mode)!r} of attempt {status.attempt}: the pick's {MAX_PICK_S} s of "
+                f"stopped in mode {str(status.mode)!r} of attempt {status.attempt}: the pick's {self.max_time_s} s of "
                 "simulated time ran out"
             )
         return outcome

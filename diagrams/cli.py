@@ -7,6 +7,7 @@ import json
 import math
 from pathlib import Path
 
+from diagrams.generation.clear_scenes import clear_scene
 from diagrams.generation.clutter_scenes import clutter_scene
 from diagrams.scenario import DEFAULT_SCENARIO, TASKS, Scenario, load_scenario, replace_object
 from systems.perception.rgbd_noise import PRESETS
@@ -30,8 +31,9 @@ def add_scenario_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--task",
         choices=TASKS,
-        help="lift (the paper's), place (scenario place:) or aim (a drill at the scenario aim: board; "
-        "docs/use.md); default: the scenario's",
+        help="lift (the paper's), place (scenario place:), aim (a drill at the scenario aim: board; docs/use.md) or "
+        "clear (every familiar object into the scenario clear: drop zone, with --scene clutter; docs/clear.md); "
+        "default: the scenario's",
     )
     parser.add_argument("--seed", type=int, help="random seed of the run")
     parser.add_argument(
@@ -39,7 +41,8 @@ def add_scenario_options(parser: argparse.ArgumentParser) -> None:
         choices=("single", "clutter"),
         default="single",
         help="single: the scenario's object alone; clutter: a seeded cluttered table with an unseen --object "
-        "(default watering_can) among 1-4 others (diagrams/generation/clutter_scenes.py)",
+        "(default watering_can) among 1-4 others (diagrams/generation/clutter_scenes.py); with --task clear, a "
+        "table of 2-3 unseen familiar objects among 1-2 distractors (diagrams/generation/clear_scenes.py)",
     )
     parser.add_argument(
         "--clutter-index", dest="clutter_index", type=int, default=0, help="which cluttered table (--scene clutter)"
@@ -98,7 +101,10 @@ def scenario_from_args(args: argparse.Namespace) -> Scenario:
         given = [f"--{n.replace('_', '-')}" for n in ("instance", "object_file", "yaw") if getattr(args, n) is not None]
         if given:
             raise ValueError(f"--scene clutter draws the object and its place: no {', '.join(given)}")
-        scenario = clutter_scene(scenario, args.object or "watering_can", args.clutter_index)
+        if scenario.task == "clear":
+            scenario = clear_scene(scenario, args.clutter_index)
+        else:
+            scenario = clutter_scene(scenario, args.object or "watering_can", args.clutter_index)
         if args.seed is not None:
             scenario = dataclasses.replace(scenario, random_seed=args.seed)
         return with_sensor(scenario, args.sensor)

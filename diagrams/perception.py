@@ -68,17 +68,26 @@ def latch_offset(scenario: Scenario, look: bool = False) -> float:
     return (0.25 if look else 0.5) * step
 
 
-def MakeSegmenter(scenario: Scenario, weights: Path | None = None, category: str | None = None) -> Segmenter:
+def MakeSegmenter(
+    scenario: Scenario, weights: Path | None = None, category: str | None = None, robot_xy_W=None
+) -> Segmenter:
     """A Segmenter with the scenario's depth camera and table top, told the scenario's requested category (or
-    `category`); weights None: the one that knows every taught category (categories.active_segmenter)."""
+    `category`); weights None: the one that knows every taught category (categories.active_segmenter). The clear
+    task's chooses the object nearest robot_xy_W (x, y in W, m) of every category."""
     intrinsics, X_BC = depth_camera(scenario)
+    clearing = scenario.task == "clear"
+    if clearing and robot_xy_W is None:
+        raise ValueError("the clear task's segmenter needs the robot's place (robot_xy_W)")
+    if category is None:
+        category = "" if clearing else scenario.requested_category
     return Segmenter(
         weights or categories.active_segmenter(),
-        category=scenario.requested_category if category is None else category,
+        category=category,
         intrinsics=intrinsics,
         X_BC=X_BC,
         table_top_z=scenario.table_xyz[2] + TABLE_HEIGHT,
         part_segmenter=MakePartSegmenter(scenario),
+        robot_xy_W=tuple(robot_xy_W) if clearing else None,
     )
 
 
@@ -114,7 +123,8 @@ def MakePerception(
     scene_cloud: the rest of the scene as seen (systems/perception/scene_cloud.py).
 
     Input ports: color_image, depth_image, camera_pose (the camera's), trigger (1: the frame wanted), and with
-    robot_spheres robot_position (the planned joints, rad: latched with the frame).
+    robot_spheres robot_position (the planned joints, rad: latched with the frame); for the clear task, left_out
+    (LeftOut: the segmenter's).
     Output ports: frame_id (1: the frame latched), result (PerceptionResult), and the registrar's
     grasp_poses (GraspPoses), reconstructed_cloud_W (N x 3, m) and X_WO (RigidTransform); with robot_spheres,
     scene_cloud_W (N x 3 in W, m: its occupied points); for the aim task, board (BoardSeen: board_finder's).
@@ -123,17 +133,20 @@ def MakePerception(
         weights: the segmenter's; None: the one that knows every taught category (categories.active_segmenter).
         robot_spheres: the robot's sphere model (a RobotSpheres of its own): what the camera sees of the robot is
             not the scene.
-        torso_axis_W: where the torso's axis meets the floor plane (x, y in W, m): the scene is kept within reach.
+        torso_axis_W: where the torso's axis meets the floor plane (x, y in W, m): the scene is kept within reach, and
+            the clear task takes the nearest object to it first.
     """
     builder = DiagramBuilder()
     dof = robot_spheres.kinematics.dof if robot_spheres is not None else 14
     latch = builder.AddNamedSystem("camera_latch", CameraLatch(robot_positions=dof, offset_s=latch_offset(scenario)))
-    segmenter = builder.AddNamedSystem("segmenter", MakeSegmenter(scenario, weights))
+    segmenter = builder.AddNamedSystem("segmenter", MakeSegmenter(scenario, weights, robot_xy_W=torso_axis_W))
     pose_estimator = builder.AddNamedSystem("pose_estimator", MakePoseEstimator(scenario))
     registrar = builder.AddNamedSystem("shape_registrar", ShapeRegistrar(part_grasps=scenario.part_grasps))
     collector = builder.AddNamedSystem("perception_result", PerceptionResultCollector())
     for port in ("color_image", "depth_image", "camera_pose", "trigger"):
         builder.ExportInput(latch.GetInputPort(port), port)
+    if scenario.task == "clear":  # what the segmenter leaves out: the drop zone, the objects given up
+        builder.ExportInput(segmenter.GetInputPort("left_out"), "left_out")
     builder.Connect(latch.GetOutputPort("color_image"), segmenter.GetInputPort("color_image"))
     builder.Connect(latch.GetOutputPort("depth_image"), segmenter.GetInputPort("depth_image"))
     builder.Connect(latch.GetOutputPort("camera_pose"), segmenter.GetInputPort("camera_pose"))

@@ -79,6 +79,10 @@ class PickOutcome:
     place: dict = field(default_factory=dict)
     # Using the held object (the aim task, diagrams/aim_judge.py): {"task": "aim", the measured figures}.
     use: dict = field(default_factory=dict)
+    # The clear task's judgement (diagrams/clear_judge.py): every familiar object's record ("objects"), how many were
+    # cleared ("objects_cleared", "objects_cleared_share") and "others_moved_m_max" (the distractors'); and the
+    # supervisor's own record of each object it took on ("taken_on").
+    clear: dict = field(default_factory=dict)
     # How far the perceived object pose was from the true one when the camera saw it: {"position_error_m": xy
     # distance, "yaw_error_rad"}, the "category" perception took and, where the user named it, the
     # "network_category" the segmenter's network gave (empty when the pick did not perceive), the "grasps" message
@@ -114,8 +118,13 @@ def object_body(plant: MultibodyPlant):
 
 def hands_touching_object(plant: MultibodyPlant, plant_context) -> list[str]:
     """Names of the hands ("left", "right") with a contact against the object."""
+    return hands_touching(plant, plant_context, object_body(plant))
+
+
+def hands_touching(plant: MultibodyPlant, plant_context, body) -> list[str]:
+    """Names of the hands ("left", "right") with a contact against `body`."""
     results = plant.get_contact_results_output_port().Eval(plant_context)
-    object_index = object_body(plant).index()
+    object_index = body.index()
     hand_bodies = {
         side: set(plant.GetBodyIndices(plant.GetModelInstanceByName(name))) for side, name in HAND_INSTANCES.items()
     }

@@ -146,6 +146,20 @@ class PlaceConfig:
 
 
 @dataclass
+class ClearConfig:
+    """The clear task's drop zone (task: clear): every familiar object on the table is taken there, one after
+    another, and set down upright where it touches nothing already there (systems/planning/drop_zone.py)."""
+
+    # The zone's centre in the table_top frame, m: at the table's right side, where the arms set objects down
+    # (docs/clear.md).
+    zone_xy: list[float] = field(default_factory=lambda: [-0.15, -0.38])
+    # Its extent along x and y, m.
+    zone_size: list[float] = field(default_factory=lambda: [0.40, 0.40])
+    # The most objects the robot takes on (cleared or given up), however many it sees.
+    max_objects: int = 6
+
+
+@dataclass
 class AimConfig:
     """The aim task's board (task: aim): a vertical board standing on the table, facing the robot, with a target
     disc of a colour of its own (systems/perception/board_target.py's TARGET_RGB) marked on its face."""
@@ -217,10 +231,12 @@ class Scenario:
     object: ObjectConfig = field(default_factory=ObjectConfig)
     # What the pick does once both hands hold the object: "lift" (lift and hold it, the paper's task),
     # "place" (lift, carry it to `place`, set it down upright, open the hands, retreat) or "aim" (a drill: aim its
-    # bit at the target on the `aim` board, hold, back off, set it down where it stood).
+    # bit at the target on the `aim` board, hold, back off, set it down where it stood) or "clear" (every familiar
+    # object on the table, nearest first, into the `clear` drop zone).
     task: str = "lift"
     place: PlaceConfig = field(default_factory=PlaceConfig)
     aim: AimConfig = field(default_factory=AimConfig)
+    clear: ClearConfig = field(default_factory=ClearConfig)
     # A box on the table, known to the planner.
     obstacle: BoxObstacleConfig = field(default_factory=BoxObstacleConfig)
     # Other objects on the table, unknown to the planner (it sees them through the camera).
@@ -385,6 +401,7 @@ def validate(scenario: Scenario) -> None:
     if not abs(scenario.place.yaw) <= 2 * math.pi:
         raise ValueError(f"place.yaw must lie in [-2 pi, 2 pi] rad, got {scenario.place.yaw}")
     _validate_aim(scenario)
+    _validate_clear(scenario.clear)
     box = scenario.obstacle
     if len(box.xy) != 2 or len(box.size) != 3 or not all(0 < v <= 1.0 for v in box.size):
         raise ValueError(f"obstacle: xy must have 2 entries and size 3 in (0, 1] m, got {box.xy}, {box.size}")
@@ -418,6 +435,15 @@ def _validate_aim(scenario: Scenario) -> None:
         )
 
 
+def _validate_clear(clear: ClearConfig) -> None:
+    if len(clear.zone_xy) != 2 or not all(abs(v) <= MAX_TABLE_OFFSET_M for v in clear.zone_xy):
+        raise ValueError(f"clear.zone_xy must be 2 entries within {MAX_TABLE_OFFSET_M} m of the table's centre")
+    if len(clear.zone_size) != 2 or not all(0.1 <= v <= 1.2 for v in clear.zone_size):
+        raise ValueError(f"clear.zone_size must be 2 entries in [0.1, 1.2] m (x, y), got {clear.zone_size}")
+    if not 1 <= clear.max_objects <= 20:
+        raise ValueError(f"clear.max_objects must lie in [1, 20], got {clear.max_objects}")
+
+
 def clutter_name(other: ClutterObjectConfig) -> str:
     """A clutter object's name for reports: its shape, or its category and instance."""
     return f"{other.kind}/{other.instance}" if other.instance else other.kind
@@ -436,7 +462,7 @@ def _validate_clutter(name: str, other: ClutterObjectConfig) -> None:
         raise ValueError(f"{name}.mass must lie in (0, {MAX_OBJECT_MASS_KG}] kg, got {other.mass}")
 
 
-TASKS = ("lift", "place", "aim")
+TASKS = ("lift", "place", "aim", "clear")
 TABLE_HEIGHT = 0.76  # m: the table_top frame above the table's base (sdf/scene/table.sdf)
 # The aim task's board: width (along y), height and thickness, m.
 BOARD_SIZE_M = (0.5, 0.4, 0.02)

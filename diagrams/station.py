@@ -62,6 +62,7 @@ from diagrams.scenario import (
     torso_free,
 )
 from systems.perception.rgbd_noise import RgbdNoise, sensor_model
+from systems.planning.drop_zone import DropZone
 from systems.robot_io.gravity_compensation import GravityCompensation
 
 ARM_INSTANCE = "centauro"
@@ -135,6 +136,33 @@ def place_target(scenario: Scenario) -> RigidTransform:
     top = np.array(scenario.table_xyz) + [x, y, TABLE_HEIGHT]
     yaw = catalog.presentation_yaw(scenario.object.category) + scenario.place.yaw
     return RigidTransform(RollPitchYaw(0.0, 0.0, yaw), top)
+
+
+def drop_zone(scenario: Scenario) -> DropZone:
+    """The clear task's drop zone in W (scenario.clear: its centre in the table_top frame)."""
+    centre = np.array(scenario.table_xyz[:2]) + scenario.clear.zone_xy
+    return DropZone((float(centre[0]), float(centre[1])), tuple(map(float, scenario.clear.zone_size)))
+
+
+ZONE_MARK_RGBA = (0.15, 0.15, 0.15, 1.0)
+ZONE_MARK_WIDTH_M = 0.01  # m: the lines that mark the drop zone's edges on the table, 1 mm high (seen only)
+
+
+def AddDropZoneMarks(plant: MultibodyPlant, scenario: Scenario) -> None:
+    """Marks the clear task's drop zone on the table: four dark lines along its edges, seen only (no collision)."""
+    zone = drop_zone(scenario)
+    z = scenario.table_xyz[2] + TABLE_HEIGHT + 0.0005
+    (sx, sy), (cx, cy) = zone.size, zone.centre_W
+    w = ZONE_MARK_WIDTH_M
+    for name, centre, size in (
+        ("near", (cx - sx / 2, cy), (w, sy + w, 0.001)),
+        ("far", (cx + sx / 2, cy), (w, sy + w, 0.001)),
+        ("right", (cx, cy - sy / 2), (sx + w, w, 0.001)),
+        ("left", (cx, cy + sy / 2), (sx + w, w, 0.001)),
+    ):
+        plant.RegisterVisualGeometry(
+            plant.world_body(), RigidTransform([*centre, z]), Box(*size), f"drop_zone_{name}", np.array(ZONE_MARK_RGBA)
+        )
 
 
 def AddBoxObstacle(plant: MultibodyPlant, scenario: Scenario):
@@ -253,6 +281,8 @@ def MakeStation(scenario: Scenario, meshcat: Meshcat | None = None) -> Diagram:
     AddBoxObstacle(plant, scenario)
     if scenario.task == "aim":
         AddBoard(plant, scenario)
+    if scenario.task == "clear":
+        AddDropZoneMarks(plant, scenario)
     if scenario.object.present:
         AddObject(plant, scene_graph, scenario)
     AddClutter(plant, scene_graph, scenario)

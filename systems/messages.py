@@ -77,6 +77,10 @@ class Mode(enum.StrEnum):
     RECOVER_OPEN = "recover_open"
     RECOVER_RETREAT = "recover_retreat"
     RECOVER_HOME = "recover_home"
+    # Between two objects of a clear task: back to where the robot started, out of the camera's way.
+    NEXT_OBJECT_OPEN = "next_object_open"
+    NEXT_OBJECT_RETREAT = "next_object_retreat"
+    NEXT_OBJECT_HOME = "next_object_home"
     DONE = "done"
     FAILED = "failed"
 
@@ -103,6 +107,8 @@ class TaskName(enum.StrEnum):
     RECOVER = "recover"  # a failed attempt: open the hands, back off, go back to where the pick started
     AIM = "aim"  # grasp a drill, lift it, aim its bit at a board's target, hold, back off, set it down where it stood
     SET_BACK = "set_back"  # the held object's goal is out of reach: set it down where it was taken, let go
+    HOME = "home"  # a clear task's object placed: back to the start, then look for the next object
+    GIVE_UP = "give_up"  # a clear task's object given up: open the hands, back off, back to the start, look again
 
 
 class Stage(enum.StrEnum):
@@ -365,6 +371,36 @@ class ObjectBelief:
 
 
 @dataclass(frozen=True)
+class LeftOut:
+    """What the clear task's segmenter leaves out when it looks for the next object: the drop zone (objects there are
+    cleared) and where the objects it gave up on stood."""
+
+    zone_low_W: tuple[float, ...] = ()  # (x, y) of the zone's corners in W, m; () without a zone
+    zone_high_W: tuple[float, ...] = ()
+    given_up_xy_W: tuple[tuple[float, float], ...] = ()  # m
+
+    def in_zone(self, xy_W: np.ndarray) -> np.ndarray:
+        """Which points (N x 2, x, y in W, m) lie in the zone."""
+        if not self.zone_low_W:
+            return np.zeros(len(xy_W), bool)
+        return np.all((xy_W >= self.zone_low_W) & (xy_W <= self.zone_high_W), axis=1)
+
+
+@dataclass(frozen=True)
+class ClearedObject:
+    """One object a clear task took on: what it was, where it stood, where it went, and why not if it did not."""
+
+    category: str
+    seen_xy_W: tuple[float, float]  # where it was seen, m
+    attempts: int
+    cleared: bool = False
+    target_xy_W: tuple[float, float] | None = None  # its spot in the drop zone, m (None: none was chosen)
+    footprint_W: np.ndarray | None = None  # its footprint at that spot (M x 2 in W, m)
+    failed_stage: str = ""
+    message: str = ""
+
+
+@dataclass(frozen=True)
 class LookRequest:
     """The supervisor asks for a look at the held object: frame `id`, the object expected at `expected_X_WO`."""
 
@@ -402,3 +438,8 @@ class PickStatus:
     aim: AimTarget | None = None  # the aim task: what it aims at, once perceived
     # A move out of reach whose task sets the object back down first: the pick's failure, told once it is down.
     pending_failure: tuple[str, str] | None = None
+    # The clear task: the objects taken on so far, the one under way (where it was seen, its spot in the drop zone)
+    # and its place target.
+    objects: tuple[ClearedObject, ...] = ()
+    current: ClearedObject | None = None
+    place_target_W: RigidTransform | None = None

@@ -24,6 +24,14 @@ target, the hands take it again and set it down again (at most MAX_PLACE_CORRECT
 An aim reads the board perceived in the same frame (``board``) and aims the tool frame perceived with the grasps
 (systems/planning/aim_goals.py); without either it fails before it moves. Its place target is where the object was
 seen: the drill goes back down where it was taken.
+
+A clear (the tasks' after_placed and after_given_up set; a drop_zone given) places one object after another: each
+perceived object gets a spot in the drop zone where it touches nothing already set down there
+(systems/planning/drop_zone.py). Once it is placed, after_placed runs (home) and the table is looked at again; where
+anything fails on it, it is given up: after_given_up lets go, backs off and goes home (nothing, where the robot has not
+moved), and the next object is looked for, perception leaving out the zone and the objects given up (``left_out``).
+The clear is done when perception finds no object left, the zone has no room for the next one, or max_objects were
+taken on; each object's record is in the status (``objects``).
 """
 
 import dataclasses
@@ -35,11 +43,13 @@ from pydrake.common.value import AbstractValue
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 from pydrake.systems.framework import BasicVector, EventStatus, LeafSystem
 
+from systems.clear_progress import chosen_spot, left_out, seen_object, summary
 from systems.messages import (
     OPEN_WIDTH,
     SIDES,
     BoardSeen,
     HandCommand,
+    LeftOut,
     LookRequest,
     Mode,
     ObjectBelief,
@@ -56,6 +66,7 @@ from systems.messages import (
 )
 from systems.pick_tasks import Phase, PickTasks, Task, Then
 from systems.planning.aim_goals import aim_motion, aim_target
+from systems.planning.drop_zone import DropZone
 from systems.planning.place_goals import place_motion
 
 CLOSE_S = 1.0  # s: the hands close over this long
@@ -106,6 +117,7 @@ class PickSupervisor(LeafSystem):
         - expected_X_WO
         - attempt
         - status
+        - left_out
 
     ``position_measured`` (num_joints, rad); ``<side>_hand_state`` (2: opening m, rate m/s); ``plan`` (PlanResult);
     ``frame_id`` (1): the frame perception has latched; ``perception`` (PerceptionResult). ``trigger`` (1):
@@ -113,7 +125,8 @@ class PickSupervisor(LeafSystem):
     (PickStatus); ``attempt`` (1): the attempt under way. With looks, a look phase asks for a frame of the
     held object (``look_trigger`` (1), answered by ``look_frame_id`` (1)) and reads ``look`` (ObjectEstimate:
     the object tracker's, told where to look by ``expected_X_WO`` (RigidTransform)); without looks it is
-    skipped. An aim task reads ``board`` (BoardSeen, of the frame perceived).
+    skipped. An aim task reads ``board`` (BoardSeen, of the frame perceived). A clear tells perception what to leave
+    out (``left_out``: LeftOut).
 
     Args:
         tasks: the pick's tasks (lift_pick() or place_pick()).
@@ -124,6 +137,8 @@ class PickSupervisor(LeafSystem):
         looks: the look phases ask the object tracker (False: they are skipped).
         max_attempts: attempts at the task, the first included (a failed check starts the next).
         num_joints: the planned joints (14: the arms; 15: with the torso).
+        drop_zone: a clear's (its tasks clear_pick()).
+        max_objects: a clear takes on at most this many objects.
     """
 
     def __init__(
@@ -136,8 +151,13 @@ class PickSupervisor(LeafSystem):
         max_attempts: int = 1,
         period_s: float = 0.01,
         num_joints: int = 14,
+        drop_zone: DropZone | None = None,
+        max_objects: int = 1,
     ):
         super().__init__()
+        self.clears, self.drop_zone, self.max_objects = tasks.after_placed is not None, drop_zone, max_objects
+        if self.clears != (drop_zone is not None):
+            raise ValueError("a clear's tasks and a drop zone come together")
         self.tasks, self.perceive_at_s, self.place_target_W = tasks, perceive_at_s, place_target_W
         self.from_camera, self.looks = from_camera, looks
         if max_attempts < 1:
@@ -185,6 +205,12 @@ class PickSupervisor(LeafSystem):
         self.DeclareAbstractOutputPort(
             "status", lambda: AbstractValue.Make(PickStatus()), lambda c, o: o.set_value(self._status(c)), status
         )
+        self.DeclareAbstractOutputPort(
+            "left_out",
+            lambda: AbstractValue.Make(LeftOut()),
+            lambda c, o: o.set_value(left_out(self.drop_zone, self._status(c))),
+            status,
+        )
         self.DeclarePeriodicUnrestrictedUpdateEvent(period_s, 0.0, self._update)
 
     def _status(self, context) -> PickStatus:
@@ -208,6 +234,8 @@ class PickSupervisor(LeafSystem):
                 self._perceive(context, status, t)
         else:
             changed, look = self._follow_phase(context, status, look, t)
+        if self.clears and status.mode == Mode.FAILED and status.current is not None:
+            look = self._give_up(context, status, look, t)
         if look is not self._look_request(context):
             state.get_mutable_abstract_state(self._look_state).set_value(look)
         if not changed:  # (most updates: nothing to copy into the state)
@@ -240,9 +268,19 @@ class PickSupervisor(LeafSystem):
         result = self.perception_port.Eval(context)
         status.perceived = True
         if not result.found:
+            if self.clears and result.failed_stage == Stage.SEGMENTATION:  # nothing left
+                status.mode, status.message = Mode.DONE, summary(status, result.message)
+                return
+            status.current = seen_object(result) if self.clears else None  # (given up where it was seen)
             self._fail(status, result.failed_stage, result.message)
             return
         status.belief = ObjectBelief.seen(result.X_WO_seen)
+        if self.clears:
+            status.place_target_W, status.current = chosen_spot(self.drop_zone, status, result)
+            if status.place_target_W is None:
+                status.objects += (dataclasses.replace(status.current, message="no room left in the drop zone"),)
+                status.mode, status.message = Mode.DONE, summary(status, "the drop zone is full")
+                return
         if self.aims:
             board = self.board_port.Eval(context)
             try:
@@ -304,9 +342,41 @@ class PickSupervisor(LeafSystem):
         elif task.then == Then.REACH_AGAIN:  # backed off: reach for the object where the look found it
             main = self.tasks.main
             return self._start_task(context, status, main, self.tasks[main].index(Mode.REACH), t, look)
+        elif task.then == Then.NEXT_OBJECT:
+            self._next_object(context, status, t)
+        elif self.clears:  # placed: home, then the next object
+            status.objects += (dataclasses.replace(status.current, cleared=True, attempts=status.attempt),)
+            status.current = None
+            return self._start_task(context, status, self.tasks.after_placed, 0, t, look)
         else:
             status.mode = Mode.DONE
         return look
+
+    def _give_up(self, context, status: PickStatus, look: LookRequest, t: float) -> LookRequest:
+        """A clear's object failed (status FAILED): it is recorded as given up, the hands let go and go home (where
+        they moved), and the next object is looked for."""
+        failed = dataclasses.replace(
+            status.current, attempts=status.attempt, failed_stage=str(status.failed_stage), message=status.message
+        )
+        status.objects, status.current = (*status.objects, failed), None
+        status.failed_stage, status.message = "", ""
+        logging.warning("giving up on the %s: %s", failed.category, failed.message)
+        at_start = status.plan_end_q is not None and np.allclose(status.plan_end_q, status.q_home, atol=1e-3)
+        if at_start and not status.grasp_widths:  # (nothing moved, nothing closed)
+            self._next_object(context, status, t)
+            return look
+        return self._start_task(context, status, self.tasks.after_given_up, 0, t, look)
+
+    def _next_object(self, context, status: PickStatus, t: float):
+        """A clear's next object: a new frame (after max_objects, the clear is done)."""
+        status.task, status.attempt, status.corrections, status.place_corrections = None, 1, 0, 0
+        status.belief, status.aim, status.pending_failure, status.place_target_W = None, None, None, None
+        status.grasp_widths, status.grasp_offsets_G, status.attempt_failures = (), None, ()
+        if len(status.objects) >= self.max_objects:
+            status.mode, status.message = Mode.DONE, summary(status, f"took on {self.max_objects} objects, the most")
+            return
+        logging.info("looking for the next object (%d taken on)", len(status.objects))
+        self._look_at_the_table(context, status, t)
 
     def _looks_at(self, phase: Phase) -> bool:
         """Whether the phase asks the object tracker (without looks, a look phase passes at once)."""
@@ -401,7 +471,9 @@ class PickSupervisor(LeafSystem):
         return True
 
     def _place_target(self, status: PickStatus) -> RigidTransform:
-        """Where the object is set down: the place target, or where it was seen."""
+        """Where the object is set down: a clear's spot in the drop zone, the place target, or where it was seen."""
+        if status.place_target_W is not None:
+            return status.place_target_W
         return status.belief.seen_W if self.place_target_W is None else self.place_target_W
 
     @staticmethod

@@ -15,12 +15,19 @@ checks switch to:
   back_off  back_off                                                         -> the pick's task from its reach
   recover   recover_open, recover_retreat, recover_home                      -> the next attempt (a new frame)
   set_back  carry, set_down, release, retreat                                -> the pick fails
+  home      next_object_home                                                 -> the next object (clear)
+  give_up   next_object_open, next_object_retreat, next_object_home          -> the next object (clear)
 
 A failed grip check (after the close, after the lift) in lift, place or replace -> recover, while attempts are
 left (else the pick fails). A check that finds the object moved -> back_off; a confirm that finds it off its
 place target -> replace. An aim out of the arms' reach (no plan for aim_approach or aim) -> set_back: the drill is set
 down where it was taken, let go, and the pick then fails with the aim's failure. Any other failure (perception found
 nothing, no plan) ends the pick.
+
+A clear pick (clear_pick) runs the place task on one object after another: once one is placed, `home` takes the arms
+out of the camera's way and the next object is looked for; where one fails (a carry out of reach sets it back down
+first), `give_up` lets go, backs off and goes home, and the next is looked for. The supervisor ends the clear when
+perception finds no object left.
 """
 
 import enum
@@ -90,6 +97,7 @@ class Then(enum.StrEnum):
     NEXT_ATTEMPT = "next_attempt"  # a new camera frame, then the pick's task from its start
     REACH_AGAIN = "reach_again"  # the pick's task again from its reach (where the look found the object)
     FAIL = "fail"  # the pick fails, with the failure that started the task
+    NEXT_OBJECT = "next_object"  # the clear task: a new camera frame, then the pick's task on the next object
 
 
 @dataclass(frozen=True)
@@ -114,9 +122,12 @@ class PickTasks:
 
     main: TaskName
     tasks: dict[TaskName, Task]
+    # A clear pick's: the task after an object is placed, and the one after it is given up (None: a one-object pick).
+    after_placed: TaskName | None = None
+    after_given_up: TaskName | None = None
 
     def __post_init__(self):
-        named = {self.main} | {task.if_check_fails for task in self.tasks.values()}
+        named = {self.main, self.after_placed, self.after_given_up} | {t.if_check_fails for t in self.tasks.values()}
         named |= {phase.if_off for phase in self.phases()} | {phase.if_unreachable for phase in self.phases()}
         if missing := sorted(name for name in named - set(self.tasks) if name is not None):
             raise ValueError(f"the pick's tasks name tasks it lacks: {missing}")
@@ -171,15 +182,21 @@ def lift_task(lift_height: float = LIFT_HEIGHT, check: bool = True) -> Task:
     return Task(TaskName.LIFT, phases, Then.DONE, if_check_fails=TaskName.RECOVER)
 
 
-def place_task(lift_height: float = PLACE_LIFT_HEIGHT, check: bool = True, held_looks: bool = True) -> Task:
+def place_task(
+    lift_height: float = PLACE_LIFT_HEIGHT,
+    check: bool = True,
+    held_looks: bool = True,
+    if_unreachable: TaskName | None = None,
+) -> Task:
     """Beyond the paper: lift the object, carry it to the place target, set it down upright, let go, back off,
     [look whether it stands there]; then the pick is done. held_looks: look at the held object before the lift
-    and before the set-down, and at the object set down (else those phases pass)."""
+    and before the set-down, and at the object set down (else those phases pass); if_unreachable: the task run where
+    no plan carries it to the target (None: the pick fails holding it)."""
     phases = (
         *_grasping(check),
         _look(Mode.LOOK, held_looks),
         _lift(lift_height, MIN_LIFT_FRACTION),
-        Phase(Mode.CARRY, PhaseKind.MOVE, MoveKind.HELD, goal=PlaceGoal.CARRY),
+        Phase(Mode.CARRY, PhaseKind.MOVE, MoveKind.HELD, goal=PlaceGoal.CARRY, if_unreachable=if_unreachable),
         _look(Mode.LOOK_AGAIN, held_looks),  # the object turns a few degrees in the hands as they move it
         *_letting_go(held_looks),
     )
@@ -248,6 +265,23 @@ def recovery_task() -> Task:
     return Task(TaskName.RECOVER, phases, Then.NEXT_ATTEMPT, if_check_fails=None)
 
 
+def home_task() -> Task:
+    """A clear task's object placed: back to where the robot started (out of the camera's way); then the next object."""
+    phases = (Phase(Mode.NEXT_OBJECT_HOME, PhaseKind.MOVE, MoveKind.FREE, Targets.HOME),)
+    return Task(TaskName.HOME, phases, Then.NEXT_OBJECT, if_check_fails=None)
+
+
+def give_up_task() -> Task:
+    """A clear task's object given up: open the hands, back off along the approach axes, back to the start; then the
+    next object."""
+    phases = (
+        Phase(Mode.NEXT_OBJECT_OPEN, PhaseKind.OPEN, hand_width=OPEN_WIDTH, wait_s=SETTLE_S),
+        Phase(Mode.NEXT_OBJECT_RETREAT, PhaseKind.MOVE, MoveKind.STRAIGHT, Targets.RETREAT),
+        Phase(Mode.NEXT_OBJECT_HOME, PhaseKind.MOVE, MoveKind.FREE, Targets.HOME),
+    )
+    return Task(TaskName.GIVE_UP, phases, Then.NEXT_OBJECT, if_check_fails=None)
+
+
 def lift_pick(check: bool = True) -> PickTasks:
     """A pick that lifts the object (lift_task) and its back-off and recovery."""
     return _pick(lift_task(check=check))
@@ -261,6 +295,14 @@ def place_pick(check: bool = True, held_looks: bool = True) -> PickTasks:
 def aim_pick(check: bool = True, held_looks: bool = True) -> PickTasks:
     """A pick that aims a drill at a board (aim_task) and its set-back, re-place, back-off and recovery."""
     return _pick(aim_task(check=check, held_looks=held_looks), set_back_task(), replace_task(held_looks))
+
+
+def clear_pick(check: bool = True, held_looks: bool = True) -> PickTasks:
+    """A pick that clears the table: the place task on each object in turn (a carry out of reach sets the object back
+    down), home after each placed object, give_up after each failed one; and the re-place, back-off and recovery."""
+    place = place_task(check=check, held_looks=held_looks, if_unreachable=TaskName.SET_BACK)
+    tasks = _pick(place, set_back_task(), replace_task(held_looks), home_task(), give_up_task()).tasks
+    return PickTasks(TaskName.PLACE, tasks, after_placed=TaskName.HOME, after_given_up=TaskName.GIVE_UP)
 
 
 def _pick(main: Task, *others: Task) -> PickTasks:

@@ -38,10 +38,12 @@ def test_cluttered_tables_are_seeded_and_keep_their_promises(scenario):
             overlay_scenario(table, "", "test")  # valid
             outlines = scene_outlines(table)
             target, others = outlines[0], outlines[1:]
-            gaps = [clutter_scenes._gap(target, other) for other in others]
+            gaps = [clutter_scenes.gap_between(target, other) for other in others]
             assert min(gaps) <= clutter_scenes.NEAR_GAP_M[1] + 1e-9  # one stands near the target
             for i, a in enumerate(outlines):  # no two overlap
-                assert all(clutter_scenes._gap(a, b) >= clutter_scenes.MIN_GAP_M - 1e-9 for b in outlines[i + 1 :])
+                assert all(
+                    clutter_scenes.gap_between(a, b) >= clutter_scenes.MIN_GAP_M - 1e-9 for b in outlines[i + 1 :]
+                )
             for other, outline in zip(table.clutter, others, strict=True):
                 if other.kind == category:  # another of its category stands farther from the robot
                     assert outline.mean(axis=0)[0] > target.mean(axis=0)[0]

@@ -77,9 +77,9 @@ def clutter_scene(base: Scenario, category: str, k: int, split: str = "report") 
     xy = np.array(TARGET_CENTRE) + rng.uniform(-1, 1, 2) * TARGET_HALF_SIZE_M
     yaw = float(rng.uniform(-TARGET_MAX_YAW, TARGET_MAX_YAW))
     scenario = replace_object(base, category=category, instance=instance, file="", xy=[*map(float, xy)], yaw=yaw)
-    target = Placed(*_instance_outline(category, instance, xy, catalog.presentation_yaw(category) + yaw))
-    hands = _approach_points(scenario)
-    robot = _robot_at_start(scenario)
+    target = Placed(*instance_outline(category, instance, xy, catalog.presentation_yaw(category) + yaw))
+    hands = approach_points(scenario)
+    robot = robot_at_start(scenario)
     count = int(rng.integers(1, 5))
     # The object in front first (its room in view is small), in half of the tables; then the near one.
     in_front = rng.uniform() < 0.5
@@ -88,12 +88,12 @@ def clutter_scene(base: Scenario, category: str, k: int, split: str = "report") 
     placed, others = [target], []
     for role in roles[:count]:
         for _ in range(TRIES):
-            other = _draw_object(rng, category, other_category, role)
+            other = draw_object(rng, category, other_category, role)
             outline = _place(rng, other, role, target)
             if outline is None:
                 continue
-            candidate = Placed(outline, _height(other))
-            if _acceptable(candidate, other, role, placed, hands, target, scenario) and _clear_of(
+            candidate = Placed(outline, object_height(other))
+            if _acceptable(candidate, other, role, placed, hands, target, scenario) and clear_of_robot(
                 robot, candidate, scenario
             ):
                 placed.append(candidate)
@@ -103,8 +103,12 @@ def clutter_scene(base: Scenario, category: str, k: int, split: str = "report") 
     return dataclasses.replace(scenario, clutter=others, random_seed=base.random_seed + k, requested_category=category)
 
 
-def _draw_object(rng, category: str, other_category: str, role: str) -> ClutterObjectConfig:
-    kind = KINDS[rng.choice(len(KINDS), p=KIND_WEIGHTS)]
+def draw_object(
+    rng, category: str, other_category: str, role: str, kinds=KINDS, weights=KIND_WEIGHTS
+) -> ClutterObjectConfig:
+    """Another object for a role ("front", "near", "any"): one of `kinds` (with `weights`), its size, colour and yaw
+    drawn; its xy is set by place()."""
+    kind = kinds[rng.choice(len(kinds), p=weights)]
     color = [float(c) for c in rng.uniform(0.05, 0.95, 3)]
     yaw = float(rng.uniform(-np.pi, np.pi))
     tall = FRONT_MAX_HEIGHT_M if role == "front" else 0.2
@@ -134,8 +138,7 @@ def _place(rng, other: ClutterObjectConfig, role: str, target: Placed) -> np.nda
     """Chooses other.xy for its role (in place) and returns its outline there, or None."""
     centre = target.outline.mean(axis=0)
     if role == "any":
-        other.xy = [float(rng.uniform(*REGION_X)), float(rng.uniform(*REGION_Y))]
-        return _outline(other)
+        return place_anywhere(rng, other)
     # Near the target, or in front of it (towards the robot, -x): slide in from afar along a direction until the
     # gap to the target's outline is the one drawn.
     angle = rng.uniform(-np.pi, np.pi) if role == "near" else np.pi + rng.uniform(-0.35, 0.35)
@@ -143,31 +146,37 @@ def _place(rng, other: ClutterObjectConfig, role: str, target: Placed) -> np.nda
     direction = np.array([np.cos(angle), np.sin(angle)])
     for distance in np.arange(0.45, 0.0, -0.004):
         other.xy = [float(v) for v in centre + distance * direction]
-        outline = _outline(other)
-        if _gap(outline, target.outline) <= gap:
+        outline = outline_of(other)
+        if gap_between(outline, target.outline) <= gap:
             return outline
     return None
+
+
+def place_anywhere(rng, other: ClutterObjectConfig) -> np.ndarray:
+    """Sets other.xy anywhere in the region; returns its outline there."""
+    other.xy = [float(rng.uniform(*REGION_X)), float(rng.uniform(*REGION_Y))]
+    return outline_of(other)
 
 
 def _acceptable(candidate, other, role, placed, hands, target, scenario) -> bool:
     x, y = other.xy
     if not (REGION_X[0] <= x <= REGION_X[1] and REGION_Y[0] <= y <= REGION_Y[1]):
         return False
-    if any(_gap(candidate.outline, p.outline) < MIN_GAP_M for p in placed):
+    if any(gap_between(candidate.outline, p.outline) < MIN_GAP_M for p in placed):
         return False
-    if role == "near" and _gap(candidate.outline, target.outline) > NEAR_GAP_M[1]:
+    if role == "near" and gap_between(candidate.outline, target.outline) > NEAR_GAP_M[1]:
         return False
     # The hands' approach stays free, unless the object is low enough for the hands to pass over it.
     top = scenario.table_xyz[2] + TABLE_HEIGHT + candidate.height
     for point in hands:
-        if point[2] - top < HAND_PASS_OVER_M and _distance_to(candidate.outline, point[:2]) < HAND_CLEARANCE_M:
+        if point[2] - top < HAND_PASS_OVER_M and distance_to(candidate.outline, point[:2]) < HAND_CLEARANCE_M:
             return False
     if other.kind == scenario.object.category:  # farther from the robot than the target
         return x > target.outline.mean(axis=0)[0] + 0.1
     return True
 
 
-def _clear_of(robot: np.ndarray, candidate: Placed, scenario: Scenario) -> bool:
+def clear_of_robot(robot: np.ndarray, candidate: Placed, scenario: Scenario) -> bool:
     """Whether an object stands ROBOT_CLEARANCE_M clear of the robot at its start (spheres S x 4, W): in xy, of
     every sphere that reaches below its top plus that clearance."""
     top = scenario.table_xyz[2] + TABLE_HEIGHT + candidate.height
@@ -180,7 +189,7 @@ def _clear_of(robot: np.ndarray, candidate: Placed, scenario: Scenario) -> bool:
     return bool(np.all(_segment_distances(xy, candidate.outline) > low[:, 3] + ROBOT_CLEARANCE_M))
 
 
-def _robot_at_start(scenario: Scenario) -> np.ndarray:
+def robot_at_start(scenario: Scenario) -> np.ndarray:
     """The robot's sphere model at its initial positions (S x 4: centre in W, radius; m)."""
     from diagrams.planning_scene import make_planning_world  # (a plant: built once per robot and start)
 
@@ -196,7 +205,7 @@ def _robot_at_start(scenario: Scenario) -> np.ndarray:
 _ROBOT_AT_START: dict = {}
 
 
-def _approach_points(scenario: Scenario) -> np.ndarray:
+def approach_points(scenario: Scenario) -> np.ndarray:
     """Points along each hand's straight approach from its true pre-grasp to its grasp (W; x, y in the
     table_top frame), and the grasp frames' fingertips either side."""
     poses = true_grasp_poses(scenario)
@@ -209,11 +218,11 @@ def _approach_points(scenario: Scenario) -> np.ndarray:
     return points
 
 
-def _outline(other: ClutterObjectConfig) -> np.ndarray:
+def outline_of(other: ClutterObjectConfig) -> np.ndarray:
     """The object's convex outline on the table (M x 2, table_top frame, m)."""
     if other.instance:
         yaw = catalog.presentation_yaw(other.kind) + other.yaw
-        return _instance_outline(other.kind, other.instance, other.xy, yaw)[0]
+        return instance_outline(other.kind, other.instance, other.xy, yaw)[0]
     if other.kind == "box":
         hx, hy = 0.5 * np.array(other.size[:2])
         local = np.array([[hx, hy], [-hx, hy], [-hx, -hy], [hx, -hy]])
@@ -223,7 +232,7 @@ def _outline(other: ClutterObjectConfig) -> np.ndarray:
     return _moved(local, other.xy, other.yaw)
 
 
-def _height(other: ClutterObjectConfig) -> float:
+def object_height(other: ClutterObjectConfig) -> float:
     return _instance_height(other.kind, other.instance) if other.instance else other.size[2]
 
 
@@ -236,7 +245,7 @@ def _instance_height(category: str, instance: str) -> float:
     return float(_instance_mesh(category, instance).bounds[1, 2])
 
 
-def _instance_outline(category: str, instance: str, xy, yaw: float) -> tuple[np.ndarray, float]:
+def instance_outline(category: str, instance: str, xy, yaw: float) -> tuple[np.ndarray, float]:
     vertices = _instance_mesh(category, instance).vertices[:, :2]
     hull = vertices[ConvexHull(vertices).vertices]
     return _moved(hull, xy, yaw), _instance_height(category, instance)
@@ -264,14 +273,14 @@ def _inside(points: np.ndarray, outline: np.ndarray) -> np.ndarray:
     return np.all(cross >= 0, axis=1) | np.all(cross <= 0, axis=1)
 
 
-def _gap(a: np.ndarray, b: np.ndarray) -> float:
+def gap_between(a: np.ndarray, b: np.ndarray) -> float:
     """The distance between two convex outlines (m); 0 where they overlap."""
     if _inside(a, b).any() or _inside(b, a).any():
         return 0.0
     return float(min(_segment_distances(a, b).min(), _segment_distances(b, a).min()))
 
 
-def _distance_to(outline: np.ndarray, point) -> float:
+def distance_to(outline: np.ndarray, point) -> float:
     point = np.asarray(point, float)[None]
     return 0.0 if _inside(point, outline)[0] else float(_segment_distances(point, outline)[0])
 
@@ -280,5 +289,5 @@ def scene_outlines(scenario: Scenario) -> list[np.ndarray]:
     """The outlines of the target (first) and of every other object of a scenario (table_top frame): for tests and
     figures."""
     obj = scenario.object
-    target = _instance_outline(obj.category, obj.instance, obj.xy, catalog.presentation_yaw(obj.category) + obj.yaw)
-    return [target[0]] + [_outline(other) for other in scenario.clutter]
+    target = instance_outline(obj.category, obj.instance, obj.xy, catalog.presentation_yaw(obj.category) + obj.yaw)
+    return [target[0]] + [outline_of(other) for other in scenario.clutter]

@@ -27,7 +27,7 @@ from pydrake.systems.sensors import CameraInfo
 from scipy import ndimage
 from scipy.spatial import cKDTree
 
-from systems.messages import Segmentation
+from systems.messages import LeftOut, Segmentation
 from systems.perception.pose_estimator import depth_to_points
 
 INSTANCE_CUBE_M = 0.008  # m: points in touching cubes of this side are one object
@@ -210,3 +210,39 @@ def named_object(instances: list[Instance], classes, category: str, shape) -> Se
         return Segmentation(False, mask=np.zeros(shape, bool), message=f"no {category} in view")
     network = chosen.category(classes)
     return Segmentation(True, category, chosen.mask, chosen.pixel_count, message, network_category=network)
+
+
+GIVEN_UP_RADIUS_M = 0.08  # m: an object seen this near where the clear task gave one up is that object
+
+
+def next_object(
+    instances: list[Instance], classes, centres_W: list[np.ndarray], left_out: LeftOut, robot_xy_W, shape
+) -> Segmentation:
+    """The clear task's next object: of the objects the network labelled one of its categories (each at least
+    CANDIDATE_SHARE of the largest of its category), not standing in the drop zone nor where an object was given up
+    (left_out), the one nearest the robot (its points' centre, x and y, from robot_xy_W, m). centres_W: each
+    instance's points' centre in W (NaN where it has none)."""
+    largest = {}
+    for instance in instances:
+        category = instance.category(classes)
+        largest[category] = max(largest.get(category, 0), instance.pixel_count)
+    candidates, in_zone, given_up = [], 0, 0
+    for instance, centre in zip(instances, centres_W, strict=True):
+        small = instance.pixel_count < CANDIDATE_SHARE * largest[instance.category(classes)]
+        if small or not np.isfinite(centre).all():
+            continue
+        if left_out.in_zone(centre[None, :2])[0]:
+            in_zone += 1
+        elif any(np.linalg.norm(centre[:2] - np.asarray(xy)) < GIVEN_UP_RADIUS_M for xy in left_out.given_up_xy_W):
+            given_up += 1
+        else:
+            candidates.append((float(np.linalg.norm(centre[:2] - np.asarray(robot_xy_W))), instance))
+    aside = f"{in_zone} in the drop zone, {given_up} given up"
+    if not candidates:
+        message = f"nothing to clear: no familiar object left ({aside})"
+        return Segmentation(False, mask=np.zeros(shape, bool), message=message)
+    distance, chosen = min(candidates, key=lambda c: (c[0], -c[1].pixel_count))
+    category = chosen.category(classes)
+    message = f"{category}: {chosen.pixel_count} px, {distance:.2f} m from the robot, the nearest of {len(candidates)}"
+    message += f" left ({aside})"
+    return Segmentation(True, category, chosen.mask, chosen.pixel_count, message, network_category=category)

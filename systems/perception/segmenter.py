@@ -13,13 +13,14 @@ from pydrake.systems.framework import LeafSystem
 from pydrake.systems.sensors import CameraInfo, ImageDepth32F, ImageRgba8U
 from torch.nn import functional as F
 
-from systems.messages import Segmentation
+from systems.messages import LeftOut, Segmentation
 from systems.parallel import parallel_map
 from systems.paths import MODELS_DIR
 from systems.perception import segmentation_network
-from systems.perception.instances import Instance, TableView, named_object, object_instances
+from systems.perception.instances import Instance, TableView, named_object, next_object, object_instances
 from systems.perception.object_completion import completed_mask
 from systems.perception.part_segmenter import PartSegmenter
+from systems.perception.pose_estimator import depth_to_points
 
 DEFAULT_WEIGHTS = MODELS_DIR / "segmenter.pt"
 # The network also on the mirror image, its scores summed (see Segmenter.segment).
@@ -75,6 +76,7 @@ class Segmenter(LeafSystem):
         - color_image
         - depth_image (optional)
         - camera_pose (optional)
+        - left_out (optional)
         output_ports:
         - labels
         - segmentation
@@ -106,6 +108,9 @@ class Segmenter(LeafSystem):
             network's time).
         part_segmenter: with it, the object's pixels are labelled with their functional parts too
             (Segmentation.parts; part_segmenter.py).
+        robot_xy_W: the clear task's: the object is the nearest to this point (x, y in W, m; the torso's axis) of
+            every category's, leaving out those in ``left_out`` (LeftOut: the drop zone, objects given up;
+            instances.next_object). Needs the depth image, the intrinsics and the camera's pose.
 
     Raises:
         ValueError: the weights' network knows no such category.
@@ -121,6 +126,7 @@ class Segmenter(LeafSystem):
         X_BC: RigidTransform | None = None,
         table_top_z: float | None = None,
         part_segmenter: PartSegmenter | None = None,
+        robot_xy_W: tuple[float, float] | None = None,
     ):
         super().__init__()
         self.part_segmenter = part_segmenter
@@ -132,11 +138,15 @@ class Segmenter(LeafSystem):
         self.X_BC, self.table_top_z = X_BC or RigidTransform(), table_top_z
         if category:
             check_category(category, self.classes)
+        if robot_xy_W is not None and (category or intrinsics is None or table_top_z is None):
+            raise ValueError("the clear task's segmenter chooses among every category and needs the depth camera")
+        self.robot_xy_W = robot_xy_W
         # One inference now: torch's first call is several times slower than the next ones.
         self.segment(np.zeros((*segmentation_network.INPUT_SIZE[::-1], 3), np.uint8))
         self.color_image_port = self.DeclareAbstractInputPort("color_image", AbstractValue.Make(ImageRgba8U()))
         self.depth_image_port = self.DeclareAbstractInputPort("depth_image", AbstractValue.Make(ImageDepth32F()))
         self.camera_pose_port = self.DeclareAbstractInputPort("camera_pose", AbstractValue.Make(RigidTransform()))
+        self.left_out_port = self.DeclareAbstractInputPort("left_out", AbstractValue.Make(LeftOut()))
         # Computed from the image alone (not from time): an image that does not change is segmented once.
         inputs = {self.all_input_ports_ticket()}
         self.labels_port = self.DeclareAbstractOutputPort(
@@ -199,17 +209,23 @@ class Segmenter(LeafSystem):
             depth = np.asarray(self.depth_image_port.Eval(context).data)[:, :, 0]
         if self.camera_pose_port.HasValue(context):
             X_WB = self.camera_pose_port.Eval(context)
-        segmentation = self.object_of(labels, depth, X_WB)
+        left_out = self.left_out_port.Eval(context) if self.left_out_port.HasValue(context) else LeftOut()
+        segmentation = self.object_of(labels, depth, X_WB, left_out)
         # The parts of an object the network took for another category than the one named would be that other
         # category's parts given this one's roles: the named category's shape alone must explain it.
         agreed = segmentation.network_category in ("", segmentation.category)
         if segmentation.found and self.part_segmenter is not None and agreed:
             rgb = np.asarray(self.color_image_port.Eval(context).data)
             segmentation.parts = self.part_segmenter.parts_of(rgb, segmentation.mask)
-        if segmentation.network_category and segmentation.network_category != self.category:
+        if segmentation.network_category and segmentation.network_category != segmentation.category:
             logging.warning("segmentation: %s", segmentation.message)
         segmentation.compute_s = time.perf_counter() - started
         output.set_value(segmentation)
+
+    def _centre_W(self, mask: np.ndarray, depth: np.ndarray, X_WC: RigidTransform) -> np.ndarray:
+        """The centre of a mask's points in W (m; NaN where none has depth)."""
+        points_C = depth_to_points(depth, mask, self.intrinsics)
+        return X_WC.multiply(points_C.mean(axis=0)) if len(points_C) else np.full(3, np.nan)
 
     def instances_of(
         self, labels: np.ndarray, depth: np.ndarray | None = None, X_WB: RigidTransform | None = None
@@ -219,19 +235,32 @@ class Segmenter(LeafSystem):
         return object_instances(labels, depth, self.classes, self.min_pixels, self.intrinsics, self.table_view(X_WB))
 
     def object_of(
-        self, labels: np.ndarray, depth: np.ndarray | None = None, X_WB: RigidTransform | None = None
+        self,
+        labels: np.ndarray,
+        depth: np.ndarray | None = None,
+        X_WB: RigidTransform | None = None,
+        left_out: LeftOut | None = None,
     ) -> Segmentation:
         """The object to pick in a labelled image (H x W class ids), as the class docstring says, from the depth
-        image (H x W, m) and the camera body's pose X_WB where given."""
-        if not self.category:
+        image (H x W, m) and the camera body's pose X_WB where given; the clear task's leaves out `left_out`."""
+        if not self.category and self.robot_xy_W is None:
             return dominant_object(labels, self.classes, self.min_pixels)
         if depth is not None and depth.shape != labels.shape:
             raise ValueError(f"depth image {depth.shape} and colour image {labels.shape} differ in size")
         table = self.table_view(X_WB)
-        segmentation = named_object(self.instances_of(labels, depth, X_WB), self.classes, self.category, labels.shape)
+        instances = self.instances_of(labels, depth, X_WB)
+        if self.robot_xy_W is not None:
+            if depth is None or table is None:
+                raise ValueError("the clear task's segmenter needs the depth image and the camera's pose")
+            centres = [self._centre_W(instance.mask, depth, table.X_WC) for instance in instances]
+            segmentation = next_object(
+                instances, self.classes, centres, left_out or LeftOut(), self.robot_xy_W, labels.shape
+            )
+        else:
+            segmentation = named_object(instances, self.classes, self.category, labels.shape)
         # (An object the network took for another category, taken as named, is a guess: on a table of other things
         # it is a mislabelled patch of one of them, and completing it would make that thing the object.)
-        recognised = segmentation.found and segmentation.network_category == self.category
+        recognised = segmentation.found and segmentation.network_category == segmentation.category
         if recognised and depth is not None and self.intrinsics is not None and table is not None:
             self._complete(segmentation, labels, depth, table)
         return segmentation

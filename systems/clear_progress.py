@@ -1,0 +1,58 @@
+"""The clear task's bookkeeping between objects, for the PickSupervisor (systems/pick_supervisor.py): where the next
+object goes in the drop zone, what perception leaves out when it looks for the next one, and each object's record."""
+
+import dataclasses
+
+import numpy as np
+from pydrake.math import RigidTransform
+
+from systems.messages import ClearedObject, LeftOut, PerceptionResult, PickStatus
+from systems.planning.drop_zone import DropZone, drop_spot, footprint_at, footprint_O
+
+
+def seen_object(result: PerceptionResult) -> ClearedObject | None:
+    """The record of an object perception saw (its category, the centre of its seen points), before it is taken on;
+    None where perception saw no point of it."""
+    points = result.points_W
+    if points is None or not len(points):
+        return None
+    centre = np.mean(points, axis=0)
+    return ClearedObject(result.category, (float(centre[0]), float(centre[1])), attempts=1)
+
+
+def chosen_spot(
+    zone: DropZone, status: PickStatus, result: PerceptionResult
+) -> tuple[RigidTransform | None, ClearedObject]:
+    """Where in the zone the perceived object goes (None: it fits nowhere) and its record with that spot: its
+    footprint from the registrar's whole inferred shape (the seen points where there is none)."""
+    record = seen_object(result)
+    shape = result.reconstruction_W if result.reconstruction_W is not None else result.points_W
+    outline_O = footprint_O(shape, result.X_WO_seen)
+    dropped = [done.footprint_W for done in status.objects if done.cleared]
+    X_WO = drop_spot(zone, dropped, outline_O, result.X_WO_seen)
+    if X_WO is None:
+        return None, record
+    xy = X_WO.translation()[:2]
+    spot = dataclasses.replace(
+        record, target_xy_W=(float(xy[0]), float(xy[1])), footprint_W=footprint_at(outline_O, X_WO)
+    )
+    return X_WO, spot
+
+
+def left_out(zone: DropZone | None, status: PickStatus) -> LeftOut:
+    """What perception leaves out looking for the next object: the zone, and where the objects given up stood."""
+    if zone is None:
+        return LeftOut()
+    given_up = tuple(done.seen_xy_W for done in status.objects if not done.cleared)
+    return LeftOut(tuple(map(float, zone.low)), tuple(map(float, zone.high)), given_up)
+
+
+def summary(status: PickStatus, why_ended: str) -> str:
+    """The clear's closing line: how many objects went to the zone, which were given up and why, and why it ended."""
+    cleared = sum(done.cleared for done in status.objects)
+    line = f"cleared {cleared} of {len(status.objects)} objects taken on"
+    failed = [f"{done.category} at ({done.seen_xy_W[0]:.2f}, {done.seen_xy_W[1]:.2f}): {done.message}"
+              for done in status.objects if not done.cleared]  # fmt: skip
+    if failed:
+        line += "; given up: " + "; ".join(failed)
+    return f"{line}; {why_ended}"
