@@ -328,7 +328,7 @@ def run_pick(
     elif scenario.task == "clear":
 
         def make_judge(plant, context):
-            return ClearJudge(plant, context, scenario, drop_zone(scenario))
+            return ClearJudge(plant, context, scenario, drop_zone(scenario), mode_of)
 
     elif scenario.task == "aim":
         tool_O = true_tool_O(scenario)
@@ -446,7 +446,7 @@ class PickWatcher:
                 grasps_O = {h: (X_OW @ report.grasps.poses_W[f"{h}_grasp"]).translation() for h in ("left", "right")}
                 outcome.perception["grasps_on_handles"] = on_handles(truth, grasps_O)
         outcome.attempts_made, outcome.attempt_failures = status.attempt, attempt_failures(status)
-        if status.objects:  # a clear: what the robot made of each object it took on
+        if outcome.clear:  # a clear (judged so): what the robot made of each object it took on
             outcome.clear["taken_on"] = [taken_on(done) for done in status.objects]
             outcome.clear["summary"] = status.message
         if outcome.place:

@@ -47,9 +47,11 @@ def true_outline_O(category: str, instance: str) -> np.ndarray:
 class ClearJudge(LiftJudge):
     """The clear task's judge (module docstring); its figures go to the outcome's `clear`."""
 
-    def __init__(self, plant: MultibodyPlant, context, scenario: Scenario, zone: DropZone):
+    def __init__(self, plant: MultibodyPlant, context, scenario: Scenario, zone: DropZone, mode_of=None):
+        """mode_of(context): the pick's mode, recorded where a distractor first moved too far (None: not recorded)."""
         super().__init__(plant, context)
-        self.zone = zone
+        self.zone, self.context, self.mode_of = zone, context, mode_of
+        self.first_moved = {}  # distractor index -> (t s, the pick's mode) when it first moved too far
         self.familiar = []
         if scenario.object.present:
             self.familiar.append(_familiar(plant, OBJECT_INSTANCE, scenario.object))
@@ -64,6 +66,10 @@ class ClearJudge(LiftJudge):
         for familiar in self.familiar:
             if familiar.start_W is None and t >= SETTLED_S:
                 familiar.start_W = familiar.body.EvalPoseInWorld(self.plant_context)
+        for index in self.distractors:
+            if index not in self.first_moved and self.others_moved[index] > DISTRACTOR_LIMIT_M:
+                mode = str(self.mode_of(self.context)) if self.mode_of is not None else ""
+                self.first_moved[index] = (t, mode)
         return z
 
     def outcome(self) -> PickOutcome:
@@ -88,6 +94,8 @@ class ClearJudge(LiftJudge):
         outcome.clear = {
             "objects": records, "familiar_objects": len(records), "objects_cleared": cleared,
             "objects_cleared_share": cleared / len(records) if records else 1.0, "others_moved_m_max": float(moved),
+            "others_first_moved": [{"clutter_index": i, "t_s": t, "mode": mode}
+                                   for i, (t, mode) in sorted(self.first_moved.items())],
         }  # fmt: skip
         outcome.success = cleared == len(records) and moved <= DISTRACTOR_LIMIT_M
         problems = [f"{r['name']} ({r['category']}) not cleared" for r in records if not r["cleared"]]

@@ -203,6 +203,7 @@ def run_trial(trial: Trial) -> dict:
         "closure_executed": outcome.closure_executed,
         "place": outcome.place,
         "use": outcome.use,
+        "clear": outcome.clear,
         "perception": outcome.perception,
         "others_moved_m": outcome.others_moved_m,
         "sim_wall_s": outcome.wall_time_s,

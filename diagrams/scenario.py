@@ -152,9 +152,9 @@ class ClearConfig:
 
     # The zone's centre in the table_top frame, m: at the table's right side, where the arms set objects down
     # (docs/clear.md).
-    zone_xy: list[float] = field(default_factory=lambda: [-0.15, -0.38])
+    zone_xy: list[float] = field(default_factory=lambda: [-0.14, -0.38])
     # Its extent along x and y, m.
-    zone_size: list[float] = field(default_factory=lambda: [0.40, 0.40])
+    zone_size: list[float] = field(default_factory=lambda: [0.48, 0.40])
     # The most objects the robot takes on (cleared or given up), however many it sees.
     max_objects: int = 6
 

@@ -100,6 +100,8 @@ def main(argv=None) -> int:
             summary += (
                 f"; {100 * place['error_m']:.1f} cm, {math.degrees(place['yaw_error_rad']):.1f} deg from the target"
             )
+        elif outcome.clear:
+            summary += f"; {outcome.clear['summary']}"
         elif math.isfinite(outcome.lift_height_m):  # unknown against a real robot
             summary += f"; lift {outcome.lift_height_m:.3f} m"
         if outcome.sim_time_s > 0:
@@ -125,6 +127,7 @@ def main(argv=None) -> int:
             "task": scenario.task,
             "place": outcome.place,
             "use": outcome.use,
+            "clear": outcome.clear,
             "perception": outcome.perception,
             "others_moved_m": outcome.others_moved_m,  # each other object's largest move (ground truth)
             "failed_stage": outcome.failed_stage,

@@ -2,8 +2,8 @@
 
 The zone is a rectangle on the table top (x, y in W, m). An object set down there leaves its footprint: the convex
 outline of its perceived shape (the registrar's reconstruction, seen from above), moved to where it was set down. The
-next object's spot is the first candidate whose footprint lies inside the zone and DROP_GAP_M clear of every
-footprint already there. Candidates: the object turned by each of DROP_TURNS_RAD about the vertical from how it was
+next object's spot is the first candidate whose footprint lies inside the zone (its outline's centre inside, no point
+more than DROP_OVERHANG_M past its edges) and DROP_GAP_M clear of every footprint already there. Candidates: the object turned by each of DROP_TURNS_RAD about the vertical from how it was
 seen (the arms set an object down at the zone turned by -0.5 rad more often than not turned: docs/clear.md), its
 centre on a DROP_GRID_M grid over the zone, nearest the zone's corner towards the robot and the table's middle first
 (packed from there; the arms reach it well).
@@ -17,6 +17,8 @@ from scipy.spatial import ConvexHull
 
 DROP_GAP_M = 0.03  # m: between footprints in the zone (the judge wants them apart; a set-down is 1-2 cm off)
 DROP_GRID_M = 0.02  # m: between candidate centres
+# m: a footprint may reach this far past the zone's marks (a can's spout or handle; its body stands inside)
+DROP_OVERHANG_M = 0.05
 # About the vertical, from the object as seen, rad: in order of preference at one spot.
 DROP_TURNS_RAD = (-0.5, -0.25, 0.0)
 
@@ -78,7 +80,7 @@ def drop_spot(
         for turn in DROP_TURNS_RAD:
             X_WO = RigidTransform(RotationMatrix.MakeZRotation(turn) @ X_WO_seen.rotation(), [*centre, z])
             outline = footprint_at(outline_O, X_WO)
-            if not zone.contains(outline).all():
+            if not zone.contains(outline, DROP_OVERHANG_M).all() or not zone.contains(outline.mean(axis=0)):
                 continue
             if all(_apart(outline, other, DROP_GAP_M) for other in others):
                 return X_WO

@@ -1,0 +1,194 @@
+"""The clear task: the drop zone's spots, the next object chosen in the image, the supervisor's loop over objects,
+the seeded tables to clear, and a table with nothing familiar on it."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+from pydrake.common.value import AbstractValue
+from pydrake.math import RigidTransform, RotationMatrix
+from pydrake.systems.analysis import Simulator
+
+from diagrams.autonomous_pick import run_pick
+from diagrams.generation.clear_scenes import ZONE_CLEARANCE_M, clear_scene
+from diagrams.generation.clutter_scenes import gap_between, scene_outlines
+from diagrams.perception import MakeSegmenter
+from diagrams.planning_scene import make_planning_world
+from diagrams.scenario import ClutterObjectConfig, load_scenario, overlay_scenario
+from diagrams.station import drop_zone, settled_frame
+from systems.messages import LeftOut, Mode, PerceptionResult, PlanResult, Stage, TaskName
+from systems.perception.pose_estimator import depth_to_points
+from systems.pick_supervisor import PickSupervisor
+from systems.pick_tasks import clear_pick
+from systems.planning.drop_zone import (
+    DROP_GAP_M,
+    DROP_OVERHANG_M,
+    DropZone,
+    drop_spot,
+    footprint_at,
+    footprint_O,
+    outlines_apart,
+)
+
+ZONE = DropZone((0.6, -0.38), (0.4, 0.4))
+Q0 = np.linspace(-0.5, 0.5, 14)
+
+
+def _box_footprint(x: float, y: float, X_WO: RigidTransform) -> np.ndarray:
+    corners = np.array([[sx * x, sy * y, 0.0] for sx in (-1, 1) for sy in (-1, 1)])
+    return footprint_O(X_WO.multiply(corners.T).T, X_WO)
+
+
+def test_the_drop_zone_takes_objects_apart_inside_it_until_none_fits():
+    X_WO = RigidTransform(RotationMatrix.MakeZRotation(0.2), [0.7, 0.1, 0.8])
+    outline_O = _box_footprint(0.13, 0.04, X_WO)  # a drill's size, 26 x 8 cm
+    dropped = []
+    while (spot := drop_spot(ZONE, dropped, outline_O, X_WO)) is not None:
+        footprint = footprint_at(outline_O, spot)
+        assert ZONE.contains(footprint, DROP_OVERHANG_M + 1e-9).all() and ZONE.contains(footprint.mean(axis=0))
+        assert spot.translation()[2] == X_WO.translation()[2]
+        assert all(outlines_apart(footprint, other, DROP_GAP_M - 1e-9) for other in dropped)
+        dropped.append(footprint)
+        assert len(dropped) < 10
+    assert len(dropped) >= 3  # three drills side by side in a 40 cm square
+    big = _box_footprint(0.3, 0.3, X_WO)  # 60 cm across: fits nowhere
+    assert drop_spot(ZONE, [], big, X_WO) is None
+
+
+def test_outlines_apart_tells_a_gap_from_an_overlap_and_one_inside_another():
+    square = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], float)
+    assert outlines_apart(square, square + [1.05, 0], 0.04)
+    assert not outlines_apart(square, square + [1.03, 0], 0.04)
+    assert not outlines_apart(square, 0.2 * square + 0.4, 0.01)  # inside
+
+
+@pytest.mark.slow
+def test_the_segmenter_takes_the_nearest_familiar_object_and_leaves_out_those_given_up(scenario):
+    table = clear_scene(scenario, 0, "tune")
+    frame = settled_frame(table)
+    world = make_planning_world(table)
+    segmenter = MakeSegmenter(table, robot_xy_W=world.torso_axis_W)
+    labels = segmenter.segment(frame.rgb)
+    familiar = [np.array(table.object.xy)] + [np.array(o.xy) for o in table.clutter if o.instance]
+    familiar = [xy + table.table_xyz[:2] for xy in familiar]
+    by_distance = sorted(familiar, key=lambda xy: np.linalg.norm(xy - world.torso_axis_W))
+
+    def chosen(left_out: LeftOut):
+        segmentation = segmenter.object_of(labels, frame.depth, frame.X_WB, left_out)
+        if not segmentation.found:
+            return segmentation, None
+        points = depth_to_points(frame.depth, segmentation.mask, segmenter.intrinsics)
+        centre = (frame.X_WB @ segmenter.X_BC).multiply(points.mean(axis=0))[:2]
+        return segmentation, centre
+
+    def nearest(centre) -> int:  # which familiar object a mask's points' centre belongs to (not at its origin)
+        return int(np.argmin([np.linalg.norm(centre - xy) for xy in by_distance]))
+
+    segmentation, centre = chosen(LeftOut())
+    assert segmentation.found and "the nearest of 2 left" in segmentation.message, segmentation.message
+    assert nearest(centre) == 0
+    segmentation, centre = chosen(LeftOut(given_up_xy_W=(tuple(centre),)))
+    assert segmentation.found and nearest(centre) == 1, segmentation.message
+    assert "1 given up" in segmentation.message
+    segmentation, _ = chosen(LeftOut(given_up_xy_W=tuple(tuple(xy) for xy in (centre, *by_distance))))
+    assert not segmentation.found and segmentation.message.startswith("nothing to clear"), segmentation.message
+
+
+def _clear_supervisor(result: PerceptionResult, max_objects: int = 4):
+    dut = PickSupervisor(clear_pick(), perceive_at_s=0.1, looks=True, drop_zone=ZONE, max_objects=max_objects)
+    context = dut.CreateDefaultContext()
+    dut.GetInputPort("position_measured").FixValue(context, Q0)
+    for side in ("left", "right"):
+        dut.GetInputPort(f"{side}_hand_state").FixValue(context, [0.0, 0.0])
+    dut.GetInputPort("frame_id").FixValue(context, [1.0])
+    dut.GetInputPort("perception").FixValue(context, AbstractValue.Make(result))
+    dut.GetInputPort("look_frame_id").FixValue(context, [0.0])
+    dut.GetInputPort("plan").FixValue(context, AbstractValue.Make(PlanResult()))
+    return dut, context, Simulator(dut, context)
+
+
+def test_a_table_with_nothing_familiar_ends_the_clear_at_once():
+    nothing = PerceptionResult(False, Stage.SEGMENTATION, "nothing to clear: no familiar object left (0 in the drop "
+                               "zone, 0 given up)")  # fmt: skip
+    dut, context, simulator = _clear_supervisor(nothing)
+    simulator.AdvanceTo(0.2)
+    status = dut.GetOutputPort("status").Eval(context)
+    assert status.mode == Mode.DONE and status.objects == ()
+    assert status.message == "cleared 0 of 0 objects taken on; " + nothing.message
+
+
+def test_an_object_that_fails_is_given_up_left_out_and_the_next_one_looked_for():
+    points = np.array([[0.7, 0.1, 0.8], [0.72, 0.12, 0.9]])
+    poor = PerceptionResult(False, Stage.REGISTRATION, "a poor fit", category="drill", points_W=points)
+    dut, context, simulator = _clear_supervisor(poor, max_objects=2)
+    simulator.AdvanceTo(0.15)
+    status = dut.GetOutputPort("status").Eval(context)
+    assert status.mode == Mode.PERCEIVING and status.perceive_id == 2  # nothing moved: it looks again at once
+    (given_up,) = status.objects
+    assert not given_up.cleared and given_up.category == "drill" and given_up.failed_stage == "registration"
+    assert given_up.seen_xy_W == pytest.approx((0.71, 0.11))
+    left_out = dut.GetOutputPort("left_out").Eval(context)
+    assert left_out.given_up_xy_W == (given_up.seen_xy_W,) and left_out.zone_low_W == pytest.approx((0.4, -0.58))
+    dut.GetInputPort("frame_id").FixValue(context, [2.0])  # the same again: the second object, the last one allowed
+    simulator.AdvanceTo(0.3)
+    status = dut.GetOutputPort("status").Eval(context)
+    assert status.mode == Mode.DONE and len(status.objects) == 2
+    assert status.message.startswith("cleared 0 of 2 objects taken on; given up: drill at (0.71, 0.11): ")
+    assert status.message.endswith("took on 2 objects, the most")
+
+
+def test_a_perceived_object_gets_a_spot_in_the_zone_and_the_place_task_carries_it_there():
+    X_WO = RigidTransform([0.7, 0.1, 0.8])
+    shape = X_WO.multiply(np.array([[x, y, z] for x in (-0.1, 0.1) for y in (-0.05, 0.05) for z in (0, 0.2)]).T).T
+    seen = PerceptionResult(True, category="drill", X_WO_seen=X_WO, points_W=shape, reconstruction_W=shape)
+    dut, context, simulator = _clear_supervisor(seen)
+    simulator.AdvanceTo(0.15)
+    status = dut.GetOutputPort("status").Eval(context)
+    assert status.mode == Mode.REACH and status.task == TaskName.PLACE
+    assert ZONE.contains(status.place_target_W.translation()[:2]) and status.current.target_xy_W is not None
+    assert ZONE.contains(status.current.footprint_W, DROP_OVERHANG_M + 1e-9).all()
+
+
+def test_the_tables_to_clear_are_seeded_and_keep_their_promises(scenario):
+    for k in range(3):
+        table = clear_scene(scenario, k, "tune")
+        assert table == clear_scene(scenario, k, "tune") and table.task == "clear"
+        familiar = 1 + sum(bool(other.instance) for other in table.clutter)
+        assert 2 <= familiar <= 3 and 1 <= len(table.clutter) - familiar + 1 <= 2
+        (cx, cy), (sx, sy) = table.clear.zone_xy, table.clear.zone_size
+        zone = np.array([[cx - sx / 2, cy - sy / 2], [cx + sx / 2, cy - sy / 2], [cx + sx / 2, cy + sy / 2],
+                         [cx - sx / 2, cy + sy / 2]])  # fmt: skip
+        for outline in scene_outlines(table):
+            assert gap_between(outline, zone) >= ZONE_CLEARANCE_M - 1e-9
+    assert clear_scene(scenario, 0) != clear_scene(scenario, 0, "tune")
+    with pytest.raises(ValueError, match="unknown split"):
+        clear_scene(scenario, 0, "test")
+
+
+def test_scenario_checks_the_drop_zone():
+    for text, message in (
+        ("{clear: {zone_xy: [0.1]}}", "clear.zone_xy"),
+        ("{clear: {zone_size: [0.05, 0.4]}}", "clear.zone_size"),
+        ("{clear: {max_objects: 0}}", "clear.max_objects"),
+    ):
+        with pytest.raises(ValueError, match=message):
+            overlay_scenario(load_scenario(), text, "--scenario_text")
+
+
+@pytest.mark.slow
+def test_a_table_of_distractors_alone_is_cleared_at_once_and_nothing_moves(scenario):
+    """Sensor on: no familiar object in view, the clear ends on its first frame with "nothing to clear"."""
+    boxes = [
+        ClutterObjectConfig(kind="box", size=[0.08, 0.1, 0.1], xy=[-0.1, 0.1]),
+        ClutterObjectConfig(kind="cylinder", size=[0.08, 0.08, 0.12], color=[0.2, 0.5, 0.8], xy=[0.05, -0.1]),
+    ]
+    table = dataclasses.replace(
+        scenario, task="clear", clutter=boxes, object=dataclasses.replace(scenario.object, present=False)
+    )
+    outcome = run_pick(table)
+    assert outcome.success and outcome.clear["familiar_objects"] == 0, outcome.message
+    assert outcome.clear["summary"].endswith(
+        "nothing to clear: no familiar object left (0 in the drop zone, 0 given up)"
+    )
+    assert outcome.clear["others_moved_m_max"] < 0.005 and outcome.sim_time_s < 2.0
+    assert drop_zone(table).contains(np.array(drop_zone(table).centre_W))
