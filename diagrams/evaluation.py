@@ -128,14 +128,17 @@ def clutter_trials(
     base: Scenario, category: str, count: int, split: str = "report", yaw_noise: float = PAPER_YAW_NOISE
 ) -> list[Trial]:
     """`count` cluttered tables (diagrams/generation/clutter_scenes.py), table k of `split` with the seed
-    base.random_seed + k; the user names `category`, the pick finds the nearest one among the others."""
+    base.random_seed + k; the user names `category`, the pick finds the nearest one among the others. For the clear
+    task, tables to clear (diagrams/generation/clear_scenes.py: every familiar object, `category` unused)."""
+    from diagrams.generation.clear_scenes import clear_scene
     from diagrams.generation.clutter_scenes import clutter_scene
 
     if count < 1:
         raise ValueError(f"scenes must be >= 1, got {count}")
     out = []
     for k in range(count):
-        scenario = dataclasses.replace(clutter_scene(base, category, k, split), registration_yaw_noise=yaw_noise)
+        table = clear_scene(base, k, split) if base.task == "clear" else clutter_scene(base, category, k, split)
+        scenario = dataclasses.replace(table, registration_yaw_noise=yaw_noise)
         out.append(Trial(f"clutter_{split}_{k}", scenario.object.yaw, 0, scenario))
     return out
 
@@ -207,6 +210,7 @@ def run_trial(trial: Trial) -> dict:
         "perception": outcome.perception,
         "others_moved_m": outcome.others_moved_m,
         "sim_wall_s": outcome.wall_time_s,
+        "sim_time_s": outcome.sim_time_s,
     }
 
 
@@ -295,6 +299,7 @@ def summarize(records: list[dict]) -> dict:
         ),
         **_grasps_on_handles(records),
         **_tool_errors(records),
+        **_clears(records),
         **_aims(records),
         "success_rate": _rate(successes, len(records)),
         "success_rate_ci95": wilson_interval(successes, len(records)),
@@ -339,6 +344,29 @@ def _tool_errors(records: list[dict]) -> dict:
         "tool_frames_judged": len(judged),
         "tool_tip_error_m_median": float(np.median([e["tip_m"] for e in judged])),
         "tool_axis_error_rad_median": float(np.median([e["axis_rad"] for e in judged])),
+    }
+
+
+def _clears(records: list[dict]) -> dict:
+    """The clear task (records judged by diagrams/clear_judge.py): {"tables", "familiar_objects", "objects_cleared",
+    "objects_cleared_share": of every familiar object on every table, "objects_cleared_per_table_mean",
+    "attempts_per_object_mean": over the objects taken on, "sim_s_per_object_mean": simulated seconds per object taken
+    on, "others_moved_m_max": the distractors' largest move}; {} where no record is a clear."""
+    clears = [r for r in records if (r.get("clear") or {}).get("objects") is not None]
+    if not clears:
+        return {}
+    familiar = sum(r["clear"]["familiar_objects"] for r in clears)
+    cleared = sum(r["clear"]["objects_cleared"] for r in clears)
+    taken = [done for r in clears for done in r["clear"].get("taken_on", [])]
+    return {
+        "tables": len(clears),
+        "familiar_objects": familiar,
+        "objects_cleared": cleared,
+        "objects_cleared_share": _rate(cleared, familiar),
+        "objects_cleared_per_table_mean": cleared / len(clears),
+        "attempts_per_object_mean": float(np.mean([done["attempts"] for done in taken])) if taken else float("nan"),
+        "sim_s_per_object_mean": sum(r.get("sim_time_s", 0.0) for r in clears) / max(len(taken), 1),
+        "others_moved_m_max": max(r["clear"]["others_moved_m_max"] for r in clears),
     }
 
 

@@ -77,7 +77,7 @@ class Mode(enum.StrEnum):
     RECOVER_OPEN = "recover_open"
     RECOVER_RETREAT = "recover_retreat"
     RECOVER_HOME = "recover_home"
-    # Between two objects of a clear task: back to where the robot started, out of the camera's way.
+    # A clear task's object given up: let go, back off, back to where the robot started.
     NEXT_OBJECT_OPEN = "next_object_open"
     NEXT_OBJECT_RETREAT = "next_object_retreat"
     NEXT_OBJECT_HOME = "next_object_home"
@@ -107,7 +107,6 @@ class TaskName(enum.StrEnum):
     RECOVER = "recover"  # a failed attempt: open the hands, back off, go back to where the pick started
     AIM = "aim"  # grasp a drill, lift it, aim its bit at a board's target, hold, back off, set it down where it stood
     SET_BACK = "set_back"  # the held object's goal is out of reach: set it down where it was taken, let go
-    HOME = "home"  # a clear task's object placed: back to the start, then look for the next object
     GIVE_UP = "give_up"  # a clear task's object given up: open the hands, back off, back to the start, look again
 
 

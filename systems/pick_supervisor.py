@@ -25,11 +25,12 @@ An aim reads the board perceived in the same frame (``board``) and aims the tool
 (systems/planning/aim_goals.py); without either it fails before it moves. Its place target is where the object was
 seen: the drill goes back down where it was taken.
 
-A clear (the tasks' after_placed and after_given_up set; a drop_zone given) places one object after another: each
-perceived object gets a spot in the drop zone where it touches nothing already set down there
-(systems/planning/drop_zone.py). Once it is placed, after_placed runs (home) and the table is looked at again; where
-anything fails on it, it is given up: after_given_up lets go, backs off and goes home (nothing, where the robot has not
-moved), and the next object is looked for, perception leaving out the zone and the objects given up (``left_out``).
+A clear (the tasks' after_given_up set; a drop_zone given) places one object after another: each perceived object gets
+a spot in the drop zone where it touches nothing already set down there (systems/planning/drop_zone.py). Once it is
+placed, the table is looked at again from where the arms backed off it (the new frame's scene, the placed object in
+it, is what the next moves avoid); where anything fails on it, it is given up: after_given_up lets go, backs off and
+goes home (nothing, where the robot has not moved), and the next object is looked for, perception leaving out the zone
+and the objects given up (``left_out``).
 The clear is done when perception finds no object left, the zone has no room for the next one, or max_objects were
 taken on; each object's record is in the status (``objects``).
 """
@@ -155,7 +156,7 @@ class PickSupervisor(LeafSystem):
         max_objects: int = 1,
     ):
         super().__init__()
-        self.clears, self.drop_zone, self.max_objects = tasks.after_placed is not None, drop_zone, max_objects
+        self.clears, self.drop_zone, self.max_objects = tasks.after_given_up is not None, drop_zone, max_objects
         if self.clears != (drop_zone is not None):
             raise ValueError("a clear's tasks and a drop zone come together")
         self.tasks, self.perceive_at_s, self.place_target_W = tasks, perceive_at_s, place_target_W
@@ -344,10 +345,10 @@ class PickSupervisor(LeafSystem):
             return self._start_task(context, status, main, self.tasks[main].index(Mode.REACH), t, look)
         elif task.then == Then.NEXT_OBJECT:
             self._next_object(context, status, t)
-        elif self.clears:  # placed: home, then the next object
+        elif self.clears:  # placed: the next object
             status.objects += (dataclasses.replace(status.current, cleared=True, attempts=status.attempt),)
             status.current = None
-            return self._start_task(context, status, self.tasks.after_placed, 0, t, look)
+            self._next_object(context, status, t)
         else:
             status.mode = Mode.DONE
         return look

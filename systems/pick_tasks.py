@@ -15,7 +15,6 @@ checks switch to:
   back_off  back_off                                                         -> the pick's task from its reach
   recover   recover_open, recover_retreat, recover_home                      -> the next attempt (a new frame)
   set_back  carry, set_down, release, retreat                                -> the pick fails
-  home      next_object_home                                                 -> the next object (clear)
   give_up   next_object_open, next_object_retreat, next_object_home          -> the next object (clear)
 
 A failed grip check (after the close, after the lift) in lift, place or replace -> recover, while attempts are
@@ -24,10 +23,11 @@ place target -> replace. An aim out of the arms' reach (no plan for aim_approach
 down where it was taken, let go, and the pick then fails with the aim's failure. Any other failure (perception found
 nothing, no plan) ends the pick.
 
-A clear pick (clear_pick) runs the place task on one object after another: once one is placed, `home` takes the arms
-out of the camera's way and the next object is looked for; where one fails (a carry out of reach sets it back down
-first), `give_up` lets go, backs off and goes home, and the next is looked for. The supervisor ends the clear when
-perception finds no object left.
+A clear pick (clear_pick) runs the place task on one object after another: once one is placed and the hands have backed
+off it, the table is looked at again (the arms where they are: a move home would be planned in the scene as seen
+before the object stood in the drop zone, and swept it along) and the next object is reached for from there; where one
+fails (a carry out of reach sets it back down first), `give_up` lets go, backs off and goes home, and the next is
+looked for. The supervisor ends the clear when perception finds no object left.
 """
 
 import enum
@@ -122,12 +122,11 @@ class PickTasks:
 
     main: TaskName
     tasks: dict[TaskName, Task]
-    # A clear pick's: the task after an object is placed, and the one after it is given up (None: a one-object pick).
-    after_placed: TaskName | None = None
+    # A clear pick's: the task after an object is given up (None: a one-object pick).
     after_given_up: TaskName | None = None
 
     def __post_init__(self):
-        named = {self.main, self.after_placed, self.after_given_up} | {t.if_check_fails for t in self.tasks.values()}
+        named = {self.main, self.after_given_up} | {task.if_check_fails for task in self.tasks.values()}
         named |= {phase.if_off for phase in self.phases()} | {phase.if_unreachable for phase in self.phases()}
         if missing := sorted(name for name in named - set(self.tasks) if name is not None):
             raise ValueError(f"the pick's tasks name tasks it lacks: {missing}")
@@ -265,12 +264,6 @@ def recovery_task() -> Task:
     return Task(TaskName.RECOVER, phases, Then.NEXT_ATTEMPT, if_check_fails=None)
 
 
-def home_task() -> Task:
-    """A clear task's object placed: back to where the robot started (out of the camera's way); then the next object."""
-    phases = (Phase(Mode.NEXT_OBJECT_HOME, PhaseKind.MOVE, MoveKind.FREE, Targets.HOME),)
-    return Task(TaskName.HOME, phases, Then.NEXT_OBJECT, if_check_fails=None)
-
-
 def give_up_task() -> Task:
     """A clear task's object given up: open the hands, back off along the approach axes, back to the start; then the
     next object."""
@@ -299,10 +292,10 @@ def aim_pick(check: bool = True, held_looks: bool = True) -> PickTasks:
 
 def clear_pick(check: bool = True, held_looks: bool = True) -> PickTasks:
     """A pick that clears the table: the place task on each object in turn (a carry out of reach sets the object back
-    down), home after each placed object, give_up after each failed one; and the re-place, back-off and recovery."""
+    down), give_up after each failed one; and the re-place, back-off and recovery."""
     place = place_task(check=check, held_looks=held_looks, if_unreachable=TaskName.SET_BACK)
-    tasks = _pick(place, set_back_task(), replace_task(held_looks), home_task(), give_up_task()).tasks
-    return PickTasks(TaskName.PLACE, tasks, after_placed=TaskName.HOME, after_given_up=TaskName.GIVE_UP)
+    tasks = _pick(place, set_back_task(), replace_task(held_looks), give_up_task()).tasks
+    return PickTasks(TaskName.PLACE, tasks, after_given_up=TaskName.GIVE_UP)
 
 
 def _pick(main: Task, *others: Task) -> PickTasks:

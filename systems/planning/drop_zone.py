@@ -3,10 +3,10 @@
 The zone is a rectangle on the table top (x, y in W, m). An object set down there leaves its footprint: the convex
 outline of its perceived shape (the registrar's reconstruction, seen from above), moved to where it was set down. The
 next object's spot is the first candidate whose footprint lies inside the zone (its outline's centre inside, no point
-more than DROP_OVERHANG_M past its edges) and DROP_GAP_M clear of every footprint already there. Candidates: the object turned by each of DROP_TURNS_RAD about the vertical from how it was
-seen (the arms set an object down at the zone turned by -0.5 rad more often than not turned: docs/clear.md), its
-centre on a DROP_GRID_M grid over the zone, nearest the zone's corner towards the robot and the table's middle first
-(packed from there; the arms reach it well).
+more than DROP_OVERHANG_M past its edges) and DROP_GAP_M clear of every footprint already there. Candidates: the
+object turned by each of DROP_TURNS_RAD about the vertical from how it was seen (the arms set an object down at the
+zone turned by -0.5 rad more often than not turned: docs/clear.md), its centre on a DROP_GRID_M grid over the zone,
+nearest the zone's corner towards the robot and the table's middle first (packed from there; the arms reach it well).
 """
 
 from dataclasses import dataclass
