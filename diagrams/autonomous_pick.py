@@ -26,6 +26,7 @@ from pydrake.systems.framework import Diagram, DiagramBuilder
 from diagrams.aim_board import board_placement
 from diagrams.aim_judge import AimJudge
 from diagrams.clear_judge import ClearJudge
+from diagrams.generation.clutter_scenes import robot_at_start
 from diagrams.generation.objects.library import resolve_object
 from diagrams.generation.part_labels import on_handles, true_part_surface
 from diagrams.hardware_station import MakeHardwareStation
@@ -118,7 +119,7 @@ def MakePickDiagram(
         tasks, place_target_W = clear_pick(check=scenario.look_before_approach, held_looks=scenario.place.looks), None
     else:
         tasks, place_target_W = lift_pick(check=scenario.look_before_approach), None
-    clearing = {"drop_zone": drop_zone(scenario), "max_objects": scenario.clear.max_objects}
+    clearing = {"drop_zone": drop_zone(scenario, robot_at_start(scenario)), "max_objects": scenario.clear.max_objects}
     supervisor = PickSupervisor(
         tasks,
         PERCEIVE_AT_S,

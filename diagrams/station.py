@@ -138,10 +138,22 @@ def place_target(scenario: Scenario) -> RigidTransform:
     return RigidTransform(RollPitchYaw(0.0, 0.0, yaw), top)
 
 
-def drop_zone(scenario: Scenario) -> DropZone:
-    """The clear task's drop zone in W (scenario.clear: its centre in the table_top frame)."""
+def drop_zone(scenario: Scenario, robot_spheres_W: np.ndarray | None = None) -> DropZone:
+    """The clear task's drop zone in W (scenario.clear: its centre in the table_top frame); with the robot's spheres
+    at its start (S x 4: centre in W, radius; m), those reaching below ZONE_KEEP_OUT_HEIGHT_M above the table top
+    are its keep-out circles."""
     centre = np.array(scenario.table_xyz[:2]) + scenario.clear.zone_xy
-    return DropZone((float(centre[0]), float(centre[1])), tuple(map(float, scenario.clear.zone_size)))
+    keep_out = ()
+    if robot_spheres_W is not None:
+        low = robot_spheres_W[robot_spheres_W[:, 2] - robot_spheres_W[:, 3] < scenario.table_xyz[2] + TABLE_HEIGHT
+                              + ZONE_KEEP_OUT_HEIGHT_M]  # fmt: skip
+        keep_out = tuple((float(x), float(y), float(r)) for x, y, _, r in low)
+    return DropZone((float(centre[0]), float(centre[1])), tuple(map(float, scenario.clear.zone_size)), keep_out)
+
+
+# m: the robot's spheres at its start reaching below this above the table top keep objects out of the drop zone (the
+# tallest familiar object, a watering can's handle, stands about 30 cm)
+ZONE_KEEP_OUT_HEIGHT_M = 0.32
 
 
 ZONE_MARK_RGBA = (0.15, 0.15, 0.15, 1.0)
