@@ -38,8 +38,9 @@ CLEAR_SEED = 81
 SPLIT_CODES = {"report": 2, "tune": 1}
 FIRST_INSTANCE = 2300  # the report split's familiar objects: extra_<FIRST_INSTANCE + 3 k + i>
 FAMILIAR_COUNT = (2, 3)  # at least, at most
-FAMILIAR_X = (-0.24, 0.0)  # m, table_top frame: where the arms pick (about evaluation.py's random placements' range)
-FAMILIAR_Y = (-0.1, 0.3)
+# m, table_top frame: where the arms pick (evaluation.py's random placements' range, on the side away from the zone)
+FAMILIAR_X = (-0.22, -0.02)
+FAMILIAR_Y = (-0.1, 0.2)
 FAMILIAR_MAX_YAW = 0.3  # rad, from the presentation pose
 FAMILIAR_GAP_M = 0.04  # m: between familiar objects' outlines
 DISTRACTOR_COUNT = (1, 2)
@@ -106,6 +107,8 @@ def _familiar_objects(base: Scenario, rng, k: int, split: str, count: int, zone:
                 continue
             others = [(p, h) for _, p, h in familiar]
             if not all(_hands_free(base, p, hands) and _hands_free(base, placed, h) for p, h in others):
+                continue
+            if not clear_of_robot(robot_at_start(base), placed, base):
                 continue
             familiar.append((ClutterObjectConfig(kind=category, instance=instance, xy=xy, yaw=yaw), placed, hands))
             break

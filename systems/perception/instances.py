@@ -212,28 +212,31 @@ def named_object(instances: list[Instance], classes, category: str, shape) -> Se
     return Segmentation(True, category, chosen.mask, chosen.pixel_count, message, network_category=network)
 
 
-GIVEN_UP_RADIUS_M = 0.08  # m: an object seen this near where the clear task gave one up is that object
+# m: an object with a seen point this near (x, y) where the clear task gave one up is that object (given up: the centre
+# of its seen points, completed; an instance's points before completion may lie 10 cm off that centre)
+GIVEN_UP_RADIUS_M = 0.05
 
 
 def next_object(
-    instances: list[Instance], classes, centres_W: list[np.ndarray], left_out: LeftOut, robot_xy_W, shape
+    instances: list[Instance], classes, points_W: list[np.ndarray], left_out: LeftOut, robot_xy_W, shape
 ) -> Segmentation:
     """The clear task's next object: of the objects the network labelled one of its categories (each at least
-    CANDIDATE_SHARE of the largest of its category), not standing in the drop zone nor where an object was given up
-    (left_out), the one nearest the robot (its points' centre, x and y, from robot_xy_W, m). centres_W: each
-    instance's points' centre in W (NaN where it has none)."""
+    CANDIDATE_SHARE of the largest of its category), not standing in the drop zone (its points' centre) nor where an
+    object was given up (left_out: a point within GIVEN_UP_RADIUS_M), the one nearest the robot (its points' centre,
+    x and y, from robot_xy_W, m). points_W: each instance's points in W (N x 3, m; none where it has no depth)."""
     largest = {}
     for instance in instances:
         category = instance.category(classes)
         largest[category] = max(largest.get(category, 0), instance.pixel_count)
     candidates, in_zone, given_up = [], 0, 0
-    for instance, centre in zip(instances, centres_W, strict=True):
+    for instance, points in zip(instances, points_W, strict=True):
         small = instance.pixel_count < CANDIDATE_SHARE * largest[instance.category(classes)]
-        if small or not np.isfinite(centre).all():
+        if small or not len(points):
             continue
+        centre = points.mean(axis=0)
         if left_out.in_zone(centre[None, :2])[0]:
             in_zone += 1
-        elif any(np.linalg.norm(centre[:2] - np.asarray(xy)) < GIVEN_UP_RADIUS_M for xy in left_out.given_up_xy_W):
+        elif left_out.given_up_xy_W and _near(points[:, :2], left_out.given_up_xy_W, GIVEN_UP_RADIUS_M):
             given_up += 1
         else:
             candidates.append((float(np.linalg.norm(centre[:2] - np.asarray(robot_xy_W))), instance))
@@ -246,3 +249,8 @@ def next_object(
     message = f"{category}: {chosen.pixel_count} px, {distance:.2f} m from the robot, the nearest of {len(candidates)}"
     message += f" left ({aside})"
     return Segmentation(True, category, chosen.mask, chosen.pixel_count, message, network_category=category)
+
+
+def _near(points_xy: np.ndarray, places_xy, radius: float) -> bool:
+    """Whether any of the points (N x 2, m) lies within `radius` of any of the places ((x, y) each, m)."""
+    return bool(cKDTree(points_xy).query(np.asarray(places_xy), distance_upper_bound=radius)[0].min() < radius)

@@ -222,11 +222,6 @@ class Segmenter(LeafSystem):
         segmentation.compute_s = time.perf_counter() - started
         output.set_value(segmentation)
 
-    def _centre_W(self, mask: np.ndarray, depth: np.ndarray, X_WC: RigidTransform) -> np.ndarray:
-        """The centre of a mask's points in W (m; NaN where none has depth)."""
-        points_C = depth_to_points(depth, mask, self.intrinsics)
-        return X_WC.multiply(points_C.mean(axis=0)) if len(points_C) else np.full(3, np.nan)
-
     def instances_of(
         self, labels: np.ndarray, depth: np.ndarray | None = None, X_WB: RigidTransform | None = None
     ) -> list[Instance]:
@@ -252,9 +247,9 @@ class Segmenter(LeafSystem):
         if self.robot_xy_W is not None:
             if depth is None or table is None:
                 raise ValueError("the clear task's segmenter needs the depth image and the camera's pose")
-            centres = [self._centre_W(instance.mask, depth, table.X_WC) for instance in instances]
+            points = [table.X_WC.multiply(depth_to_points(depth, i.mask, self.intrinsics).T).T for i in instances]
             segmentation = next_object(
-                instances, self.classes, centres, left_out or LeftOut(), self.robot_xy_W, labels.shape
+                instances, self.classes, points, left_out or LeftOut(), self.robot_xy_W, labels.shape
             )
         else:
             segmentation = named_object(instances, self.classes, self.category, labels.shape)
