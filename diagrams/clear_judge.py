@@ -78,16 +78,16 @@ class ClearJudge(LiftJudge):
         footprints = [footprint_at(f.outline_O, X) for f, X in zip(self.familiar, ends, strict=True)]
         records = []
         for k, (familiar, X_WO, footprint) in enumerate(zip(self.familiar, ends, footprints, strict=True)):
-            tilt = float(np.arccos(np.clip(X_WO.rotation().matrix()[2, 2], -1.0, 1.0)))
+            tilt = float(np.arccos(np.clip(X_WO.rotation().matrix()[2, 2], -1.0, 1.0)))  # (from the vertical)
             in_zone = bool(self.zone.contains(footprint.mean(axis=0)))
-            apart = all(outlines_apart(footprint, other, 0.0) for j, other in enumerate(footprints) if j != k)
+            apart = bool(all(outlines_apart(footprint, other, 0.0) for j, other in enumerate(footprints) if j != k))
             held = bool(hands_touching(self.plant, self.plant_context, familiar.body))
             start = familiar.start_W.translation() if familiar.start_W is not None else np.full(3, np.nan)
             records.append({
                 "name": familiar.name, "category": familiar.category,
                 "start_xy_W": [float(v) for v in start[:2]], "end_xy_W": [float(v) for v in X_WO.translation()[:2]],
                 "in_zone": in_zone, "tilt_rad": tilt, "apart": apart, "let_go": not held,
-                "cleared": in_zone and tilt <= CLEAR_TILT_RAD and apart and not held,
+                "cleared": bool(in_zone and tilt <= CLEAR_TILT_RAD and apart and not held),
             })  # fmt: skip
         moved = max((outcome.others_moved_m[i] for i in self.distractors), default=0.0)
         cleared = sum(r["cleared"] for r in records)

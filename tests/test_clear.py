@@ -192,3 +192,24 @@ def test_a_table_of_distractors_alone_is_cleared_at_once_and_nothing_moves(scena
     )
     assert outcome.clear["others_moved_m_max"] < 0.005 and outcome.sim_time_s < 2.0
     assert drop_zone(table).contains(np.array(drop_zone(table).centre_W))
+
+
+def test_endurance_measures_memory_growth_and_the_task_time_trend_from_the_tasks_run(scenario):
+    """run_endurance with a stand-in for the pick (a PickOutcome of its own): the figures come from what it ran."""
+    from diagrams.benchmarks.endurance import resident_memory_mb, run_endurance, task_time_slope
+    from diagrams.pick_simulation import PickOutcome
+
+    assert task_time_slope([1.0, 2.0, 3.0, 4.0]) == pytest.approx((1.0, 0.0), abs=1e-9)
+    assert np.isnan(task_time_slope([1.0, 2.0])[0]) and resident_memory_mb() > 10
+    seen = []
+
+    def run_task(table):
+        seen.append(table.object.instance)
+        outcome = PickOutcome(True, 0.0, 0.0, sim_time_s=30.0)
+        outcome.clear = {"objects_cleared": 2, "familiar_objects": 2}
+        return outcome
+
+    report = run_endurance(scenario, 10.0, run_task, tables=2, split="tune", max_tasks=6)
+    assert [t["table"] for t in report["tasks"]] == [0, 1, 0, 1, 0, 1] and seen[0] == seen[2] != seen[1]
+    assert report["failures"] == 0 and report["command_gap_ms_max"] is None
+    assert abs(report["memory_growth_share"]) < 0.5 and np.isfinite(report["task_time_slope_s_per_task"])

@@ -113,7 +113,7 @@ def _dense(outline: np.ndarray, step: float = 0.005) -> np.ndarray:
 
 def outlines_apart(outline: np.ndarray, other: np.ndarray, gap: float) -> bool:
     """Whether two convex outlines (M x 2, m) stand `gap` (m) clear of each other, neither inside the other."""
-    return _apart(outline, _dense(other), gap)
+    return bool(_apart(outline, _dense(other), gap))
 
 
 def _apart(outline: np.ndarray, other_dense: np.ndarray, gap: float) -> bool:
