@@ -317,6 +317,14 @@ def report(
             f"deg off the board's normal, tip {1000 * summary['aim_tip_to_target_m_median']:.1f} mm from the target "
             "(medians of each hold's worst; success also needs the drill set down where it stood)"
         )
+    if "objects_cleared_share" in summary:
+        print(
+            f"tables cleared: {summary['objects_cleared']} of {summary['familiar_objects']} familiar objects "
+            f"({100 * summary['objects_cleared_share']:.0f} %) in the drop zone, upright and apart, over "
+            f"{summary['tables']} tables ({summary['objects_cleared_per_table_mean']:.1f} per table); "
+            f"{summary['attempts_per_object_mean']:.2f} attempts and {summary['sim_s_per_object_mean']:.0f} s "
+            f"simulated per object taken on; a distractor moved {100 * summary['others_moved_m_max']:.1f} cm at most"
+        )
     t_dev, o_dev = summary["closure_translation_dev_m_max"], summary["closure_orientation_dev_rad_max"]
     print(f"\nclosure along the played held moves (picks that lifted): largest {1000 * t_dev:.1f} mm, {o_dev:.4f} rad")
     if campaign.task == "place":

@@ -180,7 +180,9 @@ def heading(args, trials: list, objects: dict) -> str:
     where = f"{args.jobs} at a time"
     if args.ray is not None:
         where = f"as Ray tasks ({'at ' + args.ray if args.ray else f'a local Ray with {args.jobs} CPUs'})"
-    if args.scene == "clutter":
+    if args.scene == "clutter" and args.task == "clear":
+        shape = f"{len(trials)} tables to clear ({args.scene_split} range), every familiar object into the drop zone"
+    elif args.scene == "clutter":
         shape = f"{len(trials)} cluttered tables ({args.scene_split} range), the {args.category} named to the pick"
     elif args.placement == "random":
         shape = f"{len(trials)} random placements of unseen {args.category} instances, each also with ground truth"
