@@ -48,6 +48,7 @@ from systems.planning.plan_telemetry import PlanTelemetryRecorder
 from systems.planning.stomp_config import StompConfig
 from systems.planning.stomp_planner import StompPlanner
 from systems.robot_io.hand_command import HandCommandSource
+from systems.robot_io.hand_drop_fault import HandDropFault
 from systems.robot_io.trajectory_source import JointTrajectorySource
 from systems.shape_space.tool_frame import ToolFrame
 
@@ -175,8 +176,16 @@ def MakePickDiagram(
     builder.Connect(measured, supervisor.GetInputPort("position_measured"))
     builder.Connect(source.GetOutputPort("position"), station.GetInputPort("centauro.position"))
     builder.Connect(supervisor.GetOutputPort("hand_command"), hands.GetInputPort("command"))
+    width = hands.GetOutputPort("width")
+    if scenario.faults.drop_in_carry_after_s >= 0:
+        if hardware:
+            raise ValueError("faults are injected in simulation only: faults.drop_in_carry_after_s must be negative")
+        drop = builder.AddNamedSystem("hand_drop_fault", HandDropFault(scenario.faults.drop_in_carry_after_s))
+        builder.Connect(width, drop.GetInputPort("width"))
+        builder.Connect(supervisor.GetOutputPort("status"), drop.GetInputPort("status"))
+        width = drop.GetOutputPort("width")
     for side, hand in HAND_INSTANCES.items():
-        builder.Connect(hands.GetOutputPort("width"), station.GetInputPort(f"{hand}.position"))
+        builder.Connect(width, station.GetInputPort(f"{hand}.position"))
         builder.Connect(station.GetOutputPort(f"{hand}.state_measured"), supervisor.GetInputPort(f"{side}_hand_state"))
     if meshcat is not None:
         visualiser = builder.AddNamedSystem("pick_visualiser", PickVisualiser(meshcat))

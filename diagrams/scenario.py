@@ -209,6 +209,9 @@ class FaultConfig:
     # reach for it.
     nudge_xy: list[float] = field(default_factory=lambda: [0.0, 0.0])
     nudge_at_s: float = 1.0
+    # Both hands open this long into the first carry (the first attempt, the first object), s: the object drops;
+    # negative: no drop.
+    drop_in_carry_after_s: float = -1.0
 
 
 @dataclass
@@ -390,6 +393,9 @@ def validate(scenario: Scenario) -> None:
         raise ValueError(f"faults.grasp_offset_G must be 3 entries of at most {MAX_GRASP_OFFSET_M} m (x, y, z in G)")
     if len(faults.nudge_xy) != 2 or not all(abs(v) <= MAX_GRASP_OFFSET_M for v in faults.nudge_xy):
         raise ValueError(f"faults.nudge_xy must be 2 entries of at most {MAX_GRASP_OFFSET_M} m")
+    if faults.drop_in_carry_after_s > 30:
+        raise ValueError(f"faults.drop_in_carry_after_s must be at most 30 s (negative: none), got "
+                         f"{faults.drop_in_carry_after_s}")  # fmt: skip
     if faults.grasp_offset_attempts < 0:
         raise ValueError(f"faults.grasp_offset_attempts must be >= 0, got {faults.grasp_offset_attempts}")
     if scenario.robot.torso not in TORSO_MODES:

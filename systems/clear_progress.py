@@ -7,7 +7,7 @@ import numpy as np
 from pydrake.math import RigidTransform
 
 from systems.messages import ClearedObject, LeftOut, PerceptionResult, PickStatus
-from systems.planning.drop_zone import DropZone, drop_spot, footprint_at, footprint_O
+from systems.planning.drop_zone import DropZone, drop_spots, footprint_at, footprint_O
 
 
 def seen_object(result: PerceptionResult) -> ClearedObject | None:
@@ -20,23 +20,22 @@ def seen_object(result: PerceptionResult) -> ClearedObject | None:
     return ClearedObject(result.category, (float(centre[0]), float(centre[1])), attempts=1)
 
 
-def chosen_spot(
-    zone: DropZone, status: PickStatus, result: PerceptionResult
-) -> tuple[RigidTransform | None, ClearedObject]:
-    """Where in the zone the perceived object goes (None: it fits nowhere) and its record with that spot: its
-    footprint from the registrar's whole inferred shape (the seen points where there is none)."""
+def chosen_spots(zone: DropZone, status: PickStatus, result: PerceptionResult) -> tuple[list, ClearedObject]:
+    """Where in the zone the perceived object may go, best first ((X_WO, its footprint there: M x 2 in W, m) each;
+    [] where it fits nowhere), and its record with the first spot: its footprint from the registrar's whole inferred
+    shape (the seen points where there is none)."""
     record = seen_object(result)
     shape = result.reconstruction_W if result.reconstruction_W is not None else result.points_W
     outline_O = footprint_O(shape, result.X_WO_seen)
     dropped = [done.footprint_W for done in status.objects if done.cleared]
-    X_WO = drop_spot(zone, dropped, outline_O, result.X_WO_seen)
-    if X_WO is None:
-        return None, record
+    spots = [(X_WO, footprint_at(outline_O, X_WO)) for X_WO in drop_spots(zone, dropped, outline_O, result.X_WO_seen)]
+    return spots, (with_spot(record, *spots[0]) if spots else record)
+
+
+def with_spot(record: ClearedObject, X_WO: RigidTransform, footprint_W: np.ndarray) -> ClearedObject:
+    """The record with its spot in the zone (X_WO) and its footprint there."""
     xy = X_WO.translation()[:2]
-    spot = dataclasses.replace(
-        record, target_xy_W=(float(xy[0]), float(xy[1])), footprint_W=footprint_at(outline_O, X_WO)
-    )
-    return X_WO, spot
+    return dataclasses.replace(record, target_xy_W=(float(xy[0]), float(xy[1])), footprint_W=footprint_W)
 
 
 def left_out(zone: DropZone | None, status: PickStatus) -> LeftOut:

@@ -442,3 +442,6 @@ class PickStatus:
     objects: tuple[ClearedObject, ...] = ()
     current: ClearedObject | None = None
     place_target_W: RigidTransform | None = None
+    # The other spots in the zone the object may go to, best first ((X_WO, its footprint there) each): where no plan
+    # carries it to one, the next.
+    spare_spots: tuple = ()

@@ -11,7 +11,7 @@ Modes: waiting -> perceiving -> (the task's phases: reach, approach, close, lift
 look, lift, carry, look_again, set_down, release, retreat, confirm) -> done, or failed.
 
 Checks and retries: after closing, each hand must hold something (its measured opening neither closed to
-nothing nor still open), and after the lift it must still do. A failed check is one failed attempt: the
+nothing nor still open), and after the lift and the carry it must still do. A failed check is one failed attempt: the
 recovery task opens the hands, backs off along their approach axes and goes back to where the pick started,
 and the pick starts again from a new camera frame, up to max_attempts. Failures that another attempt would
 repeat (perception found nothing, no plan) end the pick at once.
@@ -44,7 +44,7 @@ from pydrake.common.value import AbstractValue
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 from pydrake.systems.framework import BasicVector, EventStatus, LeafSystem
 
-from systems.clear_progress import chosen_spot, left_out, seen_object, summary
+from systems.clear_progress import chosen_spots, left_out, seen_object, summary, with_spot
 from systems.messages import (
     OPEN_WIDTH,
     SIDES,
@@ -277,7 +277,8 @@ class PickSupervisor(LeafSystem):
             return
         status.belief = ObjectBelief.seen(result.X_WO_seen)
         if self.clears:
-            status.place_target_W, status.current = chosen_spot(self.drop_zone, status, result)
+            spots, status.current = chosen_spots(self.drop_zone, status, result)
+            status.place_target_W, status.spare_spots = (spots[0][0], tuple(spots[1:])) if spots else (None, ())
             if status.place_target_W is None:
                 status.objects += (dataclasses.replace(status.current, message="no room left in the drop zone"),)
                 status.mode, status.message = Mode.DONE, summary(status, "the drop zone is full")
@@ -372,6 +373,7 @@ class PickSupervisor(LeafSystem):
         """A clear's next object: a new frame (after max_objects, the clear is done)."""
         status.task, status.attempt, status.corrections, status.place_corrections = None, 1, 0, 0
         status.belief, status.aim, status.pending_failure, status.place_target_W = None, None, None, None
+        status.spare_spots = ()
         status.grasp_widths, status.grasp_offsets_G, status.attempt_failures = (), None, ()
         if len(status.objects) >= self.max_objects:
             status.mode, status.message = Mode.DONE, summary(status, f"took on {self.max_objects} objects, the most")
@@ -391,11 +393,23 @@ class PickSupervisor(LeafSystem):
             if plan.id != status.request.id:
                 return False, look  # not planned yet
             if not plan.success:
+                if (
+                    self.clears
+                    and phase.goal == PlaceGoal.CARRY
+                    and status.task == self.tasks.main
+                    and status.spare_spots
+                ):
+                    (X_WO, footprint), *rest = status.spare_spots  # no plan to this spot: the next one
+                    logging.warning("%s; trying the next spot in the drop zone", plan.message)
+                    status.place_target_W, status.spare_spots = X_WO, tuple(rest)
+                    status.current = with_spot(status.current, X_WO, footprint)
+                    return True, self._start_phase(context, status, status.phase_index, t, look)
                 if phase.if_unreachable is None:
                     self._fail(status, Stage.PLANNING, plan.message)
                     return True, look
                 logging.warning("%s; setting the object back down", plan.message)
                 status.pending_failure = (Stage.PLANNING, plan.message)
+                status.place_target_W = None  # (a clear's set-back: where it was taken, not its spot in the zone)
                 return True, self._start_task(context, status, phase.if_unreachable, 0, t, look)
             applied = status.applied_plan_id != plan.id
             if applied:  # the object moved with the hands; a reach chose the grasps
@@ -407,7 +421,7 @@ class PickSupervisor(LeafSystem):
             if t + 1e-9 < plan.end_s:
                 return applied, look
             status.plan_end_q = plan.trajectory.value(plan.end_s).ravel()
-            if phase.check_held and (problem := self._not_holding(context, status, "after the lift: ")):
+            if phase.check_held and (problem := self._not_holding(context, status, f"after the {phase.name}: ")):
                 return True, self._attempt_failed(context, status, Stage.GRASP, problem, look, t)
         elif phase.kind in (PhaseKind.CLOSE, PhaseKind.OPEN):
             if t + 1e-9 < status.hand.end_s + phase.wait_s:

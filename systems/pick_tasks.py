@@ -17,7 +17,7 @@ checks switch to:
   set_back  carry, set_down, release, retreat                                -> the pick fails
   give_up   next_object_open, next_object_retreat, next_object_home          -> the next object (clear)
 
-A failed grip check (after the close, after the lift) in lift, place or replace -> recover, while attempts are
+A failed grip check (after the close, the lift, the carry) in lift, place or replace -> recover, while attempts are
 left (else the pick fails). A check that finds the object moved -> back_off; a confirm that finds it off its
 place target -> replace. An aim out of the arms' reach (no plan for aim_approach or aim) -> set_back: the drill is set
 down where it was taken, let go, and the pick then fails with the aim's failure. Any other failure (perception found
@@ -195,7 +195,15 @@ def place_task(
         *_grasping(check),
         _look(Mode.LOOK, held_looks),
         _lift(lift_height, MIN_LIFT_FRACTION),
-        Phase(Mode.CARRY, PhaseKind.MOVE, MoveKind.HELD, goal=PlaceGoal.CARRY, if_unreachable=if_unreachable),
+        # (then both hands must still hold it: an object dropped on the way is picked again from a new frame)
+        Phase(
+            Mode.CARRY,
+            PhaseKind.MOVE,
+            MoveKind.HELD,
+            goal=PlaceGoal.CARRY,
+            check_held=True,
+            if_unreachable=if_unreachable,
+        ),  # fmt: skip
         _look(Mode.LOOK_AGAIN, held_looks),  # the object turns a few degrees in the hands as they move it
         *_letting_go(held_looks),
     )

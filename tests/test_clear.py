@@ -21,10 +21,11 @@ from systems.perception.pose_estimator import depth_to_points
 from systems.pick_supervisor import PickSupervisor
 from systems.pick_tasks import clear_pick
 from systems.planning.drop_zone import (
+    DROP_ALTERNATIVES,
     DROP_GAP_M,
     DROP_OVERHANG_M,
     DropZone,
-    drop_spot,
+    drop_spots,
     footprint_at,
     footprint_O,
     outlines_apart,
@@ -43,7 +44,9 @@ def test_the_drop_zone_takes_objects_apart_inside_it_until_none_fits():
     X_WO = RigidTransform(RotationMatrix.MakeZRotation(0.2), [0.7, 0.1, 0.8])
     outline_O = _box_footprint(0.13, 0.04, X_WO)  # a drill's size, 26 x 8 cm
     dropped = []
-    while (spot := drop_spot(ZONE, dropped, outline_O, X_WO)) is not None:
+    while spots := drop_spots(ZONE, dropped, outline_O, X_WO):
+        spot = spots[0]
+        assert 1 <= len(spots) <= DROP_ALTERNATIVES and not any(s.IsNearlyEqualTo(spot, 1e-9) for s in spots[1:])
         footprint = footprint_at(outline_O, spot)
         assert ZONE.contains(footprint, DROP_OVERHANG_M + 1e-9).all() and ZONE.contains(footprint.mean(axis=0))
         assert spot.translation()[2] == X_WO.translation()[2]
@@ -52,7 +55,7 @@ def test_the_drop_zone_takes_objects_apart_inside_it_until_none_fits():
         assert len(dropped) < 10
     assert len(dropped) >= 3  # three drills side by side in a 40 cm square
     big = _box_footprint(0.3, 0.3, X_WO)  # 60 cm across: fits nowhere
-    assert drop_spot(ZONE, [], big, X_WO) is None
+    assert drop_spots(ZONE, [], big, X_WO) == []
 
 
 def test_outlines_apart_tells_a_gap_from_an_overlap_and_one_inside_another():

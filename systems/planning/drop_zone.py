@@ -17,6 +17,8 @@ from scipy.spatial import ConvexHull
 
 DROP_GAP_M = 0.03  # m: between footprints in the zone (the judge wants them apart; a set-down is 1-2 cm off)
 DROP_GRID_M = 0.02  # m: between candidate centres
+DROP_ALTERNATIVES = 4  # spots offered for one object, best first
+DROP_ALTERNATIVE_APART_M = 0.08  # m: an alternative at the same turn stands this far from the spots before it
 # m: a footprint may reach this far past the zone's marks (a can's spout or handle; its body stands inside)
 DROP_OVERHANG_M = 0.05
 # About the vertical, from the object as seen, rad: in order of preference at one spot (the arms reach the zone best
@@ -62,10 +64,16 @@ def footprint_at(outline_O: np.ndarray, X_WO: RigidTransform) -> np.ndarray:
     return outline_O @ R.T + X_WO.translation()[:2]
 
 
-def drop_spot(
-    zone: DropZone, dropped_W: list[np.ndarray], outline_O: np.ndarray, X_WO_seen: RigidTransform
-) -> RigidTransform | None:
-    """Where to set the object down (X_WO: upright, at the height it was seen at), or None where it fits nowhere.
+def drop_spots(
+    zone: DropZone,
+    dropped_W: list[np.ndarray],
+    outline_O: np.ndarray,
+    X_WO_seen: RigidTransform,
+    count: int = DROP_ALTERNATIVES,
+) -> list[RigidTransform]:
+    """Where to set the object down (X_WO: upright, at the height it was seen at), best first: up to `count` spots
+    that fit, each at least DROP_ALTERNATIVE_APART_M or one turn step from the ones before it (the planner tries
+    the next where the arms reach no plan to one); [] where it fits nowhere.
 
     Args:
         zone: the drop zone.
@@ -81,15 +89,21 @@ def drop_spot(
     centres = centres[np.argsort(np.linalg.norm(centres - corner, axis=1), kind="stable")]
     others = [_dense(outline) for outline in dropped_W]
     z = X_WO_seen.translation()[2]
+    spots, chosen = [], []  # (the spots; their (centre, turn))
     for centre in centres:
         for turn in DROP_TURNS_RAD:
+            if any(np.linalg.norm(centre - c) < DROP_ALTERNATIVE_APART_M and t == turn for c, t in chosen):
+                continue
             X_WO = RigidTransform(RotationMatrix.MakeZRotation(turn) @ X_WO_seen.rotation(), [*centre, z])
             outline = footprint_at(outline_O, X_WO)
             if not zone.contains(outline, DROP_OVERHANG_M).all() or not zone.contains(outline.mean(axis=0)):
                 continue
             if all(_apart(outline, other, DROP_GAP_M) for other in others) and _clear_of(zone, outline):
-                return X_WO
-    return None
+                spots.append(X_WO)
+                chosen.append((centre, turn))
+                if len(spots) == count:
+                    return spots
+    return spots
 
 
 def _clear_of(zone: DropZone, outline: np.ndarray) -> bool:
