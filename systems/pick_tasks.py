@@ -163,11 +163,12 @@ def _look(name: Mode, held_looks: bool) -> Phase:
     return Phase(name, PhaseKind.LOOK if held_looks else PhaseKind.WAIT)
 
 
-def _letting_go(held_looks: bool) -> tuple[Phase, ...]:
-    """Set the object down on the place target, let go, back off, and look whether it stands there."""
+def _letting_go(held_looks: bool, if_unreachable: TaskName | None = None) -> tuple[Phase, ...]:
+    """Set the object down on the place target, let go, back off, and look whether it stands there. if_unreachable:
+    the task run where no plan sets it down there (None: the pick fails holding it)."""
     confirm = Phase(Mode.CONFIRM, PhaseKind.CONFIRM_PLACED, if_off=TaskName.REPLACE) if held_looks else None
     return (
-        Phase(Mode.SET_DOWN, PhaseKind.MOVE, MoveKind.HELD, goal=PlaceGoal.SET_DOWN),
+        Phase(Mode.SET_DOWN, PhaseKind.MOVE, MoveKind.HELD, goal=PlaceGoal.SET_DOWN, if_unreachable=if_unreachable),
         Phase(Mode.RELEASE, PhaseKind.OPEN, hand_width=RELEASE_MARGIN, beyond_grasp=True, wait_s=SETTLE_S),
         Phase(Mode.RETREAT, PhaseKind.MOVE, MoveKind.STRAIGHT, Targets.RETREAT),
         confirm or Phase(Mode.CONFIRM, PhaseKind.WAIT),
@@ -190,7 +191,7 @@ def place_task(
     """Beyond the paper: lift the object, carry it to the place target, set it down upright, let go, back off,
     [look whether it stands there]; then the pick is done. held_looks: look at the held object before the lift
     and before the set-down, and at the object set down (else those phases pass); if_unreachable: the task run where
-    no plan carries it to the target (None: the pick fails holding it)."""
+    no plan carries it to the target or sets it down there (None: the pick fails holding it)."""
     phases = (
         *_grasping(check),
         _look(Mode.LOOK, held_looks),
@@ -205,7 +206,7 @@ def place_task(
             if_unreachable=if_unreachable,
         ),  # fmt: skip
         _look(Mode.LOOK_AGAIN, held_looks),  # the object turns a few degrees in the hands as they move it
-        *_letting_go(held_looks),
+        *_letting_go(held_looks, if_unreachable),
     )
     return Task(TaskName.PLACE, phases, Then.DONE, if_check_fails=TaskName.RECOVER)
 
