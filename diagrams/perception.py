@@ -13,7 +13,7 @@ from diagrams.generation.objects import catalog
 from diagrams.generation.objects.library import resolve_object
 from diagrams.planning_scene import clutter_surfaces_W, object_surface_W, true_grasp_poses
 from diagrams.scenario import Scenario
-from diagrams.station import TABLE_HEIGHT, object_pose_on_table
+from diagrams.station import TABLE_HEIGHT, drop_zone, object_pose_on_table
 from systems import categories
 from systems.messages import BoardSeen, GraspPoses, PerceptionResult
 from systems.perception.board_finder import BoardFinder
@@ -69,15 +69,17 @@ def latch_offset(scenario: Scenario, look: bool = False) -> float:
 
 
 def MakeSegmenter(
-    scenario: Scenario, weights: Path | None = None, category: str | None = None, robot_xy_W=None
+    scenario: Scenario, weights: Path | None = None, category: str | None = None, first_near_W=None
 ) -> Segmenter:
     """A Segmenter with the scenario's depth camera and table top, told the scenario's requested category (or
     `category`); weights None: the one that knows every taught category (categories.active_segmenter). The clear
-    task's chooses the object nearest robot_xy_W (x, y in W, m) of every category."""
+    task's chooses the object nearest first_near_W (x, y in W, m: the drop zone's centre) of every category."""
     intrinsics, X_BC = depth_camera(scenario)
     clearing = scenario.task == "clear"
-    if clearing and robot_xy_W is None:
-        raise ValueError("the clear task's segmenter needs the robot's place (robot_xy_W)")
+    if clearing and first_near_W is None:
+        raise ValueError(
+            "the clear task's segmenter needs the place it takes the nearest object to first (first_near_W)"
+        )
     if category is None:
         category = "" if clearing else scenario.requested_category
     return Segmenter(
@@ -87,7 +89,7 @@ def MakeSegmenter(
         X_BC=X_BC,
         table_top_z=scenario.table_xyz[2] + TABLE_HEIGHT,
         part_segmenter=MakePartSegmenter(scenario),
-        robot_xy_W=tuple(robot_xy_W) if clearing else None,
+        first_near_W=tuple(first_near_W) if clearing else None,
     )
 
 
@@ -133,13 +135,13 @@ def MakePerception(
         weights: the segmenter's; None: the one that knows every taught category (categories.active_segmenter).
         robot_spheres: the robot's sphere model (a RobotSpheres of its own): what the camera sees of the robot is
             not the scene.
-        torso_axis_W: where the torso's axis meets the floor plane (x, y in W, m): the scene is kept within reach, and
-            the clear task takes the nearest object to it first.
+        torso_axis_W: where the torso's axis meets the floor plane (x, y in W, m): the scene is kept within reach.
     """
     builder = DiagramBuilder()
     dof = robot_spheres.kinematics.dof if robot_spheres is not None else 14
     latch = builder.AddNamedSystem("camera_latch", CameraLatch(robot_positions=dof, offset_s=latch_offset(scenario)))
-    segmenter = builder.AddNamedSystem("segmenter", MakeSegmenter(scenario, weights, robot_xy_W=torso_axis_W))
+    zone_centre = drop_zone(scenario).centre_W if scenario.task == "clear" else None
+    segmenter = builder.AddNamedSystem("segmenter", MakeSegmenter(scenario, weights, first_near_W=zone_centre))
     pose_estimator = builder.AddNamedSystem("pose_estimator", MakePoseEstimator(scenario))
     registrar = builder.AddNamedSystem("shape_registrar", ShapeRegistrar(part_grasps=scenario.part_grasps))
     collector = builder.AddNamedSystem("perception_result", PerceptionResultCollector())

@@ -279,6 +279,8 @@ class PickSupervisor(LeafSystem):
         if self.clears:
             spots, status.current = chosen_spots(self.drop_zone, status, result)
             status.place_target_W, status.spare_spots = (spots[0][0], tuple(spots[1:])) if spots else (None, ())
+            if spots:
+                logging.info("its spot in the drop zone: %s (%d more)", status.current.target_xy_W, len(spots) - 1)
             if status.place_target_W is None:
                 status.objects += (dataclasses.replace(status.current, message="no room left in the drop zone"),)
                 status.mode, status.message = Mode.DONE, summary(status, "the drop zone is full")
@@ -393,17 +395,14 @@ class PickSupervisor(LeafSystem):
             if plan.id != status.request.id:
                 return False, look  # not planned yet
             if not plan.success:
-                if (
-                    self.clears
-                    and phase.goal == PlaceGoal.CARRY
-                    and status.task == self.tasks.main
-                    and status.spare_spots
-                ):
-                    (X_WO, footprint), *rest = status.spare_spots  # no plan to this spot: the next one
+                placing = phase.goal in (PlaceGoal.CARRY, PlaceGoal.SET_DOWN) and status.task == self.tasks.main
+                if self.clears and placing and status.spare_spots:
+                    (X_WO, footprint), *rest = status.spare_spots  # no plan to this spot: carry it to the next one
                     logging.warning("%s; trying the next spot in the drop zone", plan.message)
                     status.place_target_W, status.spare_spots = X_WO, tuple(rest)
                     status.current = with_spot(status.current, X_WO, footprint)
-                    return True, self._start_phase(context, status, status.phase_index, t, look)
+                    carry = self.tasks[status.task].index(Mode.CARRY)
+                    return True, self._start_phase(context, status, carry, t, look)
                 if phase.if_unreachable is None:
                     self._fail(status, Stage.PLANNING, plan.message)
                     return True, look

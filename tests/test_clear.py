@@ -13,7 +13,6 @@ from diagrams.autonomous_pick import run_pick
 from diagrams.generation.clear_scenes import ZONE_CLEARANCE_M, clear_scene
 from diagrams.generation.clutter_scenes import gap_between, scene_outlines
 from diagrams.perception import MakeSegmenter
-from diagrams.planning_scene import make_planning_world
 from diagrams.scenario import ClutterObjectConfig, load_scenario, overlay_scenario
 from diagrams.station import drop_zone, settled_frame
 from systems.messages import LeftOut, Mode, PerceptionResult, PlanResult, Stage, TaskName
@@ -66,15 +65,15 @@ def test_outlines_apart_tells_a_gap_from_an_overlap_and_one_inside_another():
 
 
 @pytest.mark.slow
-def test_the_segmenter_takes_the_nearest_familiar_object_and_leaves_out_those_given_up(scenario):
+def test_the_segmenter_takes_the_familiar_object_nearest_the_zone_and_leaves_out_those_given_up(scenario):
     table = clear_scene(scenario, 0, "tune")
     frame = settled_frame(table)
-    world = make_planning_world(table)
-    segmenter = MakeSegmenter(table, robot_xy_W=world.torso_axis_W)
+    zone_centre = np.array(drop_zone(table).centre_W)
+    segmenter = MakeSegmenter(table, first_near_W=zone_centre)
     labels = segmenter.segment(frame.rgb)
     familiar = [np.array(table.object.xy)] + [np.array(o.xy) for o in table.clutter if o.instance]
     familiar = [xy + table.table_xyz[:2] for xy in familiar]
-    by_distance = sorted(familiar, key=lambda xy: np.linalg.norm(xy - world.torso_axis_W))
+    by_distance = sorted(familiar, key=lambda xy: np.linalg.norm(xy - zone_centre))
 
     def chosen(left_out: LeftOut):
         segmentation = segmenter.object_of(labels, frame.depth, frame.X_WB, left_out)

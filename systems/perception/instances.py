@@ -218,12 +218,13 @@ GIVEN_UP_RADIUS_M = 0.05
 
 
 def next_object(
-    instances: list[Instance], classes, points_W: list[np.ndarray], left_out: LeftOut, robot_xy_W, shape
+    instances: list[Instance], classes, points_W: list[np.ndarray], left_out: LeftOut, first_near_W, shape
 ) -> Segmentation:
     """The clear task's next object: of the objects the network labelled one of its categories (each at least
     CANDIDATE_SHARE of the largest of its category), not standing in the drop zone (its points' centre) nor where an
-    object was given up (left_out: a point within GIVEN_UP_RADIUS_M), the one nearest the robot (its points' centre,
-    x and y, from robot_xy_W, m). points_W: each instance's points in W (N x 3, m; none where it has no depth)."""
+    object was given up (left_out: a point within GIVEN_UP_RADIUS_M), the one nearest first_near_W (its points'
+    centre, x and y, m: the drop zone's centre; the objects nearest it stand in the way of the others' carries).
+    points_W: each instance's points in W (N x 3, m; none where it has no depth)."""
     largest = {}
     for instance in instances:
         category = instance.category(classes)
@@ -239,14 +240,16 @@ def next_object(
         elif left_out.given_up_xy_W and _near(points[:, :2], left_out.given_up_xy_W, GIVEN_UP_RADIUS_M):
             given_up += 1
         else:
-            candidates.append((float(np.linalg.norm(centre[:2] - np.asarray(robot_xy_W))), instance))
+            candidates.append((float(np.linalg.norm(centre[:2] - np.asarray(first_near_W))), instance))
     aside = f"{in_zone} in the drop zone, {given_up} given up"
     if not candidates:
         message = f"nothing to clear: no familiar object left ({aside})"
         return Segmentation(False, mask=np.zeros(shape, bool), message=message)
     distance, chosen = min(candidates, key=lambda c: (c[0], -c[1].pixel_count))
     category = chosen.category(classes)
-    message = f"{category}: {chosen.pixel_count} px, {distance:.2f} m from the robot, the nearest of {len(candidates)}"
+    message = (
+        f"{category}: {chosen.pixel_count} px, {distance:.2f} m from the drop zone, the nearest of {len(candidates)}"
+    )
     message += f" left ({aside})"
     return Segmentation(True, category, chosen.mask, chosen.pixel_count, message, network_category=category)
 

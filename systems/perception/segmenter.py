@@ -108,8 +108,8 @@ class Segmenter(LeafSystem):
             network's time).
         part_segmenter: with it, the object's pixels are labelled with their functional parts too
             (Segmentation.parts; part_segmenter.py).
-        robot_xy_W: the clear task's: the object is the nearest to this point (x, y in W, m; the torso's axis) of
-            every category's, leaving out those in ``left_out`` (LeftOut: the drop zone, objects given up;
+        first_near_W: the clear task's: the object is the nearest to this point (x, y in W, m; the drop zone's
+            centre) of every category's, leaving out those in ``left_out`` (LeftOut: the drop zone, objects given up;
             instances.next_object). Needs the depth image, the intrinsics and the camera's pose.
 
     Raises:
@@ -126,7 +126,7 @@ class Segmenter(LeafSystem):
         X_BC: RigidTransform | None = None,
         table_top_z: float | None = None,
         part_segmenter: PartSegmenter | None = None,
-        robot_xy_W: tuple[float, float] | None = None,
+        first_near_W: tuple[float, float] | None = None,
     ):
         super().__init__()
         self.part_segmenter = part_segmenter
@@ -138,9 +138,9 @@ class Segmenter(LeafSystem):
         self.X_BC, self.table_top_z = X_BC or RigidTransform(), table_top_z
         if category:
             check_category(category, self.classes)
-        if robot_xy_W is not None and (category or intrinsics is None or table_top_z is None):
+        if first_near_W is not None and (category or intrinsics is None or table_top_z is None):
             raise ValueError("the clear task's segmenter chooses among every category and needs the depth camera")
-        self.robot_xy_W = robot_xy_W
+        self.first_near_W = first_near_W
         # One inference now: torch's first call is several times slower than the next ones.
         self.segment(np.zeros((*segmentation_network.INPUT_SIZE[::-1], 3), np.uint8))
         self.color_image_port = self.DeclareAbstractInputPort("color_image", AbstractValue.Make(ImageRgba8U()))
@@ -238,18 +238,18 @@ class Segmenter(LeafSystem):
     ) -> Segmentation:
         """The object to pick in a labelled image (H x W class ids), as the class docstring says, from the depth
         image (H x W, m) and the camera body's pose X_WB where given; the clear task's leaves out `left_out`."""
-        if not self.category and self.robot_xy_W is None:
+        if not self.category and self.first_near_W is None:
             return dominant_object(labels, self.classes, self.min_pixels)
         if depth is not None and depth.shape != labels.shape:
             raise ValueError(f"depth image {depth.shape} and colour image {labels.shape} differ in size")
         table = self.table_view(X_WB)
         instances = self.instances_of(labels, depth, X_WB)
-        if self.robot_xy_W is not None:
+        if self.first_near_W is not None:
             if depth is None or table is None:
                 raise ValueError("the clear task's segmenter needs the depth image and the camera's pose")
             points = [table.X_WC.multiply(depth_to_points(depth, i.mask, self.intrinsics).T).T for i in instances]
             segmentation = next_object(
-                instances, self.classes, points, left_out or LeftOut(), self.robot_xy_W, labels.shape
+                instances, self.classes, points, left_out or LeftOut(), self.first_near_W, labels.shape
             )
         else:
             segmentation = named_object(instances, self.classes, self.category, labels.shape)

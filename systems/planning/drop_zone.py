@@ -18,7 +18,7 @@ from scipy.spatial import ConvexHull
 DROP_GAP_M = 0.03  # m: between footprints in the zone (the judge wants them apart; a set-down is 1-2 cm off)
 DROP_GRID_M = 0.02  # m: between candidate centres
 DROP_ALTERNATIVES = 4  # spots offered for one object, best first
-DROP_ALTERNATIVE_APART_M = 0.08  # m: an alternative at the same turn stands this far from the spots before it
+DROP_ALTERNATIVE_APART_M = 0.12  # m: an alternative at the same turn stands this far from the spots before it
 # m: a footprint may reach this far past the zone's marks (a can's spout or handle; its body stands inside)
 DROP_OVERHANG_M = 0.05
 # About the vertical, from the object as seen, rad: in order of preference at one spot (the arms reach the zone best
