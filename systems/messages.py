@@ -77,10 +77,9 @@ class Mode(enum.StrEnum):
     RECOVER_OPEN = "recover_open"
     RECOVER_RETREAT = "recover_retreat"
     RECOVER_HOME = "recover_home"
-    # A clear task's object given up: let go, back off, back to where the robot started.
+    # A clear task's object given up: let go, back off.
     NEXT_OBJECT_OPEN = "next_object_open"
     NEXT_OBJECT_RETREAT = "next_object_retreat"
-    NEXT_OBJECT_HOME = "next_object_home"
     DONE = "done"
     FAILED = "failed"
 

@@ -28,9 +28,9 @@ seen: the drill goes back down where it was taken.
 A clear (the tasks' after_given_up set; a drop_zone given) places one object after another: each perceived object gets
 a spot in the drop zone where it touches nothing already set down there (systems/planning/drop_zone.py). Once it is
 placed, the table is looked at again from where the arms backed off it (the new frame's scene, the placed object in
-it, is what the next moves avoid); where anything fails on it, it is given up: after_given_up lets go, backs off and
-goes home (nothing, where the robot has not moved), and the next object is looked for, perception leaving out the zone
-and the objects given up (``left_out``).
+it, is what the next moves avoid); where anything fails on it, it is given up: after_given_up lets go and backs off
+(nothing, where the robot has not moved), and the next object is looked for, perception leaving out the zone and the
+objects given up (``left_out``).
 The clear is done when perception finds no object left, the zone has no room for the next one, or max_objects were
 taken on; each object's record is in the status (``objects``).
 """
@@ -357,7 +357,7 @@ class PickSupervisor(LeafSystem):
         return look
 
     def _give_up(self, context, status: PickStatus, look: LookRequest, t: float) -> LookRequest:
-        """A clear's object failed (status FAILED): it is recorded as given up, the hands let go and go home (where
+        """A clear's object failed (status FAILED): it is recorded as given up, the hands let go and back off (where
         they moved), and the next object is looked for."""
         failed = dataclasses.replace(
             status.current, attempts=status.attempt, failed_stage=str(status.failed_stage), message=status.message

@@ -15,7 +15,7 @@ checks switch to:
   back_off  back_off                                                         -> the pick's task from its reach
   recover   recover_open, recover_retreat, recover_home                      -> the next attempt (a new frame)
   set_back  carry, set_down, release, retreat                                -> the pick fails
-  give_up   next_object_open, next_object_retreat, next_object_home          -> the next object (clear)
+  give_up   next_object_open, next_object_retreat                            -> the next object (clear)
 
 A failed grip check (after the close, the lift, the carry) in lift, place or replace -> recover, while attempts are
 left (else the pick fails). A check that finds the object moved -> back_off; a confirm that finds it off its
@@ -26,8 +26,8 @@ nothing, no plan) ends the pick.
 A clear pick (clear_pick) runs the place task on one object after another: once one is placed and the hands have backed
 off it, the table is looked at again (the arms where they are: a move home would be planned in the scene as seen
 before the object stood in the drop zone, and swept it along) and the next object is reached for from there; where one
-fails (a carry out of reach sets it back down first), `give_up` lets go, backs off and goes home, and the next is
-looked for. The supervisor ends the clear when perception finds no object left.
+fails (a carry out of reach sets it back down first), `give_up` lets go and backs off, and the next is looked for from
+there too. The supervisor ends the clear when perception finds no object left.
 """
 
 import enum
@@ -274,12 +274,11 @@ def recovery_task() -> Task:
 
 
 def give_up_task() -> Task:
-    """A clear task's object given up: open the hands, back off along the approach axes, back to the start; then the
-    next object."""
+    """A clear task's object given up: open the hands, back off along the approach axes; then the next object (looked
+    for from there: a move home would be planned in a scene seen before, and may sweep what has moved since)."""
     phases = (
         Phase(Mode.NEXT_OBJECT_OPEN, PhaseKind.OPEN, hand_width=OPEN_WIDTH, wait_s=SETTLE_S),
         Phase(Mode.NEXT_OBJECT_RETREAT, PhaseKind.MOVE, MoveKind.STRAIGHT, Targets.RETREAT),
-        Phase(Mode.NEXT_OBJECT_HOME, PhaseKind.MOVE, MoveKind.FREE, Targets.HOME),
     )
     return Task(TaskName.GIVE_UP, phases, Then.NEXT_OBJECT, if_check_fails=None)
 
