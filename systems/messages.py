@@ -77,9 +77,10 @@ class Mode(enum.StrEnum):
     RECOVER_OPEN = "recover_open"
     RECOVER_RETREAT = "recover_retreat"
     RECOVER_HOME = "recover_home"
-    # A clear task's object given up: let go, back off.
+    # A clear task's object given up: let go, back off; and between two objects, home (out of the camera's way).
     NEXT_OBJECT_OPEN = "next_object_open"
     NEXT_OBJECT_RETREAT = "next_object_retreat"
+    NEXT_OBJECT_HOME = "next_object_home"
     DONE = "done"
     FAILED = "failed"
 
@@ -106,7 +107,8 @@ class TaskName(enum.StrEnum):
     RECOVER = "recover"  # a failed attempt: open the hands, back off, go back to where the pick started
     AIM = "aim"  # grasp a drill, lift it, aim its bit at a board's target, hold, back off, set it down where it stood
     SET_BACK = "set_back"  # the held object's goal is out of reach: set it down where it was taken, let go
-    GIVE_UP = "give_up"  # a clear task's object given up: open the hands, back off, back to the start, look again
+    GIVE_UP = "give_up"  # a clear task's object given up: open the hands, back off
+    HOME = "home"  # between a clear task's objects: back to the start, in the scene as seen after the last one
 
 
 class Stage(enum.StrEnum):
@@ -441,6 +443,7 @@ class PickStatus:
     objects: tuple[ClearedObject, ...] = ()
     current: ClearedObject | None = None
     place_target_W: RigidTransform | None = None
+    homing: bool = False  # the frame asked for is the scene the move home avoids (no object is taken on from it)
     # The other spots in the zone the object may go to, best first ((X_WO, its footprint there) each): where no plan
     # carries it to one, the next.
     spare_spots: tuple = ()

@@ -27,10 +27,10 @@ seen: the drill goes back down where it was taken.
 
 A clear (the tasks' after_given_up set; a drop_zone given) places one object after another: each perceived object gets
 a spot in the drop zone where it touches nothing already set down there (systems/planning/drop_zone.py). Once it is
-placed, the table is looked at again from where the arms backed off it (the new frame's scene, the placed object in
-it, is what the next moves avoid); where anything fails on it, it is given up: after_given_up lets go and backs off
-(nothing, where the robot has not moved), and the next object is looked for, perception leaving out the zone and the
-objects given up (``left_out``).
+placed, the table is looked at from where the arms backed off it for the scene alone (the placed object in it), the
+tasks' home goes back to the start in that scene, and the next object is looked for from there; where anything fails
+on it, it is given up: after_given_up lets go and backs off, and the same follows (where the robot has not moved, the
+next object is looked for at once). Perception leaves out the zone and the objects given up (``left_out``).
 The clear is done when perception finds no object left, the zone has no room for the next one, or max_objects were
 taken on; each object's record is in the status (``objects``).
 """
@@ -268,10 +268,14 @@ class PickSupervisor(LeafSystem):
         """Reads perception's result; a stage that found nothing ends the pick."""
         result = self.perception_port.Eval(context)
         status.perceived = True
+        if self.clears and result.failed_stage == Stage.SEGMENTATION:  # nothing left
+            status.mode, status.message, status.homing = Mode.DONE, summary(status, result.message), False
+            return
+        if status.homing:  # (the frame's scene is what the move home avoids)
+            status.homing = False
+            self._start_task(context, status, self.tasks.home, 0, t)
+            return
         if not result.found:
-            if self.clears and result.failed_stage == Stage.SEGMENTATION:  # nothing left
-                status.mode, status.message = Mode.DONE, summary(status, result.message)
-                return
             status.current = seen_object(result) if self.clears else None  # (given up where it was seen)
             self._fail(status, result.failed_stage, result.message)
             return
@@ -347,11 +351,11 @@ class PickSupervisor(LeafSystem):
             main = self.tasks.main
             return self._start_task(context, status, main, self.tasks[main].index(Mode.REACH), t, look)
         elif task.then == Then.NEXT_OBJECT:
-            self._next_object(context, status, t)
-        elif self.clears:  # placed: the next object
+            self._next_object(context, status, t, homing=task.name != self.tasks.home)
+        elif self.clears:  # placed: a look for the scene, home, the next object
             status.objects += (dataclasses.replace(status.current, cleared=True, attempts=status.attempt),)
             status.current = None
-            self._next_object(context, status, t)
+            self._next_object(context, status, t, homing=True)
         else:
             status.mode = Mode.DONE
         return look
@@ -371,8 +375,9 @@ class PickSupervisor(LeafSystem):
             return look
         return self._start_task(context, status, self.tasks.after_given_up, 0, t, look)
 
-    def _next_object(self, context, status: PickStatus, t: float):
-        """A clear's next object: a new frame (after max_objects, the clear is done)."""
+    def _next_object(self, context, status: PickStatus, t: float, homing: bool = False):
+        """A clear's next object: a new frame (after max_objects, the clear is done); `homing`: the frame is for the
+        scene the move home avoids, the object is looked for after it."""
         status.task, status.attempt, status.corrections, status.place_corrections = None, 1, 0, 0
         status.belief, status.aim, status.pending_failure, status.place_target_W = None, None, None, None
         status.spare_spots = ()
@@ -380,7 +385,9 @@ class PickSupervisor(LeafSystem):
         if len(status.objects) >= self.max_objects:
             status.mode, status.message = Mode.DONE, summary(status, f"took on {self.max_objects} objects, the most")
             return
-        logging.info("looking for the next object (%d taken on)", len(status.objects))
+        status.homing = homing
+        logging.info("%s (%d taken on)", "looking at the table before going home" if homing else "looking for the next "
+                     "object", len(status.objects))  # fmt: skip
         self._look_at_the_table(context, status, t)
 
     def _looks_at(self, phase: Phase) -> bool:
@@ -395,6 +402,10 @@ class PickSupervisor(LeafSystem):
             if plan.id != status.request.id:
                 return False, look  # not planned yet
             if not plan.success:
+                if self.clears and status.task == self.tasks.home:  # look for the next object from here
+                    logging.warning("%s; looking for the next object from here", plan.message)
+                    self._next_object(context, status, t)
+                    return True, look
                 placing = phase.goal in (PlaceGoal.CARRY, PlaceGoal.SET_DOWN) and status.task == self.tasks.main
                 if self.clears and placing and status.spare_spots:
                     (X_WO, footprint), *rest = status.spare_spots  # no plan to this spot: carry it to the next one

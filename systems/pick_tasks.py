@@ -16,6 +16,7 @@ checks switch to:
   recover   recover_open, recover_retreat, recover_home                      -> the next attempt (a new frame)
   set_back  carry, set_down, release, retreat                                -> the pick fails
   give_up   next_object_open, next_object_retreat                            -> the next object (clear)
+  home      next_object_home                                                 -> the next object (clear)
 
 A failed grip check (after the close, the lift, the carry) in lift, place or replace -> recover, while attempts are
 left (else the pick fails). A check that finds the object moved -> back_off; a confirm that finds it off its
@@ -23,11 +24,11 @@ place target -> replace. An aim out of the arms' reach (no plan for aim_approach
 down where it was taken, let go, and the pick then fails with the aim's failure. Any other failure (perception found
 nothing, no plan) ends the pick.
 
-A clear pick (clear_pick) runs the place task on one object after another: once one is placed and the hands have backed
-off it, the table is looked at again (the arms where they are: a move home would be planned in the scene as seen
-before the object stood in the drop zone, and swept it along) and the next object is reached for from there; where one
-fails (a carry out of reach sets it back down first), `give_up` lets go and backs off, and the next is looked for from
-there too. The supervisor ends the clear when perception finds no object left.
+A clear pick (clear_pick) runs the place task on one object after another. Once one is placed and the hands have
+backed off it, the table is looked at for the scene alone (a move home planned in the scene seen before the object
+stood in the drop zone swept it along), `home` goes back to the start in that scene, out of the camera's way, and the
+next object is looked for. Where one fails (a carry out of reach sets it back down first), `give_up` lets go and backs
+off, and the same follows. The supervisor ends the clear when perception finds no object left.
 """
 
 import enum
@@ -122,11 +123,13 @@ class PickTasks:
 
     main: TaskName
     tasks: dict[TaskName, Task]
-    # A clear pick's: the task after an object is given up (None: a one-object pick).
+    # A clear pick's: the task after an object is given up, and the move home between objects (None: a one-object
+    # pick).
     after_given_up: TaskName | None = None
+    home: TaskName | None = None
 
     def __post_init__(self):
-        named = {self.main, self.after_given_up} | {task.if_check_fails for task in self.tasks.values()}
+        named = {self.main, self.after_given_up, self.home} | {task.if_check_fails for task in self.tasks.values()}
         named |= {phase.if_off for phase in self.phases()} | {phase.if_unreachable for phase in self.phases()}
         if missing := sorted(name for name in named - set(self.tasks) if name is not None):
             raise ValueError(f"the pick's tasks name tasks it lacks: {missing}")
@@ -274,13 +277,18 @@ def recovery_task() -> Task:
 
 
 def give_up_task() -> Task:
-    """A clear task's object given up: open the hands, back off along the approach axes; then the next object (looked
-    for from there: a move home would be planned in a scene seen before, and may sweep what has moved since)."""
+    """A clear task's object given up: open the hands, back off along the approach axes; then the next object."""
     phases = (
         Phase(Mode.NEXT_OBJECT_OPEN, PhaseKind.OPEN, hand_width=OPEN_WIDTH, wait_s=SETTLE_S),
         Phase(Mode.NEXT_OBJECT_RETREAT, PhaseKind.MOVE, MoveKind.STRAIGHT, Targets.RETREAT),
     )
     return Task(TaskName.GIVE_UP, phases, Then.NEXT_OBJECT, if_check_fails=None)
+
+
+def home_task() -> Task:
+    """Between a clear task's objects: back to where the robot started; then the next object."""
+    phases = (Phase(Mode.NEXT_OBJECT_HOME, PhaseKind.MOVE, MoveKind.FREE, Targets.HOME),)
+    return Task(TaskName.HOME, phases, Then.NEXT_OBJECT, if_check_fails=None)
 
 
 def lift_pick(check: bool = True) -> PickTasks:
@@ -300,10 +308,10 @@ def aim_pick(check: bool = True, held_looks: bool = True) -> PickTasks:
 
 def clear_pick(check: bool = True, held_looks: bool = True) -> PickTasks:
     """A pick that clears the table: the place task on each object in turn (a carry out of reach sets the object back
-    down), give_up after each failed one; and the re-place, back-off and recovery."""
+    down), give_up after each failed one, home between two; and the re-place, back-off and recovery."""
     place = place_task(check=check, held_looks=held_looks, if_unreachable=TaskName.SET_BACK)
-    tasks = _pick(place, set_back_task(), replace_task(held_looks), give_up_task()).tasks
-    return PickTasks(TaskName.PLACE, tasks, after_given_up=TaskName.GIVE_UP)
+    tasks = _pick(place, set_back_task(), replace_task(held_looks), give_up_task(), home_task()).tasks
+    return PickTasks(TaskName.PLACE, tasks, after_given_up=TaskName.GIVE_UP, home=TaskName.HOME)
 
 
 def _pick(main: Task, *others: Task) -> PickTasks:

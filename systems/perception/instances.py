@@ -218,13 +218,21 @@ GIVEN_UP_RADIUS_M = 0.05
 
 
 def next_object(
-    instances: list[Instance], classes, points_W: list[np.ndarray], left_out: LeftOut, first_near_W, shape
+    instances: list[Instance],
+    classes,
+    points_W: list[np.ndarray],
+    left_out: LeftOut,
+    first_near_W,
+    shape,
+    table_top_z: float,
 ) -> Segmentation:
     """The clear task's next object: of the objects the network labelled one of its categories (each at least
     CANDIDATE_SHARE of the largest of its category), not standing in the drop zone (its points' centre) nor where an
     object was given up (left_out: a point within GIVEN_UP_RADIUS_M), the one nearest first_near_W (its points'
     centre, x and y, m: the drop zone's centre; the objects nearest it stand in the way of the others' carries).
-    points_W: each instance's points in W (N x 3, m; none where it has no depth)."""
+    Only objects standing on the table (their lowest points at most INSTANCE_FLOAT_M above table_top_z, m) are
+    candidates: the robot's arms, backed off above the table, are no object to clear whatever the network makes of
+    them. points_W: each instance's points in W (N x 3, m; none where it has no depth)."""
     largest = {}
     for instance in instances:
         category = instance.category(classes)
@@ -234,6 +242,8 @@ def next_object(
         small = instance.pixel_count < CANDIDATE_SHARE * largest[instance.category(classes)]
         if small or not len(points):
             continue
+        if np.percentile(points[:, 2], LOWEST_PERCENTILE) - table_top_z > INSTANCE_FLOAT_M:
+            continue  # (not standing on the table)
         centre = points.mean(axis=0)
         if left_out.in_zone(centre[None, :2])[0]:
             in_zone += 1

@@ -248,8 +248,9 @@ class Segmenter(LeafSystem):
             if depth is None or table is None:
                 raise ValueError("the clear task's segmenter needs the depth image and the camera's pose")
             points = [table.X_WC.multiply(depth_to_points(depth, i.mask, self.intrinsics).T).T for i in instances]
+            left_out = left_out or LeftOut()
             segmentation = next_object(
-                instances, self.classes, points, left_out or LeftOut(), self.first_near_W, labels.shape
+                instances, self.classes, points, left_out, self.first_near_W, labels.shape, self.table_top_z
             )
         else:
             segmentation = named_object(instances, self.classes, self.category, labels.shape)
