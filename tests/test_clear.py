@@ -215,3 +215,17 @@ def test_endurance_measures_memory_growth_and_the_task_time_trend_from_the_tasks
     assert [t["table"] for t in report["tasks"]] == [0, 1, 0, 1, 0, 1] and seen[0] == seen[2] != seen[1]
     assert report["failures"] == 0 and report["command_gap_ms_max"] is None
     assert abs(report["memory_growth_share"]) < 0.5 and np.isfinite(report["task_time_slope_s_per_task"])
+
+
+@pytest.mark.slow
+def test_a_can_alone_is_cleared_into_the_zone_and_the_clear_ends_when_the_table_is_empty(scenario):
+    """Sensor on, the default unseen can: placed in the drop zone, a look for the scene, home, a look that finds
+    nothing left; judged on the plant: in the zone, upright, let go."""
+    outcome = run_pick(dataclasses.replace(scenario, task="clear"))
+    assert outcome.success and outcome.clear["objects_cleared"] == 1, outcome.message
+    (taken,) = outcome.clear["taken_on"]
+    assert taken["cleared"] and taken["attempts"] == 1 and taken["category"] == "watering_can"
+    (judged,) = outcome.clear["objects"]
+    assert judged["in_zone"] and judged["tilt_rad"] < np.radians(5.0) and judged["let_go"]
+    assert np.linalg.norm(np.subtract(judged["end_xy_W"], taken["target_xy_W"])) < 0.05
+    assert outcome.clear["summary"].startswith("cleared 1 of 1 objects taken on; nothing to clear")
