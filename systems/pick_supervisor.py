@@ -402,9 +402,9 @@ class PickSupervisor(LeafSystem):
             if plan.id != status.request.id:
                 return False, look  # not planned yet
             if not plan.success:
-                if self.clears and status.task == self.tasks.home:  # look for the next object from here
-                    logging.warning("%s; looking for the next object from here", plan.message)
-                    self._next_object(context, status, t)
+                if self.clears and status.task in (self.tasks.home, self.tasks.after_given_up):  # go on from here
+                    logging.warning("%s; looking at the table from here", plan.message)
+                    self._next_object(context, status, t, homing=status.task != self.tasks.home)
                     return True, look
                 placing = phase.goal in (PlaceGoal.CARRY, PlaceGoal.SET_DOWN) and status.task == self.tasks.main
                 if self.clears and placing and status.spare_spots:
