@@ -204,15 +204,19 @@ def _short_reason(record: dict) -> str:
 
 
 def print_clutter(summary: dict, records: list[dict], category: str):
-    """The cluttered tables: each one's other objects, the outcome and the largest move of another object."""
-    print(f"\nCluttered tables ({category} named): the other objects; the outcome; the largest move of one of them")
+    """The cluttered tables: each one's other objects, the outcome and the largest move of another object (a clear's
+    tables: of a distractor, the familiar objects being moved on purpose)."""
+    clears = "objects_cleared_share" in summary
+    done = "cleared" if clears else "lifted"
+    named = "every familiar object to clear" if clears else f"{category} named"
+    print(f"\nCluttered tables ({named}): the other objects; the outcome; the largest move of one of them")
     for record in records:
-        moved = max(record.get("others_moved_m") or [0.0])
-        outcome = "lifted" if record["success"] else _short_reason(record)
+        moved = record["clear"]["others_moved_m_max"] if clears else max(record.get("others_moved_m") or [0.0])
+        outcome = done if record["success"] else _short_reason(record)
         print(f"{record['name']:<20}{', '.join(record['clutter']):<60.60} {outcome:<40.40} {100 * moved:5.1f} cm")
     low, high = summary["success_rate_ci95"]
     successes = sum(r["success"] for r in records)
-    print(f"lifted {successes}/{len(records)} (95 % Wilson interval {100 * low:.0f}-{100 * high:.0f} %)")
+    print(f"{done} {successes}/{len(records)} (95 % Wilson interval {100 * low:.0f}-{100 * high:.0f} %)")
 
 
 def print_placements(summary: dict, records: list[dict], category: str):
@@ -292,7 +296,7 @@ def report(
         print_clutter(summary, records, campaign.category)
     else:
         print_tables(summary, campaign.category, campaign.trials, campaign.yaw_noise)
-    if "others_moved_m_max" in summary:
+    if "others_moved_m_max" in summary and "objects_cleared_share" not in summary:
         print(
             f"\ncluttered tables: other objects moved at most {100 * summary['others_moved_m_max']:.1f} cm "
             f"({summary['picks_moving_others']} of {len(records)} picks moved one more than "

@@ -47,11 +47,13 @@ def left_out(zone: DropZone | None, status: PickStatus) -> LeftOut:
 
 
 def summary(status: PickStatus, why_ended: str) -> str:
-    """The clear's closing line: how many objects went to the zone, which were given up and why, and why it ended."""
+    """The clear's closing line: how many objects went to the zone, which were given up and why (and which were left
+    off their spots), and why it ended."""
     cleared = sum(done.cleared for done in status.objects)
     line = f"cleared {cleared} of {len(status.objects)} objects taken on"
-    failed = [f"{done.category} at ({done.seen_xy_W[0]:.2f}, {done.seen_xy_W[1]:.2f}): {done.message}"
-              for done in status.objects if not done.cleared]  # fmt: skip
-    if failed:
-        line += "; given up: " + "; ".join(failed)
+    for heading, cleared in (("given up", False), ("placed, not taken again", True)):
+        told = [f"{done.category} at ({done.seen_xy_W[0]:.2f}, {done.seen_xy_W[1]:.2f}): {done.message}"
+                for done in status.objects if done.cleared == cleared and done.message]  # fmt: skip
+        if told:
+            line += f"; {heading}: " + "; ".join(told)
     return f"{line}; {why_ended}"

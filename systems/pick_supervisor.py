@@ -361,10 +361,17 @@ class PickSupervisor(LeafSystem):
         return look
 
     def _give_up(self, context, status: PickStatus, look: LookRequest, t: float) -> LookRequest:
-        """A clear's object failed (status FAILED): it is recorded as given up, the hands let go and back off (where
-        they moved), and the next object is looked for."""
+        """A clear's object failed (status FAILED): it is recorded as given up (as placed where it failed while taken
+        again off its spot in the zone), the hands let go and back off (where they moved), and the next object is
+        looked for."""
+        # (Taking it again off its spot failed: it stands in the zone already, near its spot.)
+        in_zone = status.task == TaskName.REPLACE
         failed = dataclasses.replace(
-            status.current, attempts=status.attempt, failed_stage=str(status.failed_stage), message=status.message
+            status.current,
+            attempts=status.attempt,
+            cleared=in_zone,
+            failed_stage=str(status.failed_stage),
+            message=f"set down off its spot; taking it again: {status.message}" if in_zone else status.message,
         )
         status.objects, status.current = (*status.objects, failed), None
         status.failed_stage, status.message = "", ""

@@ -215,6 +215,9 @@ def named_object(instances: list[Instance], classes, category: str, shape) -> Se
 # m: an object with a seen point this near (x, y) where the clear task gave one up is that object (given up: the centre
 # of its seen points, completed; an instance's points before completion may lie 10 cm off that centre)
 GIVEN_UP_RADIUS_M = 0.05
+# m: an object whose lowest seen points are higher above the table top does not stand on it (the arms backed off above
+# it do not; an object whose base another hides may show its lowest points several centimetres up)
+CLEAR_FLOAT_M = 0.10
 
 
 def next_object(
@@ -227,22 +230,15 @@ def next_object(
     table_top_z: float,
 ) -> Segmentation:
     """The clear task's next object: of the objects the network labelled one of its categories (each at least
-    CANDIDATE_SHARE of the largest of its category), not standing in the drop zone (its points' centre) nor where an
-    object was given up (left_out: a point within GIVEN_UP_RADIUS_M), the one nearest first_near_W (its points'
+    CANDIDATE_SHARE of the largest of its category left), not standing in the drop zone (its points' centre) nor where
+    an object was given up (left_out: a point within GIVEN_UP_RADIUS_M), the one nearest first_near_W (its points'
     centre, x and y, m: the drop zone's centre; the objects nearest it stand in the way of the others' carries).
-    Only objects standing on the table (their lowest points at most INSTANCE_FLOAT_M above table_top_z, m) are
+    Only objects standing on the table (their lowest points at most CLEAR_FLOAT_M above table_top_z, m) are
     candidates: the robot's arms, backed off above the table, are no object to clear whatever the network makes of
     them. points_W: each instance's points in W (N x 3, m; none where it has no depth)."""
-    largest = {}
-    for instance in instances:
-        category = instance.category(classes)
-        largest[category] = max(largest.get(category, 0), instance.pixel_count)
-    candidates, in_zone, given_up = [], 0, 0
+    in_zone, given_up, eligible = 0, 0, []
     for instance, points in zip(instances, points_W, strict=True):
-        small = instance.pixel_count < CANDIDATE_SHARE * largest[instance.category(classes)]
-        if small or not len(points):
-            continue
-        if np.percentile(points[:, 2], LOWEST_PERCENTILE) - table_top_z > INSTANCE_FLOAT_M:
+        if not len(points) or np.percentile(points[:, 2], LOWEST_PERCENTILE) - table_top_z > CLEAR_FLOAT_M:
             continue  # (not standing on the table)
         centre = points.mean(axis=0)
         if left_out.in_zone(centre[None, :2])[0]:
@@ -250,7 +246,13 @@ def next_object(
         elif left_out.given_up_xy_W and _near(points[:, :2], left_out.given_up_xy_W, GIVEN_UP_RADIUS_M):
             given_up += 1
         else:
-            candidates.append((float(np.linalg.norm(centre[:2] - np.asarray(first_near_W))), instance))
+            eligible.append((float(np.linalg.norm(centre[:2] - np.asarray(first_near_W))), instance))
+    # (The share against the largest of its category among those left: one given up may be the largest in view.)
+    largest = {}
+    for _, instance in eligible:
+        category = instance.category(classes)
+        largest[category] = max(largest.get(category, 0), instance.pixel_count)
+    candidates = [(d, i) for d, i in eligible if i.pixel_count >= CANDIDATE_SHARE * largest[i.category(classes)]]
     aside = f"{in_zone} in the drop zone, {given_up} given up"
     if not candidates:
         message = f"nothing to clear: no familiar object left ({aside})"
