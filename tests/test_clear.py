@@ -151,6 +151,7 @@ def test_a_perceived_object_gets_a_spot_in_the_zone_and_the_place_task_carries_i
     assert ZONE.contains(status.current.footprint_W, DROP_OVERHANG_M + 1e-9).all()
 
 
+@pytest.mark.slow
 def test_the_tables_to_clear_are_seeded_and_keep_their_promises(scenario):
     for k in range(3):
         table = clear_scene(scenario, k, "tune")
@@ -196,6 +197,7 @@ def test_a_table_of_distractors_alone_is_cleared_at_once_and_nothing_moves(scena
     assert drop_zone(table).contains(np.array(drop_zone(table).centre_W))
 
 
+@pytest.mark.slow
 def test_endurance_measures_memory_growth_and_the_task_time_trend_from_the_tasks_run(scenario):
     """run_endurance with a stand-in for the pick (a PickOutcome of its own): the figures come from what it ran."""
     from diagrams.benchmarks.endurance import resident_memory_mb, run_endurance, task_time_slope
