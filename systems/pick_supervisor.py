@@ -37,11 +37,10 @@ taken on; each object's record is in the status (``objects``).
 
 import dataclasses
 import logging
-from dataclasses import dataclass
 
 import numpy as np
 from pydrake.common.value import AbstractValue
-from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
+from pydrake.math import RigidTransform
 from pydrake.systems.framework import BasicVector, EventStatus, LeafSystem
 
 from systems.clear_progress import chosen_spots, left_out, seen_object, summary, with_spot
@@ -65,6 +64,7 @@ from systems.messages import (
     Targets,
     TaskName,
 )
+from systems.pick_looks import MAX_CORRECTIONS, object_motion, placed_off_target, read_look
 from systems.pick_tasks import Phase, PickTasks, Task, Then
 from systems.planning.aim_goals import aim_motion, aim_target
 from systems.planning.drop_zone import DropZone
@@ -74,19 +74,6 @@ CLOSE_S = 1.0  # s: the hands close over this long
 # A hand whose measured opening is below this after closing holds nothing, m.
 MIN_GRASPED_WIDTH = 0.004
 
-# A look before the approach corrects the grasps when the object moved on the table (its origin in x, y; its yaw)
-# more than this since it was seen (a look's own error is a few millimetres and a degree or two), m and rad, at
-# most this often per attempt.
-MOVED_M = 0.01
-MOVED_RAD = np.radians(4.0)
-MAX_CORRECTIONS = 2
-# A look after the place finds the object off its target by more than this (its origin in x, y; its yaw): the
-# hands take it again, m and rad, at most this often per attempt. Only where it is clearly off (the judge allows
-# 2 cm and 5 deg; a look's own error is up to about 1 cm and 2 deg): taking a can again disturbs it
-# (docs/history/pick_parameters.md).
-PLACED_M = 0.02
-PLACED_RAD = np.radians(6.0)
-MAX_PLACE_CORRECTIONS = 1
 AIM_GOALS = (PlaceGoal.AIM_APPROACH, PlaceGoal.AIM, PlaceGoal.AIM_BACK)
 # A failed check that another attempt can put right: a hand closed on nothing, or lost the object.
 RETRIED_STAGES = (Stage.GRASP,)
@@ -330,7 +317,7 @@ class PickSupervisor(LeafSystem):
                 phase.min_fraction,
                 carried,
                 q_goal=status.q_home if phase.targets == Targets.HOME else None,
-                object_motion_W=self._object_motion(status, phase),
+                object_motion_W=object_motion(status.belief, phase.targets),
                 grasp_offsets_G=status.grasp_offsets_G if phase.targets == Targets.GRASP else None,
             )
         elif phase.kind in (PhaseKind.CLOSE, PhaseKind.OPEN):
@@ -463,58 +450,18 @@ class PickSupervisor(LeafSystem):
         return True, self._start_phase(context, status, status.phase_index + 1, t, look)
 
     def _read_look(self, context, status: PickStatus, recheck: bool = False) -> bool:
-        """Where the tracker found the object: the moves that follow start from there (a recheck: only where it
-        moved more than MOVED_M or MOVED_RAD). If it did not find it, the pick goes on from where the object was
-        believed to be. Whether the belief changed."""
-        found = self.look_port.Eval(context)
-        status.looks_read += 1
-        logging.info("look: %s (%.3f s)", found.message, found.compute_s)
-        if not found.found:
-            logging.warning("look: %s; going on from where the object was believed to be", found.message)
-            return False
-        X_WO = found.X_WO
-        if recheck:  # it stands on the table: a move is planar (the tracker's tilt is for objects in the hands)
-            moved = _standing(X_WO, status.belief.now_W)
-            if moved.shift_m <= MOVED_M and abs(moved.turn_rad) <= MOVED_RAD:
-                return False
-            logging.warning(
-                "look: the object moved %.1f cm and %.1f deg", 100 * moved.shift_m, np.degrees(moved.turn_rad)
-            )
-            X_WO = moved.X_WO
-        status.belief = status.belief.looked(X_WO)
-        return True
+        """Reads the tracker's look into the belief (pick_looks.read_look); whether it changed."""
+        return read_look(self.look_port.Eval(context), status, recheck)
 
     def _placed_off_target(self, context, status: PickStatus) -> bool:
-        """Reads a look after the place: whether the object stands off the place target (PLACED_M, PLACED_RAD) and
-        may be taken again (MAX_PLACE_CORRECTIONS); the belief then takes the look."""
-        found = self.look_port.Eval(context)
-        status.looks_read += 1
-        if not found.found:
-            logging.warning("look after the place: %s; not confirmed", found.message)
-            return False
-        X_WO = _standing(found.X_WO, status.belief.now_W).X_WO
-        off = _standing(X_WO, self._place_target(status))
-        shift, turn = off.shift_m, off.turn_rad
-        logging.info("look after the place: %.1f cm and %.1f deg off the target", 100 * shift, np.degrees(turn))
-        if (shift <= PLACED_M and abs(turn) <= PLACED_RAD) or status.place_corrections >= MAX_PLACE_CORRECTIONS:
-            return False
-        logging.warning("the object stands off the place target: taking it again")
-        status.belief = status.belief.looked(X_WO)
-        return True
+        """Reads a look after the place (pick_looks.placed_off_target): whether to take the object again."""
+        return placed_off_target(self.look_port.Eval(context), status, self._place_target(status))
 
     def _place_target(self, status: PickStatus) -> RigidTransform:
         """Where the object is set down: a clear's spot in the drop zone, the place target, or where it was seen."""
         if status.place_target_W is not None:
             return status.place_target_W
         return status.belief.seen_W if self.place_target_W is None else self.place_target_W
-
-    @staticmethod
-    def _object_motion(status: PickStatus, phase: Phase) -> RigidTransform | None:
-        """A reach's or approach's correction: the object's motion since it was seen, if a look found one."""
-        belief = status.belief
-        if phase.targets not in (Targets.PREGRASP, Targets.GRASP) or belief.now_W.IsExactlyEqualTo(belief.seen_W):
-            return None
-        return belief.now_W @ belief.seen_W.inverse()
 
     def _not_holding(self, context, status: PickStatus, when: str = "") -> str:
         """Measures both hands' openings (m); why they do not both hold something, or "" if they do."""
@@ -546,24 +493,6 @@ class PickSupervisor(LeafSystem):
         logging.warning("pick stopped at %s: %s", stage, message)
         status.mode, status.failed_stage, status.message = Mode.FAILED, stage, _stage_message(stage, message)
         status.attempt_failures = (*status.attempt_failures, (str(stage), status.message))
-
-
-@dataclass(frozen=True)
-class PlanarMove:
-    """A look at an object standing on the table, taken as a planar move from where it was before."""
-
-    X_WO: RigidTransform  # before, turned about the vertical by the look's yaw, its origin moved in x, y to the look's
-    shift_m: float  # that move's shift of the origin in x, y
-    turn_rad: float  # its turn about the vertical
-
-
-def _standing(X_WO: RigidTransform, before_W: RigidTransform) -> PlanarMove:
-    """A look at an object standing on the table (X_WO), taken as a planar move from before_W (the tracker's tilt is
-    for objects in the hands)."""
-    shift = float(np.linalg.norm(X_WO.translation()[:2] - before_W.translation()[:2]))
-    turn = RollPitchYaw(X_WO.rotation() @ before_W.rotation().inverse()).yaw_angle()
-    at = [*X_WO.translation()[:2], before_W.translation()[2]]
-    return PlanarMove(RigidTransform(RotationMatrix.MakeZRotation(turn) @ before_W.rotation(), at), shift, turn)
 
 
 def _stage_message(stage: Stage, message: str) -> str:
