@@ -29,7 +29,7 @@ from diagrams.clear_judge import ClearJudge
 from diagrams.generation.clutter_scenes import robot_at_start
 from diagrams.generation.objects.library import resolve_object
 from diagrams.generation.part_labels import on_handles, true_part_surface
-from diagrams.hardware_station import MakeHardwareStation
+from diagrams.hardware_station import MakeHardwareStation, image_stale_after_s
 from diagrams.perception import MakeGroundTruthPerception, MakeObjectTracker, MakePerception, latch_offset
 from diagrams.pick_simulation import PickOutcome, PlaceJudge, pose_error, simulate_pick, station_plant
 from diagrams.planning_scene import make_planning_world
@@ -49,6 +49,7 @@ from systems.planning.stomp_config import StompConfig
 from systems.planning.stomp_planner import StompPlanner
 from systems.robot_io.hand_command import HandCommandSource
 from systems.robot_io.hand_drop_fault import HandDropFault
+from systems.robot_io.simulated_links import CameraGapFault, StatusGapFault
 from systems.robot_io.trajectory_source import JointTrajectorySource
 from systems.shape_space.tool_frame import ToolFrame
 
@@ -133,17 +134,19 @@ def MakePickDiagram(
     )
     builder.AddNamedSystem("pick_supervisor", supervisor)
     telemetry = builder.AddNamedSystem("plan_telemetry", PlanTelemetryRecorder())
+    measured, status_health = _RobotStatus(builder, station, scenario, supervisor, n, hardware)
+    camera = _CameraImages(builder, station, scenario, hardware)
 
     if from_camera:
         robot_at_frame = RobotSpheres(motions.world.kinematics, motions.world.spheres)
         seen = builder.AddNamedSystem(
             "perception", MakePerception(scenario, None, robot_at_frame, motions.world.torso_axis_W)
         )
-        _ConnectCamera(builder, station, scenario, seen, supervisor.GetOutputPort("trigger"))
-        builder.Connect(station.GetOutputPort("centauro.position_measured"), seen.GetInputPort("robot_position"))
+        _ConnectCamera(builder, camera, seen, supervisor.GetOutputPort("trigger"))
+        builder.Connect(measured, seen.GetInputPort("robot_position"))
         if looks:
             robot_spheres = RobotSpheres(motions.world.kinematics, motions.world.spheres)
-            _AddLooks(builder, station, supervisor, seen, scenario, robot_spheres)
+            _AddLooks(builder, camera, measured, supervisor, seen, scenario, robot_spheres)
     else:
         try:
             seen = builder.AddNamedSystem("ground_truth", MakeGroundTruthPerception(scenario))
@@ -171,8 +174,9 @@ def MakePickDiagram(
     plan = planner.GetOutputPort("plan")
     for system in (source, supervisor, telemetry):
         builder.Connect(plan, system.GetInputPort("plan"))
-    measured = station.GetOutputPort("centauro.position_measured")
     builder.Connect(measured, source.GetInputPort("position_measured"))
+    builder.Connect(status_health, source.GetInputPort("status_health"))
+    builder.Connect(source.GetOutputPort("playback"), supervisor.GetInputPort("playback"))
     builder.Connect(measured, supervisor.GetInputPort("position_measured"))
     builder.Connect(source.GetOutputPort("position"), station.GetInputPort("centauro.position"))
     builder.Connect(supervisor.GetOutputPort("hand_command"), hands.GetInputPort("command"))
@@ -197,23 +201,70 @@ def MakePickDiagram(
     return diagram
 
 
-def _ConnectCamera(builder, station, scenario, latched, trigger):
-    """The scenario's camera and a trigger into a system that latches its frames (perception, a look latch)."""
-    camera = scenario.camera.name
-    for port, output in (("color_image", "rgb_image"), ("depth_image", "depth_image"), ("camera_pose", "pose")):
-        builder.Connect(station.GetOutputPort(f"{camera}.{output}"), latched.GetInputPort(port))
+def _RobotStatus(builder, station, scenario, supervisor, num_joints: int, hardware: bool):
+    """The robot's measured joints and its status link's health: the station's, or with faults.status_gap_s, through
+    a StatusGapFault (simulation only)."""
+    measured, health = (
+        station.GetOutputPort("centauro.position_measured"),
+        station.GetOutputPort("centauro.status_health"),
+    )
+    faults = scenario.faults
+    if faults.status_gap_in_carry_after_s < 0:
+        return measured, health
+    if hardware:
+        raise ValueError("faults are injected in simulation only: faults.status_gap_in_carry_after_s must be negative")
+    gap = StatusGapFault(
+        faults.status_gap_in_carry_after_s, faults.status_gap_s, scenario.hardware.watchdog_s, num_joints
+    )
+    fault = builder.AddNamedSystem("status_gap_fault", gap)
+    builder.Connect(measured, fault.GetInputPort("position_measured"))
+    builder.Connect(supervisor.GetOutputPort("status"), fault.GetInputPort("status"))
+    return fault.GetOutputPort("position_measured"), fault.GetOutputPort("health")
+
+
+def _CameraImages(builder, station, scenario, hardware: bool) -> dict:
+    """The scenario camera's outputs by the latch's input names: the station's, or with faults.camera_gap_at_s,
+    through a CameraGapFault (simulation only)."""
+    name = scenario.camera.name
+    ports = {
+        latched: station.GetOutputPort(f"{name}.{output}")
+        for latched, output in (
+            ("color_image", "rgb_image"),
+            ("depth_image", "depth_image"),
+            ("camera_pose", "pose"),
+            ("image_health", "image_health"),
+        )
+    }
+    faults = scenario.faults
+    if faults.camera_gap_at_s < 0:
+        return ports
+    if hardware:
+        raise ValueError("faults are injected in simulation only: faults.camera_gap_at_s must be negative")
+    gap = CameraGapFault(faults.camera_gap_at_s, faults.camera_gap_s, image_stale_after_s(scenario.hardware))
+    fault = builder.AddNamedSystem("camera_gap_fault", gap)
+    for image in ("color_image", "depth_image"):
+        builder.Connect(ports[image], fault.GetInputPort(image))
+        ports[image] = fault.GetOutputPort(image)
+    ports["image_health"] = fault.GetOutputPort("health")
+    return ports
+
+
+def _ConnectCamera(builder, camera: dict, latched, trigger):
+    """The camera (_CameraImages) and a trigger into a system that latches its frames (perception, a look latch)."""
+    for port, output in camera.items():
+        builder.Connect(output, latched.GetInputPort(port))
     builder.Connect(trigger, latched.GetInputPort("trigger"))
 
 
-def _AddLooks(builder, station, supervisor, perception, scenario, robot_spheres):
+def _AddLooks(builder, camera, measured, supervisor, perception, scenario, robot_spheres):
     """The supervisor's looks at the held object: look_latch (the frame and the arms' joints then) ->
     robot_spheres -> object_tracker, which fits perception's reconstruction (seen at its X_WO) near the
     supervisor's expected_X_WO."""
     latch = CameraLatch(robot_positions=robot_spheres.kinematics.dof, offset_s=latch_offset(scenario, look=True))
     look = builder.AddNamedSystem("look_latch", latch)
-    _ConnectCamera(builder, station, scenario, look, supervisor.GetOutputPort("look_trigger"))
+    _ConnectCamera(builder, camera, look, supervisor.GetOutputPort("look_trigger"))
     builder.Connect(look.GetOutputPort("frame_id"), supervisor.GetInputPort("look_frame_id"))
-    builder.Connect(station.GetOutputPort("centauro.position_measured"), look.GetInputPort("robot_position"))
+    builder.Connect(measured, look.GetInputPort("robot_position"))
     robot = builder.AddNamedSystem("robot_spheres", robot_spheres)
     builder.Connect(look.GetOutputPort("robot_position"), robot.GetInputPort("position"))
     tracker = builder.AddNamedSystem("object_tracker", MakeObjectTracker(scenario))
@@ -255,6 +306,7 @@ class PickReport:
     category: str = ""
     network_category: str = ""
     grasps: GraspPoses | None = None  # the grasps perceived in the attempt's frame (None where it did not perceive)
+    status_held_s: float = 0.0  # how long the trajectory source held while the robot's status was stale, s
 
 
 def pick_report(diagram: Diagram, context) -> PickReport:
@@ -278,7 +330,8 @@ def pick_report(diagram: Diagram, context) -> PickReport:
         )
     if status.looks_read:  # (the tracker's last estimate is cached: its inputs change only with a new look)
         stages["look"] = _subsystem_output(diagram, context, "object_tracker", "estimate").compute_s
-    return PickReport(status, stages, plans.closure, category, network_category, grasps)
+    held_s = _subsystem_output(diagram, context, "trajectory_source", "playback").paused_total_s
+    return PickReport(status, stages, plans.closure, category, network_category, grasps, held_s)
 
 
 def attempt_failures(status: PickStatus) -> list[dict[str, str]]:
@@ -365,6 +418,8 @@ def taken_on(done: ClearedObject) -> dict:
               "cleared": done.cleared, "target_xy_W": list(done.target_xy_W) if done.target_xy_W else None}  # fmt: skip
     if not done.cleared:
         record.update(failed_stage=done.failed_stage, message=done.message)
+    if done.later_pass:
+        record["later_pass"] = True
     return record
 
 
@@ -432,6 +487,7 @@ class PickWatcher:
         outcome.stages = report.stages
         outcome.planning_s = report.stages.get("image_to_trajectory", 0.0)
         outcome.closure = report.closure
+        outcome.waits = {"status_held_s": report.status_held_s, "frames_waited_s": status.frames_waited_s}
         if status.belief is not None and outcome.object_rest_W is not None:
             outcome.perception = pose_error(status.belief.seen_W, outcome.object_rest_W)
         if report.category:

@@ -11,16 +11,15 @@ every familiar object is cleared and no distractor moved more.
 from dataclasses import dataclass
 
 import numpy as np
-import trimesh
 from pydrake.math import RigidTransform
 from pydrake.multibody.plant import MultibodyPlant
-from scipy.spatial import ConvexHull
 
-from diagrams.generation.objects.library import generated_instance_directory
+from diagrams.generation.clutter_scenes import instance_outline
 from diagrams.pick_simulation import SETTLED_S, LiftJudge, PickOutcome, hands_touching
 from diagrams.scenario import ObjectConfig, Scenario
 from diagrams.station import CLUTTER_INSTANCE, OBJECT_INSTANCE
-from systems.planning.drop_zone import DropZone, footprint_at, outlines_apart
+from systems.planning.drop_zone import DropZone, footprint_at
+from systems.planning.outlines import outlines_apart
 
 CLEAR_TILT_RAD = np.radians(5.0)
 DISTRACTOR_LIMIT_M = 0.02
@@ -35,13 +34,6 @@ class _Familiar:
     body: object
     outline_O: np.ndarray
     start_W: RigidTransform | None = None
-
-
-def true_outline_O(category: str, instance: str) -> np.ndarray:
-    """A generated instance's footprint in its frame: the convex outline of its mesh seen from above (M x 2, m)."""
-    vertices = trimesh.load(generated_instance_directory(category, instance) / "visual.obj", force="mesh").vertices
-    xy = np.asarray(vertices)[:, :2]
-    return xy[ConvexHull(xy).vertices]
 
 
 class ClearJudge(LiftJudge):
@@ -111,4 +103,5 @@ def _familiar(plant: MultibodyPlant, model_name: str, config: ObjectConfig) -> _
     body = plant.get_body(plant.GetBodyIndices(plant.GetModelInstanceByName(model_name))[0])
     if not config.instance:
         raise ValueError("the clear task is judged on generated instances: a user's mesh has no known footprint")
-    return _Familiar(model_name, config.category, body, true_outline_O(config.category, config.instance))
+    outline_O, _ = instance_outline(config.category, config.instance, (0.0, 0.0), 0.0)
+    return _Familiar(model_name, config.category, body, outline_O)

@@ -207,6 +207,7 @@ def run_trial(trial: Trial) -> dict:
         "place": outcome.place,
         "use": outcome.use,
         "clear": outcome.clear,
+        "waits": outcome.waits,
         "perception": outcome.perception,
         "others_moved_m": outcome.others_moved_m,
         "sim_wall_s": outcome.wall_time_s,

@@ -106,10 +106,12 @@ def MakeHardwareStation(scenario: Scenario, lcm: DrakeLcmInterface | None = None
     builder.Connect(fields.get_output_port(2), state.get_input_port(1))
     builder.ExportOutput(state.get_output_port(), "centauro.state_estimated")
     guard = builder.AddNamedSystem(
-        "centauro.command_guard", CommandGuard(model.lower, model.upper, model.velocity_limits, period, "centauro")
+        "centauro.command_guard",
+        CommandGuard(model.lower, model.upper, model.velocity_limits, period, "centauro", config.status_lost_s),
     )
     builder.Connect(fields.get_output_port(1), guard.GetInputPort("measured"))
     builder.Connect(status.GetOutputPort("health"), guard.GetInputPort("status_health"))
+    builder.ExportOutput(status.GetOutputPort("health"), "centauro.status_health")
     builder.ExportInput(guard.GetInputPort("desired"), "centauro.position")
     if lcm.get_lcm_url().startswith("memq://"):
         # In-process bus: the robot driver steps in lockstep with this diagram, so nothing can stall it.
@@ -131,7 +133,8 @@ def MakeHardwareStation(scenario: Scenario, lcm: DrakeLcmInterface | None = None
         width = builder.AddNamedSystem(f"{name}.width", Demultiplexer([1, 1]))
         builder.Connect(hand_status.GetOutputPort("values"), width.get_input_port())
         hand_guard = builder.AddNamedSystem(
-            f"{name}.command_guard", CommandGuard([0.0], [model.hand_upper], [model.hand_velocity], period, name)
+            f"{name}.command_guard",
+            CommandGuard([0.0], [model.hand_upper], [model.hand_velocity], period, name, config.status_lost_s),
         )
         builder.Connect(width.get_output_port(0), hand_guard.GetInputPort("measured"))
         builder.Connect(hand_status.GetOutputPort("health"), hand_guard.GetInputPort("status_health"))
@@ -145,7 +148,7 @@ def MakeHardwareStation(scenario: Scenario, lcm: DrakeLcmInterface | None = None
     camera = scenario.camera.name
     images = builder.AddNamedSystem(
         f"{camera}.images",
-        ImageMonitor(config.camera_channel, decode_images, 10 * config.camera_period_s, config.control_period_s),
+        ImageMonitor(config.camera_channel, decode_images, image_stale_after_s(config), config.control_period_s),
     )
     subscriber = builder.AddNamedSystem(
         f"{camera}.subscriber", LcmSubscriberSystem.Make(config.camera_channel, RawMessage, lcm)
@@ -153,12 +156,18 @@ def MakeHardwareStation(scenario: Scenario, lcm: DrakeLcmInterface | None = None
     builder.Connect(subscriber.get_output_port(), images.GetInputPort("raw"))
     builder.ExportOutput(images.GetOutputPort("color_image"), f"{camera}.rgb_image")
     builder.ExportOutput(images.GetOutputPort("depth_image"), f"{camera}.depth_image")
+    builder.ExportOutput(images.GetOutputPort("health"), f"{camera}.image_health")
     pose = builder.AddNamedSystem(f"{camera}.pose_from_joints", model.camera_pose_system())
     builder.Connect(fields.get_output_port(1), pose.get_input_port())
     builder.ExportOutput(pose.GetOutputPort("camera_pose"), f"{camera}.pose")
     diagram = builder.Build()
     diagram.set_name("hardware_station")
     return diagram
+
+
+def image_stale_after_s(config) -> float:
+    """The camera's images go stale after this long without one (10 camera periods), s."""
+    return 10 * config.camera_period_s
 
 
 def command_stream(station: Diagram) -> CommandStream | None:

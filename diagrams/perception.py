@@ -124,7 +124,8 @@ def MakePerception(
     [registration_yaw_noise] -> shape_registrar, gathered by perception_result; with robot_spheres, also
     scene_cloud: the rest of the scene as seen (systems/perception/scene_cloud.py).
 
-    Input ports: color_image, depth_image, camera_pose (the camera's), trigger (1: the frame wanted), and with
+    Input ports: color_image, depth_image, camera_pose (the camera's), trigger (1: the frame wanted), image_health
+    (optional LinkHealth: the latch waits for fresh images), and with
     robot_spheres robot_position (the planned joints, rad: latched with the frame); for the clear task, left_out
     (LeftOut: the segmenter's).
     Output ports: frame_id (1: the frame latched), result (PerceptionResult), and the registrar's
@@ -145,7 +146,7 @@ def MakePerception(
     pose_estimator = builder.AddNamedSystem("pose_estimator", MakePoseEstimator(scenario))
     registrar = builder.AddNamedSystem("shape_registrar", ShapeRegistrar(part_grasps=scenario.part_grasps))
     collector = builder.AddNamedSystem("perception_result", PerceptionResultCollector())
-    for port in ("color_image", "depth_image", "camera_pose", "trigger"):
+    for port in ("color_image", "depth_image", "camera_pose", "trigger", "image_health"):
         builder.ExportInput(latch.GetInputPort(port), port)
     if scenario.task == "clear":  # what the segmenter leaves out: the drop zone, the objects given up
         builder.ExportInput(segmenter.GetInputPort("left_out"), "left_out")

@@ -83,6 +83,10 @@ class PickOutcome:
     # cleared ("objects_cleared", "objects_cleared_share") and "others_moved_m_max" (the distractors'); and the
     # supervisor's own record of each object it took on ("taken_on").
     clear: dict = field(default_factory=dict)
+    # What the pick waited on, s: the arms held, their moves paused, while the robot's status was stale
+    # ("status_held_s"); perception's frames came this long after asking, all together ("frames_waited_s": a few
+    # control periods a frame, more while the camera's images had stopped).
+    waits: dict = field(default_factory=dict)
     # How far the perceived object pose was from the true one when the camera saw it: {"position_error_m": xy
     # distance, "yaw_error_rad"}, the "category" perception took and, where the user named it, the
     # "network_category" the segmenter's network gave (empty when the pick did not perceive), the "grasps" message

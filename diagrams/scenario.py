@@ -128,8 +128,10 @@ class HardwareConfig:
     camera_period_s: float = 0.1
     # How long to wait for the robot's first status (and images) before giving up, s.
     status_timeout_s: float = 10.0
-    # A status older than this trips the watchdog: the arms hold where they were, s.
+    # A status older than this trips the watchdog: the arms hold where they were, and go on once it is back, s.
     watchdog_s: float = 0.25
+    # A status away longer than this (a move paused as long) stops the pick, the arms holding for good, s.
+    status_lost_s: float = 5.0
 
 
 @dataclass
@@ -212,6 +214,13 @@ class FaultConfig:
     # Both hands open this long into the first carry (the first attempt, the first object), s: the object drops;
     # negative: no drop.
     drop_in_carry_after_s: float = -1.0
+    # The robot's status stops for status_gap_s this long into the first carry (the first attempt, the first
+    # object), s; negative: no gap. The arms hold, and go on once it is back.
+    status_gap_in_carry_after_s: float = -1.0
+    status_gap_s: float = 2.0
+    # The camera's images stop for camera_gap_s from this context time, s; negative: no gap. Perception waits.
+    camera_gap_at_s: float = -1.0
+    camera_gap_s: float = 5.0
 
 
 @dataclass
@@ -396,6 +405,9 @@ def validate(scenario: Scenario) -> None:
     if faults.drop_in_carry_after_s > 30:
         raise ValueError(f"faults.drop_in_carry_after_s must be at most 30 s (negative: none), got "
                          f"{faults.drop_in_carry_after_s}")  # fmt: skip
+    for name in ("status_gap_s", "camera_gap_s"):
+        if not 0 < getattr(faults, name) <= MAX_GAP_S:
+            raise ValueError(f"faults.{name} must be in (0, {MAX_GAP_S}] s, got {getattr(faults, name)}")
     if faults.grasp_offset_attempts < 0:
         raise ValueError(f"faults.grasp_offset_attempts must be >= 0, got {faults.grasp_offset_attempts}")
     if scenario.robot.torso not in TORSO_MODES:
@@ -478,6 +490,7 @@ TORSO_MODES = ("free", "locked")
 MAX_TABLE_OFFSET_M = 1.0
 MAX_ATTEMPTS = 10
 MAX_GRASP_OFFSET_M = 0.2  # m: an injected grasp offset larger than this is a unit mistake
+MAX_GAP_S = 60.0  # s: an injected link gap longer than this outlasts any pick
 MAX_OBJECT_MASS_KG = 20.0
 
 

@@ -9,7 +9,8 @@ station of the LCM backend exposes the same names):
            centauro.velocity_estimated (n each), centauro.state_estimated (2n),
            centauro.torque_commanded (n, N m),
            left_hand.state_measured, right_hand.state_measured (2 each: width m, m/s),
-           camera0.rgb_image, camera0.depth_image (32F, m), camera0.pose (X_WB of the camera body)
+           camera0.rgb_image, camera0.depth_image (32F, m), camera0.pose (X_WB of the camera body),
+           centauro.status_health, camera0.image_health (LinkHealth: here always fresh)
 
 The plant is named "plant" inside the diagram, the camera "camera0.sensor"; the
 simulator's ground truth (poses, contacts, the label image) is read from them, never
@@ -64,6 +65,7 @@ from diagrams.scenario import (
 from systems.perception.rgbd_noise import RgbdNoise, sensor_model
 from systems.planning.drop_zone import DropZone
 from systems.robot_io.gravity_compensation import GravityCompensation
+from systems.robot_io.simulated_links import FreshLink
 
 ARM_INSTANCE = "centauro"
 HAND_INSTANCES = {"left": "left_hand", "right": "right_hand"}
@@ -433,6 +435,8 @@ def _AddArmController(builder, plant, robot, scenario):
     torque = builder.AddNamedSystem("centauro.torque", MatrixGain(P))
     builder.Connect(plant.get_net_actuation_output_port(robot), torque.get_input_port())
     builder.ExportOutput(torque.get_output_port(), "centauro.torque_commanded")
+    status = builder.AddNamedSystem("centauro.status_link", FreshLink("centauro status"))
+    builder.ExportOutput(status.GetOutputPort("health"), "centauro.status_health")
 
 
 def _AddHandController(builder, plant, hand, name):
@@ -472,3 +476,5 @@ def _AddCamera(builder, plant, scene_graph, scenario):
     builder.ExportOutput(color, f"{config.name}.rgb_image")
     builder.ExportOutput(depth, f"{config.name}.depth_image")
     builder.ExportOutput(sensor.body_pose_in_world_output_port(), f"{config.name}.pose")
+    images = builder.AddNamedSystem(f"{config.name}.image_link", FreshLink(f"{config.name} images"))
+    builder.ExportOutput(images.GetOutputPort("health"), f"{config.name}.image_health")

@@ -128,6 +128,7 @@ def main(argv=None) -> int:
             "place": outcome.place,
             "use": outcome.use,
             "clear": outcome.clear,
+            "waits": outcome.waits,
             "perception": outcome.perception,
             "others_moved_m": outcome.others_moved_m,  # each other object's largest move (ground truth)
             "failed_stage": outcome.failed_stage,

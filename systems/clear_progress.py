@@ -1,5 +1,6 @@
 """The clear task's bookkeeping between objects, for the PickSupervisor (systems/pick_supervisor.py): where the next
-object goes in the drop zone, what perception leaves out when it looks for the next one, and each object's record."""
+object goes in the drop zone, what perception leaves out when it looks for the next one, which objects given up are
+taken on again, and each object's record."""
 
 import dataclasses
 
@@ -10,21 +11,21 @@ from systems.messages import ClearedObject, LeftOut, PerceptionResult, PickStatu
 from systems.planning.drop_zone import DropZone, drop_spots, footprint_at, footprint_O
 
 
-def seen_object(result: PerceptionResult) -> ClearedObject | None:
+def seen_object(result: PerceptionResult, later_pass: bool = False) -> ClearedObject | None:
     """The record of an object perception saw (its category, the centre of its seen points), before it is taken on;
     None where perception saw no point of it."""
     points = result.points_W
     if points is None or not len(points):
         return None
     centre = np.mean(points, axis=0)
-    return ClearedObject(result.category, (float(centre[0]), float(centre[1])), attempts=1)
+    return ClearedObject(result.category, (float(centre[0]), float(centre[1])), attempts=1, later_pass=later_pass)
 
 
 def chosen_spots(zone: DropZone, status: PickStatus, result: PerceptionResult) -> tuple[list, ClearedObject]:
     """Where in the zone the perceived object may go, best first ((X_WO, its footprint there: M x 2 in W, m) each;
     [] where it fits nowhere), and its record with the first spot: its footprint from the registrar's whole inferred
     shape (the seen points where there is none)."""
-    record = seen_object(result)
+    record = seen_object(result, later_pass=status.pass_from > 0)
     shape = result.reconstruction_W if result.reconstruction_W is not None else result.points_W
     outline_O = footprint_O(shape, result.X_WO_seen)
     dropped = [done.footprint_W for done in status.objects if done.cleared]
@@ -38,12 +39,32 @@ def with_spot(record: ClearedObject, X_WO: RigidTransform, footprint_W: np.ndarr
     return dataclasses.replace(record, target_xy_W=(float(xy[0]), float(xy[1])), footprint_W=footprint_W)
 
 
+def given_up(status: PickStatus, in_zone: bool) -> ClearedObject:
+    """The record of the object under way (status.current) given up after its failure (status.failed_stage, .message);
+    `in_zone`: taking it again off its spot failed, so it stands in the zone already, near its spot (placed)."""
+    return dataclasses.replace(
+        status.current,
+        attempts=status.attempt,
+        cleared=in_zone,
+        failed_stage=str(status.failed_stage),
+        message=f"set down off its spot; taking it again: {status.message}" if in_zone else status.message,
+    )
+
+
 def left_out(zone: DropZone | None, status: PickStatus) -> LeftOut:
     """What perception leaves out looking for the next object: the zone, and where the objects given up stood."""
-    if zone is None:
-        return LeftOut()
-    given_up = tuple(done.seen_xy_W for done in status.objects if not done.cleared)
-    return LeftOut(tuple(map(float, zone.low)), tuple(map(float, zone.high)), given_up)
+    given_up = tuple(done.seen_xy_W for done in status.objects[status.pass_from :] if not done.cleared)
+    return LeftOut(zone, given_up)
+
+
+def next_pass(status: PickStatus) -> int | None:
+    """Once no object is left but those given up: where a new pass over the table begins (status.pass_from), when an
+    object was given up in this pass before another was cleared. The table has changed since: a neighbour that took
+    away the arms' reach or hid a handle may have gone. None: no new pass. Each pass begins after an object cleared
+    in the one before, so the clear ends."""
+    last_cleared = max((i for i, done in enumerate(status.objects) if done.cleared), default=-1)
+    given_up = [i for i in range(status.pass_from, last_cleared) if not status.objects[i].cleared]
+    return last_cleared + 1 if given_up else None
 
 
 def summary(status: PickStatus, why_ended: str) -> str:
@@ -52,8 +73,12 @@ def summary(status: PickStatus, why_ended: str) -> str:
     cleared = sum(done.cleared for done in status.objects)
     line = f"cleared {cleared} of {len(status.objects)} objects taken on"
     for heading, cleared in (("given up", False), ("placed, not taken again", True)):
-        told = [f"{done.category} at ({done.seen_xy_W[0]:.2f}, {done.seen_xy_W[1]:.2f}): {done.message}"
-                for done in status.objects if done.cleared == cleared and done.message]  # fmt: skip
+        told = [
+            f"{done.category} at ({done.seen_xy_W[0]:.2f}, {done.seen_xy_W[1]:.2f})"
+            f"{' (a later pass)' * done.later_pass}: {done.message}"
+            for done in status.objects
+            if done.cleared == cleared and done.message
+        ]
         if told:
             line += f"; {heading}: " + "; ".join(told)
     return f"{line}; {why_ended}"

@@ -14,6 +14,7 @@ import numpy as np
 from pydrake.math import RigidTransform
 from pydrake.trajectories import PiecewisePolynomial
 
+from systems.planning.drop_zone import DropZone
 from systems.shape_space.tool_frame import ToolFrame
 
 SIDES = ("left", "right")
@@ -114,7 +115,8 @@ class TaskName(enum.StrEnum):
 class Stage(enum.StrEnum):
     """The stage a failed pick stopped at."""
 
-    CAMERA = "camera"
+    CAMERA = "camera"  # no image came from the camera
+    STATUS = "status"  # the robot's status stopped while it moved
     SEGMENTATION = "segmentation"
     POSE = "pose"
     REGISTRATION = "registration"
@@ -302,6 +304,16 @@ class PlanRequest:
     grasp_offsets_G: dict[str, RigidTransform] | None = None
 
 
+@dataclass(frozen=True)
+class Playback:
+    """How far the trajectory source has played the current plan (systems/robot_io/trajectory_source.py)."""
+
+    plan_id: int = -1  # the plan being played (-1: none yet)
+    time_s: float = 0.0  # the trajectory's time reached, s (the context time less the pauses)
+    paused_for_s: float = 0.0  # how long the current pause has lasted, s (0: playing)
+    paused_total_s: float = 0.0  # every pause so far, every plan's, the current one included, s
+
+
 @dataclass
 class PlanResult:
     """A plan, or why there is none. Times are context seconds."""
@@ -375,15 +387,8 @@ class LeftOut:
     """What the clear task's segmenter leaves out when it looks for the next object: the drop zone (objects there are
     cleared) and where the objects it gave up on stood."""
 
-    zone_low_W: tuple[float, ...] = ()  # (x, y) of the zone's corners in W, m; () without a zone
-    zone_high_W: tuple[float, ...] = ()
+    zone: DropZone | None = None  # None: no zone
     given_up_xy_W: tuple[tuple[float, float], ...] = ()  # m
-
-    def in_zone(self, xy_W: np.ndarray) -> np.ndarray:
-        """Which points (N x 2, x, y in W, m) lie in the zone."""
-        if not self.zone_low_W:
-            return np.zeros(len(xy_W), bool)
-        return np.all((xy_W >= self.zone_low_W) & (xy_W <= self.zone_high_W), axis=1)
 
 
 @dataclass(frozen=True)
@@ -398,6 +403,8 @@ class ClearedObject:
     footprint_W: np.ndarray | None = None  # its footprint at that spot (M x 2 in W, m)
     failed_stage: str = ""
     message: str = ""
+    # Taken on in a later pass over the table (it may have been given up in an earlier one: a record of its own).
+    later_pass: bool = False
 
 
 @dataclass(frozen=True)
@@ -418,6 +425,9 @@ class PickStatus:
     phase_index: int = -1  # into the phases of `task`
     phase_start_s: float = 0.0
     perceive_id: int = 0  # the camera frame asked for
+    asked_frame_s: float = 0.0  # when it was asked for, s
+    frames_waited_s: float = 0.0  # how long perception's frames took to come after asking, all together, s
+    pass_from: int = 0  # a clear's pass over the table began with this record of `objects` (see clear_progress.py)
     perceived: bool = False  # perception's result has been read
     request: PlanRequest = field(default_factory=PlanRequest)
     applied_plan_id: int = -1  # the last plan whose achieved motion the belief has taken

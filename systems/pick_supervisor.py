@@ -10,8 +10,8 @@ trajectory source holds the last played trajectory's end) and names the stage.
 Modes: waiting -> perceiving -> (the task's phases: reach, approach, close, lift, then hold; or close,
 look, lift, carry, look_again, set_down, release, retreat, confirm) -> done, or failed.
 
-Checks and retries: after closing, each hand must hold something (its measured opening neither closed to
-nothing nor still open), and after the lift and the carry it must still do. A failed check is one failed attempt: the
+Checks and retries (systems/pick_checks.py): after closing, each hand must hold something, and after the lift and
+the carry it must still do. A failed check is one failed attempt: the
 recovery task opens the hands, backs off along their approach axes and goes back to where the pick started,
 and the pick starts again from a new camera frame, up to max_attempts. Failures that another attempt would
 repeat (perception found nothing, no plan) end the pick at once.
@@ -43,7 +43,7 @@ from pydrake.common.value import AbstractValue
 from pydrake.math import RigidTransform
 from pydrake.systems.framework import BasicVector, EventStatus, LeafSystem
 
-from systems.clear_progress import chosen_spots, left_out, seen_object, summary, with_spot
+from systems import clear_progress as clearing
 from systems.messages import (
     OPEN_WIDTH,
     SIDES,
@@ -60,10 +60,12 @@ from systems.messages import (
     PlaceGoal,
     PlanRequest,
     PlanResult,
+    Playback,
     Stage,
     Targets,
     TaskName,
 )
+from systems.pick_checks import camera_silence, not_holding, played_s, status_silence
 from systems.pick_looks import MAX_CORRECTIONS, object_motion, placed_off_target, read_look
 from systems.pick_tasks import Phase, PickTasks, Task, Then
 from systems.planning.aim_goals import aim_motion, aim_target
@@ -71,14 +73,9 @@ from systems.planning.drop_zone import DropZone
 from systems.planning.place_goals import place_motion
 
 CLOSE_S = 1.0  # s: the hands close over this long
-# A hand whose measured opening is below this after closing holds nothing, m.
-MIN_GRASPED_WIDTH = 0.004
-
 AIM_GOALS = (PlaceGoal.AIM_APPROACH, PlaceGoal.AIM, PlaceGoal.AIM_BACK)
 # A failed check that another attempt can put right: a hand closed on nothing, or lost the object.
 RETRIED_STAGES = (Stage.GRASP,)
-# A hand whose measured opening is still this near its full opening after closing did not close, m.
-NOT_CLOSED_MARGIN = 0.01
 
 
 class PickSupervisor(LeafSystem):
@@ -97,6 +94,7 @@ class PickSupervisor(LeafSystem):
         - look_frame_id (optional)
         - look (optional)
         - board (optional)
+        - playback (optional)
         output_ports:
         - trigger
         - plan_request
@@ -114,7 +112,9 @@ class PickSupervisor(LeafSystem):
     held object (``look_trigger`` (1), answered by ``look_frame_id`` (1)) and reads ``look`` (ObjectEstimate:
     the object tracker's, told where to look by ``expected_X_WO`` (RigidTransform)); without looks it is
     skipped. An aim task reads ``board`` (BoardSeen, of the frame perceived). A clear tells perception what to leave
-    out (``left_out``: LeftOut).
+    out (``left_out``: LeftOut). A move ends when the trajectory source's ``playback`` (Playback) reaches the plan's
+    end (unconnected: at the plan's end in context time); a frame or a move waited on too long ends the pick
+    (systems/pick_checks.py).
 
     Args:
         tasks: the pick's tasks (lift_pick() or place_pick()).
@@ -159,6 +159,7 @@ class PickSupervisor(LeafSystem):
         self.look_frame_id_port = self.DeclareVectorInputPort("look_frame_id", 1)
         self.look_port = self.DeclareAbstractInputPort("look", AbstractValue.Make(ObjectEstimate(False)))
         self.board_port = self.DeclareAbstractInputPort("board", AbstractValue.Make(BoardSeen()))
+        self.playback_port = self.DeclareAbstractInputPort("playback", AbstractValue.Make(Playback()))
         self.aims = any(phase.goal in AIM_GOALS for phase in tasks.phases())
         self._state = self.DeclareAbstractState(AbstractValue.Make(PickStatus()))
         # A look request is state of its own: the tracker's inputs change only when a new look is asked for.
@@ -196,7 +197,7 @@ class PickSupervisor(LeafSystem):
         self.DeclareAbstractOutputPort(
             "left_out",
             lambda: AbstractValue.Make(LeftOut()),
-            lambda c, o: o.set_value(left_out(self.drop_zone, self._status(c))),
+            lambda c, o: o.set_value(clearing.left_out(self.drop_zone, self._status(c))),
             status,
         )
         self.DeclarePeriodicUnrestrictedUpdateEvent(period_s, 0.0, self._update)
@@ -219,7 +220,11 @@ class PickSupervisor(LeafSystem):
         elif before.mode == Mode.PERCEIVING:
             changed = self.frame_id_port.Eval(context)[0] >= status.perceive_id
             if changed:
+                status.frames_waited_s += t - status.asked_frame_s
                 self._perceive(context, status, t)
+            elif problem := camera_silence(t, status.asked_frame_s, "the table"):
+                changed = True
+                self._fail(status, Stage.CAMERA, problem)
         else:
             changed, look = self._follow_phase(context, status, look, t)
         if self.clears and status.mode == Mode.FAILED and status.current is not None:
@@ -247,7 +252,7 @@ class PickSupervisor(LeafSystem):
     def _look_at_the_table(self, context, status: PickStatus, t: float):
         """Asks perception for a new frame (a ground-truth source needs none: it is read at once)."""
         if self.from_camera:
-            status.mode, status.perceive_id = Mode.PERCEIVING, status.perceive_id + 1
+            status.mode, status.perceive_id, status.asked_frame_s = Mode.PERCEIVING, status.perceive_id + 1, t
         else:
             self._perceive(context, status, t)
 
@@ -256,25 +261,30 @@ class PickSupervisor(LeafSystem):
         result = self.perception_port.Eval(context)
         status.perceived = True
         if self.clears and result.failed_stage == Stage.SEGMENTATION:  # nothing left
-            status.mode, status.message, status.homing = Mode.DONE, summary(status, result.message), False
+            if (pass_from := clearing.next_pass(status)) is not None:  # those given up before the table changed
+                logging.info("%s; a new pass over the table for those given up before others left", result.message)
+                status.pass_from = pass_from
+                self._look_at_the_table(context, status, t)
+                return
+            status.mode, status.message, status.homing = Mode.DONE, clearing.summary(status, result.message), False
             return
         if status.homing:  # (the frame's scene is what the move home avoids)
             status.homing = False
             self._start_task(context, status, self.tasks.home, 0, t)
             return
         if not result.found:
-            status.current = seen_object(result) if self.clears else None  # (given up where it was seen)
+            status.current = clearing.seen_object(result, status.pass_from > 0) if self.clears else None  # (given up)
             self._fail(status, result.failed_stage, result.message)
             return
         status.belief = ObjectBelief.seen(result.X_WO_seen)
         if self.clears:
-            spots, status.current = chosen_spots(self.drop_zone, status, result)
+            spots, status.current = clearing.chosen_spots(self.drop_zone, status, result)
             status.place_target_W, status.spare_spots = (spots[0][0], tuple(spots[1:])) if spots else (None, ())
             if spots:
                 logging.info("its spot in the drop zone: %s (%d more)", status.current.target_xy_W, len(spots) - 1)
             if status.place_target_W is None:
                 status.objects += (dataclasses.replace(status.current, message="no room left in the drop zone"),)
-                status.mode, status.message = Mode.DONE, summary(status, "the drop zone is full")
+                status.mode, status.message = Mode.DONE, clearing.summary(status, "the drop zone is full")
                 return
         if self.aims:
             board = self.board_port.Eval(context)
@@ -351,15 +361,7 @@ class PickSupervisor(LeafSystem):
         """A clear's object failed (status FAILED): it is recorded as given up (as placed where it failed while taken
         again off its spot in the zone), the hands let go and back off (where they moved), and the next object is
         looked for."""
-        # (Taking it again off its spot failed: it stands in the zone already, near its spot.)
-        in_zone = status.task == TaskName.REPLACE
-        failed = dataclasses.replace(
-            status.current,
-            attempts=status.attempt,
-            cleared=in_zone,
-            failed_stage=str(status.failed_stage),
-            message=f"set down off its spot; taking it again: {status.message}" if in_zone else status.message,
-        )
+        failed = clearing.given_up(status, in_zone=status.task == TaskName.REPLACE)
         status.objects, status.current = (*status.objects, failed), None
         status.failed_stage, status.message = "", ""
         logging.warning("giving up on the %s: %s", failed.category, failed.message)
@@ -374,10 +376,10 @@ class PickSupervisor(LeafSystem):
         scene the move home avoids, the object is looked for after it."""
         status.task, status.attempt, status.corrections, status.place_corrections = None, 1, 0, 0
         status.belief, status.aim, status.pending_failure, status.place_target_W = None, None, None, None
-        status.spare_spots = ()
-        status.grasp_widths, status.grasp_offsets_G, status.attempt_failures = (), None, ()
+        status.spare_spots, status.grasp_widths, status.grasp_offsets_G, status.attempt_failures = (), (), None, ()
         if len(status.objects) >= self.max_objects:
-            status.mode, status.message = Mode.DONE, summary(status, f"took on {self.max_objects} objects, the most")
+            ended = f"took on {self.max_objects} objects, the most"
+            status.mode, status.message = Mode.DONE, clearing.summary(status, ended)
             return
         status.homing = homing
         logging.info("%s (%d taken on)", "looking at the table before going home" if homing else "looking for the next "
@@ -405,7 +407,7 @@ class PickSupervisor(LeafSystem):
                     (X_WO, footprint), *rest = status.spare_spots  # no plan to this spot: carry it to the next one
                     logging.warning("%s; trying the next spot in the drop zone", plan.message)
                     status.place_target_W, status.spare_spots = X_WO, tuple(rest)
-                    status.current = with_spot(status.current, X_WO, footprint)
+                    status.current = clearing.with_spot(status.current, X_WO, footprint)
                     carry = self.tasks[status.task].index(Mode.CARRY)
                     return True, self._start_phase(context, status, carry, t, look)
                 if phase.if_unreachable is None:
@@ -422,7 +424,11 @@ class PickSupervisor(LeafSystem):
                     status.belief = status.belief.moved(plan.achieved_motion_W)
                 if phase.targets == Targets.PREGRASP:
                     status.grasp_offsets_G = plan.grasp_offsets_G
-            if t + 1e-9 < plan.end_s:
+            playback = self.playback_port.Eval(context) if self.playback_port.HasValue(context) else None
+            if played_s(playback, plan.id, t) + 1e-9 < plan.end_s:
+                if problem := status_silence(playback, phase.name):
+                    self._fail(status, Stage.STATUS, problem)
+                    return True, look
                 return applied, look
             status.plan_end_q = plan.trajectory.value(plan.end_s).ravel()
             if phase.check_held and (problem := self._not_holding(context, status, f"after the {phase.name}: ")):
@@ -434,28 +440,23 @@ class PickSupervisor(LeafSystem):
                 return True, self._attempt_failed(context, status, Stage.GRASP, problem, look, t)
         elif self._looks_at(phase):
             if self.look_frame_id_port.Eval(context)[0] < look.id:
+                if problem := camera_silence(t, status.phase_start_s, f"the {phase.name}"):
+                    self._fail(status, Stage.CAMERA, problem)
+                    return True, look
                 return False, look
             if phase.kind == PhaseKind.CONFIRM_PLACED:
-                if self._placed_off_target(context, status):
+                if placed_off_target(self.look_port.Eval(context), status, self._place_target(status)):
                     status.place_corrections += 1  # take it again from where it stands
                     return True, self._start_task(context, status, phase.if_off, 0, t, look)
             elif phase.kind == PhaseKind.CHECK_MOVED:
-                if self._read_look(context, status, recheck=True) and status.corrections < MAX_CORRECTIONS:
+                if read_look(self.look_port.Eval(context), status, True) and status.corrections < MAX_CORRECTIONS:
                     status.corrections += 1  # it moved: back off, then reach for it where it is now
                     return True, self._start_task(context, status, phase.if_off, 0, t, look)
             else:
-                self._read_look(context, status)
+                read_look(self.look_port.Eval(context), status)
         elif t + 1e-9 < status.phase_start_s + phase.wait_s:
             return False, look
         return True, self._start_phase(context, status, status.phase_index + 1, t, look)
-
-    def _read_look(self, context, status: PickStatus, recheck: bool = False) -> bool:
-        """Reads the tracker's look into the belief (pick_looks.read_look); whether it changed."""
-        return read_look(self.look_port.Eval(context), status, recheck)
-
-    def _placed_off_target(self, context, status: PickStatus) -> bool:
-        """Reads a look after the place (pick_looks.placed_off_target): whether to take the object again."""
-        return placed_off_target(self.look_port.Eval(context), status, self._place_target(status))
 
     def _place_target(self, status: PickStatus) -> RigidTransform:
         """Where the object is set down: a clear's spot in the drop zone, the place target, or where it was seen."""
@@ -466,13 +467,8 @@ class PickSupervisor(LeafSystem):
     def _not_holding(self, context, status: PickStatus, when: str = "") -> str:
         """Measures both hands' openings (m); why they do not both hold something, or "" if they do."""
         status.grasp_widths = tuple(self.hand_state_ports[side].Eval(context)[0] for side in SIDES)
-        for side, width in zip(SIDES, status.grasp_widths, strict=True):
-            logging.info("%s hand closed to %.1f mm", side, width * 1000)
-            if width < MIN_GRASPED_WIDTH:
-                return f"{when}the {side} hand closed on nothing (opening {width * 1000:.1f} mm)"
-            if width > OPEN_WIDTH - NOT_CLOSED_MARGIN:
-                return f"{when}the {side} hand did not close (opening {width * 1000:.1f} mm)"
-        return ""
+        logging.info("hands closed to %s mm", ", ".join(f"{1000 * width:.1f}" for width in status.grasp_widths))
+        return not_holding(status.grasp_widths, when)
 
     def _attempt_failed(
         self, context, status: PickStatus, stage: Stage, message: str, look: LookRequest, t: float

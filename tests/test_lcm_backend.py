@@ -75,9 +75,9 @@ def guard_context(guard, desired, measured, health):
     return context
 
 
-def test_command_guard_limits_rejects_nan_and_trips_when_status_stops():
+def test_command_guard_limits_rejects_nan_holds_while_the_status_stops_and_trips_when_it_stays_away():
     lower, upper, speed = np.full(2, -1.0), np.full(2, 1.0), np.full(2, 2.0)
-    guard = CommandGuard(lower, upper, speed, period_s=0.01)
+    guard = CommandGuard(lower, upper, speed, period_s=0.01, lost_after_s=1.0)
     measured = np.array([0.0, 0.5])
     context = guard_context(guard, np.array([5.0, 0.5]), measured, LinkHealth("S"))
     with pytest.raises(RuntimeError, match="no status from the robot"):
@@ -95,13 +95,37 @@ def test_command_guard_limits_rejects_nan_and_trips_when_status_stops():
     report = guard.GetOutputPort("report").Eval(context)
     assert report.rejected_commands >= 1 and np.all(np.isfinite(guard.GetOutputPort("command").Eval(context)))
 
-    guard.GetInputPort("status_health").FixValue(context, AbstractValue.Make(dataclasses.replace(fresh, stale=True)))
+    stale = dataclasses.replace(fresh, received_at=0.15, stale=True)
+    guard.GetInputPort("status_health").FixValue(context, AbstractValue.Make(stale))
     guard.GetInputPort("measured").FixValue(context, np.array([0.3, 0.4]))
     guard.GetInputPort("desired").FixValue(context, np.array([-0.9, -0.9]))
     simulator.AdvanceTo(0.3)
     report = guard.GetOutputPort("report").Eval(context)
-    assert report.tripped and "holding" in report.message
+    assert report.holding and not report.tripped and report.holds == 1 and "holding" in report.message
     np.testing.assert_allclose(guard.GetOutputPort("command").Eval(context), [0.3, 0.4])  # holds, ignores desired
+
+    # The status is back: on from the held position, velocity-limited.
+    guard.GetInputPort("status_health").FixValue(
+        context, AbstractValue.Make(dataclasses.replace(fresh, received_at=0.3))
+    )
+    simulator.AdvanceTo(0.35)
+    report = guard.GetOutputPort("report").Eval(context)
+    assert not report.holding and not report.tripped
+    np.testing.assert_allclose(guard.GetOutputPort("command").Eval(context), [0.2, 0.3], atol=0.021)
+
+    # Away longer than lost_after_s: tripped, holding for good.
+    guard.GetInputPort("status_health").FixValue(
+        context, AbstractValue.Make(dataclasses.replace(stale, received_at=0.35))
+    )
+    simulator.AdvanceTo(1.5)
+    held = guard.GetOutputPort("command").Eval(context).copy()
+    guard.GetInputPort("status_health").FixValue(
+        context, AbstractValue.Make(dataclasses.replace(fresh, received_at=1.5))
+    )
+    simulator.AdvanceTo(1.6)
+    report = guard.GetOutputPort("report").Eval(context)
+    assert report.tripped and report.holds == 2 and report.message.endswith("for good")
+    np.testing.assert_allclose(guard.GetOutputPort("command").Eval(context), held)
 
 
 def test_no_driver_gives_a_clear_timeout_naming_the_channels(scenario):
@@ -197,11 +221,11 @@ def test_hardware_station_faults_end_in_a_safe_reported_state(scenario):
     station.GetInputPort("centauro.position").FixValue(context, model.upper + 1.0)
     step(2.5)
     assert np.all(np.array(commands[-1].joint_position) <= model.upper + 1e-12)
-    # The status stops mid-motion: the watchdog trips and holds the last measured position.
+    # The status stops mid-motion: the watchdog holds the last measured position.
     station.GetInputPort("centauro.position").FixValue(context, q0 - 0.3)
     step(3.0, arm=False)
     report = guard.GetOutputPort("report").Eval(guard.GetMyContextFromRoot(context))
-    assert report.tripped and "no valid status on CENTAURO_STATUS" in report.message
+    assert report.holding and not report.tripped and "no valid status on CENTAURO_STATUS" in report.message
     np.testing.assert_allclose(commands[-1].joint_position, np.clip(q0, model.lower, model.upper), atol=1e-9)
 
 

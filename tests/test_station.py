@@ -24,6 +24,8 @@ OUTPUTS = {
     "camera0.rgb_image",
     "camera0.depth_image",
     "camera0.pose",
+    "centauro.status_health",
+    "camera0.image_health",
 }
 
 

@@ -22,9 +22,7 @@ from diagrams.generation.clutter_scenes import (
     Placed,
     approach_points,
     clear_of_robot,
-    distance_to,
     draw_object,
-    gap_between,
     instance_outline,
     object_height,
     place_anywhere,
@@ -33,6 +31,7 @@ from diagrams.generation.clutter_scenes import (
 from diagrams.generation.objects import catalog
 from diagrams.scenario import ClutterObjectConfig, Scenario, replace_object
 from diagrams.station import TABLE_HEIGHT
+from systems.planning.outlines import distance_to, gap_between
 
 CLEAR_SEED = 81
 SPLIT_CODES = {"report": 2, "tune": 1}

@@ -18,13 +18,13 @@ import functools
 import numpy as np
 import trimesh
 from pydrake.math import RollPitchYaw
-from scipy.spatial import ConvexHull
 
 from diagrams.generation.objects import catalog
 from diagrams.generation.objects.library import generated_instance_directory
 from diagrams.planning_scene import true_grasp_poses
 from diagrams.scenario import ClutterObjectConfig, Scenario, initial_positions, replace_object
 from diagrams.station import TABLE_HEIGHT
+from systems.planning.outlines import convex_outline, distance_to, edge_distances, gap_between, inside
 
 CLUTTER_SEED = 35
 # Each split's code in its tables' seeds (code 0, a report range looked at while the scenes were built, is unused).
@@ -184,9 +184,9 @@ def clear_of_robot(robot: np.ndarray, candidate: Placed, scenario: Scenario) -> 
     if not len(low):
         return True
     xy = low[:, :2] - scenario.table_xyz[:2]
-    if _inside(xy, candidate.outline).any():
+    if inside(xy, candidate.outline).any():
         return False
-    return bool(np.all(_segment_distances(xy, candidate.outline) > low[:, 3] + ROBOT_CLEARANCE_M))
+    return bool(np.all(edge_distances(xy, candidate.outline) > low[:, 3] + ROBOT_CLEARANCE_M))
 
 
 def robot_at_start(scenario: Scenario) -> np.ndarray:
@@ -246,43 +246,13 @@ def _instance_height(category: str, instance: str) -> float:
 
 
 def instance_outline(category: str, instance: str, xy, yaw: float) -> tuple[np.ndarray, float]:
-    vertices = _instance_mesh(category, instance).vertices[:, :2]
-    hull = vertices[ConvexHull(vertices).vertices]
+    hull = convex_outline(_instance_mesh(category, instance).vertices[:, :2])
     return _moved(hull, xy, yaw), _instance_height(category, instance)
 
 
 def _moved(local: np.ndarray, xy, yaw: float) -> np.ndarray:
     R = RollPitchYaw(0.0, 0.0, yaw).ToRotationMatrix().matrix()[:2, :2]
     return local @ R.T + np.asarray(xy)
-
-
-def _segment_distances(points: np.ndarray, outline: np.ndarray) -> np.ndarray:
-    """Each point's (P x 2) distance to the closed outline's edges (M x 2), m."""
-    a, b = outline, np.roll(outline, -1, axis=0)
-    edge = b - a
-    t = np.clip(np.einsum("pmk,mk->pm", points[:, None] - a[None], edge) / np.einsum("mk,mk->m", edge, edge), 0, 1)
-    nearest = a[None] + t[..., None] * edge[None]
-    return np.linalg.norm(points[:, None] - nearest, axis=2).min(axis=1)
-
-
-def _inside(points: np.ndarray, outline: np.ndarray) -> np.ndarray:
-    """Which points (P x 2) lie inside the convex outline (M x 2, either winding)."""
-    edge = np.roll(outline, -1, axis=0) - outline
-    offset = points[:, None] - outline[None]
-    cross = edge[None, :, 0] * offset[..., 1] - edge[None, :, 1] * offset[..., 0]
-    return np.all(cross >= 0, axis=1) | np.all(cross <= 0, axis=1)
-
-
-def gap_between(a: np.ndarray, b: np.ndarray) -> float:
-    """The distance between two convex outlines (m); 0 where they overlap."""
-    if _inside(a, b).any() or _inside(b, a).any():
-        return 0.0
-    return float(min(_segment_distances(a, b).min(), _segment_distances(b, a).min()))
-
-
-def distance_to(outline: np.ndarray, point) -> float:
-    point = np.asarray(point, float)[None]
-    return 0.0 if _inside(point, outline)[0] else float(_segment_distances(point, outline)[0])
 
 
 def scene_outlines(scenario: Scenario) -> list[np.ndarray]:

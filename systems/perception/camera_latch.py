@@ -7,12 +7,15 @@ The latch also keeps the wall time at which it took its frame (time.perf_counter
 start of perception's latency, reported only (nothing the pick does reads it).
 """
 
+import math
 import time
 
 from pydrake.common.value import AbstractValue
 from pydrake.math import RigidTransform
 from pydrake.systems.framework import EventStatus, LeafSystem
 from pydrake.systems.sensors import ImageDepth32F, ImageRgba8U
+
+from systems.robot_io.lcm_safety import LinkHealth
 
 
 class CameraLatch(LeafSystem):
@@ -27,6 +30,7 @@ class CameraLatch(LeafSystem):
         - camera_pose
         - trigger
         - robot_position (optional)
+        - image_health (optional)
         output_ports:
         - color_image
         - depth_image
@@ -40,6 +44,8 @@ class CameraLatch(LeafSystem):
     ``robot_position`` (robot_positions, rad): the planned joints' measured positions when the frame was
     taken (the robot in view of the camera; zeros before the first, or where the input is not connected).
     ``latched_wall_s`` (1): the process's time.perf_counter() when the frame was taken, s (NaN before the first).
+    ``image_health`` (LinkHealth): a frame asked for is taken from images received at or after the asking (the
+    latch waits for them; unconnected: the images are always new).
     """
 
     def __init__(self, period_s: float = 0.01, robot_positions: int = 14, offset_s: float = 0.0):
@@ -56,6 +62,7 @@ class CameraLatch(LeafSystem):
         self.DeclareAbstractInputPort("camera_pose", AbstractValue.Make(RigidTransform()))
         self.DeclareVectorInputPort("trigger", 1)
         self.DeclareVectorInputPort("robot_position", robot_positions)
+        self.health_port = self.DeclareAbstractInputPort("image_health", AbstractValue.Make(LinkHealth()))
         # (Separate states: Drake copies its own image and pose types natively.)
         self._frame_id = self.DeclareDiscreteState(1)
         self._held = {}
@@ -69,6 +76,7 @@ class CameraLatch(LeafSystem):
         self.DeclareStateOutputPort("frame_id", self._frame_id)
         self._robot_position = self.DeclareDiscreteState(robot_positions)
         self.DeclareStateOutputPort("robot_position", self._robot_position)
+        self._asked = self.DeclareDiscreteState([0.0, math.nan])  # the frame asked for last, and when (s)
         self._latched_wall_s = self.DeclareDiscreteState([float("nan")])
         self.DeclareStateOutputPort("latched_wall_s", self._latched_wall_s)
         self.DeclarePeriodicUnrestrictedUpdateEvent(period_s, offset_s, self._update)
@@ -77,6 +85,14 @@ class CameraLatch(LeafSystem):
         wanted = self.GetInputPort("trigger").Eval(context)[0]
         if wanted <= context.get_discrete_state(self._frame_id).get_value()[0]:
             return EventStatus.DidNothing()
+        if self.health_port.HasValue(context):  # (only an image received since the asking)
+            asked_id, asked_at_s = context.get_discrete_state(self._asked).get_value()
+            if asked_id != wanted:
+                asked_at_s = context.get_time()
+                state.get_mutable_discrete_state(self._asked).set_value([wanted, asked_at_s])
+            health = self.health_port.Eval(context)
+            if health.received == 0 or health.received_at < asked_at_s:
+                return EventStatus.Succeeded() if asked_id != wanted else EventStatus.DidNothing()
         for name, index in self._held.items():
             state.get_mutable_abstract_state(index).SetFrom(AbstractValue.Make(self.GetInputPort(name).Eval(context)))
         state.get_mutable_discrete_state(self._frame_id).set_value([wanted])

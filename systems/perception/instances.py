@@ -241,7 +241,7 @@ def next_object(
         if not len(points) or np.percentile(points[:, 2], LOWEST_PERCENTILE) - table_top_z > CLEAR_FLOAT_M:
             continue  # (not standing on the table)
         centre = points.mean(axis=0)
-        if left_out.in_zone(centre[None, :2])[0]:
+        if left_out.zone is not None and left_out.zone.contains(centre[:2]):
             in_zone += 1
         elif left_out.given_up_xy_W and _near(points[:, :2], left_out.given_up_xy_W, GIVEN_UP_RADIUS_M):
             given_up += 1

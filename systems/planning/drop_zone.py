@@ -13,7 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 from pydrake.math import RigidTransform, RotationMatrix
-from scipy.spatial import ConvexHull
+
+from systems.planning.outlines import convex_outline, distance_to, outlines_apart
 
 DROP_GAP_M = 0.03  # m: between footprints in the zone (the judge wants them apart; a set-down is 1-2 cm off)
 DROP_GRID_M = 0.02  # m: between candidate centres
@@ -54,8 +55,7 @@ class DropZone:
 def footprint_O(points_W: np.ndarray, X_WO: RigidTransform) -> np.ndarray:
     """An object's footprint in its own frame: the convex outline (M x 2, x, y in O, m) of its points (N x 3 in W)
     seen from above, the object standing upright at X_WO."""
-    points_O = X_WO.inverse().multiply(np.asarray(points_W).T).T[:, :2]
-    return points_O[ConvexHull(points_O).vertices]
+    return convex_outline(X_WO.inverse().multiply(np.asarray(points_W).T).T[:, :2])
 
 
 def footprint_at(outline_O: np.ndarray, X_WO: RigidTransform) -> np.ndarray:
@@ -87,7 +87,6 @@ def drop_spots(
     ys = np.arange(zone.low[1], zone.high[1] + 1e-9, DROP_GRID_M)
     centres = np.array([(x, y) for x in xs for y in ys])
     centres = centres[np.argsort(np.linalg.norm(centres - corner, axis=1), kind="stable")]
-    others = [_dense(outline) for outline in dropped_W]
     z = X_WO_seen.translation()[2]
     spots, chosen = [], []  # (the spots; their (centre, turn))
     for centre in centres:
@@ -98,7 +97,7 @@ def drop_spots(
             outline = footprint_at(outline_O, X_WO)
             if not zone.contains(outline, DROP_OVERHANG_M).all() or not zone.contains(outline.mean(axis=0)):
                 continue
-            if all(_apart(outline, other, DROP_GAP_M) for other in others) and _clear_of(zone, outline):
+            if all(outlines_apart(outline, other, DROP_GAP_M) for other in dropped_W) and _clear_of(zone, outline):
                 spots.append(X_WO)
                 chosen.append((centre, turn))
                 if len(spots) == count:
@@ -108,42 +107,4 @@ def drop_spots(
 
 def _clear_of(zone: DropZone, outline: np.ndarray) -> bool:
     """Whether an outline stands DROP_GAP_M clear of the zone's keep-out circles."""
-    if not zone.keep_out_W:
-        return True
-    circles = np.asarray(zone.keep_out_W)
-    gaps = np.linalg.norm(_dense(outline)[:, None] - circles[None, :, :2], axis=2) - circles[None, :, 2]
-    return bool(gaps.min() >= DROP_GAP_M) and not _inside_convex(circles[:, :2], outline).any()
-
-
-def _dense(outline: np.ndarray, step: float = 0.005) -> np.ndarray:
-    """The closed outline's edges sampled every `step` (m)."""
-    ends = np.roll(outline, -1, axis=0)
-    pieces = [
-        a + np.linspace(0.0, 1.0, max(2, int(np.ceil(np.linalg.norm(b - a) / step))), endpoint=False)[:, None] * (b - a)
-        for a, b in zip(outline, ends, strict=True)
-    ]
-    return np.concatenate(pieces)
-
-
-def outlines_apart(outline: np.ndarray, other: np.ndarray, gap: float) -> bool:
-    """Whether two convex outlines (M x 2, m) stand `gap` (m) clear of each other, neither inside the other."""
-    return bool(_apart(outline, _dense(other), gap))
-
-
-def _apart(outline: np.ndarray, other_dense: np.ndarray, gap: float) -> bool:
-    """Whether a convex outline stands `gap` clear of another's sampled edge (and neither holds the other)."""
-    mine = _dense(outline)
-    gaps = np.linalg.norm(mine[:, None] - other_dense[None], axis=2)
-    if gaps.min() < max(gap, 1e-9):
-        return False
-    return not (_inside_convex(other_dense[:1], outline).any() or _inside_convex(mine[:1], other_dense).any())
-
-
-def _inside_convex(points: np.ndarray, outline: np.ndarray) -> np.ndarray:
-    """Which points (P x 2) lie inside the convex hull of an outline's points (M x 2)."""
-    hull = outline[ConvexHull(outline).vertices]
-    edges = np.roll(hull, -1, axis=0) - hull
-    cross = edges[None, :, 0] * (points[:, None, 1] - hull[None, :, 1]) - edges[None, :, 1] * (
-        points[:, None, 0] - hull[None, :, 0]
-    )
-    return np.all(cross >= 0, axis=1) | np.all(cross <= 0, axis=1)
+    return all(distance_to(outline, (x, y)) - radius >= DROP_GAP_M for x, y, radius in zone.keep_out_W)

@@ -8,8 +8,9 @@ than `stale_after_s`).
 CommandGuard stands between a controller and the command publisher: it sends nothing
 before the robot's status has arrived, clamps every command to the joint position limits
 and its change to the velocity limits, rejects non-finite commands (holding the last good
-one), and when the status goes stale it trips: it holds the position measured last and
-stays tripped.
+one), and while the status is stale it holds the position measured last; once the status
+returns it goes on from there (velocity-limited), unless the status stayed away longer than
+`lost_after_s`: then it trips, and holds for good.
 """
 
 import logging
@@ -147,7 +148,9 @@ def _image(image_type, images: dict | None, name: str):
 @dataclass
 class GuardReport:
     armed: bool = False  # a status has arrived and commands flow
-    tripped: bool = False  # the status went stale: holding, for good
+    holding: bool = False  # the status is stale: holding the position measured last
+    holds: int = 0  # how often it held (each a stale status that returned, or the last one)
+    tripped: bool = False  # the status stayed stale longer than lost_after_s: holding, for good
     rejected_commands: int = 0  # non-finite commands dropped
     message: str = "waiting for the robot's status"
     command: np.ndarray | None = field(default=None, repr=False)  # what is sent; None before a status
@@ -177,10 +180,14 @@ class CommandGuard(LeafSystem):
         lower, upper: position limits (n). velocity_limits: (n) per second.
         period_s: the guard's update period; each update moves the command by at most
             velocity_limits * period_s.
+        lost_after_s: a status stale for longer (since its last valid message) trips the guard, s.
     """
 
-    def __init__(self, lower, upper, velocity_limits, period_s: float, name: str = "robot"):
+    def __init__(
+        self, lower, upper, velocity_limits, period_s: float, name: str = "robot", lost_after_s: float = math.inf
+    ):
         super().__init__()
+        self.lost_after_s = lost_after_s
         self.lower, self.upper = np.asarray(lower, float), np.asarray(upper, float)
         self.max_step = np.asarray(velocity_limits, float) * period_s
         self.name = name
@@ -202,9 +209,19 @@ class CommandGuard(LeafSystem):
         if health.stale:
             age = context.get_time() - health.received_at
             message = f"{self.name}: no valid status on {health.channel} for {age:.3f} s: holding position"
-            logging.error(message)
-            report = replace(report, tripped=True, message=message, command=measured)
+            if age > self.lost_after_s:
+                logging.error("%s, for good", message)
+                held = report.command if report.holding else measured
+                report = replace(report, tripped=True, message=f"{message}, for good", command=held)
+            elif not report.holding:
+                logging.warning(message)
+                report = replace(report, holding=True, holds=report.holds + 1, message=message, command=measured)
+            else:
+                return EventStatus.DidNothing()
         else:
+            if report.holding:
+                logging.warning("%s: the status on %s is back: commanding again", self.name, health.channel)
+                report = replace(report, holding=False)
             last = report.command if report.armed else measured
             desired = self._desired.Eval(context)
             if not np.all(np.isfinite(desired)):

@@ -1,24 +1,47 @@
-"""The trajectory source stage: plays the current plan to the arm controllers, holds otherwise."""
+"""The trajectory source stage: plays the current plan to the arm controllers, holds otherwise.
 
-from dataclasses import dataclass
+While the robot's status is stale (``status_health``), the source pauses: it holds the point of the trajectory it
+had reached, and plays on from there once the status returns. The trajectory's time then runs behind the context's
+by the pauses (``playback``).
+"""
+
+import math
+from dataclasses import dataclass, replace
 
 import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import BasicVector, EventStatus, LeafSystem
 from pydrake.trajectories import PiecewisePolynomial
 
-from systems.messages import PlanResult
+from systems.messages import PlanResult, Playback
+from systems.robot_io.lcm_safety import LinkHealth
 
 
-@dataclass
+@dataclass(frozen=True)
 class _Playing:
     plan_id: int = -1  # of the trajectory being played
     trajectory: PiecewisePolynomial | None = None
     hold_q: np.ndarray | None = None  # where the robot was first measured (held until a plan arrives)
+    delay_s: float = 0.0  # this trajectory's pauses that have ended, s
+    paused_at_s: float = math.nan  # when the current pause began (context s; NaN: playing)
+    paused_done_s: float = 0.0  # every pause that has ended, every plan's, s
+
+    @property
+    def paused(self) -> bool:
+        return not math.isnan(self.paused_at_s)
+
+    def time_s(self, t: float) -> float:
+        """The trajectory's time played at context time t, s."""
+        return (self.paused_at_s if self.paused else t) - self.delay_s
+
+    def pause_ended(self, t: float) -> "_Playing":
+        """The current pause ended at t."""
+        return replace(self, delay_s=self.delay_s + t - self.paused_at_s, paused_at_s=math.nan,
+                       paused_done_s=self.paused_done_s + t - self.paused_at_s)  # fmt: skip
 
 
 class JointTrajectorySource(LeafSystem):
-    """Plays the latest successful plan at context time; a failed plan is never executed.
+    """Plays the latest successful plan; a failed plan is never executed.
 
     .. pydrake_system::
 
@@ -26,45 +49,64 @@ class JointTrajectorySource(LeafSystem):
         input_ports:
         - plan
         - position_measured
+        - status_health (optional)
         output_ports:
         - position
+        - playback
 
-    ``plan`` (PlanResult): its trajectory is taken up once it succeeds, and played at context time,
+    ``plan`` (PlanResult): its trajectory is taken up once it succeeds, and played at context time less the pauses,
     held at its end afterwards. ``position_measured`` (num_joints, rad): latched once finite (the hardware
-    station's status is NaN until the robot has answered) and held until a plan arrives.
-    ``position`` (num_joints, rad): the command.
+    station's status is NaN until the robot has answered) and held until a plan arrives. ``status_health``
+    (LinkHealth): while stale, the playing pauses (unconnected: never). ``position`` (num_joints, rad): the command.
+    ``playback`` (Playback): the plan played and the time reached.
     """
 
     def __init__(self, num_joints: int = 14, period_s: float = 0.01):
         super().__init__()
         self.DeclareAbstractInputPort("plan", AbstractValue.Make(PlanResult()))
         self.DeclareVectorInputPort("position_measured", num_joints)
+        self.health_port = self.DeclareAbstractInputPort("status_health", AbstractValue.Make(LinkHealth()))
         self._state = self.DeclareAbstractState(AbstractValue.Make(_Playing()))
         self.DeclareVectorOutputPort("position", BasicVector(num_joints), self._calc)
+        self.DeclareAbstractOutputPort("playback", lambda: AbstractValue.Make(Playback()), self._calc_playback)
         self.DeclarePeriodicUnrestrictedUpdateEvent(period_s, 0.0, self._update)
 
     def _update(self, context, state) -> EventStatus:
-        playing = context.get_abstract_state(self._state).get_value()
-        plan = self.GetInputPort("plan").Eval(context)
-        hold_q, trajectory, plan_id = playing.hold_q, playing.trajectory, playing.plan_id
-        if hold_q is None:
+        before = playing = context.get_abstract_state(self._state).get_value()
+        t = context.get_time()
+        if playing.hold_q is None:
             measured = self.GetInputPort("position_measured").Eval(context)
             if np.all(np.isfinite(measured)):
-                hold_q = measured.copy()
-        if plan.success and plan.id != plan_id:
-            trajectory, plan_id = plan.trajectory, plan.id
-        if plan_id == playing.plan_id and hold_q is playing.hold_q:
+                playing = replace(playing, hold_q=measured.copy())
+        plan = self.GetInputPort("plan").Eval(context)
+        stale = self.health_port.HasValue(context) and self.health_port.Eval(context).stale
+        if plan.success and plan.id != playing.plan_id:  # (taken up paused: its own pause starts now)
+            ended = playing.pause_ended(t) if playing.paused else playing
+            playing = replace(ended, plan_id=plan.id, trajectory=plan.trajectory, delay_s=0.0)
+        if stale and not playing.paused:
+            playing = replace(playing, paused_at_s=t)
+        elif not stale and playing.paused:
+            playing = playing.pause_ended(t)
+        if playing is before:
             return EventStatus.DidNothing()
-        state.get_mutable_abstract_state(self._state).set_value(_Playing(plan_id, trajectory, hold_q))
+        state.get_mutable_abstract_state(self._state).set_value(playing)
         return EventStatus.Succeeded()
 
     def _calc(self, context, output):
         playing = context.get_abstract_state(self._state).get_value()
         if playing.trajectory is not None:
             trajectory = playing.trajectory
-            t = min(max(context.get_time(), trajectory.start_time()), trajectory.end_time())
+            t = min(max(playing.time_s(context.get_time()), trajectory.start_time()), trajectory.end_time())
             output.SetFromVector(trajectory.value(t).ravel())
         elif playing.hold_q is not None:
             output.SetFromVector(playing.hold_q)
         else:  # before the first update: where the robot is (a hardware station's guard sends nothing yet)
             output.SetFromVector(self.GetInputPort("position_measured").Eval(context))
+
+    def _calc_playback(self, context, output):
+        playing = context.get_abstract_state(self._state).get_value()
+        t = context.get_time()
+        paused_for_s = t - playing.paused_at_s if playing.paused else 0.0
+        output.set_value(
+            Playback(playing.plan_id, playing.time_s(t), paused_for_s, playing.paused_done_s + paused_for_s)
+        )
