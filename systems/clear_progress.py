@@ -6,9 +6,13 @@ import dataclasses
 
 import numpy as np
 from pydrake.math import RigidTransform
+from scipy.spatial import QhullError
 
 from systems.messages import ClearedObject, LeftOut, PerceptionResult, PickStatus
 from systems.planning.drop_zone import DropZone, drop_spots, footprint_at, footprint_O
+from systems.planning.outlines import convex_outline
+
+SEEN_POINT_HALF_SIZE_M = 0.02  # m: an object seen as points on a line is given this outline about their centre
 
 
 def seen_object(result: PerceptionResult, later_pass: bool = False) -> ClearedObject | None:
@@ -18,7 +22,12 @@ def seen_object(result: PerceptionResult, later_pass: bool = False) -> ClearedOb
     if points is None or not len(points):
         return None
     centre = np.mean(points, axis=0)
-    return ClearedObject(result.category, (float(centre[0]), float(centre[1])), attempts=1, later_pass=later_pass)
+    try:
+        outline = convex_outline(points[:, :2])
+    except QhullError:  # (its points on a line, or too few)
+        outline = centre[:2] + SEEN_POINT_HALF_SIZE_M * np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]])
+    xy = (float(centre[0]), float(centre[1]))
+    return ClearedObject(result.category, xy, attempts=1, later_pass=later_pass, seen_outline_W=outline)
 
 
 def chosen_spots(zone: DropZone, status: PickStatus, result: PerceptionResult) -> tuple[list, ClearedObject]:
@@ -53,8 +62,7 @@ def given_up(status: PickStatus, in_zone: bool) -> ClearedObject:
 
 def left_out(zone: DropZone | None, status: PickStatus) -> LeftOut:
     """What perception leaves out looking for the next object: the zone, and where the objects given up stood."""
-    given_up = tuple(done.seen_xy_W for done in status.objects[status.pass_from :] if not done.cleared)
-    return LeftOut(zone, given_up)
+    return LeftOut(zone, tuple(done.seen_outline_W for done in status.objects[status.pass_from :] if not done.cleared))
 
 
 def next_pass(status: PickStatus) -> int | None:

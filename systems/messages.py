@@ -388,7 +388,7 @@ class LeftOut:
     cleared) and where the objects it gave up on stood."""
 
     zone: DropZone | None = None  # None: no zone
-    given_up_xy_W: tuple[tuple[float, float], ...] = ()  # m
+    given_up_W: tuple[np.ndarray, ...] = ()  # the outlines of the objects given up, as seen (M x 2, x, y in W, m)
 
 
 @dataclass(frozen=True)
@@ -401,6 +401,7 @@ class ClearedObject:
     cleared: bool = False
     target_xy_W: tuple[float, float] | None = None  # its spot in the drop zone, m (None: none was chosen)
     footprint_W: np.ndarray | None = None  # its footprint at that spot (M x 2 in W, m)
+    seen_outline_W: np.ndarray | None = None  # the convex outline of its seen points where it stood (M x 2 in W, m)
     failed_stage: str = ""
     message: str = ""
     # Taken on in a later pass over the table (it may have been given up in an earlier one: a record of its own).

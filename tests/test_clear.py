@@ -29,7 +29,7 @@ from systems.planning.drop_zone import (
     footprint_at,
     footprint_O,
 )
-from systems.planning.outlines import gap_between, outlines_apart
+from systems.planning.outlines import gap_between, inside, outlines_apart
 
 ZONE = DropZone((0.6, -0.38), (0.4, 0.4))
 Q0 = np.linspace(-0.5, 0.5, 14)
@@ -92,11 +92,17 @@ def test_the_segmenter_takes_the_familiar_object_nearest_the_zone_and_leaves_out
     segmentation, centre = chosen(LeftOut())
     assert segmentation.found and "the nearest of 2 left" in segmentation.message, segmentation.message
     assert nearest(centre) == 0
-    segmentation, centre = chosen(LeftOut(given_up_xy_W=(tuple(centre),)))
+    first = _around(centre)
+    segmentation, centre = chosen(LeftOut(given_up_W=(first,)))
     assert segmentation.found and nearest(centre) == 1, segmentation.message
     assert "1 given up" in segmentation.message
-    segmentation, _ = chosen(LeftOut(given_up_xy_W=tuple(tuple(xy) for xy in (centre, *by_distance))))
+    segmentation, _ = chosen(LeftOut(given_up_W=(first, _around(centre))))
     assert not segmentation.found and segmentation.message.startswith("nothing to clear"), segmentation.message
+
+
+def _around(xy, half_size: float = 0.01) -> np.ndarray:
+    """A small square outline about a point (x, y, m)."""
+    return np.asarray(xy) + half_size * np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]])
 
 
 def _clear_supervisor(result: PerceptionResult, max_objects: int = 4):
@@ -133,7 +139,9 @@ def test_an_object_that_fails_is_given_up_left_out_and_the_next_one_looked_for()
     assert not given_up.cleared and given_up.category == "drill" and given_up.failed_stage == "registration"
     assert given_up.seen_xy_W == pytest.approx((0.71, 0.11))
     left_out = dut.GetOutputPort("left_out").Eval(context)
-    assert left_out.given_up_xy_W == (given_up.seen_xy_W,) and left_out.zone == ZONE
+    (outline,) = left_out.given_up_W
+    assert left_out.zone == ZONE and np.array_equal(outline, given_up.seen_outline_W)
+    assert inside(np.array([given_up.seen_xy_W]), outline).all()
     dut.GetInputPort("frame_id").FixValue(context, [2.0])  # the same again: the second object, the last one allowed
     simulator.AdvanceTo(0.3)
     status = dut.GetOutputPort("status").Eval(context)
@@ -236,17 +244,18 @@ def test_a_can_alone_is_cleared_into_the_zone_and_the_clear_ends_when_the_table_
 
 
 def test_objects_given_up_before_another_was_cleared_get_a_later_pass_over_the_table():
-    given_up = ClearedObject("drill", (0.7, 0.1), attempts=1, failed_stage="planning", message="no plan")
+    seen = _around((0.7, 0.1), 0.03)
+    given_up = ClearedObject("drill", (0.7, 0.1), 1, failed_stage="planning", message="no plan", seen_outline_W=seen)
     cleared = ClearedObject("watering_can", (0.75, -0.1), attempts=1, cleared=True)
     assert next_pass(PickStatus(objects=(cleared, given_up))) is None  # (nothing changed since it was given up)
     status = PickStatus(objects=(given_up, cleared))
-    assert left_out(ZONE, status).given_up_xy_W == ((0.7, 0.1),)
+    assert len(left_out(ZONE, status).given_up_W) == 1
     status.pass_from = next_pass(status)
-    assert status.pass_from == 2 and left_out(ZONE, status).given_up_xy_W == ()  # perception sees it again
+    assert status.pass_from == 2 and left_out(ZONE, status).given_up_W == ()  # perception sees it again
     again = dataclasses.replace(given_up, attempts=2, later_pass=True)
     status.objects += (again,)
     assert next_pass(status) is None  # once: nothing was cleared since
-    assert left_out(ZONE, status).given_up_xy_W == ((0.7, 0.1),)
+    assert len(left_out(ZONE, status).given_up_W) == 1
     assert summary(status, "done") == (
         "cleared 1 of 3 objects taken on; given up: drill at (0.70, 0.10): no plan; drill at (0.70, 0.10) (a later "
         "pass): no plan; done"

@@ -29,6 +29,7 @@ from scipy.spatial import cKDTree
 
 from systems.messages import LeftOut, Segmentation
 from systems.perception.pose_estimator import depth_to_points
+from systems.planning.outlines import distance_to
 
 INSTANCE_CUBE_M = 0.008  # m: points in touching cubes of this side are one object
 # A cluster is an object of its own only with at least this share of the largest one in its image region (and
@@ -212,9 +213,9 @@ def named_object(instances: list[Instance], classes, category: str, shape) -> Se
     return Segmentation(True, category, chosen.mask, chosen.pixel_count, message, network_category=network)
 
 
-# m: an object with a seen point this near (x, y) where the clear task gave one up is that object (given up: the centre
-# of its seen points, completed; an instance's points before completion may lie 10 cm off that centre)
-GIVEN_UP_RADIUS_M = 0.05
+# m: an object whose points' centre (x, y) lies this near the outline of one the clear task gave up (the convex outline
+# of its points, completed) is that object (the centre of a drill's points may lie between its handles)
+GIVEN_UP_MARGIN_M = 0.03
 # m: an object whose lowest seen points are higher above the table top does not stand on it (the arms backed off above
 # it do not; an object whose base another hides may show its lowest points several centimetres up)
 CLEAR_FLOAT_M = 0.10
@@ -231,8 +232,9 @@ def next_object(
 ) -> Segmentation:
     """The clear task's next object: of the objects the network labelled one of its categories (each at least
     CANDIDATE_SHARE of the largest of its category left), not standing in the drop zone (its points' centre) nor where
-    an object was given up (left_out: a point within GIVEN_UP_RADIUS_M), the one nearest first_near_W (its points'
-    centre, x and y, m: the drop zone's centre; the objects nearest it stand in the way of the others' carries).
+    an object was given up (left_out: its points' centre within GIVEN_UP_MARGIN_M of one's outline), the one nearest
+    first_near_W (its points' centre, x and y, m: the drop zone's centre; the objects nearest it stand in the way of
+    the others' carries).
     Only objects standing on the table (their lowest points at most CLEAR_FLOAT_M above table_top_z, m) are
     candidates: the robot's arms, backed off above the table, are no object to clear whatever the network makes of
     them. points_W: each instance's points in W (N x 3, m; none where it has no depth)."""
@@ -243,7 +245,7 @@ def next_object(
         centre = points.mean(axis=0)
         if left_out.zone is not None and left_out.zone.contains(centre[:2]):
             in_zone += 1
-        elif left_out.given_up_xy_W and _near(points[:, :2], left_out.given_up_xy_W, GIVEN_UP_RADIUS_M):
+        elif any(distance_to(outline, centre[:2]) <= GIVEN_UP_MARGIN_M for outline in left_out.given_up_W):
             given_up += 1
         else:
             eligible.append((float(np.linalg.norm(centre[:2] - np.asarray(first_near_W))), instance))
@@ -264,8 +266,3 @@ def next_object(
     )
     message += f" left ({aside})"
     return Segmentation(True, category, chosen.mask, chosen.pixel_count, message, network_category=category)
-
-
-def _near(points_xy: np.ndarray, places_xy, radius: float) -> bool:
-    """Whether any of the points (N x 2, m) lies within `radius` of any of the places ((x, y) each, m)."""
-    return bool(cKDTree(points_xy).query(np.asarray(places_xy), distance_upper_bound=radius)[0].min() < radius)
