@@ -15,6 +15,7 @@ from diagrams.station import object_pose_on_table
 from systems.planning.closure import (
     ClosureConstraint,
     OrientationConstraint,
+    deviations,
     orientation_deviations,
     rotation_angle,
     rpy_of,
@@ -327,3 +328,23 @@ def test_a_carry_over_a_box_starts_from_a_detour_clear_of_it(scenario):
     assert stomp.clearance(states, scene).min() > 0.0
     check = stomp.checks.closure_within_limits(result.trajectory, closure, steps=20)
     assert check.within, check
+
+
+def test_keyframes_off_the_closure_are_brought_back_onto_it_for_playing(lift_problem, scenario):
+    """STOMP's threshold cost leaves keyframes anywhere within t_max of the closure; onto_closure projects the interior
+    ones (the ends stay) and, with midpoints, halves every segment first."""
+    _, q_grasp, _, _ = lift_problem
+    motions = make_pick_motions(scenario)
+    held = motions.held_move(q_grasp, RigidTransform([0.0, 0.0, 0.15]), min_fraction=0.8)
+    rng = np.random.default_rng(3)
+    keyframes = held.keyframes.copy()
+    keyframes[1:-1] += 0.01 * rng.standard_normal(keyframes[1:-1].shape)  # about 1 cm off the closure
+    before = deviations(motions.world.end_effectors, keyframes, held.X_E1E2)[0]
+    assert before[1:-1].max() > 0.005
+    projected = motions.onto_closure(keyframes, held)
+    np.testing.assert_array_equal(projected[[0, -1]], keyframes[[0, -1]])
+    assert deviations(motions.world.end_effectors, projected, held.X_E1E2)[0].max() < 1e-4
+    halved = motions.onto_closure(keyframes, held, midpoints=True)
+    assert len(halved) == 2 * len(keyframes) - 1
+    assert deviations(motions.world.end_effectors, halved, held.X_E1E2)[0].max() < 1e-4
+    assert np.all(halved >= motions.world.lower - 1e-9) and np.all(halved <= motions.world.upper + 1e-9)

@@ -218,6 +218,19 @@ class HeldMotions:
             durations = np.maximum(durations, np.maximum(moved / HELD_SPEED_M_S, turned / HELD_TURN_SPEED_RAD_S))
         return durations
 
+    def onto_closure(self, keyframes: np.ndarray, held: HeldMove, midpoints: bool = False) -> np.ndarray:
+        """A held move's keyframes (K x n) brought onto the closure manifold for playing: every interior one projected
+        (PROJECTION_STEPS steps; the ends stay), and with `midpoints` one more midway in each segment first. STOMP's
+        threshold cost leaves its keyframes anywhere within t_max, o_max of the manifold, and the cubic played between
+        two may then leave it (long carries did by 1-4 mm)."""
+        keyframes = np.asarray(keyframes, float)
+        if midpoints:
+            middle = 0.5 * (keyframes[:-1] + keyframes[1:])
+            keyframes = np.insert(keyframes, np.arange(1, len(keyframes)), middle, axis=0)
+        projected = keyframes.copy()
+        projected[1:-1] = self.stomp.project(keyframes[1:-1], held.X_E1E2, None, steps=PROJECTION_STEPS)
+        return projected
+
     def closure_deviations(self, trajectory: PiecewisePolynomial, held: HeldMove) -> tuple[float, float]:
         """Largest (translation m, orientation rad) deviation of the hands' relative pose from the held
         one along the played trajectory, checked every DENSE_CHECK_S."""

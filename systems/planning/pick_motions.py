@@ -81,7 +81,7 @@ class PickMotions:
         self.held_move, self.held_path = self.held.held_move, self.held.held_path
         self.payload, self.carried = self.held.payload, self.held.carried
         self.held_segment_durations = self.held.held_segment_durations
-        self.closure_deviations = self.held.closure_deviations
+        self.closure_deviations, self.onto_closure = self.held.closure_deviations, self.held.onto_closure
 
 
 def time_parameterise(

@@ -33,6 +33,8 @@ from systems.planning.world import SIDES
 # The reconstruction, thinned to about this many points, is the reach's obstacle: the margin about it
 # (world.PERCEIVED_SHAPE_MARGIN) was set for a cloud this dense, and planning cost grows with it.
 OBSTACLE_POINTS = 2000
+# A held move's played trajectory that leaves the closure thresholds is refined at most this often (onto_closure).
+CLOSURE_REFINEMENTS = 3
 RETREAT_M = 0.1  # m: how far the hands back off an object they let go of (or as far along it as they reach)
 # Where a pre-grasp is out of reach, pre-grasps this share of the way out from the grasp are tried in turn: the
 # approach is then shorter (its straight line still ends at the grasp).
@@ -122,7 +124,6 @@ class StompPlanner(LeafSystem):
                     carried = request.carried_motion_W.multiply(cloud.T).T if len(cloud) else None
                 held = motions.held_move(request.q_start, request.X_motion_W, request.min_fraction, carried, scene)
                 keyframes = held.keyframes
-                min_segment = motions.held_segment_durations(keyframes)
                 start, end = (motions.world.grasp_frame_poses(q)["left"] for q in (keyframes[0], keyframes[-1]))
                 result.achieved_motion_W = end @ start.inverse()
             elif request.targets == Targets.HOME:
@@ -144,14 +145,10 @@ class StompPlanner(LeafSystem):
                     partial = 1 if request.targets == Targets.RETREAT else None
                     keyframes = motions.straight(request.q_start, targets, min_steps=partial)
                     min_segment = SPARSE_SEGMENT_S
-            trajectory = time_parameterise(keyframes, motions.world.velocity_limits, start_s, min_segment)
-            if held is not None:
-                t_dev, o_dev = motions.closure_deviations(trajectory, held)
-                result.closure_translation_dev_m, result.closure_orientation_dev_rad = t_dev, o_dev
-                if t_dev >= motions.closure.t_max or o_dev >= motions.closure.o_max:
-                    raise PlanningError(
-                        f"the played trajectory leaves the closure constraint ({t_dev * 1000:.1f} mm, {o_dev:.3f} rad)"
-                    )
+            if held is None:
+                trajectory = time_parameterise(keyframes, motions.world.velocity_limits, start_s, min_segment)
+            else:
+                trajectory = self._held_trajectory(keyframes, held, start_s, result)
             result.success, result.trajectory, result.message = True, trajectory, f"{len(keyframes)} keyframes"
             result.grasp_paths_W = self._grasp_paths(trajectory)
         except PlanningError as error:
@@ -160,6 +157,33 @@ class StompPlanner(LeafSystem):
         result.finished_wall_s = time.perf_counter()
         result.planning_s = result.finished_wall_s - started
         return result
+
+    def _held_trajectory(self, keyframes: np.ndarray, held, start_s: float, result: PlanResult) -> PiecewisePolynomial:
+        """A held move's keyframes played from start_s, checked every DENSE_CHECK_S against the closure thresholds
+        (the deviations go to `result`). Where it leaves them, the keyframes are brought onto the closure manifold
+        (held_motions.onto_closure), then also halved, up to CLOSURE_REFINEMENTS times.
+
+        Raises:
+            PlanningError: the played trajectory still leaves the closure constraint.
+        """
+        motions = self.motions
+        for refinement in range(CLOSURE_REFINEMENTS + 1):
+            if refinement:
+                keyframes = motions.onto_closure(keyframes, held, midpoints=refinement > 1)
+            durations = motions.held_segment_durations(keyframes)
+            trajectory = time_parameterise(keyframes, motions.world.velocity_limits, start_s, durations)
+            t_dev, o_dev = motions.closure_deviations(trajectory, held)
+            if t_dev < motions.closure.t_max and o_dev < motions.closure.o_max:
+                break
+        result.closure_translation_dev_m, result.closure_orientation_dev_rad = t_dev, o_dev
+        if t_dev >= motions.closure.t_max or o_dev >= motions.closure.o_max:
+            raise PlanningError(
+                f"the played trajectory leaves the closure constraint ({t_dev * 1000:.1f} mm, {o_dev:.3f} rad)"
+            )
+        if refinement:
+            logging.info("held move: brought onto the closure for playing (%d refinements, %d keyframes)", refinement,
+                         len(keyframes))  # fmt: skip
+        return trajectory
 
     def _reach(self, request: PlanRequest, context, targets, cloud, points, scene) -> tuple[np.ndarray, dict | None]:
         """The reach's keyframes to `targets`, and for pre-grasps the grasps they lead to (X_GG' per side). cloud:
