@@ -177,6 +177,7 @@ def MakePickDiagram(
     builder.Connect(measured, source.GetInputPort("position_measured"))
     builder.Connect(status_health, source.GetInputPort("status_health"))
     builder.Connect(source.GetOutputPort("playback"), supervisor.GetInputPort("playback"))
+    builder.Connect(supervisor.GetOutputPort("stop"), source.GetInputPort("stop"))
     builder.Connect(measured, supervisor.GetInputPort("position_measured"))
     builder.Connect(source.GetOutputPort("position"), station.GetInputPort("centauro.position"))
     builder.Connect(supervisor.GetOutputPort("hand_command"), hands.GetInputPort("command"))

@@ -75,17 +75,21 @@ class ClearJudge(LiftJudge):
             apart = bool(all(outlines_apart(footprint, other, 0.0) for j, other in enumerate(footprints) if j != k))
             held = bool(hands_touching(self.plant, self.plant_context, familiar.body))
             start = familiar.start_W.translation() if familiar.start_W is not None else np.full(3, np.nan)
+            started = footprint if familiar.start_W is None else footprint_at(familiar.outline_O, familiar.start_W)
             records.append({
                 "name": familiar.name, "category": familiar.category,
                 "start_xy_W": [float(v) for v in start[:2]], "end_xy_W": [float(v) for v in X_WO.translation()[:2]],
                 "in_zone": in_zone, "tilt_rad": tilt, "apart": apart, "let_go": not held,
                 "cleared": bool(in_zone and tilt <= CLEAR_TILT_RAD and apart and not held),
+                "start_footprint_W": np.round(started, 4).tolist(),
+                "end_footprint_W": np.round(footprint, 4).tolist(),
             })  # fmt: skip
         moved = max((outcome.others_moved_m[i] for i in self.distractors), default=0.0)
         cleared = sum(r["cleared"] for r in records)
         outcome.clear = {
             "objects": records, "familiar_objects": len(records), "objects_cleared": cleared,
             "objects_cleared_share": cleared / len(records) if records else 1.0, "others_moved_m_max": float(moved),
+            "zone": {"centre_W": list(map(float, self.zone.centre_W)), "size": list(map(float, self.zone.size))},
             "others_first_moved": [{"clutter_index": i, "t_s": t, "mode": mode}
                                    for i, (t, mode) in sorted(self.first_moved.items())],
         }  # fmt: skip

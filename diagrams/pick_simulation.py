@@ -79,9 +79,10 @@ class PickOutcome:
     place: dict = field(default_factory=dict)
     # Using the held object (the aim task, diagrams/aim_judge.py): {"task": "aim", the measured figures}.
     use: dict = field(default_factory=dict)
-    # The clear task's judgement (diagrams/clear_judge.py): every familiar object's record ("objects"), how many were
-    # cleared ("objects_cleared", "objects_cleared_share") and "others_moved_m_max" (the distractors'); and the
-    # supervisor's own record of each object it took on ("taken_on").
+    # The clear task's judgement (diagrams/clear_judge.py): every familiar object's record ("objects": where it started
+    # and ended, its true footprints there, and why it is or is not cleared), how many were cleared ("objects_cleared",
+    # "objects_cleared_share"), "others_moved_m_max" (the distractors') and the drop "zone"; and the supervisor's own
+    # record of each object it took on ("taken_on").
     clear: dict = field(default_factory=dict)
     # What the pick waited on, s: the arms held, their moves paused, while the robot's status was stale
     # ("status_held_s"); perception's frames came this long after asking, all together ("frames_waited_s": a few

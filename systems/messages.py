@@ -429,6 +429,7 @@ class PickStatus:
     asked_frame_s: float = 0.0  # when it was asked for, s
     frames_waited_s: float = 0.0  # how long perception's frames took to come after asking, all together, s
     pass_from: int = 0  # a clear's pass over the table began with this record of `objects` (see clear_progress.py)
+    stop: tuple[int, float] = (-1, 0.0)  # a move stopped mid-way: its plan's id, and the trajectory's time there, s
     perceived: bool = False  # perception's result has been read
     request: PlanRequest = field(default_factory=PlanRequest)
     applied_plan_id: int = -1  # the last plan whose achieved motion the belief has taken

@@ -1,4 +1,5 @@
-"""What the pick supervisor checks, and what it waits on and how long before it names the cause and stops.
+"""What the pick supervisor checks, what it waits on and how long before it names the cause and stops, and how a
+failure is recorded (fail: the stage and the reason).
 
 - The hands after closing: each must hold something, its measured opening neither closed to nothing
   (below MIN_GRASPED_WIDTH) nor still open (within NOT_CLOSED_MARGIN of OPEN_WIDTH).
@@ -8,9 +9,10 @@
   status is stale). A pause longer than STATUS_LOST_S ends the pick with the arms holding.
 """
 
+import logging
 import math
 
-from systems.messages import OPEN_WIDTH, SIDES, Playback
+from systems.messages import OPEN_WIDTH, SIDES, Mode, PickStatus, Playback, Stage
 
 MIN_GRASPED_WIDTH = 0.004  # m
 NOT_CLOSED_MARGIN = 0.01  # m
@@ -47,3 +49,15 @@ def not_holding(widths: tuple[float, ...], when: str = "") -> str:
         if width > OPEN_WIDTH - NOT_CLOSED_MARGIN:
             return f"{when}the {side} hand did not close (opening {width * 1000:.1f} mm)"
     return ""
+
+
+def fail(status: PickStatus, stage: Stage, message: str):
+    """Ends the pick in `status`: failed at `stage` for `message`, the attempt's failure recorded."""
+    logging.warning("pick stopped at %s: %s", stage, message)
+    status.mode, status.failed_stage, status.message = Mode.FAILED, stage, stage_message(stage, message)
+    status.attempt_failures = (*status.attempt_failures, (str(stage), status.message))
+
+
+def stage_message(stage: Stage, message: str) -> str:
+    """A failure's message, led by its stage."""
+    return message if message.startswith(stage) else f"{stage}: {message}"

@@ -65,7 +65,7 @@ from systems.messages import (
     Targets,
     TaskName,
 )
-from systems.pick_checks import camera_silence, not_holding, played_s, status_silence
+from systems.pick_checks import camera_silence, fail, not_holding, played_s, stage_message, status_silence
 from systems.pick_looks import MAX_CORRECTIONS, object_motion, placed_off_target, read_look
 from systems.pick_tasks import Phase, PickTasks, Task, Then
 from systems.planning.aim_goals import aim_motion, aim_target
@@ -191,6 +191,7 @@ class PickSupervisor(LeafSystem):
         self.DeclareVectorOutputPort(
             "attempt", BasicVector(1), lambda c, o: o.SetFromVector([self._status(c).attempt]), status
         )
+        self.DeclareVectorOutputPort("stop", BasicVector(2), lambda c, o: o.SetFromVector(self._status(c).stop), status)
         self.DeclareAbstractOutputPort(
             "status", lambda: AbstractValue.Make(PickStatus()), lambda c, o: o.set_value(self._status(c)), status
         )
@@ -224,7 +225,7 @@ class PickSupervisor(LeafSystem):
                 self._perceive(context, status, t)
             elif problem := camera_silence(t, status.asked_frame_s, "the table"):
                 changed = True
-                self._fail(status, Stage.CAMERA, problem)
+                fail(status, Stage.CAMERA, problem)
         else:
             changed, look = self._follow_phase(context, status, look, t)
         if self.clears and status.mode == Mode.FAILED and status.current is not None:
@@ -274,7 +275,7 @@ class PickSupervisor(LeafSystem):
             return
         if not result.found:
             status.current = clearing.seen_object(result, status.pass_from > 0) if self.clears else None  # (given up)
-            self._fail(status, result.failed_stage, result.message)
+            fail(status, result.failed_stage, result.message)
             return
         status.belief = ObjectBelief.seen(result.X_WO_seen)
         if self.clears:
@@ -291,7 +292,7 @@ class PickSupervisor(LeafSystem):
             try:
                 status.aim = aim_target(board, result.grasps, result.X_WO_seen)
             except ValueError as error:
-                self._fail(status, Stage.REGISTRATION if board.found else Stage.BOARD, str(error))
+                fail(status, Stage.REGISTRATION if board.found else Stage.BOARD, str(error))
                 return
         self._start_task(context, status, self.tasks.main, 0, t)
 
@@ -343,7 +344,7 @@ class PickSupervisor(LeafSystem):
             status.task, status.attempt, status.corrections, status.place_corrections = None, status.attempt + 1, 0, 0
             self._look_at_the_table(context, status, t)
         elif task.then == Then.FAIL:  # (set back down first) the failure that started the task
-            self._fail(status, *status.pending_failure)
+            fail(status, *status.pending_failure)
         elif task.then == Then.REACH_AGAIN:  # backed off: reach for the object where the look found it
             main = self.tasks.main
             return self._start_task(context, status, main, self.tasks[main].index(Mode.REACH), t, look)
@@ -411,7 +412,7 @@ class PickSupervisor(LeafSystem):
                     carry = self.tasks[status.task].index(Mode.CARRY)
                     return True, self._start_phase(context, status, carry, t, look)
                 if phase.if_unreachable is None:
-                    self._fail(status, Stage.PLANNING, plan.message)
+                    fail(status, Stage.PLANNING, plan.message)
                     return True, look
                 logging.warning("%s; setting the object back down", plan.message)
                 status.pending_failure = (Stage.PLANNING, plan.message)
@@ -425,10 +426,14 @@ class PickSupervisor(LeafSystem):
                 if phase.targets == Targets.PREGRASP:
                     status.grasp_offsets_G = plan.grasp_offsets_G
             playback = self.playback_port.Eval(context) if self.playback_port.HasValue(context) else None
-            if played_s(playback, plan.id, t) + 1e-9 < plan.end_s:
+            if (played := played_s(playback, plan.id, t)) + 1e-9 < plan.end_s:
                 if problem := status_silence(playback, phase.name):
-                    self._fail(status, Stage.STATUS, problem)
+                    fail(status, Stage.STATUS, problem)
                     return True, look
+                if phase.check_held and np.isfinite(played) and (problem := self._dropped(context, phase)):
+                    played = max(played, plan.trajectory.start_time())  # (the arms stop where they are)
+                    status.stop, status.plan_end_q = (plan.id, played), plan.trajectory.value(played).ravel()
+                    return True, self._attempt_failed(context, status, Stage.GRASP, problem, look, t)
                 return applied, look
             status.plan_end_q = plan.trajectory.value(plan.end_s).ravel()
             if phase.check_held and (problem := self._not_holding(context, status, f"after the {phase.name}: ")):
@@ -441,7 +446,7 @@ class PickSupervisor(LeafSystem):
         elif self._looks_at(phase):
             if self.look_frame_id_port.Eval(context)[0] < look.id:
                 if problem := camera_silence(t, status.phase_start_s, f"the {phase.name}"):
-                    self._fail(status, Stage.CAMERA, problem)
+                    fail(status, Stage.CAMERA, problem)
                     return True, look
                 return False, look
             if phase.kind == PhaseKind.CONFIRM_PLACED:
@@ -470,6 +475,11 @@ class PickSupervisor(LeafSystem):
         logging.info("hands closed to %s mm", ", ".join(f"{1000 * width:.1f}" for width in status.grasp_widths))
         return not_holding(status.grasp_widths, when)
 
+    def _dropped(self, context, phase: Phase) -> str:
+        """During a held move: why the hands no longer both hold the object (one opened or closed on nothing), or ""."""
+        widths = tuple(self.hand_state_ports[side].Eval(context)[0] for side in SIDES)
+        return not_holding(widths, f"during the {phase.name}: ")
+
     def _attempt_failed(
         self, context, status: PickStatus, stage: Stage, message: str, look: LookRequest, t: float
     ) -> LookRequest:
@@ -477,20 +487,10 @@ class PickSupervisor(LeafSystem):
         the pick fails."""
         recovery = self.tasks[status.task].if_check_fails
         if stage not in RETRIED_STAGES or status.attempt >= self.max_attempts or recovery is None:
-            self._fail(status, stage, message)
+            fail(status, stage, message)
             return look
-        status.attempt_failures = (*status.attempt_failures, (str(stage), _stage_message(stage, message)))
+        status.attempt_failures = (*status.attempt_failures, (str(stage), stage_message(stage, message)))
         logging.warning(
             "attempt %d of %d failed at %s: %s; recovering", status.attempt, self.max_attempts, stage, message
         )
         return self._start_task(context, status, recovery, 0, t, look)
-
-    def _fail(self, status: PickStatus, stage: Stage, message: str):
-        logging.warning("pick stopped at %s: %s", stage, message)
-        status.mode, status.failed_stage, status.message = Mode.FAILED, stage, _stage_message(stage, message)
-        status.attempt_failures = (*status.attempt_failures, (str(stage), status.message))
-
-
-def _stage_message(stage: Stage, message: str) -> str:
-    """A failure's message, led by its stage."""
-    return message if message.startswith(stage) else f"{stage}: {message}"

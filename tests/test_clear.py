@@ -241,6 +241,9 @@ def test_a_can_alone_is_cleared_into_the_zone_and_the_clear_ends_when_the_table_
     assert judged["in_zone"] and judged["tilt_rad"] < np.radians(5.0) and judged["let_go"]
     assert np.linalg.norm(np.subtract(judged["end_xy_W"], taken["target_xy_W"])) < 0.05
     assert outcome.clear["summary"].startswith("cleared 1 of 1 objects taken on; nothing to clear")
+    end = np.array(judged["end_footprint_W"])  # (the true footprint where it ended: in the zone, about its centre)
+    assert drop_zone(scenario).contains(end.mean(axis=0)) and inside(np.array([judged["end_xy_W"]]), end).all()
+    assert outcome.clear["zone"]["size"] == list(scenario.clear.zone_size)
 
 
 def test_objects_given_up_before_another_was_cleared_get_a_later_pass_over_the_table():

@@ -60,6 +60,25 @@ def test_the_trajectory_source_pauses_while_the_status_is_stale_and_plays_on_fro
     np.testing.assert_allclose(source.GetOutputPort("position").Eval(context), [1.0, 1.0])
 
 
+def test_a_stopped_plan_is_held_where_it_was_stopped_until_the_next_plan():
+    source = JointTrajectorySource(num_joints=2)
+    simulator = Simulator(source)
+    context = simulator.get_mutable_context()
+    source.GetInputPort("plan").FixValue(context, _plan(0.0, 2.0))
+    source.GetInputPort("position_measured").FixValue(context, np.zeros(2))
+    source.GetInputPort("status_health").FixValue(context, FRESH)
+    simulator.AdvanceTo(0.6)
+    source.GetInputPort("stop").FixValue(context, [1.0, 0.5])  # (the supervisor saw the drop at 0.5 s)
+    simulator.AdvanceTo(1.5)
+    np.testing.assert_allclose(source.GetOutputPort("position").Eval(context), [0.25, 0.25], atol=1e-9)
+    playback = source.GetOutputPort("playback").Eval(context)
+    assert playback.time_s == pytest.approx(0.5) and playback.paused_for_s == 0.0  # (a stop is no status pause)
+    source.GetInputPort("plan").FixValue(context, _plan(1.6, 2.6, plan_id=2))  # the recovery, from there
+    simulator.AdvanceTo(2.1)
+    np.testing.assert_allclose(source.GetOutputPort("position").Eval(context), [0.5, 0.5], atol=0.01)
+    assert source.GetOutputPort("playback").Eval(context).paused_total_s == 0.0
+
+
 def test_without_a_status_link_the_source_plays_at_context_time():
     source = JointTrajectorySource(num_joints=2)
     simulator = Simulator(source)
@@ -150,6 +169,43 @@ def _supervisor(result: PerceptionResult | None = None):
     dut.GetInputPort("plan").FixValue(context, PlanResult())
     dut.GetInputPort("perception").FixValue(context, result or PerceptionResult(False, Stage.SEGMENTATION, "nothing"))
     return dut, context, Simulator(dut, context)
+
+
+def test_a_hand_that_opens_during_a_held_move_stops_the_move_where_the_arms_are():
+    dut = PickSupervisor(lift_pick(check=False), perceive_at_s=0.1, max_attempts=2)
+    context = dut.CreateDefaultContext()
+    for port, value in (("position_measured", np.zeros(14)), ("frame_id", [1.0]), ("look_frame_id", [0.0])):
+        dut.GetInputPort(port).FixValue(context, value)
+    hands = [dut.GetInputPort(f"{side}_hand_state") for side in ("left", "right")]
+    for hand in hands:
+        hand.FixValue(context, [0.03, 0.0])  # holding
+    dut.GetInputPort("plan").FixValue(context, PlanResult())
+    dut.GetInputPort("perception").FixValue(context, PerceptionResult(True, X_WO_seen=RigidTransform([0.7, 0, 0.8])))
+    simulator = Simulator(dut, context)
+
+    def answer(duration: float = 0.1):
+        request = dut.GetOutputPort("plan_request").Eval(context)
+        t = context.get_time()
+        q = np.column_stack([request.q_start, request.q_start + 1.0])
+        trajectory = PiecewisePolynomial.FirstOrderHold([t, t + duration], q)
+        dut.GetInputPort("plan").FixValue(context, PlanResult(request.id, request.phase, True, trajectory))
+        return trajectory
+
+    simulator.AdvanceTo(0.15)
+    answer()  # reach
+    simulator.AdvanceTo(0.3)
+    answer()  # approach
+    simulator.AdvanceTo(2.0)  # closed, checked
+    assert dut.GetOutputPort("status").Eval(context).mode == Mode.LIFT
+    lift = answer(duration=2.0)
+    simulator.AdvanceTo(2.5)
+    hands[0].FixValue(context, [0.1, 0.0])  # the left hand opened
+    simulator.AdvanceTo(2.52)
+    status = dut.GetOutputPort("status").Eval(context)
+    assert status.task == "recover" and status.attempt_failures[0][1].startswith("grasp: during the lift: the left")
+    plan_id, stopped_s = dut.GetOutputPort("stop").Eval(context)
+    assert plan_id == status.request.id and 2.5 <= stopped_s <= 2.52  # (the lift's: the recovery opens the hands first)
+    np.testing.assert_allclose(status.plan_end_q, lift.value(stopped_s).ravel())  # the recovery's moves start there
 
 
 def test_the_supervisor_names_a_camera_that_sends_no_frame():

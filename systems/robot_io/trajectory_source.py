@@ -2,7 +2,8 @@
 
 While the robot's status is stale (``status_health``), the source pauses: it holds the point of the trajectory it
 had reached, and plays on from there once the status returns. The trajectory's time then runs behind the context's
-by the pauses (``playback``).
+by the pauses (``playback``). Asked to stop a plan (``stop``: the supervisor found the held object dropped), it holds
+the plan's point at the time given until the next plan.
 """
 
 import math
@@ -25,6 +26,7 @@ class _Playing:
     delay_s: float = 0.0  # this trajectory's pauses that have ended, s
     paused_at_s: float = math.nan  # when the current pause began (context s; NaN: playing)
     paused_done_s: float = 0.0  # every pause that has ended, every plan's, s
+    stopped: bool = False  # the plan was stopped: paused until the next one
 
     @property
     def paused(self) -> bool:
@@ -50,6 +52,7 @@ class JointTrajectorySource(LeafSystem):
         - plan
         - position_measured
         - status_health (optional)
+        - stop (optional)
         output_ports:
         - position
         - playback
@@ -57,7 +60,8 @@ class JointTrajectorySource(LeafSystem):
     ``plan`` (PlanResult): its trajectory is taken up once it succeeds, and played at context time less the pauses,
     held at its end afterwards. ``position_measured`` (num_joints, rad): latched once finite (the hardware
     station's status is NaN until the robot has answered) and held until a plan arrives. ``status_health``
-    (LinkHealth): while stale, the playing pauses (unconnected: never). ``position`` (num_joints, rad): the command.
+    (LinkHealth): while stale, the playing pauses (unconnected: never). ``stop`` (2: a plan's id, a time of its
+    trajectory, s): that plan is held at that time until the next one. ``position`` (num_joints, rad): the command.
     ``playback`` (Playback): the plan played and the time reached.
     """
 
@@ -66,6 +70,7 @@ class JointTrajectorySource(LeafSystem):
         self.DeclareAbstractInputPort("plan", AbstractValue.Make(PlanResult()))
         self.DeclareVectorInputPort("position_measured", num_joints)
         self.health_port = self.DeclareAbstractInputPort("status_health", AbstractValue.Make(LinkHealth()))
+        self.stop_port = self.DeclareVectorInputPort("stop", 2)
         self._state = self.DeclareAbstractState(AbstractValue.Make(_Playing()))
         self.DeclareVectorOutputPort("position", BasicVector(num_joints), self._calc)
         self.DeclareAbstractOutputPort("playback", lambda: AbstractValue.Make(Playback()), self._calc_playback)
@@ -81,11 +86,19 @@ class JointTrajectorySource(LeafSystem):
         plan = self.GetInputPort("plan").Eval(context)
         stale = self.health_port.HasValue(context) and self.health_port.Eval(context).stale
         if plan.success and plan.id != playing.plan_id:  # (taken up paused: its own pause starts now)
-            ended = playing.pause_ended(t) if playing.paused else playing
-            playing = replace(ended, plan_id=plan.id, trajectory=plan.trajectory, delay_s=0.0)
-        if stale and not playing.paused:
+            if playing.stopped:  # (a stop's hold is no pause)
+                playing = replace(playing, paused_at_s=math.nan)
+            elif playing.paused:
+                playing = playing.pause_ended(t)
+            playing = replace(playing, plan_id=plan.id, trajectory=plan.trajectory, delay_s=0.0, stopped=False)
+        stop = self.stop_port.Eval(context) if self.stop_port.HasValue(context) else (-1, 0.0)
+        if stop[0] == playing.plan_id >= 0 and not playing.stopped:  # (held at the stop's time, for good)
+            if playing.paused:
+                playing = playing.pause_ended(t)
+            playing = replace(playing, paused_at_s=t, delay_s=t - stop[1], stopped=True)
+        elif stale and not playing.paused:
             playing = replace(playing, paused_at_s=t)
-        elif not stale and playing.paused:
+        elif not stale and playing.paused and not playing.stopped:
             playing = playing.pause_ended(t)
         if playing is before:
             return EventStatus.DidNothing()
@@ -106,7 +119,7 @@ class JointTrajectorySource(LeafSystem):
     def _calc_playback(self, context, output):
         playing = context.get_abstract_state(self._state).get_value()
         t = context.get_time()
-        paused_for_s = t - playing.paused_at_s if playing.paused else 0.0
+        paused_for_s = t - playing.paused_at_s if playing.paused and not playing.stopped else 0.0
         output.set_value(
             Playback(playing.plan_id, playing.time_s(t), paused_for_s, playing.paused_done_s + paused_for_s)
         )
