@@ -67,10 +67,9 @@ def _order(clear: dict) -> dict[int, int]:
     """Which judged object (index) was the robot's k-th taken on (1-based): the one whose start lies nearest where the
     supervisor saw it."""
     order = {}
+    starts = np.array([judged["start_xy_W"] for judged in clear["objects"]])
     for rank, taken in enumerate(clear.get("taken_on", []), start=1):
-        seen = np.array(taken["seen_xy_W"])
-        starts = [np.array(judged["start_xy_W"]) for judged in clear["objects"]]
-        nearest = int(np.argmin([np.linalg.norm(seen - start) for start in starts]))
+        nearest = int(np.argmin(np.linalg.norm(starts - np.array(taken["seen_xy_W"]), axis=1)))
         order.setdefault(nearest, rank)
     return order
 

@@ -430,7 +430,8 @@ class PickSupervisor(LeafSystem):
                 if problem := status_silence(playback, phase.name):
                     fail(status, Stage.STATUS, problem)
                     return True, look
-                if phase.check_held and np.isfinite(played) and (problem := self._dropped(context, phase)):
+                checked = phase.check_held and np.isfinite(played)  # (a held move, being played)
+                if checked and (problem := not_holding(self._hand_widths(context), f"during the {phase.name}: ")):
                     played = max(played, plan.trajectory.start_time())  # (the arms stop where they are)
                     status.stop, status.plan_end_q = (plan.id, played), plan.trajectory.value(played).ravel()
                     return True, self._attempt_failed(context, status, Stage.GRASP, problem, look, t)
@@ -471,14 +472,13 @@ class PickSupervisor(LeafSystem):
 
     def _not_holding(self, context, status: PickStatus, when: str = "") -> str:
         """Measures both hands' openings (m); why they do not both hold something, or "" if they do."""
-        status.grasp_widths = tuple(self.hand_state_ports[side].Eval(context)[0] for side in SIDES)
+        status.grasp_widths = self._hand_widths(context)
         logging.info("hands closed to %s mm", ", ".join(f"{1000 * width:.1f}" for width in status.grasp_widths))
         return not_holding(status.grasp_widths, when)
 
-    def _dropped(self, context, phase: Phase) -> str:
-        """During a held move: why the hands no longer both hold the object (one opened or closed on nothing), or ""."""
-        widths = tuple(self.hand_state_ports[side].Eval(context)[0] for side in SIDES)
-        return not_holding(widths, f"during the {phase.name}: ")
+    def _hand_widths(self, context) -> tuple[float, ...]:
+        """Both hands' measured openings (m), in SIDES order."""
+        return tuple(self.hand_state_ports[side].Eval(context)[0] for side in SIDES)
 
     def _attempt_failed(
         self, context, status: PickStatus, stage: Stage, message: str, look: LookRequest, t: float

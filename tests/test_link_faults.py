@@ -35,12 +35,18 @@ def _plan(start_s: float, end_s: float, plan_id: int = 1) -> PlanResult:
     return PlanResult(plan_id, "move", True, trajectory)
 
 
-def test_the_trajectory_source_pauses_while_the_status_is_stale_and_plays_on_from_where_it_was():
+def _source_playing():
+    """A trajectory source (2 joints) given _plan(0, 2), its simulator and context."""
     source = JointTrajectorySource(num_joints=2)
     simulator = Simulator(source)
     context = simulator.get_mutable_context()
     source.GetInputPort("plan").FixValue(context, _plan(0.0, 2.0))
     source.GetInputPort("position_measured").FixValue(context, np.zeros(2))
+    return source, simulator, context
+
+
+def test_the_trajectory_source_pauses_while_the_status_is_stale_and_plays_on_from_where_it_was():
+    source, simulator, context = _source_playing()
     health = source.GetInputPort("status_health")
     health.FixValue(context, FRESH)
     simulator.AdvanceTo(0.5)
@@ -61,11 +67,7 @@ def test_the_trajectory_source_pauses_while_the_status_is_stale_and_plays_on_fro
 
 
 def test_a_stopped_plan_is_held_where_it_was_stopped_until_the_next_plan():
-    source = JointTrajectorySource(num_joints=2)
-    simulator = Simulator(source)
-    context = simulator.get_mutable_context()
-    source.GetInputPort("plan").FixValue(context, _plan(0.0, 2.0))
-    source.GetInputPort("position_measured").FixValue(context, np.zeros(2))
+    source, simulator, context = _source_playing()
     source.GetInputPort("status_health").FixValue(context, FRESH)
     simulator.AdvanceTo(0.6)
     source.GetInputPort("stop").FixValue(context, [1.0, 0.5])  # (the supervisor saw the drop at 0.5 s)
@@ -80,11 +82,7 @@ def test_a_stopped_plan_is_held_where_it_was_stopped_until_the_next_plan():
 
 
 def test_without_a_status_link_the_source_plays_at_context_time():
-    source = JointTrajectorySource(num_joints=2)
-    simulator = Simulator(source)
-    context = simulator.get_mutable_context()
-    source.GetInputPort("plan").FixValue(context, _plan(0.0, 2.0))
-    source.GetInputPort("position_measured").FixValue(context, np.zeros(2))
+    source, simulator, context = _source_playing()
     simulator.AdvanceTo(1.0)
     np.testing.assert_allclose(source.GetOutputPort("position").Eval(context), [0.5, 0.5], atol=0.01)
     assert source.GetOutputPort("playback").Eval(context).time_s == pytest.approx(1.0)

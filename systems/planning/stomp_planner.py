@@ -173,10 +173,10 @@ class StompPlanner(LeafSystem):
             durations = motions.held_segment_durations(keyframes)
             trajectory = time_parameterise(keyframes, motions.world.velocity_limits, start_s, durations)
             t_dev, o_dev = motions.closure_deviations(trajectory, held)
+            result.closure_translation_dev_m, result.closure_orientation_dev_rad = t_dev, o_dev
             if t_dev < motions.closure.t_max and o_dev < motions.closure.o_max:
                 break
-        result.closure_translation_dev_m, result.closure_orientation_dev_rad = t_dev, o_dev
-        if t_dev >= motions.closure.t_max or o_dev >= motions.closure.o_max:
+        else:
             raise PlanningError(
                 f"the played trajectory leaves the closure constraint ({t_dev * 1000:.1f} mm, {o_dev:.3f} rad)"
             )
