@@ -30,6 +30,7 @@ from diagrams.generation.clutter_scenes import robot_at_start
 from diagrams.generation.objects.library import resolve_object
 from diagrams.generation.part_labels import on_handles, true_part_surface
 from diagrams.hardware_station import MakeHardwareStation, image_stale_after_s
+from diagrams.lifetime import release
 from diagrams.perception import MakeGroundTruthPerception, MakeObjectTracker, MakePerception, latch_offset
 from diagrams.pick_simulation import PickOutcome, PlaceJudge, pose_error, simulate_pick, station_plant
 from diagrams.planning_scene import make_planning_world
@@ -405,7 +406,9 @@ def run_pick(
     outcome = simulate_pick(
         diagram, scenario, watch.end_time, meshcat, record, plant=plant, make_judge=make_judge, mode_of=mode_of
     )
-    return watch.finish(outcome)
+    outcome = watch.finish(outcome)
+    release(diagram)  # freed on return (a process runs many picks: evaluate.py, the endurance benchmark)
+    return outcome
 
 
 def max_time_s(scenario: Scenario) -> float:
