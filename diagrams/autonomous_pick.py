@@ -163,10 +163,11 @@ def MakePickDiagram(
     if any(scenario.faults.grasp_offset_G):
         if hardware:
             raise ValueError("faults are injected in simulation only: faults.grasp_offset_G must be zero on hardware")
-        offset = GraspOffset(scenario.faults.grasp_offset_G, scenario.faults.grasp_offset_attempts)
+        faults = scenario.faults
+        offset = GraspOffset(faults.grasp_offset_G, faults.grasp_offset_attempts, faults.grasp_offset_object)
         fault = builder.AddNamedSystem("grasp_offset_fault", offset)
         builder.Connect(grasps, fault.GetInputPort("grasp_poses"))
-        builder.Connect(supervisor.GetOutputPort("attempt"), fault.GetInputPort("attempt"))
+        builder.Connect(supervisor.GetOutputPort("status"), fault.GetInputPort("status"))
         grasps = fault.GetOutputPort("grasp_poses")
     builder.Connect(grasps, planner.GetInputPort("grasp_poses"))
     builder.Connect(seen.GetOutputPort("reconstructed_cloud_W"), planner.GetInputPort("obstacle_cloud_W"))

@@ -204,9 +204,11 @@ class FaultConfig:
     """Faults injected to test the pick's checks and retries (simulation only)."""
 
     # Each registered grasp pose moved by this in its own grasp frame G (x along the handle, z the approach
-    # axis), m, on the first `grasp_offset_attempts` attempts: a hand that closes on nothing.
+    # axis), m, on the first `grasp_offset_attempts` attempts: a hand that closes on nothing. In a clear, on the
+    # object taken on `grasp_offset_object`-th (0: the first) alone.
     grasp_offset_G: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
     grasp_offset_attempts: int = 1
+    grasp_offset_object: int = 0
     # The object moved by this on the table (x, y in W, m) at context time nudge_at_s: pushed while the arms
     # reach for it.
     nudge_xy: list[float] = field(default_factory=lambda: [0.0, 0.0])
@@ -410,6 +412,8 @@ def validate(scenario: Scenario) -> None:
             raise ValueError(f"faults.{name} must be in (0, {MAX_GAP_S}] s, got {getattr(faults, name)}")
     if faults.grasp_offset_attempts < 0:
         raise ValueError(f"faults.grasp_offset_attempts must be >= 0, got {faults.grasp_offset_attempts}")
+    if faults.grasp_offset_object < 0:
+        raise ValueError(f"faults.grasp_offset_object must be >= 0 (the first: 0), got {faults.grasp_offset_object}")
     if scenario.robot.torso not in TORSO_MODES:
         raise ValueError(f"robot.torso must be one of {TORSO_MODES}, got {scenario.robot.torso!r}")
     if scenario.task not in TASKS:

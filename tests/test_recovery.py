@@ -14,7 +14,17 @@ from pydrake.trajectories import PiecewisePolynomial
 
 from diagrams.autonomous_pick import run_pick
 from diagrams.scenario import FaultConfig, load_scenario, replace_object
-from systems.messages import OPEN_WIDTH, GraspPoses, ObjectEstimate, PerceptionResult, PlanResult, Targets, TaskName
+from systems.messages import (
+    OPEN_WIDTH,
+    ClearedObject,
+    GraspPoses,
+    ObjectEstimate,
+    PerceptionResult,
+    PickStatus,
+    PlanResult,
+    Targets,
+    TaskName,
+)
 from systems.perception.grasp_offset import GraspOffset
 from systems.pick_supervisor import PickSupervisor
 from systems.pick_tasks import lift_pick, place_pick
@@ -118,17 +128,21 @@ def test_a_hand_that_did_not_close_fails_the_check():
     assert "did not close" in _status(dut, context).message
 
 
-def test_grasp_offset_moves_each_grasp_in_its_frame_on_the_first_attempts_only():
-    dut = GraspOffset([0.0, 0.0, -0.03], attempts=1)
+def test_grasp_offset_moves_each_grasp_in_its_frame_on_one_objects_first_attempts_only():
+    dut = GraspOffset([0.0, 0.0, -0.03], attempts=1, object_index=1)
     context = dut.CreateDefaultContext()
     X_WG = RigidTransform([0.5, 0.2, 0.9])
     dut.GetInputPort("grasp_poses").FixValue(context, AbstractValue.Make(GraspPoses(True, {"left_grasp": X_WG})))
-    dut.GetInputPort("attempt").FixValue(context, [1.0])
-    moved = dut.GetOutputPort("grasp_poses").Eval(context).poses_W["left_grasp"]
-    np.testing.assert_allclose(moved.translation(), [0.5, 0.2, 0.87])
-    dut.GetInputPort("attempt").FixValue(context, [2.0])
-    np.testing.assert_array_equal(dut.GetOutputPort("grasp_poses").Eval(context).poses_W["left_grasp"].translation(),
-                                  X_WG.translation())  # fmt: skip
+
+    def left_grasp_at(attempt: int, objects_before: int) -> np.ndarray:
+        done = (ClearedObject("drill", (0.7, 0.1), attempts=1),) * objects_before
+        dut.GetInputPort("status").FixValue(context, AbstractValue.Make(PickStatus(attempt=attempt, objects=done)))
+        return dut.GetOutputPort("grasp_poses").Eval(context).poses_W["left_grasp"].translation()
+
+    np.testing.assert_allclose(left_grasp_at(attempt=1, objects_before=1), [0.5, 0.2, 0.87])
+    np.testing.assert_array_equal(left_grasp_at(attempt=2, objects_before=1), X_WG.translation())
+    np.testing.assert_array_equal(left_grasp_at(attempt=1, objects_before=0), X_WG.translation())
+    np.testing.assert_array_equal(left_grasp_at(attempt=1, objects_before=2), X_WG.translation())
 
 
 def test_scenario_checks_attempts_and_faults():
@@ -138,6 +152,8 @@ def test_scenario_checks_attempts_and_faults():
         load_scenario(scenario_text="{faults: {grasp_offset_G: [0, 0, 3]}}")  # 3 m: centimetres meant
     with pytest.raises(ValueError, match="nudge_xy"):
         load_scenario(scenario_text="{faults: {nudge_xy: [0.03]}}")
+    with pytest.raises(ValueError, match="grasp_offset_object"):
+        load_scenario(scenario_text="{faults: {grasp_offset_object: -1}}")
 
 
 @pytest.mark.slow
