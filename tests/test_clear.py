@@ -2,6 +2,9 @@
 the seeded tables to clear, and a table with nothing familiar on it."""
 
 import dataclasses
+import json
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -12,6 +15,7 @@ from pydrake.systems.analysis import Simulator
 from diagrams.autonomous_pick import run_pick
 from diagrams.generation.clear_scenes import ZONE_CLEARANCE_M, clear_scene
 from diagrams.generation.clutter_scenes import scene_outlines
+from diagrams.paths import REPO_ROOT
 from diagrams.perception import MakeSegmenter
 from diagrams.scenario import ClutterObjectConfig, load_scenario, overlay_scenario
 from diagrams.station import drop_zone, settled_frame
@@ -192,14 +196,7 @@ def test_scenario_checks_the_drop_zone():
 @pytest.mark.slow
 def test_a_table_of_distractors_alone_is_cleared_at_once_and_nothing_moves(scenario):
     """Sensor on: no familiar object in view, the clear ends on its first frame with "nothing to clear"."""
-    boxes = [
-        ClutterObjectConfig(kind="box", size=[0.08, 0.1, 0.1], xy=[-0.1, 0.1]),
-        ClutterObjectConfig(kind="cylinder", size=[0.08, 0.08, 0.12], color=[0.2, 0.5, 0.8], xy=[0.05, -0.1]),
-    ]
-    table = dataclasses.replace(
-        scenario, task="clear", clutter=boxes, object=dataclasses.replace(scenario.object, present=False)
-    )
-    outcome = run_pick(table)
+    outcome = run_pick(_distractors_only(scenario))
     assert outcome.success and outcome.clear["familiar_objects"] == 0, outcome.message
     assert outcome.clear["summary"].endswith(
         "nothing to clear: no familiar object left (0 in the drop zone, 0 given up)"
@@ -229,11 +226,30 @@ def test_endurance_measures_memory_growth_and_the_task_time_trend_from_the_tasks
     assert abs(report["memory_growth_share"]) < 0.5 and np.isfinite(report["task_time_slope_s_per_task"])
 
 
+@pytest.fixture(scope="module")
+def can_cleared(scenario):
+    """The default scenario's clear (the unseen can alone, sensor on), run in this process after another task (a
+    table of distractors: a whole diagram built, its camera frame segmented, released)."""
+    run_pick(_distractors_only(scenario))
+    return run_pick(dataclasses.replace(scenario, task="clear"))
+
+
+def _distractors_only(scenario):
+    """A table to clear with a box and a cylinder on it, nothing familiar."""
+    boxes = [
+        ClutterObjectConfig(kind="box", size=[0.08, 0.1, 0.1], xy=[-0.1, 0.1]),
+        ClutterObjectConfig(kind="cylinder", size=[0.08, 0.08, 0.12], color=[0.2, 0.5, 0.8], xy=[0.05, -0.1]),
+    ]
+    return dataclasses.replace(
+        scenario, task="clear", clutter=boxes, object=dataclasses.replace(scenario.object, present=False)
+    )
+
+
 @pytest.mark.slow
-def test_a_can_alone_is_cleared_into_the_zone_and_the_clear_ends_when_the_table_is_empty(scenario):
+def test_a_can_alone_is_cleared_into_the_zone_and_the_clear_ends_when_the_table_is_empty(scenario, can_cleared):
     """Sensor on, the default unseen can: placed in the drop zone, a look for the scene, home, a look that finds
     nothing left; judged on the plant: in the zone, upright, let go."""
-    outcome = run_pick(dataclasses.replace(scenario, task="clear"))
+    outcome = can_cleared
     assert outcome.success and outcome.clear["objects_cleared"] == 1, outcome.message
     (taken,) = outcome.clear["taken_on"]
     assert taken["cleared"] and taken["attempts"] == 1 and taken["category"] == "watering_can"
@@ -244,6 +260,21 @@ def test_a_can_alone_is_cleared_into_the_zone_and_the_clear_ends_when_the_table_
     end = np.array(judged["end_footprint_W"])  # (the true footprint where it ended: in the zone, about its centre)
     assert drop_zone(scenario).contains(end.mean(axis=0)) and inside(np.array([judged["end_xy_W"]]), end).all()
     assert outcome.clear["zone"]["size"] == list(scenario.clear.zone_size)
+
+
+@pytest.mark.slow
+def test_a_clear_run_after_other_tasks_in_one_process_ends_as_it_does_alone(can_cleared, tmp_path):
+    """Determinism across tasks: the clear run in this process after others ends exactly as the same clear run alone
+    in a fresh process (scripts/pick.py): nothing a task leaves behind changes the next."""
+    alone = tmp_path / "alone.json"
+    command = [sys.executable, str(REPO_ROOT / "scripts" / "pick.py"), "--task", "clear", "--json", str(alone)]
+    subprocess.run(command, cwd=REPO_ROOT, check=True, capture_output=True, timeout=900)
+    alone = json.loads(alone.read_text())
+    assert alone["message"] == can_cleared.message and alone["attempts_made"] == can_cleared.attempts_made
+    assert alone["clear"]["taken_on"] == json.loads(json.dumps(can_cleared.clear["taken_on"]))
+    for key in ("start_xy_W", "end_xy_W", "tilt_rad"):
+        np.testing.assert_allclose(alone["clear"]["objects"][0][key], can_cleared.clear["objects"][0][key], atol=1e-9)
+    assert alone["min_hold_height_m"] == pytest.approx(can_cleared.min_hold_height_m, abs=1e-9)
 
 
 def test_objects_given_up_before_another_was_cleared_get_a_later_pass_over_the_table():
