@@ -261,7 +261,7 @@ class PickSupervisor(LeafSystem):
         """Reads perception's result; a stage that found nothing ends the pick."""
         result = self.perception_port.Eval(context)
         status.perceived = True
-        if self.clears and result.failed_stage == Stage.SEGMENTATION:  # nothing left
+        if self.clears and result.failed_stage == Stage.SEGMENTATION and status.current is None:  # nothing left
             if (pass_from := clearing.next_pass(status)) is not None:  # those given up before the table changed
                 logging.info("%s; a new pass over the table for those given up before others left", result.message)
                 status.pass_from = pass_from
@@ -273,8 +273,11 @@ class PickSupervisor(LeafSystem):
             status.homing = False
             self._start_task(context, status, self.tasks.home, 0, t)
             return
-        if not result.found:
-            status.current = clearing.seen_object(result, status.pass_from > 0) if self.clears else None  # (given up)
+        if not result.found:  # (a clear's object given up; one under way, retried and not seen again, keeps its record)
+            if self.clears and status.current is None:
+                status.current = clearing.seen_object(result, status.pass_from > 0)
+            elif self.clears and result.failed_stage == Stage.SEGMENTATION:  # (it fell over, or off the table)
+                result = dataclasses.replace(result, message=f"not seen again after attempt {status.attempt - 1}")
             fail(status, result.failed_stage, result.message)
             return
         status.belief = ObjectBelief.seen(result.X_WO_seen)

@@ -154,6 +154,28 @@ def test_an_object_that_fails_is_given_up_left_out_and_the_next_one_looked_for()
     assert status.message.endswith("took on 2 objects, the most")
 
 
+def test_an_object_retried_and_not_seen_again_is_given_up_by_name_and_the_clear_goes_on():
+    """Attempt 1 failed (the can fell over in the carry); attempt 2's frame finds no familiar object: the can is
+    recorded as given up (it was lost from the record before), and the clear ends on the next look's "nothing left"."""
+    nothing = PerceptionResult(False, Stage.SEGMENTATION, "nothing to clear: no familiar object left (0 in the drop "
+                               "zone, 0 given up)")  # fmt: skip
+    dut, context, simulator = _clear_supervisor(nothing)
+    under_way = ClearedObject("watering_can", (0.7, -0.06), attempts=1, target_xy_W=(0.67, -0.22))
+    retried = PickStatus(Mode.PERCEIVING, perceive_id=1, plan_end_q=Q0, q_home=Q0, attempt=2, current=under_way)
+    context.get_mutable_abstract_state(0).set_value(retried)
+    simulator.AdvanceTo(0.1)
+    status = dut.GetOutputPort("status").Eval(context)
+    assert status.mode == Mode.PERCEIVING and status.perceive_id == 2  # (given up where nothing moved: a new look)
+    (given_up,) = status.objects
+    assert given_up.message == "segmentation: not seen again after attempt 1" and given_up.attempts == 2
+    assert given_up.target_xy_W == (0.67, -0.22) and not given_up.cleared
+    dut.GetInputPort("frame_id").FixValue(context, [2.0])
+    simulator.AdvanceTo(0.2)
+    status = dut.GetOutputPort("status").Eval(context)
+    assert status.mode == Mode.DONE
+    assert status.message.startswith("cleared 0 of 1 objects taken on; given up: watering_can at (0.70, -0.06)")
+
+
 def test_a_perceived_object_gets_a_spot_in_the_zone_and_the_place_task_carries_it_there():
     X_WO = RigidTransform([0.7, 0.1, 0.8])
     shape = X_WO.multiply(np.array([[x, y, z] for x in (-0.1, 0.1) for y in (-0.05, 0.05) for z in (0, 0.2)]).T).T
