@@ -12,6 +12,7 @@ was: the same planner, trajectory source and supervisor (the "oracle" pick). Not
 simulator's ground truth: run_pick judges the outcome on it only afterwards.
 """
 
+import gc
 import logging
 import math
 from dataclasses import dataclass
@@ -44,6 +45,7 @@ from systems.perception.robot_spheres import RobotSpheres
 from systems.pick_supervisor import PickSupervisor
 from systems.pick_tasks import aim_pick, clear_pick, lift_pick, place_pick
 from systems.pick_visualiser import PickVisualiser
+from systems.planning.heap import return_freed_heap
 from systems.planning.pick_motions import PickMotions, PlannerConfig, PlanningError
 from systems.planning.plan_telemetry import PlanTelemetryRecorder
 from systems.planning.stomp_config import StompConfig
@@ -363,13 +365,25 @@ def run_pick(
     backend: str = "sim",
     perception: str = "camera",
 ) -> PickOutcome:
-    """Simulates the pick until it is done (or a stage failed), then judges it on ground truth.
+    """Simulates the pick until it is done (or a stage failed), then judges it on ground truth. Its diagram is freed
+    before it returns, and the heap it held given back to the system (a process runs many picks: evaluate.py's
+    workers, the endurance benchmark); the outcome has no context.
 
     Args:
         backend: "sim" (the simulated station) or "lcm-memq" (the hardware station against the
             robot driver emulator over an in-process LCM bus).
         perception: "camera" (autonomous) or "ground_truth" (the oracle pick).
     """
+    outcome = _simulated_pick(scenario, meshcat, record, backend, perception)
+    gc.collect()
+    return_freed_heap()
+    return outcome
+
+
+def _simulated_pick(
+    scenario: Scenario, meshcat: Meshcat | None, record: Path | None, backend: str, perception: str
+) -> PickOutcome:
+    """run_pick's pick, its diagram released (diagrams/lifetime.py)."""
     if backend == "sim":
         diagram = pick = MakePickDiagram(scenario, meshcat, perception=perception)
         plant = station_plant(diagram)
@@ -408,7 +422,8 @@ def run_pick(
         diagram, scenario, watch.end_time, meshcat, record, plant=plant, make_judge=make_judge, mode_of=mode_of
     )
     outcome = watch.finish(outcome)
-    release(diagram)  # freed on return (a process runs many picks: evaluate.py, the endurance benchmark)
+    outcome.context = None  # (nothing of the diagram may be touched once it is released)
+    release(diagram)
     return outcome
 
 

@@ -5,8 +5,9 @@ them when they are freed, and gives the freed top of its heap back to the system
 next large temporaries then fault their pages in again. A STOMP iteration allocates and frees arrays of 16 rollouts
 x 16 keyframes x hundreds of spheres and sphere pairs many times over. keep_freed_heap() serves allocations up to
 MMAP_THRESHOLD_BYTES from the heap and keeps up to TRIM_THRESHOLD_BYTES of it freed for reuse (mallopt): long
-plans run faster, most in a process where OMPL and KTO had run (docs/history/planning_parameters.md). Elsewhere than
-glibc nothing changes.
+plans run faster, most in a process where OMPL and KTO had run (docs/history/planning_parameters.md). Between two
+picks, return_freed_heap() gives what is free back (a process that runs many picks keeps its resident memory down:
+the heap's free part grew from 246 to 328 MB over three clear tables). Elsewhere than glibc nothing changes.
 """
 
 import ctypes
@@ -26,5 +27,13 @@ def keep_freed_heap() -> bool:
             libc.mallopt(M_MMAP_THRESHOLD, MMAP_THRESHOLD_BYTES)
             and libc.mallopt(M_TRIM_THRESHOLD, TRIM_THRESHOLD_BYTES)
         )
+    except (OSError, AttributeError):
+        return False
+
+
+def return_freed_heap() -> bool:
+    """Gives the heap's free pages back to the system (malloc_trim); whether glibc released any."""
+    try:
+        return bool(ctypes.CDLL("libc.so.6").malloc_trim(0))
     except (OSError, AttributeError):
         return False
