@@ -10,6 +10,7 @@ The trials are the same whichever runs them: each builds its own diagram from it
 records (wall-clock times aside) with one worker, N, or Ray.
 """
 
+import contextlib
 import importlib.util
 import json
 import logging
@@ -61,9 +62,24 @@ def _append(path: Path, record: dict):
         os.fsync(file.fileno())
 
 
+@contextlib.contextmanager
+def _single_threaded_children() -> Iterator[None]:
+    """SINGLE_THREADED in this process's environment while processes spawned in it inherit it; the environment as it
+    was afterwards (a process the caller starts later, e.g. scripts/pick.py from a test, keeps the caller's threads)."""
+    saved = {name: os.environ.get(name) for name in SINGLE_THREADED}
+    os.environ.update(SINGLE_THREADED)
+    try:
+        yield
+    finally:
+        for name, value in saved.items():
+            if value is None:
+                os.environ.pop(name, None)
+            else:
+                os.environ[name] = value
+
+
 def _in_pool(function, items: list, jobs: int) -> Iterator[tuple[int, object]]:
-    os.environ.update(SINGLE_THREADED)  # inherited by the spawned workers
-    with ProcessPoolExecutor(jobs, mp_context=get_context("spawn")) as pool:
+    with _single_threaded_children(), ProcessPoolExecutor(jobs, mp_context=get_context("spawn")) as pool:
         futures = {pool.submit(function, item): n for n, item in enumerate(items)}
         for future in as_completed(futures):
             yield futures[future], future.result()

@@ -1,6 +1,7 @@
 """Campaigns of picks (diagrams/campaign.py): Ray against one process, records streamed, resumed, summarised."""
 
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -102,6 +103,17 @@ def test_a_stopped_campaign_resumes_without_redoing_finished_picks(scenario, tmp
     summary = json.loads(report.read_text())
     assert summary["trials"] == 2 and len(summary["success_rate_ci95"]) == 2
     assert summary["yaws"] == [first.yaw, second.yaw] and summary["obstacle"] is False
+
+
+def test_workers_run_single_threaded_and_the_callers_environment_is_left_as_it_was(monkeypatch):
+    """The pool's workers inherit SINGLE_THREADED; afterwards this process's environment is as it was (a process it
+    starts later, e.g. scripts/pick.py in test_clear, has this process's threads, not the workers')."""
+    monkeypatch.delenv("OMP_NUM_THREADS", raising=False)
+    monkeypatch.setenv("OPENBLAS_NUM_THREADS", "2")
+    names = ["OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"]
+    in_worker = dict(campaign.fan_out(os.getenv, names, jobs=1))
+    assert [in_worker[n] for n in range(len(names))] == ["1", "1", "1"]
+    assert "OMP_NUM_THREADS" not in os.environ and os.environ["OPENBLAS_NUM_THREADS"] == "2"
 
 
 def test_ray_missing_is_said_with_how_to_get_it(scenario, monkeypatch):
