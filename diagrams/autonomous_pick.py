@@ -133,6 +133,7 @@ def MakePickDiagram(
         looks,
         scenario.max_attempts,
         num_joints=n,
+        status_lost_s=scenario.hardware.status_lost_s,
         **(clearing if scenario.task == "clear" else {}),
     )
     builder.AddNamedSystem("pick_supervisor", supervisor)

@@ -18,6 +18,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -33,13 +34,15 @@ from diagrams.autonomous_pick import (
     PickWatcher,
     attempt_failures,
     pick_report,
+    taken_on,
 )
 from diagrams.hardware_station import command_stream, wait_for_robot
 from diagrams.paths import REPO_ROOT
 from diagrams.pick_simulation import SAMPLE_S, PickOutcome
-from diagrams.scenario import Scenario
-from systems.messages import Mode
+from diagrams.scenario import Scenario, planned_joints
+from systems.messages import Mode, PickStatus
 from systems.robot_io.lcm_safety import CommandGuard, MessageMonitor
+from systems.robot_io.robot_clock import RobotClock
 
 # The bus inside the private namespace: loopback multicast, never routed (ttl=0).
 NAMESPACE_LCM_URL = "udpm://239.255.76.67:7667?ttl=0&recv_buf_size=4194304"
@@ -56,6 +59,9 @@ DRIVER_START_TIMEOUT_S = 60.0
 # while it does (about 0.2 s a frame on the project's 2-core VM, the driver alone; longer while the pick perceives
 # beside it), where a real robot's controller streams on. Its status is watched this long before the guard trips.
 SPAWNED_DRIVER_WATCHDOG_S = 1.0
+# With a driver restart injected (faults.driver_restart_after_objects), the robot's status may stop this long: a
+# new driver process starts in 4-8 s on the project's 2-core VM, longer while the pick computes beside it.
+DRIVER_RESTART_LOST_S = 30.0
 
 
 @dataclass
@@ -70,9 +76,13 @@ class RobotRun:
 
 
 def run_pick_on_robot(
-    scenario: Scenario, lcm: DrakeLcmInterface | None = None, meshcat: Meshcat | None = None
+    scenario: Scenario,
+    lcm: DrakeLcmInterface | None = None,
+    meshcat: Meshcat | None = None,
+    on_sample: Callable[[PickStatus], None] | None = None,
 ) -> RobotRun:
-    """Runs the pick diagram in real time against a robot (or scripts/robot_driver.py) over LCM.
+    """Runs the pick diagram in real time against a robot (or scripts/robot_driver.py) over LCM; on_sample(status)
+    after every SAMPLE_S step (the supervisor's status).
 
     Raises:
         RobotNotResponding: no status or images within scenario.hardware.status_timeout_s.
@@ -80,6 +90,8 @@ def run_pick_on_robot(
     lcm = lcm or DrakeLcm(scenario.lcm)
     diagram = MakePickDiagram(scenario, meshcat, hardware=True, lcm=lcm)
     station = diagram.GetSubsystemByName("station")
+    config = scenario.hardware
+    robot_clock = RobotClock(lcm, config.arm_status_channel, len(planned_joints(scenario)), config.watchdog_s)
     logging.info("waiting for the robot on %s", lcm.get_lcm_url())
     wait_for_robot(scenario, lcm, robot_time_s=PERCEIVE_AT_S)  # a simulated scene has settled by then
     simulator = Simulator(diagram)
@@ -87,16 +99,20 @@ def run_pick_on_robot(
     context = simulator.get_mutable_context()
     watch = PickWatcher(diagram)
     simulator.Initialize()
+    robot_clock.line_up(context.get_time())
     tripped, problems, commands = False, [], {}
     stream = command_stream(station)
     try:
         while context.get_time() + SAMPLE_S <= watch.end_time(context) + 1e-9:
+            robot_clock.wait_for(context.get_time() + SAMPLE_S)  # never ahead of a robot slower than real time
             started = time.monotonic()
             simulator.AdvanceTo(context.get_time() + SAMPLE_S)
             if time.monotonic() - started > 2 * SAMPLE_S:
                 # The robot held while we perceived or planned: do not replay the lost wall time faster than
                 # real time.
                 simulator.ResetStatistics()
+            if on_sample is not None:
+                on_sample(watch.status(context))
             tripped, problems = safety_problems(station, context)
             if tripped:
                 logging.error("stopping: %s", "; ".join(problems))
@@ -104,6 +120,7 @@ def run_pick_on_robot(
         if not tripped:
             _hold_while_the_robot_catches_up(simulator, station)
     finally:
+        logging.info("waited %.1f s of wall time for the robot's clock", robot_clock.waited_s)
         if stream is not None:
             stream.stop()
             commands = {"sent": stream.sends, "max_gap_s": stream.max_gap_s, "late": stream.late_sends}
@@ -151,10 +168,10 @@ def safety_problems(station: Diagram, context) -> tuple[bool, list[str]]:
 def run_on_robot(scenario: Scenario, lcm_url: str | None = None, meshcat: Meshcat | None = None) -> PickOutcome:
     """The pick against a robot on the bus; success means the plan was played out with no safety problem."""
     lcm = DrakeLcm(lcm_url) if lcm_url else DrakeLcm(scenario.lcm)
-    return _outcome(run_pick_on_robot(scenario, lcm, meshcat))
+    return _outcome(run_pick_on_robot(scenario, lcm, meshcat), scenario.task)
 
 
-def _outcome(run: RobotRun) -> PickOutcome:
+def _outcome(run: RobotRun, task: str) -> PickOutcome:
     report, problems, status = run.report, run.problems, run.report.status
     played = status.mode == Mode.DONE
     message = (
@@ -168,6 +185,8 @@ def _outcome(run: RobotRun) -> PickOutcome:
     outcome.planning_s = report.stages.get("image_to_trajectory", 0.0)
     outcome.closure = report.closure
     outcome.commands = run.commands
+    if task == "clear":  # what the robot made of each object it took on (where they ended is the driver's to judge)
+        outcome.clear = {"taken_on": [taken_on(done) for done in status.objects], "summary": status.message}
     return outcome
 
 
@@ -188,31 +207,45 @@ def rerun_in_private_namespace(argv: list[str]) -> int:
 
 def run_with_spawned_driver(scenario: Scenario, driver_arguments: list[str]) -> PickOutcome:
     """Starts scripts/robot_driver.py on NAMESPACE_LCM_URL, runs the pick against it, then stops it;
-    the lift is judged by the driver's simulator (its --result file)."""
+    the lift (or the clear) is judged by the driver's simulator (its --result file)."""
     if not _only_loopback():
         raise RuntimeError("refusing to use UDP multicast outside a private loopback-only network namespace")
+    restart_after = scenario.faults.driver_restart_after_objects
+    lost_s = max(scenario.hardware.status_lost_s, DRIVER_RESTART_LOST_S if restart_after else 0.0)
     scenario = replace(
         scenario,
         hardware=replace(
             scenario.hardware,
             status_timeout_s=max(scenario.hardware.status_timeout_s, DRIVER_START_TIMEOUT_S),
             watchdog_s=max(scenario.hardware.watchdog_s, SPAWNED_DRIVER_WATCHDOG_S),
+            status_lost_s=lost_s,
         ),
     )
     with tempfile.TemporaryDirectory() as folder:
-        result = Path(folder) / "driver.json"
+        result, state = Path(folder) / "driver.json", Path(folder) / "driver_state.json"
         command = [sys.executable, str(REPO_ROOT / "scripts" / "robot_driver.py"), *driver_arguments]
-        command += ["--lcm-url", NAMESPACE_LCM_URL, "--result", str(result)]
-        driver = subprocess.Popen(command)
+        command += ["--lcm-url", NAMESPACE_LCM_URL, "--result", str(result), "--state", str(state)]
+        drivers = [subprocess.Popen(command)]
+
+        def restart_between_objects(status: PickStatus):
+            """The fault: once restart_after objects are taken on, the driver killed and started from its state."""
+            if restart_after and len(drivers) == 1 and len(status.objects) >= restart_after:
+                logging.warning("fault: the robot driver killed after %d objects; starting it again from its state",
+                                len(status.objects))  # fmt: skip
+                drivers[0].kill()
+                drivers[0].wait()
+                drivers.append(subprocess.Popen([*command, "--resume"]))
+
         try:
-            run = run_pick_on_robot(scenario, DrakeLcm(NAMESPACE_LCM_URL))
+            run = run_pick_on_robot(scenario, DrakeLcm(NAMESPACE_LCM_URL), on_sample=restart_between_objects)
         finally:
+            driver = drivers[-1]
             driver.send_signal(signal.SIGTERM)
             try:
                 driver.wait(timeout=60)
             except subprocess.TimeoutExpired:
                 driver.kill()
-        outcome = _outcome(run)
+        outcome = _outcome(run, scenario.task)
         if not result.is_file():
             outcome.success, outcome.message = False, f"{outcome.message}; the driver wrote no result"
             return outcome
@@ -220,6 +253,7 @@ def run_with_spawned_driver(scenario: Scenario, driver_arguments: list[str]) -> 
     outcome.success = outcome.success and judged["success"]
     outcome.lift_height_m, outcome.min_hold_height_m = judged["lift_height_m"], judged["min_hold_height_m"]
     outcome.hands_in_contact = judged["hands_in_contact"]
+    outcome.clear = {**(judged.get("clear") or {}), **outcome.clear}  # a clear's judgement (diagrams/clear_judge.py)
     outcome.message = f"{judged['message']} (judged by the driver); pick: {outcome.message}"
     return outcome
 

@@ -201,7 +201,7 @@ class PlanningConfig:
 
 @dataclass
 class FaultConfig:
-    """Faults injected to test the pick's checks and retries (simulation only)."""
+    """Faults injected to test the pick's checks and retries (simulation, and the spawned LCM driver's restart)."""
 
     # Each registered grasp pose moved by this in its own grasp frame G (x along the handle, z the approach
     # axis), m, on the first `grasp_offset_attempts` attempts: a hand that closes on nothing. In a clear, on the
@@ -223,6 +223,9 @@ class FaultConfig:
     # The camera's images stop for camera_gap_s from this context time, s; negative: no gap. Perception waits.
     camera_gap_at_s: float = -1.0
     camera_gap_s: float = 5.0
+    # The robot driver process killed (SIGKILL) once this many objects have been taken on, and started again from
+    # the world it last wrote (LCM with pick.py --spawn-driver only; 0: never). The pick waits for its status.
+    driver_restart_after_objects: int = 0
 
 
 @dataclass
@@ -412,6 +415,8 @@ def validate(scenario: Scenario) -> None:
             raise ValueError(f"faults.{name} must be in (0, {MAX_GAP_S}] s, got {getattr(faults, name)}")
     if faults.grasp_offset_attempts < 0:
         raise ValueError(f"faults.grasp_offset_attempts must be >= 0, got {faults.grasp_offset_attempts}")
+    if (restart := faults.driver_restart_after_objects) < 0:
+        raise ValueError(f"faults.driver_restart_after_objects must be >= 0 (0: never), got {restart}")
     if faults.grasp_offset_object < 0:
         raise ValueError(f"faults.grasp_offset_object must be >= 0 (the first: 0), got {faults.grasp_offset_object}")
     if scenario.robot.torso not in TORSO_MODES:

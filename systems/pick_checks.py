@@ -6,7 +6,8 @@ failure is recorded (fail: the stage and the reason).
 - A camera frame (perception's or a look's): at most CAMERA_WAIT_S after asking. Perception latches only a fresh
   image (systems/perception/camera_latch.py), so while the camera's images have stopped, the frame does not come.
 - A move: until the trajectory source has played the plan to its end (its Playback, which pauses while the robot's
-  status is stale). A pause longer than STATUS_LOST_S ends the pick with the arms holding.
+  status is stale). A pause longer than STATUS_LOST_S (the scenario's hardware.status_lost_s) ends the pick with
+  the arms holding.
 """
 
 import logging
@@ -34,11 +35,13 @@ def played_s(playback: Playback | None, plan_id: int, t: float) -> float:
     return playback.time_s if playback.plan_id == plan_id else -math.inf
 
 
-def status_silence(playback: Playback | None, move: str) -> str:
-    """Why the pick stops waiting for a move whose playing has paused (the robot's status stopped), or ""."""
-    if playback is None or playback.paused_for_s <= STATUS_LOST_S:
+def status_silence(playback: Playback | None, move: str, lost_after_s: float | None = None) -> str:
+    """Why the pick stops waiting for a move whose playing has paused longer than lost_after_s (None: STATUS_LOST_S;
+    the robot's status stopped), or ""."""
+    lost_after_s = STATUS_LOST_S if lost_after_s is None else lost_after_s
+    if playback is None or playback.paused_for_s <= lost_after_s:
         return ""
-    return f"the robot's status stopped for {STATUS_LOST_S:.0f} s during the {move}: the arms hold where they are"
+    return f"the robot's status stopped for {lost_after_s:.0f} s during the {move}: the arms hold where they are"
 
 
 def not_holding(widths: tuple[float, ...], when: str = "") -> str:

@@ -125,8 +125,8 @@ class PickSupervisor(LeafSystem):
         looks: the look phases ask the object tracker (False: they are skipped).
         max_attempts: attempts at the task, the first included (a failed check starts the next).
         num_joints: the planned joints (14: the arms; 15: with the torso).
-        drop_zone: a clear's (its tasks clear_pick()).
-        max_objects: a clear takes on at most this many objects.
+        drop_zone, max_objects: a clear's zone (its tasks clear_pick()) and the most objects it takes on.
+        status_lost_s: a move paused this long for the robot's status ends the pick, s (None: STATUS_LOST_S).
     """
 
     def __init__(
@@ -141,13 +141,14 @@ class PickSupervisor(LeafSystem):
         num_joints: int = 14,
         drop_zone: DropZone | None = None,
         max_objects: int = 1,
+        status_lost_s: float | None = None,
     ):
         super().__init__()
         self.clears, self.drop_zone, self.max_objects = tasks.after_given_up is not None, drop_zone, max_objects
         if self.clears != (drop_zone is not None):
             raise ValueError("a clear's tasks and a drop zone come together")
         self.tasks, self.perceive_at_s, self.place_target_W = tasks, perceive_at_s, place_target_W
-        self.from_camera, self.looks = from_camera, looks
+        self.from_camera, self.looks, self.status_lost_s = from_camera, looks, status_lost_s
         if max_attempts < 1:
             raise ValueError(f"max_attempts must be at least 1, not {max_attempts}")
         self.max_attempts = max_attempts
@@ -430,7 +431,7 @@ class PickSupervisor(LeafSystem):
                     status.grasp_offsets_G = plan.grasp_offsets_G
             playback = self.playback_port.Eval(context) if self.playback_port.HasValue(context) else None
             if (played := played_s(playback, plan.id, t)) + 1e-9 < plan.end_s:
-                if problem := status_silence(playback, phase.name):
+                if problem := status_silence(playback, phase.name, self.status_lost_s):
                     fail(status, Stage.STATUS, problem)
                     return True, look
                 checked = phase.check_held and np.isfinite(played)  # (a held move, being played)

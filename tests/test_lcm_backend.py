@@ -20,11 +20,18 @@ from diagrams import lcm_pick
 from diagrams.autonomous_pick import run_pick
 from diagrams.hardware_station import MakeHardwareStation, RobotModel, RobotNotResponding, wait_for_robot
 from diagrams.paths import REPO_ROOT
-from diagrams.robot_driver import MakeRobotDriver
+from diagrams.robot_driver import (
+    MakeRobotDriver,
+    driver_state,
+    read_driver_state,
+    set_plant_state,
+    write_driver_state,
+)
 from diagrams.scenario import initial_positions, load_scenario, replace_object
 from diagrams.station import MakeStation
 from systems.robot_io.lcm_messages import MalformedMessage, RawMessage, decode_arm_status, decode_images
 from systems.robot_io.lcm_safety import CommandGuard, LinkHealth
+from systems.robot_io.robot_clock import RobotClock
 
 
 def port_names(diagram):
@@ -249,6 +256,62 @@ def test_driver_rejects_bad_commands_and_holds(scenario):
     assert health.rejected == 2 and health.received == 0
     np.testing.assert_allclose(statuses[-1].joint_position_commanded, initial_positions(scenario))
     np.testing.assert_allclose(statuses[-1].joint_position_measured, initial_positions(scenario), atol=0.01)
+
+
+def test_a_restarted_driver_goes_on_from_the_world_and_commands_its_predecessor_wrote(scenario, tmp_path):
+    """A driver commanded to a new arm pose writes its state; a new driver built from that file holds the same
+    command and stands in the same world at the same clock; a file that is not a driver's state is refused."""
+    lcm = DrakeLcm("memq://")
+    first = MakeRobotDriver(scenario, lcm)
+    simulator = Simulator(first)
+    command = lcmt_iiwa_command()
+    q = np.array(initial_positions(scenario)) + 0.1
+    command.num_joints, command.joint_position = len(q), q.tolist()
+    simulator.AdvanceTo(0.1)
+    lcm.Publish(scenario.hardware.arm_command_channel, command.encode())
+    simulator.AdvanceTo(1.0)
+    path = tmp_path / "state.json"
+    write_driver_state(path, driver_state(first, simulator.get_context(), settled_state=None))
+    saved = read_driver_state(path, scenario)
+    np.testing.assert_allclose(saved.commands["centauro.command"], q)
+
+    second = MakeRobotDriver(scenario, DrakeLcm("memq://"), commands=saved.commands)
+    context = second.CreateDefaultContext()
+    set_plant_state(second, context, saved.plant_state, saved.time_s)
+    assert context.get_time() == pytest.approx(1.0)
+    again = driver_state(second, context, None)
+    np.testing.assert_allclose(again.plant_state, saved.plant_state)
+    np.testing.assert_allclose(again.commands["centauro.command"], q)  # held until the pick commands again
+
+    path.write_text('{"time_s": 1.0}')
+    with pytest.raises(ValueError, match="not a robot driver's state file"):
+        read_driver_state(path, scenario)
+
+
+def test_the_pick_waits_for_a_robot_clock_behind_its_own_but_not_for_a_silent_robot():
+    """RobotClock: pick time 0 lined up with the robot's 10 s; the pick's next step (0.05 s) waits for the robot's
+    status of 10.05 s; a robot silent for quiet_after_s is not waited for; one back from a silence is lined up
+    again."""
+    lcm = DrakeLcm("memq://")
+    clock = RobotClock(lcm, "STATUS", joints=2, quiet_after_s=0.5)
+
+    def status(robot_s):
+        lcm.Publish("STATUS", status_message([0.0, 0.0], utime=int(robot_s * 1e6), joints=2).encode())
+
+    status(10.0)
+    lcm.HandleSubscriptions(0)
+    clock.line_up(0.0)
+    status(10.05)  # (not yet handled)
+    clock.wait_for(0.05)
+    assert clock.robot_s == pytest.approx(10.05)
+    clock.quiet_after_s = 0.0  # silent from now on
+    clock.wait_for(0.5)  # not waited for
+    assert clock.robot_s == pytest.approx(10.05) and clock.offset_s == pytest.approx(10.0)
+    clock.quiet_after_s = 0.5
+    status(10.1)  # back, while the pick's clock ran on to 5 s
+    lcm.HandleSubscriptions(0)
+    clock.wait_for(5.0)
+    assert clock.offset_s == pytest.approx(10.1 - 5.0)
 
 
 @pytest.mark.slow

@@ -157,8 +157,8 @@ def test_a_fresh_link_reports_its_last_message_now():
     assert health.received == 1 and health.received_at == 2.5 and not health.stale
 
 
-def _supervisor(result: PerceptionResult | None = None):
-    dut = PickSupervisor(lift_pick(check=False), perceive_at_s=0.1)
+def _supervisor(result: PerceptionResult | None = None, **options):
+    dut = PickSupervisor(lift_pick(check=False), perceive_at_s=0.1, **options)
     context = dut.CreateDefaultContext()
     for port, value in (("position_measured", np.zeros(14)), ("frame_id", [0.0]), ("look_frame_id", [0.0])):
         dut.GetInputPort(port).FixValue(context, value)
@@ -216,8 +216,12 @@ def test_the_supervisor_names_a_camera_that_sends_no_frame():
     assert "the camera's images stopped" in status.message
 
 
-def test_the_supervisor_waits_for_a_paused_move_and_names_a_status_that_stays_away():
-    dut, context, simulator = _supervisor(PerceptionResult(True, X_WO_seen=RigidTransform([0.7, 0.0, 0.8])))
+@pytest.mark.parametrize("lost_s", [None, 30.0])
+def test_the_supervisor_waits_for_a_paused_move_and_names_a_status_that_stays_away(lost_s):
+    """As long as the scenario's hardware.status_lost_s (None: STATUS_LOST_S; 30 s: a spawned driver restarted)."""
+    seen = PerceptionResult(True, X_WO_seen=RigidTransform([0.7, 0.0, 0.8]))
+    dut, context, simulator = _supervisor(seen, status_lost_s=lost_s)
+    lost_s = lost_s or STATUS_LOST_S
     dut.GetInputPort("frame_id").FixValue(context, [1.0])
     simulator.AdvanceTo(0.15)
     request = dut.GetOutputPort("plan_request").Eval(context)
@@ -228,11 +232,14 @@ def test_the_supervisor_waits_for_a_paused_move_and_names_a_status_that_stays_aw
     playback.FixValue(context, Playback(request.id, 0.2, paused_for_s=1.0))  # paused before the end
     simulator.AdvanceTo(1.0)
     assert dut.GetOutputPort("status").Eval(context).mode == Mode.REACH  # waits for the played end
-    playback.FixValue(context, Playback(request.id, 0.2, paused_for_s=STATUS_LOST_S + 0.1))
+    playback.FixValue(context, Playback(request.id, 0.2, paused_for_s=lost_s - 0.1))
     simulator.AdvanceTo(1.1)
+    assert dut.GetOutputPort("status").Eval(context).mode == Mode.REACH
+    playback.FixValue(context, Playback(request.id, 0.2, paused_for_s=lost_s + 0.1))
+    simulator.AdvanceTo(1.2)
     status = dut.GetOutputPort("status").Eval(context)
     assert status.mode == Mode.FAILED and status.failed_stage == Stage.STATUS
-    assert "the robot's status stopped for 5 s during the reach" in status.message
+    assert f"the robot's status stopped for {lost_s:.0f} s during the reach" in status.message
 
 
 @pytest.mark.slow
