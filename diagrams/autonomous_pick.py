@@ -209,7 +209,7 @@ def MakePickDiagram(
 
 def _RobotStatus(builder, station, scenario, supervisor, num_joints: int, hardware: bool):
     """The robot's measured joints and its status link's health: the station's, or with faults.status_gap_s, through
-    a StatusGapFault (simulation only)."""
+    a StatusGapFault (simulation; a spawned driver's is done to its process: diagrams/lcm_pick.py)."""
     measured, health = (
         station.GetOutputPort("centauro.position_measured"),
         station.GetOutputPort("centauro.status_health"),
@@ -218,7 +218,10 @@ def _RobotStatus(builder, station, scenario, supervisor, num_joints: int, hardwa
     if faults.status_gap_in_carry_after_s < 0:
         return measured, health
     if hardware:
-        raise ValueError("faults are injected in simulation only: faults.status_gap_in_carry_after_s must be negative")
+        raise ValueError(
+            "faults.status_gap_in_carry_after_s must be negative against a robot: it is injected in simulation, or "
+            "on a spawned driver (pick.py --spawn-driver freezes the driver's process)"
+        )
     gap = StatusGapFault(
         faults.status_gap_in_carry_after_s, faults.status_gap_s, scenario.hardware.watchdog_s, num_joints
     )

@@ -39,7 +39,7 @@ from diagrams.autonomous_pick import (
 from diagrams.hardware_station import command_stream, wait_for_robot
 from diagrams.paths import REPO_ROOT
 from diagrams.pick_simulation import SAMPLE_S, PickOutcome
-from diagrams.scenario import Scenario, planned_joints
+from diagrams.scenario import FaultConfig, Scenario, planned_joints
 from systems.messages import Mode, PickStatus
 from systems.robot_io.lcm_safety import CommandGuard, MessageMonitor
 from systems.robot_io.robot_clock import RobotClock
@@ -79,10 +79,10 @@ def run_pick_on_robot(
     scenario: Scenario,
     lcm: DrakeLcmInterface | None = None,
     meshcat: Meshcat | None = None,
-    on_sample: Callable[[PickStatus], None] | None = None,
+    on_sample: Callable[[PickStatus, float], None] | None = None,
 ) -> RobotRun:
-    """Runs the pick diagram in real time against a robot (or scripts/robot_driver.py) over LCM; on_sample(status)
-    after every SAMPLE_S step (the supervisor's status).
+    """Runs the pick diagram in real time against a robot (or scripts/robot_driver.py) over LCM; on_sample(status, t)
+    after every SAMPLE_S step (the supervisor's status, the pick's time in s).
 
     Raises:
         RobotNotResponding: no status or images within scenario.hardware.status_timeout_s.
@@ -112,7 +112,7 @@ def run_pick_on_robot(
                 # real time.
                 simulator.ResetStatistics()
             if on_sample is not None:
-                on_sample(watch.status(context))
+                on_sample(watch.status(context), context.get_time())
             tripped, problems = safety_problems(station, context)
             if tripped:
                 logging.error("stopping: %s", "; ".join(problems))
@@ -205,13 +205,61 @@ def rerun_in_private_namespace(argv: list[str]) -> int:
     return subprocess.call(["unshare", "-n", "sh", "-c", f"{NAMESPACE_SETUP} && exec {command}"])
 
 
+class SpawnedDriver:
+    """scripts/robot_driver.py as a subprocess (`command`), and the faults done to it, as a robot's driver fails:
+
+    - faults.driver_restart_after_objects = k: once k objects are taken on, the driver is killed (SIGKILL) and a new
+      one started from the state it last wrote (--resume);
+    - faults.status_gap_in_carry_after_s = a: that long into the first carry (pick time), the driver is frozen
+      (SIGSTOP) for faults.status_gap_s: its status and images stop, its world waits, then it goes on (SIGCONT).
+    """
+
+    def __init__(self, command: list[str], faults: FaultConfig):
+        self.command, self.faults = command, faults
+        self.process = subprocess.Popen(command)
+        self.restarted = False
+        self.carry_from_s = self.frozen_at_s = None  # pick time, s
+
+    def on_sample(self, status: PickStatus, t: float):
+        """Injects the faults due at pick time t (s), the supervisor's status given."""
+        faults = self.faults
+        if faults.driver_restart_after_objects and not self.restarted:
+            if len(status.objects) >= faults.driver_restart_after_objects:
+                logging.warning("fault: the robot driver killed after %d objects; starting it again from its state",
+                                len(status.objects))  # fmt: skip
+                self.process.kill()
+                self.process.wait()
+                self.process, self.restarted = subprocess.Popen([*self.command, "--resume"]), True
+        if faults.status_gap_in_carry_after_s >= 0:
+            if self.carry_from_s is None and status.mode == Mode.CARRY:
+                self.carry_from_s = t
+            if self.carry_from_s is not None and self.frozen_at_s is None:
+                if t >= self.carry_from_s + faults.status_gap_in_carry_after_s:
+                    logging.warning("fault: the robot driver frozen for %.1f s in the carry", faults.status_gap_s)
+                    self.process.send_signal(signal.SIGSTOP)
+                    self.frozen_at_s = t
+            elif self.frozen_at_s is not None and t - faults.status_gap_s > self.frozen_at_s:  # (inf: done)
+                self.process.send_signal(signal.SIGCONT)
+                self.frozen_at_s = math.inf  # (once)
+
+    def stop(self):
+        """Asks the driver to stop (it writes its result), kills it after a minute."""
+        self.process.send_signal(signal.SIGCONT)
+        self.process.send_signal(signal.SIGTERM)
+        try:
+            self.process.wait(timeout=60)
+        except subprocess.TimeoutExpired:
+            self.process.kill()
+
+
 def run_with_spawned_driver(scenario: Scenario, driver_arguments: list[str]) -> PickOutcome:
     """Starts scripts/robot_driver.py on NAMESPACE_LCM_URL, runs the pick against it, then stops it;
-    the lift (or the clear) is judged by the driver's simulator (its --result file)."""
+    the lift (or the clear) is judged by the driver's simulator (its --result file). The faults of SpawnedDriver
+    are done to the driver's process (the pick's diagram has none)."""
     if not _only_loopback():
         raise RuntimeError("refusing to use UDP multicast outside a private loopback-only network namespace")
-    restart_after = scenario.faults.driver_restart_after_objects
-    lost_s = max(scenario.hardware.status_lost_s, DRIVER_RESTART_LOST_S if restart_after else 0.0)
+    faults = scenario.faults
+    lost_s = max(scenario.hardware.status_lost_s, DRIVER_RESTART_LOST_S if faults.driver_restart_after_objects else 0)
     scenario = replace(
         scenario,
         hardware=replace(
@@ -220,31 +268,17 @@ def run_with_spawned_driver(scenario: Scenario, driver_arguments: list[str]) -> 
             watchdog_s=max(scenario.hardware.watchdog_s, SPAWNED_DRIVER_WATCHDOG_S),
             status_lost_s=lost_s,
         ),
+        faults=replace(faults, status_gap_in_carry_after_s=-1.0),
     )
     with tempfile.TemporaryDirectory() as folder:
         result, state = Path(folder) / "driver.json", Path(folder) / "driver_state.json"
         command = [sys.executable, str(REPO_ROOT / "scripts" / "robot_driver.py"), *driver_arguments]
         command += ["--lcm-url", NAMESPACE_LCM_URL, "--result", str(result), "--state", str(state)]
-        drivers = [subprocess.Popen(command)]
-
-        def restart_between_objects(status: PickStatus):
-            """The fault: once restart_after objects are taken on, the driver killed and started from its state."""
-            if restart_after and len(drivers) == 1 and len(status.objects) >= restart_after:
-                logging.warning("fault: the robot driver killed after %d objects; starting it again from its state",
-                                len(status.objects))  # fmt: skip
-                drivers[0].kill()
-                drivers[0].wait()
-                drivers.append(subprocess.Popen([*command, "--resume"]))
-
+        driver = SpawnedDriver(command, faults)
         try:
-            run = run_pick_on_robot(scenario, DrakeLcm(NAMESPACE_LCM_URL), on_sample=restart_between_objects)
+            run = run_pick_on_robot(scenario, DrakeLcm(NAMESPACE_LCM_URL), on_sample=driver.on_sample)
         finally:
-            driver = drivers[-1]
-            driver.send_signal(signal.SIGTERM)
-            try:
-                driver.wait(timeout=60)
-            except subprocess.TimeoutExpired:
-                driver.kill()
+            driver.stop()
         outcome = _outcome(run, scenario.task)
         if not result.is_file():
             outcome.success, outcome.message = False, f"{outcome.message}; the driver wrote no result"

@@ -217,7 +217,8 @@ class FaultConfig:
     # negative: no drop.
     drop_in_carry_after_s: float = -1.0
     # The robot's status stops for status_gap_s this long into the first carry (the first attempt, the first
-    # object), s; negative: no gap. The arms hold, and go on once it is back.
+    # object), s; negative: no gap. The arms hold, and go on once it is back. With pick.py --spawn-driver, the
+    # driver's process is frozen that long (its status and images stop).
     status_gap_in_carry_after_s: float = -1.0
     status_gap_s: float = 2.0
     # The camera's images stop for camera_gap_s from this context time, s; negative: no gap. Perception waits.
