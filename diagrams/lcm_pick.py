@@ -25,7 +25,7 @@ from pathlib import Path
 from pydrake.geometry import Meshcat
 from pydrake.lcm import DrakeLcm, DrakeLcmInterface
 from pydrake.systems.analysis import Simulator
-from pydrake.systems.framework import Diagram
+from pydrake.systems.framework import Diagram, EventStatus
 
 from diagrams.autonomous_pick import (
     PERCEIVE_AT_S,
@@ -33,6 +33,7 @@ from diagrams.autonomous_pick import (
     PickReport,
     PickWatcher,
     attempt_failures,
+    max_time_s,
     pick_report,
     taken_on,
 )
@@ -81,8 +82,9 @@ def run_pick_on_robot(
     meshcat: Meshcat | None = None,
     on_sample: Callable[[PickStatus, float], None] | None = None,
 ) -> RobotRun:
-    """Runs the pick diagram in real time against a robot (or scripts/robot_driver.py) over LCM; on_sample(status, t)
-    after every SAMPLE_S step (the supervisor's status, the pick's time in s).
+    """Runs the pick diagram in real time, never ahead of the robot's clock (RobotClock), against a robot (or
+    scripts/robot_driver.py) over LCM; on_sample(status, t) after every SAMPLE_S step (the supervisor's status, the
+    pick's time in s).
 
     Raises:
         RobotNotResponding: no status or images within scenario.hardware.status_timeout_s.
@@ -97,14 +99,20 @@ def run_pick_on_robot(
     simulator = Simulator(diagram)
     simulator.set_target_realtime_rate(1.0)
     context = simulator.get_mutable_context()
-    watch = PickWatcher(diagram)
+    watch = PickWatcher(diagram, max_time_s=max_time_s(scenario))
     simulator.Initialize()
     robot_clock.line_up(context.get_time())
+
+    def keep_behind_the_robot(root_context) -> EventStatus:
+        """After every step: the pick never runs ahead of a robot slower than real time (RobotClock)."""
+        robot_clock.wait_for(root_context.get_time())
+        return EventStatus.Succeeded()
+
+    simulator.set_monitor(keep_behind_the_robot)
     tripped, problems, commands = False, [], {}
     stream = command_stream(station)
     try:
         while context.get_time() + SAMPLE_S <= watch.end_time(context) + 1e-9:
-            robot_clock.wait_for(context.get_time() + SAMPLE_S)  # never ahead of a robot slower than real time
             started = time.monotonic()
             simulator.AdvanceTo(context.get_time() + SAMPLE_S)
             if time.monotonic() - started > 2 * SAMPLE_S:

@@ -4,7 +4,8 @@ A real robot's clock runs in real time, and a pick that keeps real time never wa
 LCM (scripts/robot_driver.py) may run slower than real time on a busy computer (10 simulated seconds in 24-30 s on
 the project's 2-core VM, the camera's sensor model on): a pick on wall-clock time would then play its trajectories
 faster than the robot lives them, every move squeezed into less of the robot's time. Like a ROS node on a
-simulator's /clock, the pick's loop waits, before each step, until the robot's clock has reached the step's end.
+simulator's /clock, the pick's simulator waits after each of its steps until the robot's clock has reached it
+(diagrams/lcm_pick.py: a simulator monitor), so each command goes out when the robot is at its time.
 
 It waits only on a robot that speaks: once no status has arrived for `quiet_after_s` (wall time), the pick goes on
 in real time and its watchdog handles the silence. When the status is back from a silence (a driver restarted,
