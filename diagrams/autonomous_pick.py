@@ -91,6 +91,11 @@ def MakePickDiagram(
     """
     if perception not in PERCEPTION_SOURCES:
         raise ValueError(f"unknown perception {perception!r}: one of {PERCEPTION_SOURCES}")
+    if scenario.faults.driver_restart_after_objects:
+        raise ValueError(
+            "faults.driver_restart_after_objects is done to a spawned robot driver's process: "
+            "pick.py --backend lcm --spawn-driver, in a private network namespace (as root)"
+        )
     if scenario.task == "aim" and scenario.object.category != "drill":
         raise ValueError(f"the aim task aims a drill's bit: the object must be a drill, not {scenario.object.category}")
     if scenario.task == "clear" and perception != "camera":

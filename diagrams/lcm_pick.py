@@ -276,7 +276,7 @@ def run_with_spawned_driver(scenario: Scenario, driver_arguments: list[str]) -> 
             watchdog_s=max(scenario.hardware.watchdog_s, SPAWNED_DRIVER_WATCHDOG_S),
             status_lost_s=lost_s,
         ),
-        faults=replace(faults, status_gap_in_carry_after_s=-1.0),
+        faults=replace(faults, status_gap_in_carry_after_s=-1.0, driver_restart_after_objects=0),  # (the driver's)
     )
     with tempfile.TemporaryDirectory() as folder:
         result, state = Path(folder) / "driver.json", Path(folder) / "driver_state.json"

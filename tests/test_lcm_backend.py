@@ -19,7 +19,7 @@ from pydrake.lcm import DrakeLcm
 from pydrake.systems.analysis import Simulator
 
 from diagrams import lcm_pick
-from diagrams.autonomous_pick import run_pick
+from diagrams.autonomous_pick import MakePickDiagram, run_pick
 from diagrams.hardware_station import MakeHardwareStation, RobotModel, RobotNotResponding, wait_for_robot
 from diagrams.paths import REPO_ROOT
 from diagrams.robot_driver import (
@@ -315,6 +315,12 @@ def test_the_pick_waits_for_a_robot_clock_behind_its_own_but_not_for_a_silent_ro
     lcm.HandleSubscriptions(0)
     clock.wait_for(5.0)
     assert clock.offset_s == pytest.approx(10.1 - 5.0)
+
+
+def test_a_driver_restart_asked_of_a_pick_without_a_spawned_driver_is_refused_by_name(scenario):
+    faults = FaultConfig(driver_restart_after_objects=1)
+    with pytest.raises(ValueError, match="driver_restart_after_objects is done to a spawned robot driver"):
+        MakePickDiagram(dataclasses.replace(scenario, task="clear", faults=faults))
 
 
 def _process_state(process: subprocess.Popen) -> str:
