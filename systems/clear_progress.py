@@ -15,6 +15,13 @@ from systems.planning.outlines import convex_outline
 SEEN_POINT_HALF_SIZE_M = 0.02  # m: an object seen as points on a line is given this outline about their centre
 
 
+def not_seen_again(result: PerceptionResult, attempts: int) -> PerceptionResult:
+    """A retry's frame that finds nothing to clear: the object under way fell over, off the table, or into the drop
+    zone (where perception leaves everything out); the frame's own account (how many stand in the zone) is kept."""
+    where = "fallen over, off the table or into the drop zone"
+    return dataclasses.replace(result, message=f"not seen again after attempt {attempts} ({where}; {result.message})")
+
+
 def seen_object(result: PerceptionResult, later_pass: bool = False) -> ClearedObject | None:
     """The record of an object perception saw (its category, the centre of its seen points), before it is taken on;
     None where perception saw no point of it."""

@@ -278,7 +278,7 @@ class PickSupervisor(LeafSystem):
             if self.clears and status.current is None:
                 status.current = clearing.seen_object(result, status.pass_from > 0)
             elif self.clears and result.failed_stage == Stage.SEGMENTATION:  # (it fell over, or off the table)
-                result = dataclasses.replace(result, message=f"not seen again after attempt {status.attempt - 1}")
+                result = clearing.not_seen_again(result, status.attempt - 1)
             fail(status, result.failed_stage, result.message)
             return
         status.belief = ObjectBelief.seen(result.X_WO_seen)

@@ -167,7 +167,8 @@ def test_an_object_retried_and_not_seen_again_is_given_up_by_name_and_the_clear_
     status = dut.GetOutputPort("status").Eval(context)
     assert status.mode == Mode.PERCEIVING and status.perceive_id == 2  # (given up where nothing moved: a new look)
     (given_up,) = status.objects
-    assert given_up.message == "segmentation: not seen again after attempt 1" and given_up.attempts == 2
+    assert given_up.message.startswith("segmentation: not seen again after attempt 1 (") and given_up.attempts == 2
+    assert given_up.message.endswith("(0 in the drop zone, 0 given up))")  # (what the frame saw, kept)
     assert given_up.target_xy_W == (0.67, -0.22) and not given_up.cleared
     dut.GetInputPort("frame_id").FixValue(context, [2.0])
     simulator.AdvanceTo(0.2)
