@@ -30,7 +30,7 @@ from pydrake.systems.primitives import ConstantVectorSource, Saturation
 from pydrake.systems.sensors import ImageToLcmImageArrayT, PixelType
 
 from diagrams.hardware_station import RobotModel
-from diagrams.pick_simulation import station_plant
+from diagrams.pick_simulation import SETTLED_S, LiftJudge, station_plant
 from diagrams.scenario import Scenario, initial_positions
 from diagrams.station import HAND_INSTANCES, MakeStation
 from systems.robot_io.lcm_messages import RawMessage, decode_arm_command, decode_hand_command
@@ -50,14 +50,19 @@ class DriverState:
     settled_state: list[float] | None = None  # plant_state once the scene had settled (the judge's references)
 
 
+def world_state(driver: Diagram, context) -> list[float]:
+    """The driver's world now (its root context): the plant's positions then velocities."""
+    plant = station_plant(driver)
+    return plant.GetPositionsAndVelocities(plant.GetMyContextFromRoot(context)).tolist()
+
+
 def driver_state(driver: Diagram, context, settled_state: list[float] | None) -> DriverState:
     """The driver's state now (its root context)."""
-    plant, commands = station_plant(driver), {}
+    commands = {}
     for name in COMMAND_MONITORS:
         monitor = driver.GetSubsystemByName(name)
         commands[name] = monitor.GetOutputPort("values").Eval(monitor.GetMyContextFromRoot(context)).tolist()
-    state = plant.GetPositionsAndVelocities(plant.GetMyContextFromRoot(context)).tolist()
-    return DriverState(context.get_time(), state, commands, settled_state)
+    return DriverState(context.get_time(), world_state(driver, context), commands, settled_state)
 
 
 def set_plant_state(driver: Diagram, context, plant_state: list[float], time_s: float):
@@ -65,6 +70,15 @@ def set_plant_state(driver: Diagram, context, plant_state: list[float], time_s: 
     plant = station_plant(driver)
     context.SetTime(time_s)
     plant.SetPositionsAndVelocities(plant.GetMyContextFromRoot(context), np.asarray(plant_state, float))
+
+
+def resume_driver(driver: Diagram, context, state: DriverState, judge: LiftJudge):
+    """A new driver (built with state.commands) put where `state` left off: its judge's references taken from the
+    scene as the first driver saw it settle (where saved), then its world and clock."""
+    if state.settled_state is not None:
+        set_plant_state(driver, context, state.settled_state, SETTLED_S)
+        judge.sample(SETTLED_S)
+    set_plant_state(driver, context, state.plant_state, state.time_s)
 
 
 def write_driver_state(path: Path, state: DriverState):

@@ -29,7 +29,8 @@ from diagrams.robot_driver import (
     MakeRobotDriver,
     driver_state,
     read_driver_state,
-    set_plant_state,
+    resume_driver,
+    world_state,
     write_driver_state,
 )
 from diagrams.station import drop_zone
@@ -65,13 +66,10 @@ def main(argv=None) -> int:
         judge = ClearJudge(plant, context, scenario, drop_zone(scenario))
     else:
         judge = LiftJudge(plant, context)
-    settled = None
+    settled = None  # the world once the scene has settled (the judge's references), for a driver resumed later
     if resumed:
+        resume_driver(driver, context, resumed, judge)
         settled = resumed.settled_state
-        if settled is not None:  # the judge's references: the scene as the first driver saw it settle
-            set_plant_state(driver, context, settled, SETTLED_S)
-            judge.sample(SETTLED_S)
-        set_plant_state(driver, context, resumed.plant_state, resumed.time_s)
         logging.info("resuming from %s at t = %.2f s", args.state, resumed.time_s)
     stop = {"requested": False}
     for signum in (signal.SIGINT, signal.SIGTERM):
@@ -85,7 +83,7 @@ def main(argv=None) -> int:
         simulator.AdvanceTo(t)
         judge.sample(t)
         if settled is None and t >= SETTLED_S:
-            settled = driver_state(driver, context, None).plant_state
+            settled = world_state(driver, context)
         if args.state and step % round(STATE_PERIOD_S / SAMPLE_S) == 0:
             write_driver_state(args.state, driver_state(driver, context, settled))
         if step % round(HEALTH_LOG_S / SAMPLE_S) == 0:

@@ -1,11 +1,11 @@
 """The robot's own clock, read off its arm status time stamps, so that a pick never runs ahead of its robot.
 
 A real robot's clock runs in real time, and a pick that keeps real time never waits for it. A simulated robot behind
-LCM (scripts/robot_driver.py) may run slower than real time on a busy computer (10 simulated seconds in 24-30 s on
-the project's 2-core VM, the camera's sensor model on): a pick on wall-clock time would then play its trajectories
-faster than the robot lives them, every move squeezed into less of the robot's time. Like a ROS node on a
-simulator's /clock, the pick's simulator waits after each of its steps until the robot's clock has reached it
-(diagrams/lcm_pick.py: a simulator monitor), so each command goes out when the robot is at its time.
+LCM (scripts/robot_driver.py) may run slower than real time on a busy computer (10 simulated seconds in 24-28 s,
+its start included, on the project's 2-core VM, the camera's sensor model on): a pick on wall-clock time would then
+play its trajectories faster than the robot lives them, every move squeezed into less of the robot's time. Like a
+ROS node on a simulator's /clock, the pick's simulator waits after each of its steps until the robot's clock has
+reached it (diagrams/lcm_pick.py: a simulator monitor), so each command goes out when the robot is at its time.
 
 It waits only on a robot that speaks: once no status has arrived for `quiet_after_s` (wall time), the pick goes on
 in real time and its watchdog handles the silence. When the status is back from a silence (a driver restarted,
