@@ -3,6 +3,10 @@ handles it saw, beside the object's true grasps (green: for judging only, never 
 
 python scripts/draw_part_grasps.py --object watering_can --instance shop_104 --out docs/part_grasps.png
 python scripts/draw_part_grasps.py --object drill --instance shop_101 --yaw 0.25 --out drill_parts.png
+python scripts/draw_part_grasps.py --object watering_can --object-file held_out/watering_can/held_out_slim_can.obj
+
+A user's mesh (--object-file: OBJ/PLY/STL/GLB, its units and up axis read as a pick reads them) has its true grasps
+drawn where an info.yaml lies beside it (make_unfamiliar_objects.py and make_shop_held_out.py write one).
 """
 
 import argparse
@@ -11,6 +15,7 @@ from pathlib import Path
 from diagrams.benchmarks.part_drawing import draw_part_view
 from diagrams.benchmarks.part_perception import perceive_view
 from diagrams.benchmarks.registration import true_grasps
+from diagrams.generation.objects.library import load_info, mesh_to_sdf
 from diagrams.scenario import load_scenario
 
 
@@ -18,14 +23,27 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--object", default="watering_can", help="category: watering_can or drill")
     parser.add_argument("--instance", default="shop_104", help="a generated instance (default: a shop can, unseen)")
+    parser.add_argument("--object-file", type=Path, help="a mesh of the category instead of a generated instance")
+    parser.add_argument("--mesh-units", default="auto", choices=("auto", "m", "cm", "mm", "in"))
+    parser.add_argument("--mesh-up", default="auto", choices=("auto", "z", "y"))
     parser.add_argument("--yaw", type=float, default=0.0, help="rad, from the category's presentation")
     parser.add_argument("--seed", type=int, default=3, help="the scene's and the sensor noise's seed")
     parser.add_argument("--out", type=Path, default=Path("part_grasps.png"))
     args = parser.parse_args()
-    view = perceive_view(load_scenario(), args.object, args.instance, args.yaw, args.seed)
+    name, model = args.instance, None
+    if args.object_file:
+        if not args.object_file.is_file():
+            parser.error(f"--object-file: no such file {args.object_file}")
+        name = args.object_file.stem
+        model = mesh_to_sdf(args.object_file, 1.0, 1.0, args.object, args.mesh_units, args.mesh_up)
+        info_file = args.object_file.with_suffix(".info.yaml")
+        true_O = load_info(info_file).control_poses() if info_file.is_file() else {}
+    else:
+        true_O = true_grasps(args.object, args.instance)
+    view = perceive_view(load_scenario(), args.object, name, args.yaw, args.seed, model)
     print(view.grasps.message)
-    title = f"{args.object}/{args.instance}, yaw {args.yaw:+.2f} rad, kinect_v2 sensor model, seed {args.seed}"
-    draw_part_view(view, true_grasps(args.object, args.instance), args.object, title, args.out)
+    title = f"{args.object}/{name}, yaw {args.yaw:+.2f} rad, kinect_v2 sensor model, seed {args.seed}"
+    draw_part_view(view, true_O, args.object, title, args.out)
     print(f"wrote {args.out}")
 
 

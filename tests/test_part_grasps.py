@@ -6,7 +6,13 @@ import pytest
 from pydrake.math import RigidTransform, RotationMatrix
 
 from systems.messages import PartRole, SeenPart
-from systems.shape_space.part_grasps import FINGER_HALF_SPAN, grasps_on_seen_parts, turned_end_for_end
+from systems.shape_space.part_grasps import (
+    FINGER_HALF_SPAN,
+    OFF_HANDLE_M,
+    grasps_on_seen_parts,
+    prior_off_seen_handle,
+    turned_end_for_end,
+)
 
 VIEWPOINT = np.array([-0.6, 0.0, 1.4])
 LEFT, RIGHT = PartRole.LEFT_HANDLE, PartRole.RIGHT_HANDLE
@@ -140,3 +146,34 @@ def test_a_fit_turned_end_for_end_is_told_by_the_seen_spout_and_rear_handle():
     assert not turned_end_for_end(seen, body, np.array([1.0, 0.0, 0.0]), prior_right)
     assert turned_end_for_end(seen, body, np.array([-1.0, 0.0, 0.0]), -prior_right * [1, 1, -1])  # x_O backwards
     assert not turned_end_for_end({}, body, np.array([-1.0, 0.0, 0.0]), prior_right)  # no part seen: no word
+
+
+def test_a_sound_prior_whose_grasp_lies_off_a_handle_seen_well_is_doubted_by_name():
+    rng = np.random.default_rng(7)
+    seen = seen_can(rng)
+    # Both grasps on their handles (the rear one 5 cm below its seen stretch, as a handle hidden by the body leaves
+    # it): no doubt.
+    assert prior_off_seen_handle(seen, VIEWPOINT, prior_poses([0.0, 0.02, 0.35], [-0.18, 0.0, 0.03])) == ""
+    # The right grasp on the far side of the body (a wrong fit): named.
+    off = prior_off_seen_handle(seen, VIEWPOINT, prior_poses([0.0, 0.02, 0.35], [0.16, 0.0, 0.12]))
+    assert off.startswith("the fit's right grasp lies") and "from its handle as seen" in off
+    # The same grasp beside a rear handle cut off by the image's border, or seen in too few points: no doubt.
+    far = prior_poses([0.0, 0.02, 0.35], [-0.18 + OFF_HANDLE_M + 0.1, 0.0, 0.12])
+    assert prior_off_seen_handle(seen_can(rng, cut_rear=True), VIEWPOINT, far) == ""
+    few = {LEFT: seen[LEFT], RIGHT: SeenPart(seen[RIGHT].points_W[:20])}
+    assert prior_off_seen_handle(few, VIEWPOINT, far) == ""
+
+
+def test_the_registrar_doubts_a_sound_fit_its_seen_handles_contradict_and_only_with_part_grasps():
+    from types import SimpleNamespace
+
+    from systems.messages import ObjectEstimate
+    from systems.perception.shape_registrar import fit_doubt
+
+    rng = np.random.default_rng(8)
+    estimate = ObjectEstimate(True, "watering_can", viewpoint_W=VIEWPOINT, parts=seen_can(rng))
+    wrong = SimpleNamespace(poor_fit="", grasp_poses_W=prior_poses([0.0, 0.02, 0.35], [0.16, 0.0, 0.12]))
+    assert fit_doubt(estimate, wrong).startswith("the fit's right grasp lies")
+    assert fit_doubt(estimate, wrong, part_grasps=False) == ""
+    poor = SimpleNamespace(poor_fit="a poor fit: 60%", grasp_poses_W=wrong.grasp_poses_W)
+    assert fit_doubt(estimate, poor) == "a poor fit: 60%"

@@ -22,7 +22,8 @@ AXIS_M = 0.04  # drawn length of a grasp frame's axes
 
 def draw_part_view(view: PerceivedView, true_O: dict[str, RigidTransform], category: str, title: str, out: Path):
     """Writes a two-panel PNG: the labels, then the grasp frames (x along the handle, orange; the approach, blue,
-    drawn back from the grasp to where the hand comes from) with the true grasps' origins (green)."""
+    drawn back from the grasp to where the hand comes from) with the true grasps' origins (green; true_O, X_OG by
+    name: those it has)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -53,8 +54,9 @@ def draw_part_view(view: PerceivedView, true_O: dict[str, RigidTransform], categ
         return K.focal_x() * x / z + K.center_x(), K.focal_y() * y / z + K.center_y()
 
     for hand in ("left", "right"):
-        truth = (view.X_WO @ true_O[f"{hand}_grasp"]).translation()
-        frames_axes.plot(*pixel(truth), "x", color=(0.1, 0.7, 0.1), markersize=10, mew=2)
+        if f"{hand}_grasp" in true_O:  # (a user's mesh without an info.yaml has none)
+            truth = (view.X_WO @ true_O[f"{hand}_grasp"]).translation()
+            frames_axes.plot(*pixel(truth), "x", color=(0.1, 0.7, 0.1), markersize=10, mew=2)
         X_WG = view.grasps.poses_W.get(f"{hand}_grasp")
         if X_WG is None:
             continue

@@ -86,17 +86,20 @@ class PerceivedView:
     grasps: GraspPoses
 
 
-def perceive_view(scenario: Scenario, category: str, instance: str, yaw: float, seed: int = 3) -> PerceivedView:
-    """A frame of the generated instance where a pick finds it (NOMINAL_XY, `yaw` from its presentation), with
-    the sensor model's noise, through the pick's segmenter (with its part network), pose estimator and shape
-    registrar, as LeafSystems."""
+def perceive_view(
+    scenario: Scenario, category: str, instance: str, yaw: float, seed: int = 3, model_file: Path | None = None
+) -> PerceivedView:
+    """A frame of the generated instance (or of the model file, an SDF: a user's mesh through mesh_to_sdf) where a
+    pick finds it (NOMINAL_XY, `yaw` from its presentation), with the sensor model's noise, through the pick's
+    segmenter (with its part network), pose estimator and shape registrar, as LeafSystems."""
     scene = SyntheticScene(
         scenario,
         np.random.default_rng(seed),
         cameras=1,
         camera_jitter=False,
-        instances=(instance,),
+        instances=None if model_file else (instance,),
         classes=("background", category),
+        models={category: [(instance, model_file)]} if model_file else None,
     )
     frame = scene.render(placement=(category, instance, catalog.presentation_yaw(category) + yaw, np.array(NOMINAL_XY)))
     sensor, noise = sensor_model("kinect_v2"), np.random.default_rng(seed)

@@ -23,7 +23,7 @@ from diagrams.generation.objects.library import generated_instance_directory, lo
 from diagrams.pick_simulation import object_body, station_plant
 from diagrams.scenario import Scenario
 from systems.messages import ObjectEstimate
-from systems.perception.shape_registrar import registrar_of, seen_part_grasps
+from systems.perception.shape_registrar import fit_doubt, registrar_of, seen_part_grasps
 
 FRAME_POLL_S = 0.01  # s: the pick's simulation steps while it waits for its first frame
 
@@ -77,8 +77,9 @@ def pick_frame_trials(
         )
         seconds = time.perf_counter() - start
         grasps_W, handed = None, None
-        if part_grasps and estimate.parts and result.poor_fit:
-            grasps_W, message = seen_part_grasps(estimate, registrars[estimate.category], result)
+        doubt = fit_doubt(estimate, result, part_grasps)
+        if part_grasps and estimate.parts and doubt:
+            grasps_W, message = seen_part_grasps(estimate, registrars[estimate.category], result, doubt)
             handed = grasps_W is not None
             logging.info("   on the seen parts: %s", message)
         row = judged_row(

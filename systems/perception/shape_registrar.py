@@ -13,7 +13,12 @@ from systems import categories
 from systems.categories import shape_space_file, wider_shape_space_file
 from systems.messages import GraspPoses, ObjectEstimate
 from systems.shape_space.fit_judging import Registration
-from systems.shape_space.part_grasps import HAND_PARTS, grasps_on_seen_parts, turned_end_for_end
+from systems.shape_space.part_grasps import (
+    HAND_PARTS,
+    grasps_on_seen_parts,
+    prior_off_seen_handle,
+    turned_end_for_end,
+)
 from systems.shape_space.registration import Registrar
 from systems.shape_space.space import ShapeSpace
 from systems.shape_space.tool_frame import ToolFrame
@@ -37,9 +42,10 @@ class ShapeRegistrar(LeafSystem):
     ``grasp_poses``: GraspPoses, the canonical control poses warped to this instance, in W; where the fit is poor
     (Registration.poor_fit) and the estimate has the object's parts, built on the handles the camera saw with the
     fit as their prior (part_grasps.py); not found, with the reason, when there was nothing to register, or the
-    fit is poor and the parts cannot stand in for it. (A sound fit's grasps are used as they are: on the test
+    fit is poor and the parts cannot stand in for it. A sound fit's grasps are used as they are (on the test
     instances the seen parts moved sound grasps by up to 2.5 cm across their handles and turned them, and two
-    picks of the test suite failed that way, 2026-12-03.)
+    picks of the test suite failed that way, 2026-12-03), unless a handle seen well says a grasp is not on it
+    (fit_doubt): then the fit is taken as poor.
     ``reconstructed_cloud_W``: N x 3 numpy array, the whole inferred shape (also the unseen side), m.
     """
 
@@ -82,21 +88,22 @@ class ShapeRegistrar(LeafSystem):
         except ValueError as error:
             return _Result(estimate.X_WO, message=str(error))
         fit = f"fit error {registration.fit_error_m:.4f} m, {100 * registration.inlier_share:.0f}% of the points on it"
-        if registration.poor_fit and self.part_grasps and estimate.parts:  # the handles seen stand in for the fit
-            return self._on_seen_parts(estimate, registrar, registration, fit)
-        if registration.poor_fit:  # named, not passed on: a grasp 30 cm off is worse than no grasp
-            return _Result(estimate.X_WO, message=registration.poor_fit)
+        doubt = fit_doubt(estimate, registration, self.part_grasps)
+        if doubt and self.part_grasps and estimate.parts:  # the handles seen stand in for the fit
+            return self._on_seen_parts(estimate, registrar, registration, fit, doubt)
+        if doubt:  # named, not passed on: a grasp 30 cm off is worse than no grasp
+            return _Result(estimate.X_WO, message=doubt)
         return _Result(
             registration.X_WO, registration.grasp_poses_W, registration.reconstructed_W, fit, tool_W=registration.tool_W
         )
 
     @staticmethod
-    def _on_seen_parts(estimate, registrar: Registrar, registration: Registration, fit: str) -> "_Result":
-        """The grasps built on the handles the camera saw, the fit their prior (part_grasps.py)."""
-        poses_W, message = seen_part_grasps(estimate, registrar, registration)
+    def _on_seen_parts(estimate, registrar: Registrar, registration: Registration, fit: str, doubt: str) -> "_Result":
+        """The grasps built on the handles the camera saw, the fit their prior (part_grasps.py), doubted for `doubt`."""
+        poses_W, message = seen_part_grasps(estimate, registrar, registration, doubt)
         if poses_W is None:
             return _Result(estimate.X_WO, message=message)
-        prior = f"the fit poor ({registration.poor_fit})" if registration.poor_fit else fit
+        prior = f"the fit poor ({doubt}; {fit})"
         return _Result(registration.X_WO, poses_W, registration.reconstructed_W, f"{message}; {prior}")
 
     def _result(self, context) -> "_Result":
@@ -116,13 +123,23 @@ class ShapeRegistrar(LeafSystem):
         output.set_value(self._result(context).reconstructed_W)
 
 
+def fit_doubt(estimate: ObjectEstimate, registration: Registration, part_grasps: bool = True) -> str:
+    """Why the fit's grasps may not be handed on alone ("" where they may): the fit is poor (Registration.poor_fit),
+    or, with part_grasps, a handle the camera saw well says a sound fit's grasp is not on it
+    (part_grasps.prior_off_seen_handle)."""
+    if registration.poor_fit or not (part_grasps and estimate.parts):
+        return registration.poor_fit
+    return prior_off_seen_handle(estimate.parts, estimate.viewpoint_W, registration.grasp_poses_W)
+
+
 def seen_part_grasps(
-    estimate: ObjectEstimate, registrar: Registrar, registration: Registration
+    estimate: ObjectEstimate, registrar: Registrar, registration: Registration, doubt: str | None = None
 ) -> tuple[dict[str, RigidTransform] | None, str]:
     """The grasps (POSE_NAMES -> X_WG) built on the handles the camera saw (estimate.parts), the registration their
-    prior (part_grasps.py), and where each came from; None and why where they cannot be built."""
+    prior (part_grasps.py), and where each came from; None and why where they cannot be built. doubt: why the prior
+    is not sound (default: Registration.poor_fit; "" for a sound one)."""
     R_WO = registration.X_WO.rotation()
-    poor = registration.poor_fit
+    poor = registration.poor_fit if doubt is None else doubt
     prior_right_W = registration.grasp_poses_W["right_grasp"].translation()
     if turned_end_for_end(estimate.parts, estimate.points_W, R_WO.col(0), prior_right_W):
         R_WO = RotationMatrix.MakeZRotation(np.pi) @ R_WO
