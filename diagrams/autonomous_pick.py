@@ -22,6 +22,7 @@ import numpy as np
 from pydrake.geometry import Meshcat
 from pydrake.lcm import DrakeLcm, DrakeLcmInterface
 from pydrake.math import RigidTransform
+from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.framework import Diagram, DiagramBuilder
 
 from diagrams.aim_board import board_placement
@@ -33,11 +34,18 @@ from diagrams.generation.part_labels import on_handles, true_part_surface
 from diagrams.hardware_station import MakeHardwareStation, image_stale_after_s
 from diagrams.lifetime import release
 from diagrams.perception import MakeGroundTruthPerception, MakeObjectTracker, MakePerception, latch_offset
-from diagrams.pick_simulation import PickOutcome, PlaceJudge, pose_error, simulate_pick, station_plant
+from diagrams.pick_simulation import (
+    PickOutcome,
+    PlaceJudge,
+    object_body,
+    pose_error,
+    simulate_pick,
+    station_plant,
+)
 from diagrams.planning_scene import make_planning_world
 from diagrams.robot_driver import MakeRobotDriver
 from diagrams.scenario import ObjectConfig, Scenario
-from diagrams.station import HAND_INSTANCES, MakeStation, drop_zone, place_target
+from diagrams.station import HAND_INSTANCES, OBJECT_INSTANCE, MakeStation, drop_zone, place_target
 from systems.messages import ClearedObject, GraspPoses, Mode, PickStatus
 from systems.perception.camera_latch import CameraLatch
 from systems.perception.grasp_offset import GraspOffset
@@ -403,7 +411,7 @@ def _simulated_pick(
     else:
         raise ValueError(f"unknown backend {backend!r}: sim or lcm-memq")
     judged = scenario.object if scenario.object.present else None
-    watch = PickWatcher(pick, true_grasps_O(scenario), judged, true_tool_O(scenario), max_time_s(scenario))
+    watch = PickWatcher(pick, true_grasps_O(scenario), judged, true_tool_O(scenario), max_time_s(scenario), plant)
 
     def mode_of(context):
         return watch.status(context).mode
@@ -488,14 +496,20 @@ class PickWatcher:
         judged_object: ObjectConfig | None = None,
         true_tool_O: ToolFrame | None = None,
         max_time_s: float = MAX_PICK_S,
+        plant: MultibodyPlant | None = None,
     ):
         """true_grasps_O: the object's true control poses in O, where known: the perceived grasps are judged on them
         (the outcome's perception["grasp_errors_m"]); judged_object: the object, whose true parts (where known) say
         whether each grasp lay on its own handle (perception["grasps_on_handles"]; read only once grasps exist);
         true_tool_O: its true tool frame in O, where known: the perceived one is judged on it
-        (perception["tool_errors"]); max_time_s: the simulated time the pick may take, s."""
+        (perception["tool_errors"]); max_time_s: the simulated time the pick may take, s; plant: the simulated
+        robot's plant (in the root context), where the object's true pose is read when perception gives the pick
+        its belief: the perceived pose and grasps are judged on where the object stood then, not where it first
+        settled (an earlier attempt may have moved it). Without it, they are judged on where it first settled."""
         self.pick, self.mode, self.max_time_s = pick, "", max_time_s
         self.true_grasps_O, self.judged_object, self.true_tool_O = true_grasps_O, judged_object, true_tool_O
+        self.plant = plant if plant is not None and plant.HasModelInstanceNamed(OBJECT_INSTANCE) else None
+        self.seen_W, self.X_WO_when_seen = None, None  # the belief's perceived pose (3 x 4), and the true one then
 
     def status(self, context) -> PickStatus:
         return pick_status(self.pick, context)
@@ -503,6 +517,10 @@ class PickWatcher:
     def end_time(self, context) -> float:
         """When to stop, in context seconds: now if the pick is done or failed, else max_time_s."""
         status = self.status(context)
+        seen_W = None if status.belief is None else status.belief.seen_W.GetAsMatrix34()
+        if self.plant is not None and seen_W is not None and not np.array_equal(seen_W, self.seen_W):
+            self.seen_W = seen_W
+            self.X_WO_when_seen = object_body(self.plant).EvalPoseInWorld(self.plant.GetMyContextFromRoot(context))
         if status.mode != self.mode:
             note = f": {status.message}" if status.mode == Mode.FAILED else ""
             logging.info("t = %5.2f s  %s%s", context.get_time(), status.mode, note)
@@ -517,27 +535,28 @@ class PickWatcher:
         outcome.planning_s = report.stages.get("image_to_trajectory", 0.0)
         outcome.closure = report.closure
         outcome.waits = {"status_held_s": report.status_held_s, "frames_waited_s": status.frames_waited_s}
-        if status.belief is not None and outcome.object_rest_W is not None:
-            outcome.perception = pose_error(status.belief.seen_W, outcome.object_rest_W)
+        X_WO_true = self.X_WO_when_seen if self.X_WO_when_seen is not None else outcome.object_rest_W  # when seen
+        if status.belief is not None and X_WO_true is not None:
+            outcome.perception = pose_error(status.belief.seen_W, X_WO_true)
         if report.category:
             outcome.perception["category"] = report.category
         if report.network_category:
             outcome.perception["network_category"] = report.network_category
         if report.grasps is not None:
             outcome.perception["grasps"] = report.grasps.message
-            if report.grasps.found and self.true_grasps_O and outcome.object_rest_W is not None:
+            if report.grasps.found and self.true_grasps_O and X_WO_true is not None:
                 outcome.perception["grasp_errors_m"] = grasp_errors(
-                    report.grasps.poses_W, outcome.object_rest_W, self.true_grasps_O
+                    report.grasps.poses_W, X_WO_true, self.true_grasps_O
                 )
             tool = report.grasps.tool_W
-            if tool is not None and self.true_tool_O is not None and outcome.object_rest_W is not None:
-                tip, axis = tool.errors(self.true_tool_O.moved(outcome.object_rest_W))
+            if tool is not None and self.true_tool_O is not None and X_WO_true is not None:
+                tip, axis = tool.errors(self.true_tool_O.moved(X_WO_true))
                 outcome.perception["tool_errors"] = {"tip_m": tip, "axis_rad": axis}
             truth = None
-            if report.grasps.found and self.judged_object is not None and outcome.object_rest_W is not None:
+            if report.grasps.found and self.judged_object is not None and X_WO_true is not None:
                 truth = true_part_surface(self.judged_object)
             if truth is not None:
-                X_OW = outcome.object_rest_W.inverse()
+                X_OW = X_WO_true.inverse()
                 grasps_O = {h: (X_OW @ report.grasps.poses_W[f"{h}_grasp"]).translation() for h in ("left", "right")}
                 outcome.perception["grasps_on_handles"] = on_handles(truth, grasps_O)
         outcome.attempts_made, outcome.attempt_failures = status.attempt, attempt_failures(status)

@@ -1,6 +1,11 @@
 """Part perception end to end on rendered frames: the part network labels the handles, the grasps are built on
 them. The shop family's validation members were never trained on."""
 
+import functools
+import subprocess
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -31,3 +36,18 @@ def test_a_can_whose_top_handle_runs_across_its_body_is_grasped_on_it_from_above
     R, handle_axis_W = X_WG.rotation().matrix(), X_WO.rotation().matrix()[:, 1]
     assert R[:, 2] @ [0.0, 0.0, -1.0] > np.cos(np.radians(30))  # approaching from above
     assert abs(R[:, 0] @ handle_axis_W) > np.cos(np.radians(10))  # along the handle: the fingers close across it
+
+
+@pytest.mark.slow
+def test_draw_part_grasps_takes_a_users_mesh_with_its_true_grasps_beside_it(tmp_path):
+    scripts = Path(__file__).resolve().parents[1] / "scripts"
+    run = functools.partial(subprocess.run, capture_output=True, text=True, timeout=600)
+    made = run([sys.executable, scripts / "make_unfamiliar_objects.py", "--out", tmp_path, "--split", "tune"])
+    assert made.returncode == 0, made.stderr
+    mesh = sorted((tmp_path / "watering_can").glob("*.obj"))[0]
+    out = tmp_path / "parts.png"
+    drawn = run([sys.executable, scripts / "draw_part_grasps.py", "--object-file", mesh, "--yaw", "0.25", "--out", out])
+    assert drawn.returncode == 0, drawn.stderr
+    assert "grasp" in drawn.stdout and out.stat().st_size > 10_000
+    missing = run([sys.executable, scripts / "draw_part_grasps.py", "--object-file", tmp_path / "none.obj"])
+    assert missing.returncode == 2 and "no such file" in missing.stderr

@@ -1,6 +1,7 @@
 """A picture of part perception on one view (scripts/draw_part_grasps.py): the part network's labels over the
 colour image, and the grasp frames built on the seen handles beside the true ones."""
 
+import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -70,7 +71,7 @@ def draw_part_view(view: PerceivedView, true_O: dict[str, RigidTransform], categ
         frames_axes.plot(*pixel(origin), "o", color="k", markersize=5)
         frames_axes.annotate(hand, pixel(origin), textcoords="offset points", xytext=(6, 6), fontsize=9)
     frames_axes.set_title("grasp frames (orange: along the handle; blue: approach; green x: true)", fontsize=10)
-    figure.suptitle(f"{title}\n{view.grasps.message}", fontsize=9)
+    figure.suptitle("\n".join([title, *textwrap.wrap(view.grasps.message, 150)]), fontsize=9)
     figure.tight_layout()
     figure.savefig(out, dpi=110)
     plt.close(figure)
