@@ -323,9 +323,15 @@ def test_a_driver_restart_asked_of_a_pick_without_a_spawned_driver_is_refused_by
         MakePickDiagram(dataclasses.replace(scenario, task="clear", faults=faults))
 
 
-def _process_state(process: subprocess.Popen) -> str:
-    """The process's state letter from /proc (T: stopped)."""
-    return Path(f"/proc/{process.pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+def _process_state(process: subprocess.Popen, states: str, within_s: float = 5.0) -> str:
+    """The process's state letter from /proc (T: stopped), once it is one of `states` or `within_s` has passed (a
+    signal is delivered when the kernel next schedules the process: on a loaded machine, not at once)."""
+    deadline = time.monotonic() + within_s
+    while True:
+        state = Path(f"/proc/{process.pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+        if state in states or time.monotonic() > deadline:
+            return state
+        time.sleep(0.01)
 
 
 def test_a_spawned_drivers_faults_kill_and_restart_it_after_k_objects_and_freeze_it_in_the_carry():
@@ -342,14 +348,15 @@ def test_a_spawned_drivers_faults_kill_and_restart_it_after_k_objects_and_freeze
         assert first.poll() == -signal.SIGKILL and driver.process.args[-1] == "--resume"
         time.sleep(0.2)
         driver.on_sample(carrying, 6.0)
-        assert _process_state(driver.process) == "T"
+        assert _process_state(driver.process, "T") == "T"
         driver.on_sample(carrying, 7.9)
-        assert _process_state(driver.process) == "T"
-        driver.on_sample(carrying, 8.1)
         time.sleep(0.2)
-        assert _process_state(driver.process) in "RS"
+        assert _process_state(driver.process, "T", within_s=0.0) == "T"  # (still stopped)
+        driver.on_sample(carrying, 8.1)
+        assert _process_state(driver.process, "RS") in "RS"
         driver.on_sample(carrying, 20.0)  # (once)
-        assert _process_state(driver.process) in "RS"
+        time.sleep(0.2)
+        assert _process_state(driver.process, "RS", within_s=0.0) in "RS"
     finally:
         driver.process.kill()
         driver.process.wait()
