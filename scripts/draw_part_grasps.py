@@ -15,8 +15,8 @@ from pathlib import Path
 from diagrams.benchmarks.part_drawing import draw_part_view
 from diagrams.benchmarks.part_perception import perceive_view
 from diagrams.benchmarks.registration import true_grasps
-from diagrams.generation.objects.library import load_info, mesh_to_sdf
-from diagrams.scenario import load_scenario
+from diagrams.generation.objects.library import resolve_object
+from diagrams.scenario import ObjectConfig, load_scenario
 
 
 def main():
@@ -35,9 +35,9 @@ def main():
         if not args.object_file.is_file():
             parser.error(f"--object-file: no such file {args.object_file}")
         name = args.object_file.stem
-        model = mesh_to_sdf(args.object_file, 1.0, 1.0, args.object, args.mesh_units, args.mesh_up)
-        info_file = args.object_file.with_suffix(".info.yaml")
-        true_O = load_info(info_file).control_poses() if info_file.is_file() else {}
+        config = ObjectConfig(category=args.object, file=str(args.object_file), units=args.mesh_units, up=args.mesh_up)
+        resolved = resolve_object(config)  # (the SDF a pick would simulate, and the info.yaml beside the mesh)
+        model, true_O = resolved.model_file, resolved.info.control_poses() if resolved.info else {}
     else:
         true_O = true_grasps(args.object, args.instance)
     view = perceive_view(load_scenario(), args.object, name, args.yaw, args.seed, model)

@@ -133,13 +133,13 @@ def fit_doubt(estimate: ObjectEstimate, registration: Registration, part_grasps:
 
 
 def seen_part_grasps(
-    estimate: ObjectEstimate, registrar: Registrar, registration: Registration, doubt: str | None = None
+    estimate: ObjectEstimate, registrar: Registrar, registration: Registration, doubt: str
 ) -> tuple[dict[str, RigidTransform] | None, str]:
     """The grasps (POSE_NAMES -> X_WG) built on the handles the camera saw (estimate.parts), the registration their
     prior (part_grasps.py), and where each came from; None and why where they cannot be built. doubt: why the prior
-    is not sound (default: Registration.poor_fit; "" for a sound one)."""
+    is not sound (fit_doubt; "" for a sound one)."""
     R_WO = registration.X_WO.rotation()
-    poor = registration.poor_fit if doubt is None else doubt
+    poor = doubt
     prior_right_W = registration.grasp_poses_W["right_grasp"].translation()
     if turned_end_for_end(estimate.parts, estimate.points_W, R_WO.col(0), prior_right_W):
         R_WO = RotationMatrix.MakeZRotation(np.pi) @ R_WO
