@@ -25,6 +25,8 @@ the pick does, with the benchmark's spaces (--space-dir, --part-prior):
 python scripts/benchmark_registration.py --pick-frames --category watering_can --object-files cans/*.obj \
     --scenario_text "{object: {mass: 0.9}}"
 python scripts/benchmark_registration.py --pick-frames --trials 3 --json F   # the test instances, as evaluate.py
+python scripts/benchmark_registration.py --pick-frames --category drill --instances shop_100 shop_101 \
+    --frames-cache /tmp/frames      # the first frames kept: a second run registers them again in seconds
 """
 
 import argparse
@@ -82,6 +84,13 @@ def parse_args() -> tuple[argparse.ArgumentParser, argparse.Namespace]:
         help="with --pick-frames: judge the fit's own grasps, not those the pick builds on the handles it saw",
     )
     parser.add_argument(
+        "--frames-cache",
+        dest="frames_cache",
+        type=Path,
+        help="with --pick-frames: a folder that keeps each first frame (keyed by the scenario and the networks' "
+        "weights, not perception's code: empty it after changing that), so later runs skip the simulation",
+    )
+    parser.add_argument(
         "--annotation",
         choices=("canonical", "all"),
         help="build the spaces first, as a user's folder of the 8 training meshes with only the canonical model "
@@ -116,6 +125,8 @@ def parse_args() -> tuple[argparse.ArgumentParser, argparse.Namespace]:
         parser.error(f"--scaled-copies must be 0 or more, got {args.scaled_copies}")
     if not args.pick_frames and (args.yaws or args.scenario_text):
         parser.error("--yaws and --scenario_text go with --pick-frames")
+    if args.frames_cache and not args.pick_frames:
+        parser.error("--frames-cache goes with --pick-frames")
     if args.part_prior is not None and not args.part_prior > 0:
         parser.error(f"--part-prior must be a positive distance in metres, got {args.part_prior}")
     if args.trials is not None and args.trials < 1:
@@ -143,7 +154,15 @@ def pick_frame_rows(parser, args, categories, space_dir: Path | None) -> list[di
         row
         for category in categories
         for row in pick_frame_trials(
-            base, category, objects, args.trials, args.yaws, space_dir, args.part_prior, args.part_grasps
+            base,
+            category,
+            objects,
+            args.trials,
+            args.yaws,
+            space_dir,
+            args.part_prior,
+            args.part_grasps,
+            args.frames_cache,
         )
     ]
 

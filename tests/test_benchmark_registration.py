@@ -64,3 +64,24 @@ def test_a_frame_in_which_perception_finds_nothing_is_a_row_with_its_reason(monk
     monkeypatch.setattr(pick_frames, "first_pick_frame", lambda scenario: (nothing, None))
     rows = pick_frame_trials(load_scenario(), "drill", {"test_1": {"instance": "test_1", "file": ""}}, 1, [0.0, 0.25])
     assert [(row["yaw"], row["found"], row["message"]) for row in rows] == [(0.0, False, "no"), (0.25, False, "no")]
+
+
+def test_a_kept_first_frame_is_read_again_and_a_new_scenario_or_part_network_simulates_anew(monkeypatch, tmp_path):
+    simulated = []
+
+    def simulate(scenario):
+        simulated.append(scenario.random_seed)
+        return ObjectEstimate(False, message=f"frame of seed {scenario.random_seed}"), None
+
+    monkeypatch.setattr(pick_frames, "first_pick_frame", simulate)
+    scenario = load_scenario()
+    first = pick_frames.cached_first_frame(scenario, tmp_path)
+    again = pick_frames.cached_first_frame(scenario, tmp_path)
+    assert simulated == [0] and again[0].message == first[0].message == "frame of seed 0"
+    other = pick_frames.cached_first_frame(dataclasses.replace(scenario, random_seed=5), tmp_path)
+    assert simulated == [0, 5] and other[0].message == "frame of seed 5"
+    weights = tmp_path / "part_segmenter.pt"
+    weights.write_bytes(b"another part network")
+    monkeypatch.setattr(pick_frames, "DEFAULT_PART_WEIGHTS", weights)
+    pick_frames.cached_first_frame(scenario, tmp_path)
+    assert simulated == [0, 5, 0]

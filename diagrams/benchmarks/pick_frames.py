@@ -6,11 +6,14 @@ seconds instead of a whole pick; the pick registers it once itself on the way), 
 category perception gave it, as the pick does, with the benchmark's spaces.
 """
 
+import hashlib
 import logging
+import pickle
 import time
 from pathlib import Path
 
 import trimesh
+from pydrake.common.yaml import yaml_dump_typed
 from pydrake.math import RigidTransform
 from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 from pydrake.systems.framework import Context, Diagram
@@ -22,7 +25,9 @@ from diagrams.generation.objects import catalog
 from diagrams.generation.objects.library import generated_instance_directory, load_info
 from diagrams.pick_simulation import object_body, station_plant
 from diagrams.scenario import Scenario
+from systems import categories
 from systems.messages import ObjectEstimate
+from systems.perception.part_segmenter import DEFAULT_PART_WEIGHTS
 from systems.perception.shape_registrar import fit_doubt, registrar_of, seen_part_grasps
 
 FRAME_POLL_S = 0.01  # s: the pick's simulation steps while it waits for its first frame
@@ -37,6 +42,7 @@ def pick_frame_trials(
     space_dir: Path | None = None,
     part_prior: float | None = None,
     part_grasps: bool = True,
+    frames_cache: Path | None = None,
 ):
     """One row per pick of evaluate.py's campaign (make_trials: every object at every yaw, `trials` each, pick n
     with the seed base.random_seed + n): the registration of the first frame the autonomous pick itself takes
@@ -44,13 +50,14 @@ def pick_frame_trials(
     yaw noise), without running the pick past it; with part_grasps, where the fit is poor and the frame has the
     object's parts, the grasps judged are those the pick builds on them (ShapeRegistrar's). objects: evaluate.py's
     (file_objects, or instances). A frame in which perception finds no object is a row with "found": False and the
-    reason (the pick would stop there)."""
+    reason (the pick would stop there). frames_cache: a folder where each first frame is kept (cached_first_frame),
+    so that the same frames are registered again in seconds while registration or the part rules are tuned."""
     # The pick registers the object to the category perception gives it (the network's, or the one the user named).
     registrars = {c: registrar_of(c, *space_files(c, space_dir), part_prior=part_prior) for c in catalog.CATEGORIES}
     rows, meshes = [], {}
     for n, trial in enumerate(make_trials(base, category, objects, trials, yaws)):
         scenario = trial.scenario
-        estimate, X_WO_true = first_pick_frame(scenario)
+        estimate, X_WO_true = cached_first_frame(scenario, frames_cache) if frames_cache else first_pick_frame(scenario)
         pick = {"category": category, "instance": trial.name, "yaw": trial.yaw, "seed": scenario.random_seed}
         if not estimate.found:
             logging.warning(
@@ -95,6 +102,29 @@ def pick_frame_trials(
         rows.append({**pick, "found": True, "perceived_category": estimate.category, "registration_s": seconds, **row})
         log_row(n, rows[-1], result)
     return rows
+
+
+def cached_first_frame(scenario: Scenario, folder: Path) -> tuple[ObjectEstimate, RigidTransform]:
+    """first_pick_frame's (estimate, X_WO), read from `folder` where it was kept, else simulated and kept there. A
+    frame is keyed by the whole scenario, the object's model file and the networks' weights (segmenter, part
+    network); not by perception's code: empty the folder after changing it."""
+    key = hashlib.sha256(yaml_dump_typed(scenario).encode())
+    model_files = [categories.active_segmenter(), DEFAULT_PART_WEIGHTS]
+    if scenario.object.file:
+        model_files.append(Path(scenario.object.file))
+    for path in model_files:
+        key.update(path.read_bytes() if path.is_file() else b"")
+    path = Path(folder) / f"{key.hexdigest()[:24]}.pkl"
+    if path.is_file():
+        with path.open("rb") as file:
+            return pickle.load(file)
+    frame = first_pick_frame(scenario)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    temporary = path.with_suffix(".partial")
+    with temporary.open("wb") as file:
+        pickle.dump(frame, file)
+    temporary.replace(path)
+    return frame
 
 
 def first_pick_frame(scenario: Scenario) -> tuple[ObjectEstimate, RigidTransform]:
