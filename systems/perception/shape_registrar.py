@@ -141,14 +141,15 @@ def seen_part_grasps(
     R_WO = registration.X_WO.rotation()
     poor = doubt
     prior_right_W = registration.grasp_poses_W["right_grasp"].translation()
-    if turned_end_for_end(estimate.parts, estimate.points_W, R_WO.col(0), prior_right_W):
+    turned = turned_end_for_end(estimate.parts, estimate.points_W, R_WO.col(0), prior_right_W)
+    if turned:
         R_WO = RotationMatrix.MakeZRotation(np.pi) @ R_WO
         poor = "the fit is turned end for end (the seen parts face the other way)"
     approaches_W = {
         hand: R_WO.multiply(registrar.space.control_poses[f"{hand}_grasp"].rotation().col(2)) for hand in HAND_PARTS
     }
     grasps = grasps_on_seen_parts(
-        estimate.parts, estimate.viewpoint_W, registration.grasp_poses_W, approaches_W, not poor, poor
+        estimate.parts, estimate.viewpoint_W, registration.grasp_poses_W, approaches_W, not poor, poor, not turned
     )
     return (grasps.poses_W, grasps.summary()) if grasps.found else (None, grasps.poor)
 

@@ -19,9 +19,16 @@ Where along the handle (the seed), and the rules between the seen part and the p
   did not see the handle there (no seen point within FINGER_HALF_SPAN of that place, or the grasp on the seen
   tube more than PRIOR_ACROSS from the prior's: hidden behind the body, beyond the image, or a few stray pixels
   given the handle's role), the sound prior's grasp stands as it is.
-- The prior is poor, or its grasp is not on the seen handle: the handle's middle decides (handle_middle: halfway
-  between the ends of the part's points along their longest direction, an arch's or a D's chord, a grip's axis;
-  where the generators put a grasp, and where a hand holds).
+- The prior is poor but its grasp lies on the seen handle, nearer (POOR_PRIOR_ACROSS) than a sound one must: the
+  grasp takes the prior's place along the handle, on the seen axis, its frame built on the tube as below. A fit poor
+  as a whole is often right about one handle, and the seen part's middle is only a guess of where along a long
+  handle (a loop, a side handle) the hand belongs. Not where the fit is turned end for end. On the tuning range's
+  first pick frames (shop_100-119 at 3 yaws, both categories, and test_0-2 cans; kinect_v2) it took the grasp median
+  from 23.5 to 16.4 mm (drills) and from 13.5 to 10.8 mm (cans); frames with a grasp over 3 cm off from 24 to 25
+  and from 32 to 26; frames handed on from 50 to 50 and from 60 to 64.
+- The prior is poor (and its grasp not on the seen handle), or a sound prior's grasp is not on the seen handle:
+  the handle's middle decides (handle_middle: halfway between the ends of the part's points along their longest
+  direction, an arch's or a D's chord, a grip's axis; where the generators put a grasp, and where a hand holds).
 - The image's border cut the part (SeenPart.cut_off) and the prior is poor: the handle's middle is not seen, so
   the prior's place along it is taken, moved into the seen stretch until the fingers' span lies on it.
 - A fit turned end for end (the seen spout or chuck lies behind it, or the rear handle ahead: turned_end_for_end)
@@ -52,6 +59,9 @@ MIN_SEEN_LENGTH = 0.02  # m: a tube whose points span less than this along its a
 FINGER_HALF_SPAN = 0.03  # m: the fingers' half width along the handle (sdf/centauro/hand.sdf: 6 cm pads)
 STRETCH_MARGIN = 0.006  # m: a part's point this near the fitted tube's surface lies on its straight stretch
 PRIOR_ACROSS = 0.03  # m: a prior grasp farther than this across the seen handle's axis is not on it
+# m: a poor prior's grasp within this of the seen handle's axis keeps its place along it (the middle decides where
+# it is farther). Chosen on the tuning range's first pick frames (below, module docstring); 1.5 and 3 cm did worse.
+POOR_PRIOR_ACROSS = 0.02
 # m: a sound prior's grasp farther than this from every seen point of its own handle (seen well) is not on it. A
 # handle partly hidden by the body leaves its true grasp up to 7 cm from its seen points (the test cans' rear
 # handles at yaw 0, kinect_v2; 98 first pick frames of test_0-2 and shop_100-119, none past 8 cm; 2026-12-04).
@@ -116,24 +126,42 @@ def seen_points(part: SeenPart | None) -> np.ndarray:
 
 
 def fit_part(
-    hand: str, part: SeenPart | None, viewpoint_W: np.ndarray, prior_W: RigidTransform, prior_sound: bool
+    hand: str,
+    part: SeenPart | None,
+    viewpoint_W: np.ndarray,
+    prior_W: RigidTransform,
+    prior_sound: bool,
+    poor_prior_place: bool = True,
 ) -> PartFit:
     """The hand's part as seen, fitted as a tube, and where along it the grasp goes (PartFit.tube.point): about the
-    handle's middle (handle_middle); or, where the prior is sound and its grasp lies on the seen handle, or where
-    the image's border cut the part (its middle unseen), about the seen point nearest the prior grasp, at the
-    prior's place along the handle moved into the seen stretch until the fingers' span lies on it."""
+    handle's middle (handle_middle); or, where the prior grasp lies on the seen handle (a sound prior: within
+    PRIOR_ACROSS of its axis; a poor one, with poor_prior_place: within POOR_PRIOR_ACROSS), at the prior's place
+    along it; or, where the image's border cut the part (its middle unseen), about the seen point nearest the
+    prior grasp, at the prior's place along the handle moved into the seen stretch until the fingers' span lies on
+    it."""
     points_W = seen_points(part)
     count = len(points_W)
     if count < MIN_PART_POINTS:
         return PartFit(hand, count, reason=f"{count} points seen (at least {MIN_PART_POINTS} expected)")
-    cut_off = part.cut_off
+    cut_off, prior = part.cut_off, prior_W.translation()
+    if not prior_sound and poor_prior_place:
+        tube = _at_prior_place(points_W, viewpoint_W, prior, into_seen_stretch=False)
+        if tube is not None and _sees_prior_place(points_W, tube, prior, POOR_PRIOR_ACROSS):
+            fit = _checked(hand, count, tube, cut_off)
+            if fit.sound:
+                return fit
     tube = None
     if prior_sound or cut_off:
-        tube = _at_prior_place(points_W, viewpoint_W, prior_W.translation(), into_seen_stretch=not prior_sound)
-        if tube is not None and prior_sound and not _sees_prior_place(points_W, tube, prior_W.translation()):
+        tube = _at_prior_place(points_W, viewpoint_W, prior, into_seen_stretch=not prior_sound)
+        if tube is not None and prior_sound and not _sees_prior_place(points_W, tube, prior, PRIOR_ACROSS):
             return PartFit(hand, count, tube, "the prior's place on the handle is not seen", cut_off)
     if tube is None and not cut_off:
         tube = _tube_near_middle(points_W, viewpoint_W)
+    return _checked(hand, count, tube, cut_off)
+
+
+def _checked(hand: str, count: int, tube: Tube | None, cut_off: bool) -> PartFit:
+    """The part's fit with its tube, and why that tube is no handle seen well ("" where it is)."""
     if tube is None or tube.points < MIN_TUBE_POINTS:
         return PartFit(hand, count, tube, f"no tube of a handle's radius fits the {count} points", cut_off)
     if tube.extent[1] - tube.extent[0] < MIN_SEEN_LENGTH:
@@ -158,7 +186,7 @@ def prior_off_seen_handle(
             continue
         distance = float(np.min(np.linalg.norm(points_W - prior_W.translation(), axis=1)))
         # (the tube is fitted only where the prior is that far off: the distance is the cheap test)
-        if distance > OFF_HANDLE_M and fit_part(hand, part, viewpoint_W, prior_W, prior_sound=False).sound:
+        if distance > OFF_HANDLE_M and fit_part(hand, part, viewpoint_W, prior_W, False, poor_prior_place=False).sound:
             return f"the fit's {hand} grasp lies {100 * distance:.0f} cm from its handle as seen"
     return ""
 
@@ -201,11 +229,11 @@ def _tube_near_middle(points_W: np.ndarray, viewpoint_W: np.ndarray) -> Tube | N
     return fit_tube(points_W, viewpoint_W, middle)
 
 
-def _sees_prior_place(points_W: np.ndarray, tube: Tube, prior: np.ndarray) -> bool:
-    """Whether the camera saw the handle where the sound prior grasps it: the grasp on the tube lies within
-    PRIOR_ACROSS of the prior's, and a seen point within FINGER_HALF_SPAN of it."""
+def _sees_prior_place(points_W: np.ndarray, tube: Tube, prior: np.ndarray, across_m: float) -> bool:
+    """Whether the camera saw the handle where the prior grasps it: the grasp on the tube lies within across_m of
+    the prior's, and a seen point within FINGER_HALF_SPAN of it."""
     near = np.min(np.linalg.norm(points_W - tube.point, axis=1)) <= FINGER_HALF_SPAN
-    return near and np.linalg.norm(tube.point - prior) <= PRIOR_ACROSS
+    return near and np.linalg.norm(tube.point - prior) <= across_m
 
 
 def _seen_stretch(points_W: np.ndarray, tube: Tube) -> tuple[float, float]:
@@ -270,6 +298,7 @@ def grasps_on_seen_parts(
     approaches_W: dict[str, np.ndarray],
     prior_sound: bool,
     prior_poor: str = "",
+    poor_prior_places: bool = True,
 ) -> PartGrasps:
     """Each hand's grasp on its seen part, or from the prior where the part is not seen well (module docstring).
 
@@ -280,11 +309,13 @@ def grasps_on_seen_parts(
         approaches_W: each hand's approach direction by the category's rule (3,), in W.
         prior_sound: whether the prior's grasps may be used alone (the fit is not poor, its grasps confirmed).
         prior_poor: why the prior is not sound (for the message).
+        poor_prior_places: whether a poor prior's grasp on the seen handle keeps its place along it (not where
+            the fit is turned end for end: its grasps are then at the wrong ends).
     """
     result = PartGrasps()
     for hand, role in HAND_PARTS.items():
         prior_grasp, prior_pregrasp = prior_poses_W[f"{hand}_grasp"], prior_poses_W[f"{hand}_pregrasp"]
-        fit = fit_part(hand, parts.get(role), viewpoint_W, prior_grasp, prior_sound)
+        fit = fit_part(hand, parts.get(role), viewpoint_W, prior_grasp, prior_sound, poor_prior_places)
         grasp = None
         if fit.sound:
             pregrasp_m = float(np.linalg.norm(prior_grasp.translation() - prior_pregrasp.translation()))
