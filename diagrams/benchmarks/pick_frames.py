@@ -6,6 +6,7 @@ seconds instead of a whole pick; the pick registers it once itself on the way), 
 category perception gave it, as the pick does, with the benchmark's spaces.
 """
 
+import functools
 import hashlib
 import logging
 import pickle
@@ -112,8 +113,9 @@ def cached_first_frame(scenario: Scenario, folder: Path) -> tuple[ObjectEstimate
     model_files = [categories.active_segmenter(), DEFAULT_PART_WEIGHTS]
     if scenario.object.file:
         model_files.append(Path(scenario.object.file))
-    for path in model_files:
-        key.update(path.read_bytes() if path.is_file() else b"")
+    for model_file in model_files:
+        stat = model_file.stat() if model_file.is_file() else None
+        key.update(_file_digest(model_file, stat.st_size, stat.st_mtime_ns) if stat else b"")
     path = Path(folder) / f"{key.hexdigest()[:24]}.pkl"
     if path.is_file():
         with path.open("rb") as file:
@@ -125,6 +127,12 @@ def cached_first_frame(scenario: Scenario, folder: Path) -> tuple[ObjectEstimate
         pickle.dump(frame, file)
     temporary.replace(path)
     return frame
+
+
+@functools.cache
+def _file_digest(path: Path, size: int, mtime_ns: int) -> bytes:
+    """The file's SHA-256, read once per version of it (its size and time stamp) in a run of many frames."""
+    return hashlib.sha256(path.read_bytes()).digest()
 
 
 def first_pick_frame(scenario: Scenario) -> tuple[ObjectEstimate, RigidTransform]:

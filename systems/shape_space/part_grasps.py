@@ -145,7 +145,10 @@ def fit_part(
     if count < MIN_PART_POINTS:
         return PartFit(hand, count, reason=f"{count} points seen (at least {MIN_PART_POINTS} expected)")
     cut_off, prior = part.cut_off, prior_W.translation()
-    if not prior_sound and poor_prior_place:
+    # (_sees_prior_place needs a seen point within FINGER_HALF_SPAN of the grasp on the axis, so within
+    # POOR_PRIOR_ACROSS + FINGER_HALF_SPAN of the prior's: where there is none, no tube is fitted at the prior's place)
+    near_prior = np.min(np.linalg.norm(points_W - prior, axis=1)) <= POOR_PRIOR_ACROSS + FINGER_HALF_SPAN
+    if not prior_sound and poor_prior_place and near_prior:
         tube = _at_prior_place(points_W, viewpoint_W, prior, into_seen_stretch=False)
         if tube is not None and _sees_prior_place(points_W, tube, prior, POOR_PRIOR_ACROSS):
             fit = _checked(hand, count, tube, cut_off)
@@ -198,7 +201,8 @@ def _at_prior_place(
     """The tube about the seen point nearest the prior grasp, its point at the prior's place along it (with
     into_seen_stretch, moved into the seen stretch by the fingers' half span); None where no tube fits there or the
     prior lies farther across the seen axis than PRIOR_ACROSS (then the prior's place is not on this handle)."""
-    tube = fit_tube(points_W, viewpoint_W, _nearest(points_W, prior))
+    seed = _nearest(points_W, prior)
+    tube = fit_tube(points_W, viewpoint_W, seed)
     if tube is None:
         return None
     along = tube.along(prior)
@@ -212,7 +216,9 @@ def _at_prior_place(
             else np.clip(along, low + FINGER_HALF_SPAN, high - FINGER_HALF_SPAN)
         )
     moved = tube.point + along * tube.axis
-    tube = fit_tube(points_W, viewpoint_W, _nearest(points_W, moved)) or tube
+    moved_seed = _nearest(points_W, moved)
+    if not np.array_equal(moved_seed, seed):  # (the same seed fits the same tube)
+        tube = fit_tube(points_W, viewpoint_W, moved_seed) or tube
     return replace(tube, point=tube.point + tube.along(moved) * tube.axis)
 
 
