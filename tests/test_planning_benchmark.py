@@ -226,7 +226,7 @@ def test_a_held_move_starts_from_the_first_solution_in_the_ranking_of_its_detour
     # The coarse straight line as the plan draws it, and every detour of the first stage, ranked at once.
     X_E1E2, R_WE = start_hands(motions.world.end_effectors, problem.q_start)
     constraints = stomp.constraints(X_E1E2, R_WE, problem.orientation.upright_only)
-    obstacles = stomp.costs.standing_start(problem.q_start, problem.obstacles)
+    obstacles = stomp.standing_at_ends(problem.q_start, problem.q_goal, problem.obstacles)
     held = StompProblem(obstacles, (ClosureConstraint(), X_E1E2), (problem.orientation, R_WE), constraints)
     theta = np.linspace(problem.q_start, problem.q_goal, config.first_trajectories.keyframes)
     theta[1:-1] = constraints.project(theta[1:-1], config.first_trajectories.projection_steps)

@@ -87,24 +87,32 @@ OVERLAPPING_SPHERES = np.array(
 )
 
 
-def test_a_plan_starts_where_the_robot_stands_though_its_own_spheres_overlap_there(planning, scenario):
+def test_a_plan_starts_and_ends_where_drakes_geometry_is_free_though_the_robots_own_spheres_overlap_there(
+    planning, scenario
+):
     """Where the sphere model is coarser than the robot (its own spheres overlapping at a configuration Drake's
-    geometry finds free), a plan from there is not refused: those pairs may come as near as they are at the start,
-    no nearer; the plan is free by Drake's geometry."""
+    geometry finds free), a plan from there, or to there (an IK goal), is not refused: those pairs may come as near
+    as they are at that end, no nearer; the plan is free by Drake's geometry, and so is each of its segments as the
+    reach checks them (the sphere model against the scene alone)."""
     motions, _ = planning
     world, stomp = motions.world, motions.stomp
     scene = world.planning_obstacles()
+    home = initial_positions(scenario)
     assert not world.in_collision(OVERLAPPING_SPHERES) and world.beyond_limits(OVERLAPPING_SPHERES) <= 0
     assert stomp.clearance(OVERLAPPING_SPHERES[None], scene)[0] < -0.01
-    result = stomp.plan(OVERLAPPING_SPHERES, initial_positions(scenario), scene)
-    assert result.success, result.message
-    trajectory = result.trajectory
-    dense = np.concatenate([np.linspace(a, b, 20) for a, b in zip(trajectory[:-1], trajectory[1:], strict=True)])
-    standing = stomp.costs.standing_start(OVERLAPPING_SPHERES, scene)
-    assert stomp.clearance(dense, standing).min() > 0  # no pair nearer than at the start
-    for q_from, q_to in zip(trajectory[:-1], trajectory[1:], strict=True):
-        assert motions.segment_is_free(q_from, q_to, max_step=0.01)
-    assert stomp.costs.standing_start(initial_positions(scenario), scene) is scene  # a clear start: the scene itself
+    for q_start, q_goal in ((OVERLAPPING_SPHERES, home), (home, OVERLAPPING_SPHERES)):
+        result = stomp.plan(q_start, q_goal, scene)
+        assert result.success, result.message
+        trajectory = result.trajectory
+        dense = np.concatenate([np.linspace(a, b, 20) for a, b in zip(trajectory[:-1], trajectory[1:], strict=True)])
+        standing = stomp.costs.standing_ends(OVERLAPPING_SPHERES[None], scene)
+        assert stomp.clearance(dense, standing).min() > 0  # no pair nearer than at the overlapping end
+        for q_from, q_to in zip(trajectory[:-1], trajectory[1:], strict=True):
+            assert motions.segment_is_free(q_from, q_to, scene, max_step=0.01)
+    assert stomp.costs.standing_ends(home[None], scene) is scene  # clear ends: the scene itself
+    colliding = _colliding_configuration(world)  # its own spheres overlap: allowed, were Drake's geometry free there
+    assert stomp.costs.standing_ends(colliding[None], scene) is not scene
+    assert stomp.standing_at_ends(home, colliding, scene) is scene
 
 
 def _colliding_configuration(world) -> np.ndarray:

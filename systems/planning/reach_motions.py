@@ -217,12 +217,13 @@ class ReachMotions:
     ) -> bool:
         """Whether the straight joint-space segment q_from -> q_to is collision-free (checked every max_step rad).
 
-        Drake's exact geometry, and the sphere model in `obstacles` if given (e.g. an object known by its points).
+        Drake's exact geometry, and the sphere model against the scene in `obstacles` if given (e.g. an object known
+        by its points); the robot against itself by Drake's geometry alone (its spheres are coarser).
         """
         steps = max(1, int(np.ceil(np.max(np.abs(np.asarray(q_to) - q_from)) / max_step)))
         states = [q_from + s * (q_to - q_from) for s in np.linspace(0, 1, steps + 1)]
         if obstacles is not None:
-            clearance = self.stomp.clearance(np.array(states), obstacles)
+            clearance = self.stomp.clearance(np.array(states), obstacles, robot_pairs=False)
             if clearance.min() <= 0:
                 return False
         return not any(self.world.in_collision(q) for q in states)

@@ -140,9 +140,17 @@ class Stomp:
         self.noise_covariance, self.smoothing = _smoothing_matrices(self.config.keyframes - 2)
         self.noise_factor = np.linalg.cholesky(self.noise_covariance + 1e-12 * np.eye(len(self.noise_covariance)))
 
-    def clearance(self, q: np.ndarray, obstacles: Obstacles, held: bool = False, poses=None) -> np.ndarray:
+    def clearance(
+        self, q: np.ndarray, obstacles: Obstacles, held: bool = False, poses=None, robot_pairs: bool = True
+    ) -> np.ndarray:
         """The sphere model's smallest clearance (m) at each configuration (... x n): SphereCosts.clearance."""
-        return self.costs.clearance(q, obstacles, held, poses)
+        return self.costs.clearance(q, obstacles, held, poses, robot_pairs)
+
+    def standing_at_ends(self, q_start: np.ndarray, q_goal: np.ndarray, obstacles: Obstacles) -> Obstacles:
+        """The scene a plan from q_start to q_goal is judged in: as seen from where the robot stands and, where
+        Drake's exact geometry finds the goal free (an IK goal), from the goal too (SphereCosts.standing_ends)."""
+        ends = [q_start] if self.world.in_collision(q_goal) else [q_start, q_goal]
+        return self.costs.standing_ends(np.stack(ends), obstacles)
 
     def constraints(self, X_desired=None, R_desired=None, upright_only: bool = False) -> HandConstraints:
         """The hand constraints: the relative hand pose X_E1E2 (X_desired) and/or the hands' world orientations."""
@@ -197,7 +205,7 @@ class Stomp:
                 return StompResult(
                     False, theta, 0, 0.0, np.nan, f"the {name} configuration is outside the joint limits"
                 )
-        problem = self._problem(q_start, obstacles, closure_constraint, orientation_constraint, payload)
+        problem = self._problem(q_start, q_goal, obstacles, closure_constraint, orientation_constraint, payload)
         if problem.constraints is not None:
             coarse = None if given else self.starts.coarse(q_start, q_goal, problem)
             if coarse is not None:  # (a solution at 0 iterations)
@@ -216,10 +224,10 @@ class Stomp:
             return _result(first, 0, start, "the first trajectory collides")
         return self._optimise(first.trajectory, problem, restarts, rng, config, start)
 
-    def _problem(self, q_start, obstacles, closure_constraint, orientation_constraint, payload) -> StompProblem:
-        """The plan's problem: the scene as judged from where the robot stands (SphereCosts.standing_start), and the
-        hand constraints to keep as they are at q_start."""
-        obstacles = self.costs.standing_start(q_start, obstacles)
+    def _problem(self, q_start, q_goal, obstacles, closure_constraint, orientation_constraint, payload) -> StompProblem:
+        """The plan's problem: the scene as judged from its ends (standing_at_ends), and the hand constraints to
+        keep as they are at q_start."""
+        obstacles = self.standing_at_ends(q_start, q_goal, obstacles)
         if closure_constraint is None and orientation_constraint is None:
             return StompProblem(obstacles, payload=payload)
         hands_start = self.end_effectors.poses(q_start[None])

@@ -31,9 +31,9 @@ TERMS = ("collision", "limits", "torque", "duration", "closure", "orientation")
 # spheres), a joint at its limit, a joint at its effort limit ((tau / tau_max)^2), a second at full joint speed,
 # and a transition at the closure's and orientation's thresholds.
 TERM_UNITS = np.array([0.02, 1.0, 1.0, 1.0, 1.0, 1.0])
-# m: the robot's own sphere pairs nearer each other at a plan's start than the required clearance may come this much
-# nearer still along it (the float32 gaps along the plan against the float64 ones at the start)
-START_OVERLAP_SLACK = 1e-4
+# m: the robot's own sphere pairs nearer each other at a plan's end than the required clearance may come this much
+# nearer still along it (the float32 gaps along the plan against the float64 ones at the end)
+END_OVERLAP_SLACK = 1e-4
 
 
 @dataclass(frozen=True)
@@ -104,32 +104,37 @@ class SphereCosts:
         )
         self.hand_sphere = np.isin(moved_by, list(hands))
 
-    def standing_start(self, q_start: np.ndarray, obstacles: Obstacles) -> Obstacles:
-        """The scene a plan from q_start is judged in: where the robot's own spheres come nearer each other at
-        q_start than a plan's required clearance, or overlap (the sphere model is coarser than the robot, and the
-        robot stands there: a path to there was free by Drake's geometry), each such pair may come as near along
-        the plan as it is there, no nearer. Else `obstacles` itself."""
-        centres = self.spheres.centres_W(self.kinematics.body_poses(np.asarray(q_start, float)[None]))[0]
+    def standing_ends(self, ends: np.ndarray, obstacles: Obstacles) -> Obstacles:
+        """The scene a plan between its ends (E x n: the start where the robot stands, and the goal where Drake's
+        exact geometry finds it free) is judged in: where the robot's own spheres come nearer each other at an end
+        than a plan's required clearance, or overlap (the sphere model is coarser than the robot: a pelvis sphere
+        reaches 4.6 cm above the box it covers), each such pair may come as near along the plan as it does at its
+        nearer end, no nearer. Else `obstacles` itself."""
+        centres = self.spheres.centres_W(self.kinematics.body_poses(np.asarray(ends, float).reshape(-1, self.dof)))
         a, b = self.pair_a, self.pair_b
-        gap = np.linalg.norm(centres[a] - centres[b], axis=1) - self.spheres.radius[a] - self.spheres.radius[b]
-        short = self.config.required_clearance + START_OVERLAP_SLACK - gap
+        gap = np.linalg.norm(centres[:, a] - centres[:, b], axis=-1) - self.spheres.radius[a] - self.spheres.radius[b]
+        short = (self.config.required_clearance + END_OVERLAP_SLACK - gap).max(axis=0)
         if short.max() <= 0.0:
             return obstacles
         return obstacles.allowing_self_overlap(np.maximum(short, 0.0))
 
-    def clearance(self, q: np.ndarray, obstacles: Obstacles, held: bool = False, poses=None) -> np.ndarray:
+    def clearance(
+        self, q: np.ndarray, obstacles: Obstacles, held: bool = False, poses=None, robot_pairs: bool = True
+    ) -> np.ndarray:
         """Smallest clearance (m) of the sphere model at each configuration (... x n); with `held` (both hands
-        hold one object), without the hand-to-hand pairs. `poses`: the tracked bodies' poses at q if known
-        ((B x L x 4 x 4), as BatchedKinematics.body_poses)."""
-        return self.clearances(q, obstacles, poses, held)[0]
+        hold one object), without the hand-to-hand pairs; without `robot_pairs`, the robot against the scene
+        alone (where Drake's exact geometry judges the robot against itself). `poses`: the tracked bodies' poses at
+        q if known ((B x L x 4 x 4), as BatchedKinematics.body_poses)."""
+        return self.clearances(q, obstacles, poses, held, robot_pairs)[0]
 
     def clearances(
-        self, q: np.ndarray, obstacles: Obstacles, poses=None, held: bool = False
+        self, q: np.ndarray, obstacles: Obstacles, poses=None, held: bool = False, robot_pairs: bool = True
     ) -> tuple[np.ndarray, np.ndarray]:
         """(smallest clearance, summed shortfall below the margin over all spheres and pairs) per configuration;
-        with `held`, the hand-to-hand pairs left out. Exact below the margin; a sphere whose body's bounding sphere
-        is farther than the margin from the scene counts at that bound (at least the margin: most sphere-states of
-        noisy trajectories are placed only as their body's bound)."""
+        with `held`, the hand-to-hand pairs left out; without `robot_pairs`, every pair of the robot's own spheres.
+        Exact below the margin; a sphere whose body's bounding sphere is farther than the margin from the scene
+        counts at that bound (at least the margin: most sphere-states of noisy trajectories are placed only as their
+        body's bound)."""
         shape = q.shape[:-1]
         if poses is None:
             poses = self.kinematics.body_poses(q.reshape(-1, self.dof))
@@ -144,7 +149,7 @@ class SphereCosts:
         gaps = [scene_gaps]
         if obstacles.carried is not None:
             gaps.append(obstacles.carried_clearances(poses[:, obstacles.carried.slot], margin))
-        near = self.near_sphere_pairs(bounds)
+        near = self.near_sphere_pairs(bounds) if robot_pairs else np.zeros(0, int)
         if held:
             near = near[~self.hand_to_hand[near]]
         if len(near):
