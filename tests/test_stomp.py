@@ -18,6 +18,7 @@ from systems.planning.obstacles import DistanceField, Obstacles
 from systems.planning.sphere_model import SphereGroup
 from systems.planning.stomp import Stomp
 from systems.planning.stomp_costs import TERMS, StompProblem
+from systems.planning.world import TOLERATED_DEEPENING_M
 
 # Both hands start under the table top, at its front edge: the straight move collides.
 BELOW_TABLE = np.array([0, 0.15, 0, -0.1, 0, 0, 0, 0, -0.15, 0, -0.1, 0, 0, 0.0, 0.0])  # the torso straight
@@ -113,6 +114,32 @@ def test_a_plan_starts_and_ends_where_drakes_geometry_is_free_though_the_robots_
     colliding = _colliding_configuration(world)  # its own spheres overlap: allowed, were Drake's geometry free there
     assert stomp.costs.standing_ends(colliding[None], scene) is not scene
     assert stomp.standing_at_ends(home, colliding, scene) is scene
+
+
+# Where a straight approach that ended short left the robot, backed off its pre-grasps at a held-out can at -0.25 rad:
+# its right forearm 5.6 mm into the torso by Drake's geometry. The robot stands there: the next reach starts there.
+FOREARM_IN_TORSO = np.array(
+    [1.589638, 1.554991, 1.613615, -1.328366, -0.83018, -1.524596, 0.240361, 0.358376, -0.014, 0.846261, -2.479,
+     0.566324, 1.453097, -0.300393, -0.386722]
+)  # fmt: skip
+
+
+def test_a_move_leaves_a_start_where_the_robot_touches_itself_no_deeper_than_it_stands(planning, scenario):
+    """A start in contact by Drake's exact geometry (where the robot stands) does not make every path from it
+    collide: the pairs in contact there may stay so, no deeper, as the move leaves; any other contact still counts."""
+    motions, _ = planning
+    world = motions.world
+    standing = world.penetrations(FOREARM_IN_TORSO)
+    assert len(standing) == 1 and 0.005 < next(iter(standing.values())) < 0.006
+    home = initial_positions(scenario)
+    keyframes = motions.reach_configuration(FOREARM_IN_TORSO, home)
+    np.testing.assert_allclose(keyframes[-1], home)
+    for q_from, q_to in zip(keyframes[:-1], keyframes[1:], strict=True):
+        for q in np.linspace(q_from, q_to, 30):
+            deeper = {pair: depth for pair, depth in world.penetrations(q).items() if depth > standing.get(pair, 0.0)}
+            assert not deeper or max(deeper.values()) <= TOLERATED_DEEPENING_M, deeper
+    assert not world.in_collision(home, standing)
+    assert world.in_collision(_colliding_configuration(world), standing)  # another contact still counts
 
 
 def _colliding_configuration(world) -> np.ndarray:

@@ -201,24 +201,33 @@ class ReachMotions:
         Raises:
             PlanningError: no path (_FirstLookFailed where STOMP found none in max_iterations).
         """
-        if self.segment_is_free(q_start, q_goal, checked):
+        standing = self.world.penetrations(q_start)  # the robot stands there: leaving it, no deeper
+        if self.segment_is_free(q_start, q_goal, checked, tolerated=standing):
             return np.stack([q_start, q_goal])
         result = self.stomp.plan(q_start, q_goal, obstacles, max_iterations=max_iterations)
         if not result.success:
             raise (PlanningError if max_iterations is None else _FirstLookFailed)(result.message)
         logging.info("reach: STOMP, %d iterations, %.2f s", result.iterations, result.seconds)
-        keyframes = shortcut(lambda a, b: self.segment_is_free(a, b, checked), list(result.trajectory))
+        keyframes = shortcut(
+            lambda a, b: self.segment_is_free(a, b, checked, tolerated=standing), list(result.trajectory)
+        )
         if keyframes is None:
             raise PlanningError("the STOMP trajectory collides under Drake's exact check")
         return np.stack(keyframes)
 
     def segment_is_free(
-        self, q_from: np.ndarray, q_to: np.ndarray, obstacles: Obstacles | None = None, max_step: float = 0.02
+        self,
+        q_from: np.ndarray,
+        q_to: np.ndarray,
+        obstacles: Obstacles | None = None,
+        max_step: float = 0.02,
+        tolerated: dict | None = None,
     ) -> bool:
         """Whether the straight joint-space segment q_from -> q_to is collision-free (checked every max_step rad).
 
-        Drake's exact geometry, and the sphere model against the scene in `obstacles` if given (e.g. an object known
-        by its points); the robot against itself by Drake's geometry alone (its spheres are coarser).
+        Drake's exact geometry (but for `tolerated` penetrations: PlanningWorld.in_collision), and the sphere model
+        against the scene in `obstacles` if given (e.g. an object known by its points); the robot against itself by
+        Drake's geometry alone (its spheres are coarser).
         """
         steps = max(1, int(np.ceil(np.max(np.abs(np.asarray(q_to) - q_from)) / max_step)))
         states = [q_from + s * (q_to - q_from) for s in np.linspace(0, 1, steps + 1)]
@@ -226,7 +235,7 @@ class ReachMotions:
             clearance = self.stomp.clearance(np.array(states), obstacles, robot_pairs=False)
             if clearance.min() <= 0:
                 return False
-        return not any(self.world.in_collision(q) for q in states)
+        return not any(self.world.in_collision(q, tolerated) for q in states)
 
 
 def shortcut(is_free: Callable[[np.ndarray, np.ndarray], bool], keyframes: list[np.ndarray]) -> list[np.ndarray] | None:

@@ -38,6 +38,9 @@ PERCEIVED_SCENE_MARGIN = 0.005
 # The scene's distance field's grid, m (systems/planning/obstacles.py: DistanceField; scene_cloud.SCENE_VOXEL_M, the
 # hidden cubes' side).
 SCENE_CELL_M = 0.01
+# m: a path from where the robot stands in contact with itself (a straight approach ended with a forearm 5.6 mm into
+# the torso) may take each such pair this much deeper, no more, as it leaves (float noise of the penetration query).
+TOLERATED_DEEPENING_M = 0.001
 # rad: a configuration may lie this far beyond a joint limit and still count as within it (IK's answers at a limit).
 LIMIT_TOLERANCE_RAD = 1e-9
 
@@ -165,10 +168,29 @@ class PlanningWorld:
         q[self.arm_indices] = q_arms
         return q
 
-    def in_collision(self, q_arms: np.ndarray) -> bool:
-        """Whether the robot touches itself or the table at arm configuration q_arms (Drake's exact geometry)."""
+    def in_collision(self, q_arms: np.ndarray, tolerated: dict[tuple[int, int], float] | None = None) -> bool:
+        """Whether the robot touches itself or the table at arm configuration q_arms (Drake's exact geometry).
+        tolerated: penetrations that do not count (as penetrations() gives them: where the robot stands), unless
+        a pair goes deeper than there by more than TOLERATED_DEEPENING_M."""
+        if tolerated:
+            return any(
+                depth > tolerated.get(pair, -np.inf) + TOLERATED_DEEPENING_M
+                for pair, depth in self.penetrations(q_arms).items()
+            )
         self.plant.SetPositions(self.plant_context, self.full_positions(q_arms))
         return self.plant.get_geometry_query_input_port().Eval(self.plant_context).HasCollisions()
+
+    def penetrations(self, q_arms: np.ndarray) -> dict[tuple[int, int], float]:
+        """The geometry pairs (their GeometryIds' values) that penetrate each other at q_arms, and how deep (m),
+        by Drake's exact geometry; none where the robot is free."""
+        self.plant.SetPositions(self.plant_context, self.full_positions(q_arms))
+        query = self.plant.get_geometry_query_input_port().Eval(self.plant_context)
+        if not query.HasCollisions():
+            return {}
+        return {
+            tuple(sorted((pair.id_A.get_value(), pair.id_B.get_value()))): pair.depth
+            for pair in query.ComputePointPairPenetration()
+        }
 
     def clearance(self, q_arms: np.ndarray, max_distance: float = 0.5) -> float:
         """Smallest signed distance (m) between robot, table and object geometries at q_arms (Drake's exact query)."""
