@@ -189,9 +189,16 @@ class Segmenter(LeafSystem):
             return None
         return TableView(X_WB @ self.X_BC, self.table_top_z)
 
-    def _complete(self, segmentation: Segmentation, labels: np.ndarray, depth: np.ndarray, table: TableView):
-        """Adds the object's parts the network left unlabelled, found in 3D (object_completion), to its mask."""
-        mask = completed_mask(segmentation.mask, labels, depth, self.intrinsics, table)
+    def _complete(
+        self, segmentation: Segmentation, labels: np.ndarray, depth: np.ndarray, table: TableView, instances: list
+    ):
+        """Adds the object's parts the network left unlabelled, found in 3D (object_completion), to its mask; never
+        the pixels of the other instances found."""
+        others = np.zeros(labels.shape, bool)
+        for instance in instances:
+            if not (instance.mask & segmentation.mask).any():
+                others |= instance.mask
+        mask = completed_mask(segmentation.mask, labels, depth, self.intrinsics, table, others)
         added = int(np.count_nonzero(mask & ~segmentation.mask))
         if added:
             segmentation.mask, segmentation.pixel_count = mask, segmentation.pixel_count + added
@@ -258,5 +265,5 @@ class Segmenter(LeafSystem):
         # it is a mislabelled patch of one of them, and completing it would make that thing the object.)
         recognised = segmentation.found and segmentation.network_category == segmentation.category
         if recognised and depth is not None and self.intrinsics is not None and table is not None:
-            self._complete(segmentation, labels, depth, table)
+            self._complete(segmentation, labels, depth, table, instances)
         return segmentation
