@@ -178,7 +178,10 @@ class ReachMotions:
             above = {side: up @ X for side, X in self.world.grasp_frame_poses(q_start).items()}
             try:
                 rise = self.straights.straight(q_start, above)
-                if not all(self.segment_is_free(a, b, checked) for a, b in itertools.pairwise(rise)):
+                standing = self.world.penetrations(q_start)  # (the rise leaves where the robot stands, as a path does)
+                if not all(
+                    self.segment_is_free(a, b, checked, tolerated=standing) for a, b in itertools.pairwise(rise)
+                ):
                     raise PlanningError("the rise collides")
                 onwards = self._reach_path(rise[-1], q_goal, obstacles, checked)
             except PlanningError as after:

@@ -147,8 +147,11 @@ def fit_part(
     cut_off, prior = part.cut_off, prior_W.translation()
     # (_sees_prior_place needs a seen point within FINGER_HALF_SPAN of the grasp on the axis, so within
     # POOR_PRIOR_ACROSS + FINGER_HALF_SPAN of the prior's: where there is none, no tube is fitted at the prior's place)
-    near_prior = np.min(np.linalg.norm(points_W - prior, axis=1)) <= POOR_PRIOR_ACROSS + FINGER_HALF_SPAN
-    if not prior_sound and poor_prior_place and near_prior:
+    if (
+        not prior_sound
+        and poor_prior_place
+        and np.min(np.linalg.norm(points_W - prior, axis=1)) <= POOR_PRIOR_ACROSS + FINGER_HALF_SPAN
+    ):
         tube = _at_prior_place(points_W, viewpoint_W, prior, into_seen_stretch=False)
         if tube is not None and _sees_prior_place(points_W, tube, prior, POOR_PRIOR_ACROSS):
             fit = _checked(hand, count, tube, cut_off)
