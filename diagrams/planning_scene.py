@@ -54,14 +54,16 @@ def MakeRobotScene(
         AddBoxObstacle(plant, scenario)
     for i, (X_WB, size) in enumerate(boxes):
         plant.RegisterCollisionGeometry(plant.world_body(), X_WB, Box(*size), f"box_{i}", CoulombFriction())
-    surface, spacing = None, 0.0
+    surface, spacing, objects = None, 0.0, []
     if obstacle is not None:
         (instance,) = make_parser(plant).AddModels(file_name=str(obstacle.model_file))
+        objects.append(instance)
         body = plant.get_body(plant.GetBodyIndices(instance)[0])
         plant.WeldFrames(plant.world_frame(), body.body_frame(), X_WO)
         surface, spacing = object_surface_W(obstacle, X_WO, OBJECT_SURFACE_POINTS)
     if held_object is not None:
         (instance,) = make_parser(plant).AddModels(file_name=str(held_object.model_file))
+        objects.append(instance)
         held = plant.get_body(plant.GetBodyIndices(instance)[0])
         plant.WeldFrames(plant.GetFrameByName("grasp_frame", hands["left"]), held.body_frame(), X_GO)
     plant.Finalize()
@@ -95,6 +97,7 @@ def MakeRobotScene(
         surface,
         spacing,
         TORSO_JOINT if torso_free(scenario) else None,
+        tuple(objects),
     )
 
 

@@ -8,6 +8,7 @@ from pydrake.math import RigidTransform
 from diagrams.planning_scene import grasp_configuration, make_pick_motions
 from systems.planning.reach_motions import RISE_M, ReachMotions
 from systems.planning.straight_motions import APPROACH_STEPS, PlanningError
+from tests.test_stomp import FOREARM_IN_TORSO
 
 SIDES = ("left", "right")
 
@@ -62,6 +63,25 @@ def test_a_back_off_beyond_reach_goes_as_far_as_the_arms_reach_along_its_line(sc
             np.testing.assert_allclose(reached[side].translation(), expected, atol=0.002)
     with pytest.raises(PlanningError, match="step 1 of 1"):
         motions.straight(q, targets, steps=1, min_steps=1)
+
+
+def test_a_straight_move_stops_where_the_arms_would_touch_the_robot(scenario):
+    """Tracking keeps the hands on their lines, not the forearms off the torso: a straight move into contact by
+    Drake's exact geometry fails (or, where a part of it may do, ends before the contact); leaving a contact the
+    robot stands in is allowed."""
+    motions = make_pick_motions(scenario)
+    world = motions.world
+    poses = world.grasp_frame_poses(FOREARM_IN_TORSO)
+    moved = {side: RigidTransform([0.0, -0.05, 0.0]) @ X for side, X in poses.items()}
+    out = motions.straight(FOREARM_IN_TORSO, moved)[-1]  # leaving the contact
+    assert world.penetrations(FOREARM_IN_TORSO) and not world.penetrations(out)
+    back_in = {side: RigidTransform([0.0, 0.01, 0.0]) @ X for side, X in poses.items()}  # 1 cm past where it stood
+    with pytest.raises(PlanningError, match="step 2 of 3: the arms would touch the robot"):
+        motions.straight(out, back_in)
+    partial = motions.straight(out, back_in, min_steps=1)
+    assert len(partial) == 2
+    for q_from, q_to in zip(partial[:-1], partial[1:], strict=True):
+        assert world.segment_is_free(q_from, q_to, max_step=0.005)
 
 
 def test_a_free_move_with_no_path_from_where_it_starts_rises_first(scenario, monkeypatch):

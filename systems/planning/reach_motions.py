@@ -15,7 +15,7 @@ from systems.planning.ik import DualArmIk, IkResult
 from systems.planning.obstacles import Obstacles
 from systems.planning.stomp import Stomp
 from systems.planning.straight_motions import PlanningError, StraightMotions
-from systems.planning.world import SIDES, PlanningWorld
+from systems.planning.world import SIDES, PlanningWorld, joint_segment
 
 REACH_LIMIT_MARGIN = 0.15  # rad: a reach's goal keeps its joints this far inside their limits where it can
 RISE_M = 0.15  # m: a free move that finds no path from where it starts tries again from this far above it
@@ -232,13 +232,11 @@ class ReachMotions:
         against the scene in `obstacles` if given (e.g. an object known by its points); the robot against itself by
         Drake's geometry alone (its spheres are coarser).
         """
-        steps = max(1, int(np.ceil(np.max(np.abs(np.asarray(q_to) - q_from)) / max_step)))
-        states = [q_from + s * (q_to - q_from) for s in np.linspace(0, 1, steps + 1)]
         if obstacles is not None:
-            clearance = self.stomp.clearance(np.array(states), obstacles, robot_pairs=False)
-            if clearance.min() <= 0:
+            states = np.array(joint_segment(q_from, q_to, max_step))
+            if self.stomp.clearance(states, obstacles, robot_pairs=False).min() <= 0:
                 return False
-        return not any(self.world.in_collision(q, tolerated) for q in states)
+        return self.world.segment_is_free(q_from, q_to, max_step, tolerated)
 
 
 def shortcut(is_free: Callable[[np.ndarray, np.ndarray], bool], keyframes: list[np.ndarray]) -> list[np.ndarray] | None:

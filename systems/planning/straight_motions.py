@@ -46,9 +46,33 @@ class StraightMotions:
         min_steps: where a later step fails, the keyframes of the steps before it are the move, as long as there
         are at least this many (a back-off goes as far as the arms reach); None: the whole line or nothing.
 
+        A step also fails where the arms, moving to it, would touch the robot itself or the fixed scene by Drake's
+        exact geometry (the contacts where the robot stands at q_start may stay, no deeper; a welded object does
+        not count: the hands go to it): tracking keeps the hands on their lines, not the forearms off the torso.
+
         Raises:
-            PlanningError: naming the step whose IK failed.
+            PlanningError: naming the step whose IK failed, or that collides.
         """
+        keyframes, failure = self._tracked_line(q_start, targets_W, steps)
+        standing = self.world.penetrations(q_start, objects=False)
+        for step in range(1, len(keyframes)):
+            if not self.world.segment_is_free(keyframes[step - 1], keyframes[step], tolerated=standing, objects=False):
+                failure, keyframes = (
+                    f"step {step} of {steps}: the arms would touch the robot or the table",
+                    keyframes[:step],
+                )
+                break
+        if failure is not None:
+            if min_steps is None or len(keyframes) - 1 < min_steps:
+                raise PlanningError(failure)
+            logging.warning("straight move: %s; ending after step %d", failure, len(keyframes) - 1)
+        return np.stack(keyframes)
+
+    def _tracked_line(
+        self, q_start: np.ndarray, targets_W: dict[str, RigidTransform], steps: int
+    ) -> tuple[list[np.ndarray], str | None]:
+        """straight()'s keyframes from q_start, each hand's origin moved along its line, before the collision
+        check: as far as tracking and the IK reach (and why they stopped short, or None)."""
         start_poses = self.world.grasp_frame_poses(q_start)
         line = [
             {
@@ -67,7 +91,7 @@ class StraightMotions:
                     break
                 keyframes.append(q)
             else:
-                return np.stack(keyframes)
+                return keyframes, None
             keyframes, q = [np.asarray(q_start, float)], np.asarray(q_start, float)
         for step, targets in enumerate(line, start=1):
             if (tracked := self.track(q, targets)) is not None:
@@ -82,13 +106,10 @@ class StraightMotions:
             elif np.abs(result.q - q).max() > MAX_STRAIGHT_STEP:
                 failure = f"step {step} of {steps}: the arms would change their IK branch"
             if failure is not None:
-                if min_steps is None or step - 1 < min_steps:
-                    raise PlanningError(failure)
-                logging.warning("straight move: %s; ending after step %d", failure, step - 1)
-                break
+                return keyframes, failure
             keyframes.append(result.q)
             q = result.q
-        return np.stack(keyframes)
+        return keyframes, None
 
     def track(self, q: np.ndarray, targets_W: dict[str, RigidTransform], with_torso: bool = True) -> np.ndarray | None:
         """The planned joints moved from q until both grasp frames are at targets_W (within TRACK_TOLERANCES), by

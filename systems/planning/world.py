@@ -63,6 +63,7 @@ class RobotScene:
     object_surface_W: np.ndarray | None = None
     object_surface_spacing: float = 0.0
     torso_joint: str | None = None  # the torso yaw's name when it is planned (the last of arm_joints)
+    objects: tuple[ModelInstanceIndex, ...] = ()  # the welded (or held) objects' model instances
 
 
 class PlanningWorld:
@@ -107,6 +108,12 @@ class PlanningWorld:
         self.end_effectors = EndEffectors(self.kinematics, [self.grasp_frames[side] for side in SIDES])
         self.inspector = self.scene_graph.model_inspector()
         self.table_boxes = tuple(self._fixed_boxes().boxes)
+        self.object_geometries = {
+            geometry.get_value()
+            for instance in scene.objects
+            for body in self.plant.GetBodyIndices(instance)
+            for geometry in self.plant.GetCollisionGeometriesForBody(self.plant.get_body(body))
+        }
 
     def _fixed_boxes(self) -> Obstacles:
         """Every box that is not the robot's (table, floor, a box on the table), welded in the world."""
@@ -168,21 +175,38 @@ class PlanningWorld:
         q[self.arm_indices] = q_arms
         return q
 
-    def in_collision(self, q_arms: np.ndarray, tolerated: dict[tuple[int, int], float] | None = None) -> bool:
-        """Whether the robot touches itself or the table at arm configuration q_arms (Drake's exact geometry).
-        tolerated: penetrations that do not count (as penetrations() gives them: where the robot stands), unless
-        a pair goes deeper than there by more than TOLERATED_DEEPENING_M."""
-        if tolerated:
+    def in_collision(
+        self, q_arms: np.ndarray, tolerated: dict[tuple[int, int], float] | None = None, objects: bool = True
+    ) -> bool:
+        """Whether the robot touches itself, the table or a welded object at arm configuration q_arms (Drake's
+        exact geometry). tolerated: penetrations that do not count (as penetrations() gives them: where the robot
+        stands), unless a pair goes deeper than there by more than TOLERATED_DEEPENING_M. objects: False leaves
+        the welded (or held) objects' contacts out (a hand going to its grasp is meant to touch the object)."""
+        if tolerated or not objects:
+            tolerated = tolerated or {}
             return any(
                 depth > tolerated.get(pair, -np.inf) + TOLERATED_DEEPENING_M
-                for pair, depth in self.penetrations(q_arms).items()
+                for pair, depth in self.penetrations(q_arms, objects).items()
             )
         self.plant.SetPositions(self.plant_context, self.full_positions(q_arms))
         return self.plant.get_geometry_query_input_port().Eval(self.plant_context).HasCollisions()
 
-    def penetrations(self, q_arms: np.ndarray) -> dict[tuple[int, int], float]:
+    def segment_is_free(
+        self,
+        q_from: np.ndarray,
+        q_to: np.ndarray,
+        max_step: float = 0.02,
+        tolerated: dict | None = None,
+        objects: bool = True,
+    ) -> bool:
+        """Whether the straight joint-space segment q_from -> q_to is free by in_collision (`tolerated`: the
+        penetrations where the robot stands; `objects`: whether welded objects count), every max_step rad."""
+        return not any(self.in_collision(q, tolerated, objects) for q in joint_segment(q_from, q_to, max_step))
+
+    def penetrations(self, q_arms: np.ndarray, objects: bool = True) -> dict[tuple[int, int], float]:
         """The geometry pairs (their GeometryIds' values) that penetrate each other at q_arms, and how deep (m),
-        by Drake's exact geometry; none where the robot is free."""
+        by Drake's exact geometry; none where the robot is free. objects: False leaves out the pairs with a
+        welded (or held) object."""
         self.plant.SetPositions(self.plant_context, self.full_positions(q_arms))
         query = self.plant.get_geometry_query_input_port().Eval(self.plant_context)
         if not query.HasCollisions():
@@ -190,6 +214,7 @@ class PlanningWorld:
         return {
             tuple(sorted((pair.id_A.get_value(), pair.id_B.get_value()))): pair.depth
             for pair in query.ComputePointPairPenetration()
+            if objects or not {pair.id_A.get_value(), pair.id_B.get_value()} & self.object_geometries
         }
 
     def clearance(self, q_arms: np.ndarray, max_distance: float = 0.5) -> float:
@@ -203,6 +228,14 @@ class PlanningWorld:
         """X_WG of both hands at arm configuration q_arms."""
         self.plant.SetPositions(self.plant_context, self.full_positions(q_arms))
         return {side: frame.CalcPoseInWorld(self.plant_context) for side, frame in self.grasp_frames.items()}
+
+
+def joint_segment(q_from: np.ndarray, q_to: np.ndarray, max_step: float) -> list[np.ndarray]:
+    """The states of the straight joint-space segment q_from -> q_to, both ends included, no joint turning more
+    than max_step (rad) between two."""
+    q_from, q_to = np.asarray(q_from, float), np.asarray(q_to, float)
+    steps = max(1, int(np.ceil(np.max(np.abs(q_to - q_from)) / max_step)))
+    return [q_from + s * (q_to - q_from) for s in np.linspace(0, 1, steps + 1)]
 
 
 def centauro_kinematics(plant: MultibodyPlant, scene_graph, plant_context, arm_joints: list[str], hands: dict):
