@@ -76,6 +76,7 @@ class PickMotions:
         self.held = HeldMotions(world, self.ik, self.stomp, self.config.held_mass_kg)
         self.closure, self.orientation = self.held.closure, self.held.orientation
         self.reach, self.reach_configuration = self.reaches.reach, self.reaches.reach_configuration
+        self.reach_pregrasps = self.reaches.reach_pregrasps
         self.segment_is_free = self.reaches.segment_is_free
         self.straight, self.track = self.straights.straight, self.straights.track
         self.held_move, self.held_path = self.held.held_move, self.held.held_path

@@ -11,6 +11,7 @@ import numpy as np
 from pydrake.math import RigidTransform
 
 from systems.parallel import parallel_calls
+from systems.planning.grasp_alternatives import grasp_alternatives, pregrasp_alternatives
 from systems.planning.ik import DualArmIk, IkResult
 from systems.planning.obstacles import Obstacles
 from systems.planning.stomp import Stomp
@@ -23,6 +24,9 @@ RISE_M = 0.15  # m: a free move that finds no path from where it starts tries ag
 # full budget only after every later goal had this first look (its first restart comes at 100), so that one goal STOMP
 # cannot reach costs its budget once, not once per goal.
 SCREENING_ITERATIONS = 100
+# Where a pre-grasp is out of reach, pre-grasps this share of the way out from the grasp are tried in turn: the
+# approach is then shorter (its straight line still ends at the grasp).
+PREGRASP_STANDOFFS = (1.0, 0.5)
 
 
 class _FirstLookFailed(PlanningError):
@@ -110,6 +114,50 @@ class ReachMotions:
             except PlanningError as error:
                 failure = error if not found_backwards or failure is None else failure
         raise PlanningError(f"{failure}; {at_the_grasps}") if at_the_grasps and failure else failure
+
+    def reach_pregrasps(
+        self,
+        q_start: np.ndarray,
+        pregrasps_W: dict[str, RigidTransform],
+        grasps_W: dict[str, RigidTransform],
+        cloud_W: np.ndarray | None = None,
+        obstacle_points_W: np.ndarray | None = None,
+        scene_W: np.ndarray | None = None,
+        deeper: RigidTransform | None = None,
+    ) -> tuple[np.ndarray, dict[str, RigidTransform]]:
+        """A pick's reach: keyframes from q_start to both hands at pre-grasps from which the straight approach
+        reaches the grasps (each grasp_W moved by `deeper` on the right, if given), and per side the grasp of its
+        family it leads to (X_GG'). Where a hand cannot reach its pre-grasp so, the other grasps of its family
+        (grasp_alternatives: rolled about the handle, slid along it, judged on the object's points cloud_W, N x 3
+        in W), and where none does, pre-grasps nearer the grasps (PREGRASP_STANDOFFS). obstacle_points_W,
+        scene_W: as reach()'s.
+
+        Raises:
+            PlanningError: as reach(), for the first standoff (or the last, where a nearer one was tried).
+        """
+        deeper = deeper if deeper is not None else RigidTransform()
+        families = {side: grasp_alternatives(grasps_W[side], cloud_W) for side in SIDES}
+        # Where each hand's approach ends, for each grasp of its family.
+        approach_to = {side: [grasps_W[side] @ X_GG @ deeper for X_GG in families[side]] for side in SIDES}
+        failure = None
+        for standoff in PREGRASP_STANDOFFS:
+            nearer = {
+                side: RigidTransform(
+                    X.rotation(), standoff * X.translation() + (1 - standoff) * grasps_W[side].translation()
+                )
+                for side, X in pregrasps_W.items()
+            }
+            alternatives = {
+                side: pregrasp_alternatives(grasps_W[side].inverse() @ nearer[side], families[side]) for side in SIDES
+            }
+            try:
+                reach = self.reach(q_start, nearer, obstacle_points_W, alternatives, approach_to, scene_W)
+                return reach.keyframes, {side: families[side][reach.choice[side]] for side in SIDES}
+            except PlanningError as error:
+                failure = failure or error
+                if "no collision-free IK solution" not in str(error) and "approach" not in str(error):
+                    break  # reachable but not by a free path: nearer the object will not help
+        raise failure
 
     def _reach_goals(self, q_start, targets_W, alternatives) -> Iterator[IkResult]:
         """The reach's IK goals, solved lazily in the order they are tried: the targets as given before their

@@ -20,7 +20,6 @@ from pydrake.systems.framework import EventStatus, LeafSystem
 from pydrake.trajectories import PiecewisePolynomial
 
 from systems.messages import GraspPoses, MoveKind, PlanRequest, PlanResult, Targets
-from systems.planning.grasp_alternatives import grasp_alternatives, pregrasp_alternatives
 from systems.planning.pick_motions import (
     SPARSE_SEGMENT_S,
     STOMP_SEGMENT_S,
@@ -36,9 +35,6 @@ OBSTACLE_POINTS = 2000
 # A held move's played trajectory that leaves the closure thresholds is refined at most this often (onto_closure).
 CLOSURE_REFINEMENTS = 3
 RETREAT_M = 0.1  # m: how far the hands back off an object they let go of (or as far along it as they reach)
-# Where a pre-grasp is out of reach, pre-grasps this share of the way out from the grasp are tried in turn: the
-# approach is then shorter (its straight line still ends at the grasp).
-PREGRASP_STANDOFFS = (1.0, 0.5)
 
 
 @dataclass
@@ -186,39 +182,13 @@ class StompPlanner(LeafSystem):
         return trajectory
 
     def _reach(self, request: PlanRequest, context, targets, cloud, points, scene) -> tuple[np.ndarray, dict | None]:
-        """The reach's keyframes to `targets`, and for pre-grasps the grasps they lead to (X_GG' per side). cloud:
-        the object's points (N x 3 in W, where it is now), which judge the grasp family; points: the obstacle;
-        scene: the rest of the scene as seen (its occupied points, or None).
-
-        For the pre-grasps, only a pre-grasp configuration from which the straight approach reaches the grasps
-        will do; where a hand cannot reach its pre-grasp so, the other grasps of its family (grasp_alternatives:
-        rolled about the handle, slid along it, judged on the object's points), and where none does, pre-grasps
-        nearer the grasps (PREGRASP_STANDOFFS)."""
+        """The reach's keyframes to `targets`, and for pre-grasps the grasps they lead to (X_GG' per side:
+        ReachMotions.reach_pregrasps). cloud: the object's points (N x 3 in W, where it is now), which judge the
+        grasp family; points: the obstacle; scene: the rest of the scene as seen (its occupied points, or None)."""
         if request.targets != Targets.PREGRASP:
             return self.motions.reach(request.q_start, targets, points, scene_W=scene).keyframes, None
         grasps = self._targets(dataclasses.replace(request, targets=Targets.GRASP), context, deeper=False)
-        families = {side: grasp_alternatives(grasps[side], cloud) for side in SIDES}
-        # Where each hand's approach ends, for each grasp of its family.
-        approach_to = {side: [grasps[side] @ X_GG @ self.deeper for X_GG in families[side]] for side in SIDES}
-        failure = None
-        for standoff in PREGRASP_STANDOFFS:
-            nearer = {
-                side: RigidTransform(
-                    X.rotation(), standoff * X.translation() + (1 - standoff) * grasps[side].translation()
-                )
-                for side, X in targets.items()
-            }
-            alternatives = {
-                side: pregrasp_alternatives(grasps[side].inverse() @ nearer[side], families[side]) for side in SIDES
-            }
-            try:
-                reach = self.motions.reach(request.q_start, nearer, points, alternatives, approach_to, scene)
-                return reach.keyframes, {side: families[side][reach.choice[side]] for side in SIDES}
-            except PlanningError as error:
-                failure = failure or error
-                if "no collision-free IK solution" not in str(error) and "approach" not in str(error):
-                    break  # reachable but not by a free path: nearer the object will not help
-        raise failure
+        return self.motions.reach_pregrasps(request.q_start, targets, grasps, cloud, points, scene, self.deeper)
 
     def _scene(self, context) -> np.ndarray | None:
         """The scene as the camera saw it (its occupied points, N x 3 in W), or None where there is none."""
