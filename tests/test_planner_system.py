@@ -17,6 +17,7 @@ from systems.perception.camera_latch import CameraLatch
 from systems.planning import stomp_planner
 from systems.planning.plan_telemetry import PlanTelemetry
 from systems.planning.stomp_planner import StompPlanner
+from systems.planning.straight_motions import WouldTouch
 from systems.robot_io.hand_command import HandCommandSource
 from systems.robot_io.joint_plan import SPEED_FRACTION
 from systems.robot_io.trajectory_source import JointTrajectorySource
@@ -124,6 +125,30 @@ def test_a_back_off_beyond_reach_ends_where_the_arms_stop_and_an_approach_does_n
     approach = PlanRequest(id=8, phase="approach", q_start=q_grasp, path="straight", targets="grasp")
     plan = planner.plan(approach, 0.0, _planner_context(planner, approach, GraspPoses(True, far)))
     assert not plan.success and "IK failed" in plan.message
+
+
+# Where the held-out bulb can's pick stood at its pre-grasps at -0.25 rad when a look found the can moved (seed 5): the
+# back-off's first step along -z_G would take the right forearm into the torso.
+BACK_OFF_INTO_THE_TORSO = np.array(
+    [1.229181, 2.449151, 0.717312, -0.856175, -0.2098, -1.360193, -0.109704, 0.489876, -0.014, 0.649261, -2.37731,
+     0.70284, 1.284568, -0.573261, 0.0]
+)  # fmt: skip
+
+
+def test_a_back_off_whose_first_step_would_touch_the_robot_stays_where_it_is(planner, scenario):
+    """Before, the back-off drove the forearm into the torso and the pick went on from there; refused outright, the
+    pick would stop. The hands stay where they are (a move of no length), and the next reach leaves from there."""
+    motions = planner.motions
+    assert not motions.world.penetrations(BACK_OFF_INTO_THE_TORSO)
+    back = {side: X @ RigidTransform([0.0, 0.0, -stomp_planner.RETREAT_M])
+            for side, X in motions.world.grasp_frame_poses(BACK_OFF_INTO_THE_TORSO).items()}  # fmt: skip
+    with pytest.raises(WouldTouch, match="step 1 of 3: the arms would touch the robot"):
+        motions.straight(BACK_OFF_INTO_THE_TORSO, back, min_steps=1)
+    back_off = PlanRequest(id=9, phase="back_off", q_start=BACK_OFF_INTO_THE_TORSO, path="straight", targets="retreat")
+    plan = planner.plan(back_off, 0.0, _planner_context(planner, back_off, GraspPoses(False)))
+    assert plan.success, plan.message
+    for t in np.linspace(plan.trajectory.start_time(), plan.trajectory.end_time(), 5):
+        np.testing.assert_allclose(plan.trajectory.value(t).ravel(), BACK_OFF_INTO_THE_TORSO, atol=1e-12)
 
 
 def _line(q0, q1, t0, t1):

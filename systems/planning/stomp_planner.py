@@ -27,6 +27,7 @@ from systems.planning.pick_motions import (
     PlanningError,
     time_parameterise,
 )
+from systems.planning.straight_motions import WouldTouch
 from systems.planning.world import SIDES
 
 # The reconstruction, thinned to about this many points, is the reach's obstacle: the margin about it
@@ -137,10 +138,10 @@ class StompPlanner(LeafSystem):
                         request, context, targets, cloud, self._thinned(cloud), scene
                     )
                     min_segment = STOMP_SEGMENT_S if len(keyframes) > 3 else SPARSE_SEGMENT_S
-                else:  # a back-off goes as far as the arms reach along it (the approach all the way or not at all)
-                    partial = 1 if request.targets == Targets.RETREAT else None
-                    keyframes = motions.straight(request.q_start, targets, min_steps=partial)
-                    min_segment = SPARSE_SEGMENT_S
+                elif request.targets == Targets.RETREAT:
+                    keyframes, min_segment = self._retreat(request.q_start, targets), SPARSE_SEGMENT_S
+                else:  # the approach all the way or not at all
+                    keyframes, min_segment = motions.straight(request.q_start, targets), SPARSE_SEGMENT_S
             if held is None:
                 trajectory = time_parameterise(keyframes, motions.world.velocity_limits, start_s, min_segment)
             else:
@@ -189,6 +190,16 @@ class StompPlanner(LeafSystem):
             return self.motions.reach(request.q_start, targets, points, scene_W=scene).keyframes, None
         grasps = self._targets(dataclasses.replace(request, targets=Targets.GRASP), context, deeper=False)
         return self.motions.reach_pregrasps(request.q_start, targets, grasps, cloud, points, scene, self.deeper)
+
+    def _retreat(self, q_start: np.ndarray, targets: dict[str, RigidTransform]) -> np.ndarray:
+        """A back-off's keyframes: as far along its line as the arms reach, at least one step of it; where its
+        first step would touch the robot itself (a forearm passing the torso), none: the hands stay where they
+        are, and the next free move leaves from there."""
+        try:
+            return self.motions.straight(q_start, targets, min_steps=1)
+        except WouldTouch as error:
+            logging.warning("back-off: %s; the hands stay where they are", error)
+            return np.stack([q_start, q_start])
 
     def _scene(self, context) -> np.ndarray | None:
         """The scene as the camera saw it (its occupied points, N x 3 in W), or None where there is none."""

@@ -22,6 +22,10 @@ class PlanningError(RuntimeError):
     """No motion: names the phase that failed and why."""
 
 
+class WouldTouch(PlanningError):
+    """A straight motion refused because a step of it would touch the robot itself or the fixed scene."""
+
+
 class StraightMotions:
     """Plans straight motions of both hands in a PlanningWorld, by tracking and, where that stalls, the IK."""
 
@@ -51,9 +55,10 @@ class StraightMotions:
         not count: the hands go to it): tracking keeps the hands on their lines, not the forearms off the torso.
 
         Raises:
-            PlanningError: naming the step whose IK failed, or that collides.
+            PlanningError: naming the step whose IK failed (WouldTouch: that would touch).
         """
         keyframes, failure = self._tracked_line(q_start, targets_W, steps)
+        touches = False
         standing = self.world.penetrations(q_start, objects=False)
         for step in range(1, len(keyframes)):
             if not self.world.segment_is_free(keyframes[step - 1], keyframes[step], tolerated=standing, objects=False):
@@ -61,10 +66,11 @@ class StraightMotions:
                     f"step {step} of {steps}: the arms would touch the robot or the table",
                     keyframes[:step],
                 )
+                touches = True
                 break
         if failure is not None:
             if min_steps is None or len(keyframes) - 1 < min_steps:
-                raise PlanningError(failure)
+                raise (WouldTouch if touches else PlanningError)(failure)
             logging.warning("straight move: %s; ending after step %d", failure, len(keyframes) - 1)
         return np.stack(keyframes)
 
