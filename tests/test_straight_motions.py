@@ -84,6 +84,31 @@ def test_a_straight_move_stops_where_the_arms_would_touch_the_robot(scenario):
         assert world.segment_is_free(q_from, q_to, max_step=0.005)
 
 
+# The held-out compact drill's grasps at +0.25 rad (seed 3): its side handle and grip stand so close that the two
+# hands' finger pads meet, 0.8 mm deep at the planning opening.
+HANDS_MEET = np.array(
+    [-1.210001, 0.653173, -1.649187, -1.403513, 0.769956, 1.220614, 0.290115, -0.105217, -0.074898, -0.265815,
+     -0.224245, 0.042539, -1.199568, -0.057432, 0.195074]
+)  # fmt: skip
+
+
+def test_the_hands_meeting_at_close_handles_do_not_stop_the_approach(scenario):
+    """The contacts a grasp makes (the two hands' fingers at close handles, a hand with the object) are the grasps'
+    to judge, not the line's: the approach to them is not refused for them; the robot's other contacts still count."""
+    motions = make_pick_motions(scenario)
+    world = motions.world
+    touching = world.penetrations(HANDS_MEET)
+    assert len(touching) == 1 and 0.0005 < next(iter(touching.values())) < 0.0015
+    assert world.in_collision(HANDS_MEET) and not world.in_collision(HANDS_MEET, grasp_contacts=False)
+    grasps = world.grasp_frame_poses(HANDS_MEET)
+    back = motions.straight(HANDS_MEET, {side: X @ RigidTransform([0.0, 0.0, -0.05]) for side, X in grasps.items()})
+    approach = motions.straight(back[-1], grasps)
+    reached = world.grasp_frame_poses(approach[-1])
+    for side in SIDES:
+        assert np.abs(reached[side].translation() - grasps[side].translation()).max() < 0.001
+    assert not world.segment_is_free(approach[-2], approach[-1])  # counting every contact, the last step touches
+
+
 def test_a_free_move_with_no_path_from_where_it_starts_rises_first(scenario, monkeypatch):
     """Home from beside the object: where no path leaves the start (made so here), both hands go straight up
     RISE_M and the path starts from there."""

@@ -51,17 +51,20 @@ class StraightMotions:
         are at least this many (a back-off goes as far as the arms reach); None: the whole line or nothing.
 
         A step also fails where the arms, moving to it, would touch the robot itself or the fixed scene by Drake's
-        exact geometry (the contacts where the robot stands at q_start may stay, no deeper; a welded object does
-        not count: the hands go to it): tracking keeps the hands on their lines, not the forearms off the torso.
+        exact geometry (the contacts where the robot stands at q_start may stay, no deeper; the contacts a grasp
+        makes do not count: a hand with a welded object, the two hands' fingers at an object's close handles):
+        tracking keeps the hands on their lines, not the forearms off the torso.
 
         Raises:
             PlanningError: naming the step whose IK failed (WouldTouch: that would touch).
         """
         keyframes, failure = self._tracked_line(q_start, targets_W, steps)
         touches = False
-        standing = self.world.penetrations(q_start, objects=False)
+        standing = self.world.penetrations(q_start, grasp_contacts=False)
         for step in range(1, len(keyframes)):
-            if not self.world.segment_is_free(keyframes[step - 1], keyframes[step], tolerated=standing, objects=False):
+            if not self.world.segment_is_free(
+                keyframes[step - 1], keyframes[step], tolerated=standing, grasp_contacts=False
+            ):
                 failure, keyframes = (
                     f"step {step} of {steps}: the arms would touch the robot or the table",
                     keyframes[:step],

@@ -108,12 +108,23 @@ class PlanningWorld:
         self.end_effectors = EndEffectors(self.kinematics, [self.grasp_frames[side] for side in SIDES])
         self.inspector = self.scene_graph.model_inspector()
         self.table_boxes = tuple(self._fixed_boxes().boxes)
-        self.object_geometries = {
+        self.object_geometries = set().union(*(self._geometries(instance) for instance in scene.objects))
+        self.hand_geometries = {side: self._geometries(scene.hands[side]) for side in SIDES}
+
+    def _geometries(self, instance: ModelInstanceIndex) -> set[int]:
+        """The collision geometries' ids (values) of a model instance's bodies."""
+        return {
             geometry.get_value()
-            for instance in scene.objects
             for body in self.plant.GetBodyIndices(instance)
             for geometry in self.plant.GetCollisionGeometriesForBody(self.plant.get_body(body))
         }
+
+    def _grasp_contact(self, pair: tuple[int, int]) -> bool:
+        """Whether a geometry pair is one a grasp makes: a hand with a welded object, or the two hands (on an
+        object whose handles stand close, their fingers meet at the grasps)."""
+        left, right = self.hand_geometries["left"], self.hand_geometries["right"]
+        a, b = pair
+        return bool(set(pair) & self.object_geometries) or (a in left and b in right) or (a in right and b in left)
 
     def _fixed_boxes(self) -> Obstacles:
         """Every box that is not the robot's (table, floor, a box on the table), welded in the world."""
@@ -176,17 +187,17 @@ class PlanningWorld:
         return q
 
     def in_collision(
-        self, q_arms: np.ndarray, tolerated: dict[tuple[int, int], float] | None = None, objects: bool = True
+        self, q_arms: np.ndarray, tolerated: dict[tuple[int, int], float] | None = None, grasp_contacts: bool = True
     ) -> bool:
         """Whether the robot touches itself, the table or a welded object at arm configuration q_arms (Drake's
         exact geometry). tolerated: penetrations that do not count (as penetrations() gives them: where the robot
-        stands), unless a pair goes deeper than there by more than TOLERATED_DEEPENING_M. objects: False leaves
-        the welded (or held) objects' contacts out (a hand going to its grasp is meant to touch the object)."""
-        if tolerated or not objects:
+        stands), unless a pair goes deeper than there by more than TOLERATED_DEEPENING_M. grasp_contacts: False
+        leaves out the contacts a grasp makes (_grasp_contact: hands going to their grasps are meant to touch)."""
+        if tolerated or not grasp_contacts:
             tolerated = tolerated or {}
             return any(
                 depth > tolerated.get(pair, -np.inf) + TOLERATED_DEEPENING_M
-                for pair, depth in self.penetrations(q_arms, objects).items()
+                for pair, depth in self.penetrations(q_arms, grasp_contacts).items()
             )
         self.plant.SetPositions(self.plant_context, self.full_positions(q_arms))
         return self.plant.get_geometry_query_input_port().Eval(self.plant_context).HasCollisions()
@@ -197,25 +208,25 @@ class PlanningWorld:
         q_to: np.ndarray,
         max_step: float = 0.02,
         tolerated: dict | None = None,
-        objects: bool = True,
+        grasp_contacts: bool = True,
     ) -> bool:
-        """Whether the straight joint-space segment q_from -> q_to is free by in_collision (`tolerated`: the
-        penetrations where the robot stands; `objects`: whether welded objects count), every max_step rad."""
-        return not any(self.in_collision(q, tolerated, objects) for q in joint_segment(q_from, q_to, max_step))
+        """Whether the straight joint-space segment q_from -> q_to is free by in_collision (`tolerated`,
+        `grasp_contacts` as there), checked every max_step rad."""
+        return not any(self.in_collision(q, tolerated, grasp_contacts) for q in joint_segment(q_from, q_to, max_step))
 
-    def penetrations(self, q_arms: np.ndarray, objects: bool = True) -> dict[tuple[int, int], float]:
+    def penetrations(self, q_arms: np.ndarray, grasp_contacts: bool = True) -> dict[tuple[int, int], float]:
         """The geometry pairs (their GeometryIds' values) that penetrate each other at q_arms, and how deep (m),
-        by Drake's exact geometry; none where the robot is free. objects: False leaves out the pairs with a
-        welded (or held) object."""
+        by Drake's exact geometry; none where the robot is free. grasp_contacts: False leaves out the pairs a
+        grasp makes (_grasp_contact)."""
         self.plant.SetPositions(self.plant_context, self.full_positions(q_arms))
         query = self.plant.get_geometry_query_input_port().Eval(self.plant_context)
         if not query.HasCollisions():
             return {}
-        return {
+        pairs = {
             tuple(sorted((pair.id_A.get_value(), pair.id_B.get_value()))): pair.depth
             for pair in query.ComputePointPairPenetration()
-            if objects or not {pair.id_A.get_value(), pair.id_B.get_value()} & self.object_geometries
         }
+        return {pair: depth for pair, depth in pairs.items() if grasp_contacts or not self._grasp_contact(pair)}
 
     def clearance(self, q_arms: np.ndarray, max_distance: float = 0.5) -> float:
         """Smallest signed distance (m) between robot, table and object geometries at q_arms (Drake's exact query)."""
