@@ -423,7 +423,8 @@ def test_a_clear_with_a_spawned_driver_killed_and_restarted_between_objects_clea
     # picks, but the VM alone wakes a lone real-time loop up to 27 ms late under load
     # (scripts/benchmark_command_stream.py), and with the driver also simulating the camera's sensor model one
     # of six picks here had 16 of 4265 sends late, the latest 35 ms; CI's loaded VM gave 14 ms on a lone stream.
-    # So this guards against stalls (0.3-3 s): no gap over 20 periods (0.1 s), at most 1 % of the sends late.
+    # So this guards against stalls (0.3-3 s): no gap over 50 periods (0.25 s), at most 1 % of the sends late. (A
+    # bound of 20 periods failed once, 106 ms, with two evaluation workers sharing the VM's two cores.)
     commands, period = result["commands"], load_scenario().hardware.control_period_s
     assert commands["sent"] > 1000 and commands["late"] <= 0.01 * commands["sent"]
-    assert commands["max_gap_s"] <= 20 * period
+    assert commands["max_gap_s"] <= 50 * period
