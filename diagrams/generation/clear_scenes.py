@@ -4,10 +4,11 @@ Table k of a split is made from the seed [CLEAR_SEED, split, k] alone. The famil
 either category (unseen extra_ ones in the report split, train_ ones when tuning), standing where the arms pick them
 (FAMILIAR_X, FAMILIAR_Y: between the table's middle and its left, the drop zone being at its right), at least
 FAMILIAR_GAP_M apart, each one's hands' way to its true grasps free of every other object (clutter_scenes'
-HAND_CLEARANCE_M), and each one within the arms' reach as the pick moves (arms_reach: its true pre-grasps, the
-straight approach to its grasps, the lift; on the first report tables, 5 of 40 objects drawn without this were
-not). The distractors (boxes, cylinders, bowls) stand anywhere else on the table, clear of the robot.
-Nothing stands within ZONE_CLEARANCE_M of the drop zone. Ground truth shapes the table only; the pick never reads it.
+HAND_CLEARANCE_M), and each one within the arms' reach alone as the pick moves (arms_reach: its true pre-grasps or
+their families', the straight approach to its grasps, the lift; of the first report tables' 40 objects drawn without
+it, it refuses the four drills the ground-truth pick could not reach). The distractors (boxes, cylinders, bowls)
+stand anywhere else on the table, clear of the robot. Nothing stands within ZONE_CLEARANCE_M of the drop zone. Ground
+truth shapes the table only; the pick never reads it.
 """
 
 import dataclasses
