@@ -237,8 +237,7 @@ def test_the_tables_stand_familiar_objects_only_where_the_arms_reach_them(scenar
     can, drill = familiar
     assert can.instance == "extra_2312" and np.allclose(can.xy, [-0.0748, -0.037], atol=1e-3)  # kept as it was
     assert drill.instance == "extra_2313" and not np.allclose(drill.xy, drawn_before.object.xy, atol=0.01)  # moved
-    for other in familiar:
-        category = getattr(other, "category", None) or other.kind
+    for category, other in (("watering_can", can), ("drill", drill)):
         alone = replace_object(
             scenario, category=category, instance=other.instance, file="", xy=other.xy, yaw=other.yaw
         )

@@ -59,21 +59,18 @@ class StraightMotions:
             PlanningError: naming the step whose IK failed (WouldTouch: that would touch).
         """
         keyframes, failure = self._tracked_line(q_start, targets_W, steps)
-        touches = False
+        error = PlanningError
         standing = self.world.penetrations(q_start, grasp_contacts=False)
         for step in range(1, len(keyframes)):
             if not self.world.segment_is_free(
                 keyframes[step - 1], keyframes[step], tolerated=standing, grasp_contacts=False
             ):
-                failure, keyframes = (
-                    f"step {step} of {steps}: the arms would touch the robot or the table",
-                    keyframes[:step],
-                )
-                touches = True
+                failure, error = f"step {step} of {steps}: the arms would touch the robot or the table", WouldTouch
+                keyframes = keyframes[:step]
                 break
         if failure is not None:
             if min_steps is None or len(keyframes) - 1 < min_steps:
-                raise (WouldTouch if touches else PlanningError)(failure)
+                raise error(failure)
             logging.warning("straight move: %s; ending after step %d", failure, len(keyframes) - 1)
         return np.stack(keyframes)
 
