@@ -43,6 +43,8 @@ from diagrams.pick_simulation import (
     station_plant,
 )
 from diagrams.planning_scene import make_planning_world
+from diagrams.pour_container import true_opening
+from diagrams.pour_judge import PourJudge
 from diagrams.robot_driver import MakeRobotDriver
 from diagrams.scenario import ObjectConfig, Scenario
 from diagrams.station import HAND_INSTANCES, OBJECT_INSTANCE, MakeStation, drop_zone, place_target
@@ -51,7 +53,7 @@ from systems.perception.camera_latch import CameraLatch
 from systems.perception.grasp_offset import GraspOffset
 from systems.perception.robot_spheres import RobotSpheres
 from systems.pick_supervisor import PickSupervisor
-from systems.pick_tasks import aim_pick, clear_pick, lift_pick, place_pick
+from systems.pick_tasks import aim_pick, clear_pick, lift_pick, place_pick, pour_pick
 from systems.pick_visualiser import PickVisualiser
 from systems.planning.heap import return_freed_heap
 from systems.planning.pick_motions import PickMotions, PlannerConfig, PlanningError
@@ -106,6 +108,9 @@ def MakePickDiagram(
         )
     if scenario.task == "aim" and scenario.object.category != "drill":
         raise ValueError(f"the aim task aims a drill's bit: the object must be a drill, not {scenario.object.category}")
+    if scenario.task == "pour" and scenario.object.category != "watering_can":
+        raise ValueError(f"the pour task pours from a can: the object must be a watering_can, not "
+                         f"{scenario.object.category}")  # fmt: skip
     if scenario.task == "clear" and perception != "camera":
         raise ValueError("the clear task finds its objects one by one with the camera: no ground-truth perception")
     builder = DiagramBuilder()
@@ -126,13 +131,15 @@ def MakePickDiagram(
     source = builder.AddNamedSystem("trajectory_source", JointTrajectorySource(n))
     hands = builder.AddNamedSystem("hand_command", HandCommandSource())
     from_camera = perception == "camera"
-    held_looks = scenario.place.looks and scenario.task in ("place", "aim", "clear")
+    held_looks = scenario.place.looks and scenario.task in ("place", "aim", "pour", "clear")
     looks = from_camera and (held_looks or scenario.look_before_approach)
     if scenario.task == "place":
         tasks = place_pick(check=scenario.look_before_approach, held_looks=scenario.place.looks)
         place_target_W = place_target(scenario)
     elif scenario.task == "aim":  # (set down again where it was taken)
         tasks, place_target_W = aim_pick(check=scenario.look_before_approach, held_looks=scenario.place.looks), None
+    elif scenario.task == "pour":  # (set down again where it was taken)
+        tasks, place_target_W = pour_pick(check=scenario.look_before_approach, held_looks=scenario.place.looks), None
     elif scenario.task == "clear":  # (each object to its spot in the drop zone)
         tasks, place_target_W = clear_pick(check=scenario.look_before_approach, held_looks=scenario.place.looks), None
     else:
@@ -147,6 +154,7 @@ def MakePickDiagram(
         scenario.max_attempts,
         num_joints=n,
         status_lost_s=scenario.hardware.status_lost_s,
+        pour_tilt_rad=np.radians(scenario.pour.tilt_deg),
         **(clearing if scenario.task == "clear" else {}),
     )
     builder.AddNamedSystem("pick_supervisor", supervisor)
@@ -173,6 +181,8 @@ def MakePickDiagram(
     builder.Connect(seen.GetOutputPort("result"), supervisor.GetInputPort("perception"))
     if scenario.task == "aim":
         builder.Connect(seen.GetOutputPort("board"), supervisor.GetInputPort("board"))
+    if scenario.task == "pour":
+        builder.Connect(seen.GetOutputPort("container"), supervisor.GetInputPort("container"))
     if scenario.task == "clear":
         builder.Connect(supervisor.GetOutputPort("left_out"), seen.GetInputPort("left_out"))
     grasps = seen.GetOutputPort("grasp_poses")
@@ -434,6 +444,16 @@ def _simulated_pick(
 
         def make_judge(plant, context):
             return AimJudge(plant, context, mode_of, board_placement(scenario), tool_O)
+
+    elif scenario.task == "pour":
+        tool_O = true_tool_O(scenario)
+        if tool_O is None:
+            raise ValueError("the pour task is judged on the can's true tool frame: its model has none")
+
+        def make_judge(plant, context):
+            return PourJudge(
+                plant, context, mode_of, true_opening(scenario), tool_O, np.radians(scenario.pour.tilt_deg)
+            )
 
     outcome = simulate_pick(
         diagram, scenario, watch.end_time, meshcat, record, plant=plant, make_judge=make_judge, mode_of=mode_of

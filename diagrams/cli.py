@@ -31,7 +31,8 @@ def add_scenario_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--task",
         choices=TASKS,
-        help="lift (the paper's), place (scenario place:), aim (a drill at the scenario aim: board; docs/use.md) or "
+        help="lift (the paper's), place (scenario place:), aim (a drill at the scenario aim: board; docs/use.md), "
+        "pour (a can into the scenario pour: container; docs/use.md) or "
         "clear (every familiar object into the scenario clear: drop zone, with --scene clutter; docs/clear.md); "
         "default: the scenario's",
     )

@@ -9,6 +9,7 @@ on the simulator's ground truth.
 
 import dataclasses
 import logging
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -302,6 +303,7 @@ def summarize(records: list[dict]) -> dict:
         **_tool_errors(records),
         **_clears(records),
         **_aims(records),
+        **_pours(records),
         "success_rate": _rate(successes, len(records)),
         "success_rate_ci95": wilson_interval(successes, len(records)),
         # Over the picks that lifted (a held move was played), m and rad.
@@ -385,6 +387,23 @@ def _aims(records: list[dict]) -> dict:
         "aim_axis_error_rad_median": float(np.median([u["axis_error_rad"] for u in held])) if held else float("nan"),
         "aim_tip_to_target_m_median": float(np.median([u["tip_to_target_m"] for u in held])) if held else float("nan"),
     }
+
+
+def _pours(records: list[dict]) -> dict:
+    """The pour task (records with a measured hold, diagrams/pour_judge.py): {"pours_held": how many picks held a
+    pour, "poured_share": the share of all picks whose pour the judge passed, "pour_tip_from_centre_m_median",
+    "pour_outflow_below_rad_median"} (worst of each hold); {} where no record is a pour."""
+    pours = [r["use"] for r in records if (r.get("use") or {}).get("task") == "pour"]
+    if not pours:
+        return {}
+    held = [use for use in pours if "outflow_elevation_rad" in use]
+    return {
+        "pours_held": len(held),
+        "poured_share": _rate(sum(use["poured"] for use in pours), len(records)),
+        "pour_tip_from_centre_m_median": float(np.median([u["tip_from_centre_m"] for u in held])) if held else math.nan,
+        "pour_outflow_below_rad_median": float(np.median([-u["outflow_elevation_rad"] for u in held])) if held
+        else math.nan,
+    }  # fmt: skip
 
 
 def _per_instance(records: list[dict], succeeded) -> dict:

@@ -321,6 +321,13 @@ def report(
             f"deg off the board's normal, tip {1000 * summary['aim_tip_to_target_m_median']:.1f} mm from the target "
             "(medians of each hold's worst; success also needs the drill set down where it stood)"
         )
+    if "pours_held" in summary:
+        print(
+            f"pours held in {summary['pours_held']} of {summary['trials']} picks, judged poured in "
+            f"{100 * summary['poured_share']:.0f} %: spout tip {100 * summary['pour_tip_from_centre_m_median']:.1f} "
+            f"cm from the opening's centre, outflow {math.degrees(summary['pour_outflow_below_rad_median']):.0f} deg "
+            "down (medians of each hold's worst; success also needs the can set down where it stood)"
+        )
     if "objects_cleared_share" in summary:
         print(
             f"tables cleared: {summary['objects_cleared']} of {summary['familiar_objects']} familiar objects "

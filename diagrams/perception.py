@@ -12,12 +12,14 @@ from diagrams.aim_board import board_placement
 from diagrams.generation.objects import catalog
 from diagrams.generation.objects.library import resolve_object
 from diagrams.planning_scene import clutter_surfaces_W, object_surface_W, true_grasp_poses
+from diagrams.pour_container import true_opening
 from diagrams.scenario import Scenario
 from diagrams.station import TABLE_HEIGHT, drop_zone, object_pose_on_table
 from systems import categories
-from systems.messages import BoardSeen, GraspPoses, PerceptionResult
+from systems.messages import BoardSeen, ContainerSeen, GraspPoses, PerceptionResult
 from systems.perception.board_finder import BoardFinder
 from systems.perception.camera_latch import CameraLatch
+from systems.perception.container_finder import ContainerFinder
 from systems.perception.object_tracker import ObjectTracker
 from systems.perception.part_segmenter import DEFAULT_PART_WEIGHTS, PartSegmenter
 from systems.perception.perception_result import PerceptionResultCollector
@@ -130,7 +132,8 @@ def MakePerception(
     (LeftOut: the segmenter's).
     Output ports: frame_id (1: the frame latched), result (PerceptionResult), and the registrar's
     grasp_poses (GraspPoses), reconstructed_cloud_W (N x 3, m) and X_WO (RigidTransform); with robot_spheres,
-    scene_cloud_W (N x 3 in W, m: its occupied points); for the aim task, board (BoardSeen: board_finder's).
+    scene_cloud_W (N x 3 in W, m: its occupied points); for the aim task, board (BoardSeen: board_finder's); for the
+    pour task, container (ContainerSeen: container_finder's).
 
     Args:
         weights: the segmenter's; None: the one that knows every taught category (categories.active_segmenter).
@@ -197,6 +200,13 @@ def MakePerception(
         for port in ("color_image", "depth_image", "camera_pose"):
             builder.Connect(latch.GetOutputPort(port), board.GetInputPort(port))
         builder.ExportOutput(board.GetOutputPort("board"), "board")
+    if scenario.task == "pour":  # the container's opening, in the same frame
+        table_top_z = scenario.table_xyz[2] + TABLE_HEIGHT
+        container = builder.AddNamedSystem("container_finder", ContainerFinder(*depth_camera(scenario), table_top_z))
+        for port in ("depth_image", "camera_pose"):
+            builder.Connect(latch.GetOutputPort(port), container.GetInputPort(port))
+        builder.Connect(segmenter.GetOutputPort("segmentation"), container.GetInputPort("segmentation"))
+        builder.ExportOutput(container.GetOutputPort("container"), "container")
     diagram = builder.Build()
     diagram.set_name("perception")
     return diagram
@@ -206,6 +216,12 @@ def true_board(scenario: Scenario) -> BoardSeen:
     """The aim task's board and target where the station puts them."""
     placement = board_placement(scenario)
     return BoardSeen(True, placement.normal_W, placement.target_W, "ground truth")
+
+
+def true_container(scenario: Scenario) -> ContainerSeen:
+    """The pour task's container's opening where the station puts it."""
+    opening = true_opening(scenario)
+    return ContainerSeen(True, opening.centre_W, opening.radius, "ground truth")
 
 
 def MakeGroundTruthPerception(scenario: Scenario, surface_points: int = TRUE_SURFACE_POINTS) -> Diagram:
@@ -231,6 +247,7 @@ def MakeGroundTruthPerception(scenario: Scenario, surface_points: int = TRUE_SUR
         ("X_WO", X_WO),
         ("scene_cloud_W", clutter_surfaces_W(scenario, SEEN_SPACING_M)),
         *((("board", true_board(scenario)),) if scenario.task == "aim" else ()),
+        *((("container", true_container(scenario)),) if scenario.task == "pour" else ()),
     ):
         source = builder.AddNamedSystem(name, ConstantValueSource(AbstractValue.Make(value)))
         builder.ExportOutput(source.get_output_port(), name)

@@ -105,10 +105,11 @@ def clutter_surfaces_W(scenario: Scenario, spacing: float = 0.01) -> np.ndarray:
     """Ground truth: points about `spacing` apart (m) on the surfaces of the scenario's other objects where they
     stand (N x 3 in W), for the ground-truth pick and tests."""
     from diagrams.generation.objects.bowl import bowl_mesh
+    from diagrams.pour_container import table_clutter
     from diagrams.station import clutter_object_config, clutter_pose_on_table
 
     points = [np.zeros((0, 3))]
-    for other in scenario.clutter:
+    for other in table_clutter(scenario):
         if other.instance:
             model_file = resolve_object(clutter_object_config(other)).model_file
             mesh = trimesh.load(model_file.parent / "visual.obj", force="mesh")
@@ -119,7 +120,7 @@ def clutter_surfaces_W(scenario: Scenario, spacing: float = 0.01) -> np.ndarray:
             mesh = trimesh.creation.cylinder(other.size[0] / 2, other.size[2])
             mesh.apply_translation([0, 0, other.size[2] / 2])
         else:
-            mesh = bowl_mesh(other.size[0], other.size[2])
+            mesh = bowl_mesh(other.size[0], other.size[2], pot=other.kind == "pot")
         surface, _ = trimesh.sample.sample_surface_even(mesh, int(np.ceil(mesh.area / spacing**2)), seed=0)
         points.append(clutter_pose_on_table(scenario, other).multiply(surface.T).T)
     return np.vstack(points)

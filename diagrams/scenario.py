@@ -60,11 +60,11 @@ class ClutterObjectConfig:
     """Another object on the table, not the one to pick (a cluttered table). It exists in the simulation only:
     the pick knows it as the camera sees it (diagrams/generation/clutter_scenes.py draws whole tables)."""
 
-    # "box", "cylinder", "bowl", or a category ("watering_can", "drill"): then the generated `instance`.
+    # "box", "cylinder", "bowl", "pot" (a plant pot), or a category ("watering_can", "drill"): then the generated `instance`.
     kind: str = "box"
     # For a category: a generated instance (train_<i>, test_<i>, extra_<seed>, wide_<seed>).
     instance: str = ""
-    # A box's extent along x, y, z; a cylinder's or bowl's diameter, (unused), height; m. Not for a category.
+    # A box's extent along x, y, z; a cylinder's, bowl's or pot's diameter, (unused), height; m. Not for a category.
     size: list[float] = field(default_factory=lambda: [0.08, 0.08, 0.1])
     # Its colour, RGB in [0, 1]; not for a category (its model's own).
     color: list[float] = field(default_factory=lambda: [0.6, 0.6, 0.6])
@@ -72,7 +72,7 @@ class ClutterObjectConfig:
     xy: list[float] = field(default_factory=lambda: [-0.12, 0.25])
     # Rotation about the world z axis, rad (for a category, from its presentation pose).
     yaw: float = 0.0
-    # Mass of a box, cylinder or bowl, kg.
+    # Mass of a box, cylinder, bowl or pot, kg.
     mass: float = 0.3
 
 
@@ -175,6 +175,22 @@ class AimConfig:
 
 
 @dataclass
+class PourConfig:
+    """The pour task's container (task: pour): a bowl or plant pot standing on the table (it may be moved: a free
+    body), into which the can is poured (diagrams/pour_container.py draws what is not given)."""
+
+    # Its base's centre in the table_top frame, m; []: drawn from random_seed beside the can, to its left.
+    target_xy: list[float] = field(default_factory=list)
+    # "bowl" or "pot"; "": drawn from random_seed.
+    target_category: str = ""
+    # Its rim's outer diameter and its height, m; []: drawn from random_seed within the category's sizes.
+    size: list[float] = field(default_factory=list)
+    # The pour: the can's outflow this far below the horizontal, deg. The arms holding a can by its two handles
+    # reach 15 deg down in most placements, 20 in two thirds, 40 in none (docs/use.md).
+    tilt_deg: float = 15.0
+
+
+@dataclass
 class BoxObstacleConfig:
     """A box fixed on the table (e.g. between the object and the place target), known to the planner as the
     table is. It must not touch the object where it rests or where it is placed: see the layouts
@@ -249,11 +265,13 @@ class Scenario:
     object: ObjectConfig = field(default_factory=ObjectConfig)
     # What the pick does once both hands hold the object: "lift" (lift and hold it, the paper's task),
     # "place" (lift, carry it to `place`, set it down upright, open the hands, retreat) or "aim" (a drill: aim its
-    # bit at the target on the `aim` board, hold, back off, set it down where it stood) or "clear" (every familiar
+    # bit at the target on the `aim` board, hold, back off, set it down where it stood), "pour" (a can: pour into the
+    # `pour` container, bring it upright, set it down where it stood) or "clear" (every familiar
     # object on the table, nearest first, into the `clear` drop zone).
     task: str = "lift"
     place: PlaceConfig = field(default_factory=PlaceConfig)
     aim: AimConfig = field(default_factory=AimConfig)
+    pour: PourConfig = field(default_factory=PourConfig)
     clear: ClearConfig = field(default_factory=ClearConfig)
     # A box on the table, known to the planner.
     obstacle: BoxObstacleConfig = field(default_factory=BoxObstacleConfig)
@@ -429,6 +447,7 @@ def validate(scenario: Scenario) -> None:
     if not abs(scenario.place.yaw) <= 2 * math.pi:
         raise ValueError(f"place.yaw must lie in [-2 pi, 2 pi] rad, got {scenario.place.yaw}")
     _validate_aim(scenario)
+    _validate_pour(scenario.pour)
     _validate_clear(scenario.clear)
     box = scenario.obstacle
     if len(box.xy) != 2 or len(box.size) != 3 or not all(0 < v <= 1.0 for v in box.size):
@@ -463,6 +482,20 @@ def _validate_aim(scenario: Scenario) -> None:
         )
 
 
+def _validate_pour(pour: PourConfig) -> None:
+    if pour.target_xy and (len(pour.target_xy) != 2 or not all(abs(v) <= MAX_TABLE_OFFSET_M for v in pour.target_xy)):
+        raise ValueError(f"pour.target_xy must be [] (drawn) or 2 entries within {MAX_TABLE_OFFSET_M} m of the "
+                         f"table top's centre, got {pour.target_xy}")  # fmt: skip
+    if pour.target_category not in ("", *POUR_CONTAINERS):
+        raise ValueError(f"pour.target_category must be '' (drawn) or one of {POUR_CONTAINERS}, got "
+                         f"{pour.target_category!r}")  # fmt: skip
+    if pour.size and (len(pour.size) != 2 or not all(0.05 <= v <= 0.5 for v in pour.size)):
+        raise ValueError(f"pour.size must be [] (drawn) or [diameter, height] in [0.05, 0.5] m, got {pour.size}")
+    if not 0.0 <= pour.tilt_deg <= 80.0:
+        raise ValueError(f"pour.tilt_deg must lie in [0, 80] deg (the outflow below the horizontal), got "
+                         f"{pour.tilt_deg}")  # fmt: skip
+
+
 def _validate_clear(clear: ClearConfig) -> None:
     if len(clear.zone_xy) != 2 or not all(abs(v) <= MAX_TABLE_OFFSET_M for v in clear.zone_xy):
         raise ValueError(f"clear.zone_xy must be 2 entries within {MAX_TABLE_OFFSET_M} m of the table's centre")
@@ -490,11 +523,12 @@ def _validate_clutter(name: str, other: ClutterObjectConfig) -> None:
         raise ValueError(f"{name}.mass must lie in (0, {MAX_OBJECT_MASS_KG}] kg, got {other.mass}")
 
 
-TASKS = ("lift", "place", "aim", "clear")
+TASKS = ("lift", "place", "aim", "pour", "clear")
 TABLE_HEIGHT = 0.76  # m: the table_top frame above the table's base (sdf/scene/table.sdf)
+POUR_CONTAINERS = ("bowl", "pot")  # what the pour task pours into
 # The aim task's board: width (along y), height and thickness, m.
 BOARD_SIZE_M = (0.5, 0.4, 0.02)
-CLUTTER_SHAPES = ("box", "cylinder", "bowl")
+CLUTTER_SHAPES = ("box", "cylinder", "bowl", "pot")
 TORSO_MODES = ("free", "locked")
 # Bounds of the scenario's physical fields.
 MAX_TABLE_OFFSET_M = 1.0

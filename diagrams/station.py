@@ -53,6 +53,7 @@ from diagrams.generation.objects import catalog
 from diagrams.generation.objects.bowl import bowl_file
 from diagrams.generation.objects.library import ObjectModel, resolve_object
 from diagrams.paths import PACKAGE_XML
+from diagrams.pour_container import table_clutter
 from diagrams.scenario import (
     TABLE_HEIGHT,
     ClutterObjectConfig,
@@ -207,11 +208,11 @@ def clutter_pose_on_table(scenario: Scenario, other: ClutterObjectConfig) -> Rig
 
 
 def AddClutter(plant: MultibodyPlant, scene_graph: SceneGraph, scenario: Scenario) -> list:
-    """Adds the scenario's other objects (scenario.clutter) as free bodies resting on the table, each in a
-    model instance CLUTTER_INSTANCE.format(index); returns their bodies."""
+    """Adds the scenario's other objects (table_clutter: scenario.clutter, and a pour's container last) as free bodies
+    resting on the table, each in a model instance CLUTTER_INSTANCE.format(index); returns their bodies."""
     bodies = []
     friction = CoulombFriction(0.6, 0.5)
-    for index, other in enumerate(scenario.clutter):
+    for index, other in enumerate(table_clutter(scenario)):
         name = CLUTTER_INSTANCE.format(index)
         if other.instance:  # a generated instance of a category
             model_file = resolve_object(clutter_object_config(other)).model_file
@@ -229,9 +230,9 @@ def AddClutter(plant: MultibodyPlant, scene_graph: SceneGraph, scenario: Scenari
                 inertia = SpatialInertia.SolidCylinderWithMass(other.mass, width / 2, height, [0.0, 0.0, 1.0])
                 visual = collision = Cylinder(width / 2, height)
                 X_BS = RigidTransform([0.0, 0.0, height / 2])
-            else:  # a bowl: its own mesh to see, its convex hull to touch
+            else:  # a bowl or a pot: its own mesh to see, its convex hull to touch
                 inertia = SpatialInertia.SolidCylinderWithMass(other.mass, width / 2, height, [0.0, 0.0, 1.0])
-                mesh = str(bowl_file(width, height))
+                mesh = str(bowl_file(width, height, pot=other.kind == "pot"))
                 visual, collision, X_BS = Mesh(mesh), Convex(mesh), RigidTransform()
             body = plant.AddRigidBody(name, instance, inertia)
             plant.RegisterVisualGeometry(body, X_BS, visual, f"{name}_visual", np.append(other.color, 1.0))

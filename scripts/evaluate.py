@@ -88,7 +88,8 @@ def parse_args(argv=None):
         "--task",
         choices=TASKS,
         default="lift",
-        help="lift and hold (the paper), carry and place, or aim a drill at a board's target (--category drill)",
+        help="lift and hold (the paper), carry and place, aim a drill at a board's target (--category drill), or pour "
+        "from a can into a container (--category watering_can)",
     )
     parser.add_argument(
         "--obstacle",

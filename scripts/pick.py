@@ -7,6 +7,7 @@ python scripts/pick.py --oracle --object-file my_can.sdf --object watering_can
 python scripts/pick.py --oracle --meshcat --record pick.html
 python scripts/pick.py --object pot --object-file my_pot.obj       # a category taught by add_category.py
 python scripts/pick.py --object drill --task aim     # aim the drill's bit at the board's target (docs/use.md)
+python scripts/pick.py --task pour                   # pour from the can into a bowl or pot beside it (docs/use.md)
 """
 
 import argparse
@@ -94,6 +95,14 @@ def main(argv=None) -> int:
                 f"; bit {math.degrees(use['axis_error_rad']):.1f} deg off the normal, tip "
                 f"{1000 * use['tip_to_target_m']:.1f} mm from the target, {1000 * nearest:.1f}-{1000 * farthest:.1f} "
                 "mm off the board"
+            )
+        if outcome.use.get("outflow_elevation_rad") is not None:
+            use = outcome.use
+            summary += (
+                f"; spout tip {100 * use['tip_from_centre_m']:.1f} cm from the opening's centre, "
+                f"{100 * use['tip_above_rim_m']:.1f} cm above its rim, outflow "
+                f"{-math.degrees(use['outflow_elevation_rad']):.1f} deg down, the container moved "
+                f"{1000 * use['container_moved_m']:.1f} mm"
             )
         if outcome.place:
             place = outcome.place

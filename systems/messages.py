@@ -40,14 +40,17 @@ class Targets(enum.StrEnum):
 
 
 class PlaceGoal(enum.StrEnum):
-    """The held moves towards a goal: a place target's (systems/planning/place_goals.py) or a board's target's
-    (systems/planning/aim_goals.py)."""
+    """The held moves towards a goal: a place target's (systems/planning/place_goals.py), a board's target's
+    (systems/planning/aim_goals.py) or a container's opening's (systems/planning/pour_goals.py)."""
 
     CARRY = "carry"  # over the place target, turned to its yaw, at the height the object is carried at
     SET_DOWN = "set_down"  # straight down onto the place target
     AIM_APPROACH = "aim_approach"  # the tool aimed at the board's target, AIM_APPROACH_M short of the aim
     AIM = "aim"  # on along the board's normal to the aim: the tool's tip its standoff off the target
     AIM_BACK = "aim_back"  # back along the board's normal by AIM_APPROACH_M
+    POUR_APPROACH = "pour_approach"  # upright, turned and moved so that the tilt puts the spout over the opening
+    POUR = "pour"  # tilted about the grasps' midpoint until the outflow points the pour's tilt down
+    POUR_BACK = "pour_back"  # upright again (turned back about the same pivot), down to the height it was lifted to
 
 
 class Mode(enum.StrEnum):
@@ -74,6 +77,11 @@ class Mode(enum.StrEnum):
     AIM = "aim"
     AIM_HOLD = "aim_hold"
     AIM_BACK = "aim_back"
+    # Pouring from a held can into a container: over it, tilted, hold, upright again.
+    POUR_APPROACH = "pour_approach"
+    POUR = "pour"
+    POUR_HOLD = "pour_hold"
+    POUR_BACK = "pour_back"
     # Recovering from a failed attempt: open the hands, back off, go back to where the pick started.
     RECOVER_OPEN = "recover_open"
     RECOVER_RETREAT = "recover_retreat"
@@ -107,6 +115,7 @@ class TaskName(enum.StrEnum):
     BACK_OFF = "back_off"  # it moved before the approach: back off before reaching for it again
     RECOVER = "recover"  # a failed attempt: open the hands, back off, go back to where the pick started
     AIM = "aim"  # grasp a drill, lift it, aim its bit at a board's target, hold, back off, set it down where it stood
+    POUR = "pour"  # grasp a can, lift it, pour into a container, hold, bring it upright, set it down where it stood
     SET_BACK = "set_back"  # the held object's goal is out of reach: set it down where it was taken, let go
     GIVE_UP = "give_up"  # a clear task's object given up: open the hands, back off
     HOME = "home"  # between a clear task's objects: back to the start, in the scene as seen after the last one
@@ -123,6 +132,7 @@ class Stage(enum.StrEnum):
     PLANNING = "planning"
     GRASP = "grasp"  # a hand closed on nothing
     BOARD = "board"  # the aim task's board or its target was not seen
+    CONTAINER = "container"  # the pour task's container (its opening) was not seen
 
 
 # Perception's stages, in the order they run.
@@ -267,6 +277,28 @@ class BoardSeen:
     normal_W: np.ndarray | None = None  # (3,) unit: out of the board's face, towards the camera
     target_W: np.ndarray | None = None  # (3,) m: the target's centre, on the face
     message: str = ""
+
+
+@dataclass
+class ContainerSeen:
+    """The pour task's container as perceived (systems/perception/container_finder.py), or why it was not."""
+
+    found: bool = False
+    centre_W: np.ndarray | None = None  # (3,) m: its opening's centre, at the rim's height
+    radius: float = 0.0  # m: the opening's
+    message: str = ""
+
+
+@dataclass(frozen=True)
+class PourTarget:
+    """What the pour task pours: the held can's tool frame (the spout's tip, the outflow) and the tilt's pivot (the
+    grasps' midpoint), in O; the container's opening in W; how far below the horizontal the outflow must point."""
+
+    tool_O: ToolFrame
+    pivot_O: np.ndarray  # (3,) m
+    centre_W: np.ndarray  # (3,) m: the opening's centre, at its rim's height
+    radius: float  # m
+    tilt_below_rad: float
 
 
 @dataclass(frozen=True)
@@ -448,6 +480,7 @@ class PickStatus:
     corrections: int = 0  # reaches planned again this attempt because a look found the object moved
     place_corrections: int = 0  # times the object was taken again after a set-down
     aim: AimTarget | None = None  # the aim task: what it aims at, once perceived
+    pour: PourTarget | None = None  # the pour task: what it pours into, once perceived
     # A move out of reach whose task sets the object back down first: the pick's failure, told once it is down.
     pending_failure: tuple[str, str] | None = None
     # The clear task: the objects taken on so far, the one under way (where it was seen, its spot in the drop zone)

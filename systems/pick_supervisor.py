@@ -23,7 +23,9 @@ target, the hands take it again and set it down again (at most MAX_PLACE_CORRECT
 
 An aim reads the board perceived in the same frame (``board``) and aims the tool frame perceived with the grasps
 (systems/planning/aim_goals.py); without either it fails before it moves. Its place target is where the object was
-seen: the drill goes back down where it was taken.
+seen: the drill goes back down where it was taken. A pour reads the container's opening perceived in the same frame
+(``container``) and pours with the same tool frame (systems/planning/pour_goals.py), the can likewise set down where
+it was taken.
 
 A clear (the tasks' after_given_up set; a drop_zone given) places one object after another: each perceived object gets
 a spot in the drop zone where it touches nothing already set down there (systems/planning/drop_zone.py). Once it is
@@ -48,6 +50,7 @@ from systems.messages import (
     OPEN_WIDTH,
     SIDES,
     BoardSeen,
+    ContainerSeen,
     HandCommand,
     LeftOut,
     LookRequest,
@@ -71,9 +74,11 @@ from systems.pick_tasks import Phase, PickTasks, Task, Then
 from systems.planning.aim_goals import aim_motion, aim_target
 from systems.planning.drop_zone import DropZone
 from systems.planning.place_goals import place_motion
+from systems.planning.pour_goals import pour_motion, pour_target
 
 CLOSE_S = 1.0  # s: the hands close over this long
 AIM_GOALS = (PlaceGoal.AIM_APPROACH, PlaceGoal.AIM, PlaceGoal.AIM_BACK)
+POUR_GOALS = (PlaceGoal.POUR_APPROACH, PlaceGoal.POUR, PlaceGoal.POUR_BACK)
 # A failed check that another attempt can put right: a hand closed on nothing, or lost the object.
 RETRIED_STAGES = (Stage.GRASP,)
 
@@ -94,6 +99,7 @@ class PickSupervisor(LeafSystem):
         - look_frame_id (optional)
         - look (optional)
         - board (optional)
+        - container (optional)
         - playback (optional)
         output_ports:
         - trigger
@@ -111,7 +117,8 @@ class PickSupervisor(LeafSystem):
     (PickStatus); ``attempt`` (1): the attempt under way. With looks, a look phase asks for a frame of the
     held object (``look_trigger`` (1), answered by ``look_frame_id`` (1)) and reads ``look`` (ObjectEstimate:
     the object tracker's, told where to look by ``expected_X_WO`` (RigidTransform)); without looks it is
-    skipped. An aim task reads ``board`` (BoardSeen, of the frame perceived). A clear tells perception what to leave
+    skipped. An aim task reads ``board`` (BoardSeen, of the frame perceived), a pour task ``container``
+    (ContainerSeen, of the same frame). A clear tells perception what to leave
     out (``left_out``: LeftOut). A move ends when the trajectory source's ``playback`` (Playback) reaches the plan's
     end (unconnected: at the plan's end in context time); a frame or a move waited on too long ends the pick
     (systems/pick_checks.py).
@@ -127,6 +134,7 @@ class PickSupervisor(LeafSystem):
         num_joints: the planned joints (14: the arms; 15: with the torso).
         drop_zone, max_objects: a clear's zone (its tasks clear_pick()) and the most objects it takes on.
         status_lost_s: a move paused this long for the robot's status ends the pick, s (None: STATUS_LOST_S).
+        pour_tilt_rad: a pour's outflow this far below the horizontal, rad.
     """
 
     def __init__(
@@ -142,6 +150,7 @@ class PickSupervisor(LeafSystem):
         drop_zone: DropZone | None = None,
         max_objects: int = 1,
         status_lost_s: float | None = None,
+        pour_tilt_rad: float = 0.0,
     ):
         super().__init__()
         self.clears, self.drop_zone, self.max_objects = tasks.after_given_up is not None, drop_zone, max_objects
@@ -162,6 +171,8 @@ class PickSupervisor(LeafSystem):
         self.board_port = self.DeclareAbstractInputPort("board", AbstractValue.Make(BoardSeen()))
         self.playback_port = self.DeclareAbstractInputPort("playback", AbstractValue.Make(Playback()))
         self.aims = any(phase.goal in AIM_GOALS for phase in tasks.phases())
+        self.container_port = self.DeclareAbstractInputPort("container", AbstractValue.Make(ContainerSeen()))
+        self.pours, self.pour_tilt_rad = any(phase.goal in POUR_GOALS for phase in tasks.phases()), pour_tilt_rad
         self._state = self.DeclareAbstractState(AbstractValue.Make(PickStatus()))
         # A look request is state of its own: the tracker's inputs change only when a new look is asked for.
         self._look_state = self.DeclareAbstractState(AbstractValue.Make(LookRequest()))
@@ -298,6 +309,13 @@ class PickSupervisor(LeafSystem):
             except ValueError as error:
                 fail(status, Stage.REGISTRATION if board.found else Stage.BOARD, str(error))
                 return
+        if self.pours:
+            container = self.container_port.Eval(context)
+            try:
+                status.pour = pour_target(container, result.grasps, result.X_WO_seen, self.pour_tilt_rad)
+            except ValueError as error:
+                fail(status, Stage.REGISTRATION if container.found else Stage.CONTAINER, str(error))
+                return
         self._start_task(context, status, self.tasks.main, 0, t)
 
     def _start_task(
@@ -320,6 +338,8 @@ class PickSupervisor(LeafSystem):
             X_motion_W, carried = phase.X_motion_W or RigidTransform(), None
             if phase.goal in AIM_GOALS:
                 X_motion_W, carried = aim_motion(phase.goal, status.belief, status.aim)
+            elif phase.goal in POUR_GOALS:
+                X_motion_W, carried = pour_motion(phase.goal, status.belief, status.pour)
             elif phase.goal is not None:
                 X_motion_W, carried = place_motion(phase.goal, status.belief, self._place_target(status))
             status.request = PlanRequest(
@@ -380,7 +400,7 @@ class PickSupervisor(LeafSystem):
         """A clear's next object: a new frame (after max_objects, the clear is done); `homing`: the frame is for the
         scene the move home avoids, the object is looked for after it."""
         status.task, status.attempt, status.corrections, status.place_corrections = None, 1, 0, 0
-        status.belief, status.aim, status.pending_failure, status.place_target_W = None, None, None, None
+        status.belief, status.aim, status.pour, status.pending_failure, status.place_target_W = (None,) * 5
         status.spare_spots, status.grasp_widths, status.grasp_offsets_G, status.attempt_failures = (), (), None, ()
         if len(status.objects) >= self.max_objects:
             ended = f"took on {self.max_objects} objects, the most"

@@ -12,6 +12,9 @@ checks switch to:
   aim       reach, [check], approach, close, look, lift, aim_approach,
             look_again, aim, aim_hold, aim_back, carry, set_down, release,
             retreat, confirm                                                 -> done
+  pour      reach, [check], approach, close, look, lift, pour_approach,
+            look_again, pour, pour_hold, pour_back, carry, set_down,
+            release, retreat, confirm                                        -> done
   back_off  back_off                                                         -> the pick's task from its reach
   recover   recover_open, recover_retreat, recover_home                      -> the next attempt (a new frame)
   set_back  carry, set_down, release, retreat                                -> the pick fails
@@ -21,7 +24,8 @@ checks switch to:
 A failed grip check (after the close, the lift, the carry) in lift, place or replace -> recover, while attempts are
 left (else the pick fails). A check that finds the object moved -> back_off; a confirm that finds it off its
 place target -> replace. An aim out of the arms' reach (no plan for aim_approach or aim) -> set_back: the drill is set
-down where it was taken, let go, and the pick then fails with the aim's failure. Any other failure (perception found
+down where it was taken, let go, and the pick then fails with the aim's failure; a pour out of reach (no plan for
+pour_approach or pour) the same with the can. Any other failure (perception found
 nothing, no plan) ends the pick.
 
 A clear pick (clear_pick) runs the place task on one object after another. Once one is placed and the hands have
@@ -40,6 +44,7 @@ from pydrake.math import RigidTransform
 from systems.messages import CLOSED_WIDTH, OPEN_WIDTH, Mode, MoveKind, PhaseKind, PlaceGoal, Targets, TaskName
 
 AIM_HOLD_S = 2.0  # s: the aim is held this long
+POUR_HOLD_S = 2.0  # s: the pour is held this long
 SETTLE_S = 0.5  # s: after the hands close or open, the grip settles before it is checked
 LIFT_HEIGHT = 0.15  # m: aimed for
 MIN_LIFT_FRACTION = 0.8  # of it: near the edge of the arms' reach a lower lift will do (0.12 m)
@@ -245,8 +250,28 @@ def aim_task(check: bool = True, held_looks: bool = True) -> Task:
     return Task(TaskName.AIM, phases, Then.DONE, if_check_fails=TaskName.RECOVER)
 
 
+def pour_task(check: bool = True, held_looks: bool = True) -> Task:
+    """Beyond the paper: lift a can, carry it over the container (upright, its outflow turned to the robot's left),
+    [look at the can in the hands,] tilt it until the outflow points the pour's tilt down, its spout's tip over the
+    opening, hold POUR_HOLD_S, bring it upright, carry it back over where it was taken and set it down there, let
+    go, back off, [look whether it stands there]. A pour out of reach sets the can back down (set_back_task)."""
+    phases = (
+        *_grasping(check),
+        _look(Mode.LOOK, held_looks),
+        _lift(PLACE_LIFT_HEIGHT, MIN_LIFT_FRACTION),
+        _aim(Mode.POUR_APPROACH, PlaceGoal.POUR_APPROACH),
+        _look(Mode.LOOK_AGAIN, held_looks),
+        _aim(Mode.POUR, PlaceGoal.POUR),
+        Phase(Mode.POUR_HOLD, PhaseKind.WAIT, wait_s=POUR_HOLD_S),
+        Phase(Mode.POUR_BACK, PhaseKind.MOVE, MoveKind.HELD, goal=PlaceGoal.POUR_BACK),
+        Phase(Mode.CARRY, PhaseKind.MOVE, MoveKind.HELD, goal=PlaceGoal.CARRY),
+        *_letting_go(held_looks),
+    )
+    return Task(TaskName.POUR, phases, Then.DONE, if_check_fails=TaskName.RECOVER)
+
+
 def _aim(name: Mode, goal: PlaceGoal) -> Phase:
-    """A held move towards the aim; out of reach, the object is set back down."""
+    """A held move towards an aim or a pour; out of reach, the object is set back down."""
     return Phase(name, PhaseKind.MOVE, MoveKind.HELD, goal=goal, if_unreachable=TaskName.SET_BACK)
 
 
@@ -304,6 +329,11 @@ def place_pick(check: bool = True, held_looks: bool = True) -> PickTasks:
 def aim_pick(check: bool = True, held_looks: bool = True) -> PickTasks:
     """A pick that aims a drill at a board (aim_task) and its set-back, re-place, back-off and recovery."""
     return _pick(aim_task(check=check, held_looks=held_looks), set_back_task(), replace_task(held_looks))
+
+
+def pour_pick(check: bool = True, held_looks: bool = True) -> PickTasks:
+    """A pick that pours from a can into a container (pour_task) and its set-back, re-place, back-off and recovery."""
+    return _pick(pour_task(check=check, held_looks=held_looks), set_back_task(), replace_task(held_looks))
 
 
 def clear_pick(check: bool = True, held_looks: bool = True) -> PickTasks:

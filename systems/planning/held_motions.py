@@ -149,13 +149,16 @@ class HeldMotions:
         start_poses = self.world.grasp_frame_poses(q_start)
         X_E1E2 = start_poses["left"].InvertAndCompose(start_poses["right"])
         angle_axis = X_motion_W.rotation().ToAngleAxis()
+        # The motion's share s turns the object about the hands' midpoint c by the share s of the rotation and moves
+        # c the share s of the way to where the motion takes it: the hands go straight while the object turns
+        # (turned about W's origin instead, a 90 degree turn swings them some 20 cm out of the way midway).
+        centre = np.mean([X.translation() for X in start_poses.values()], axis=0)
+        moved_centre = X_motion_W.multiply(centre)
         path, q, worst = [np.asarray(q_start, float)], q_start, 0.0
         for step in range(1, HELD_PATH_STEPS + 1):
             s = step / HELD_PATH_STEPS
-            # The object's motion so far: the share s of the translation and of the rotation (about the same axis).
-            partial = RigidTransform(
-                RotationMatrix(AngleAxis(s * angle_axis.angle(), angle_axis.axis())), s * X_motion_W.translation()
-            )
+            turn = RotationMatrix(AngleAxis(s * angle_axis.angle(), angle_axis.axis()))
+            partial = RigidTransform(centre + s * (moved_centre - centre)) @ RigidTransform(turn) @ RigidTransform(-centre)
             targets = {side: partial @ X for side, X in start_poses.items()}
             result, tolerance = self._held_configuration(targets, X_E1E2, q)
             if not result.success:
