@@ -109,7 +109,8 @@ def pour_target(container: ContainerSeen, grasps: GraspPoses, X_WO: RigidTransfo
 
 def pour_motion(goal: PlaceGoal, belief: ObjectBelief, pour: PourTarget) -> tuple[RigidTransform, RigidTransform]:
     """The held move of a pour goal from where the object is believed to be, as (X_motion_W, carried_motion_W: the
-    object's motion since it was seen; the planner keeps the perceived object, moved by it, clear of the scene)."""
+    object's motion since it was seen, the planner keeps the perceived object, moved by it, clear of the scene; None:
+    the robot only)."""
     now = belief.now_W
     opening = Opening(pour.centre_W, pour.radius, 0)
     if goal == PlaceGoal.POUR_APPROACH:
@@ -125,7 +126,11 @@ def pour_motion(goal: PlaceGoal, belief: ObjectBelief, pour: PourTarget) -> tupl
         )
     else:
         raise ValueError(f"{goal!r} is no pour goal")
-    return X_goal @ now.inverse(), now @ belief.seen_W.inverse()
+    # The tilt and its undoing bring the spout over the container's rim by design (2.5 cm above it): only the robot
+    # is kept clear of the scene there (the can turns about the hands, over the opening); the approach keeps the
+    # perceived can clear of it too.
+    carried = now @ belief.seen_W.inverse() if goal == PlaceGoal.POUR_APPROACH else None
+    return X_goal @ now.inverse(), carried
 
 
 def upright(X_WO: RigidTransform, pivot_O: np.ndarray) -> RigidTransform:
