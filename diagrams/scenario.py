@@ -60,7 +60,8 @@ class ClutterObjectConfig:
     """Another object on the table, not the one to pick (a cluttered table). It exists in the simulation only:
     the pick knows it as the camera sees it (diagrams/generation/clutter_scenes.py draws whole tables)."""
 
-    # "box", "cylinder", "bowl", "pot" (a plant pot), or a category ("watering_can", "drill"): then the generated `instance`.
+    # "box", "cylinder", "bowl", "pot" (a plant pot), or a category ("watering_can", "drill"): then the generated
+    # `instance`.
     kind: str = "box"
     # For a category: a generated instance (train_<i>, test_<i>, extra_<seed>, wide_<seed>).
     instance: str = ""

@@ -50,7 +50,7 @@ class PlaceGoal(enum.StrEnum):
     AIM_BACK = "aim_back"  # back along the board's normal by AIM_APPROACH_M
     POUR_APPROACH = "pour_approach"  # upright, turned and moved so that the tilt puts the spout over the opening
     POUR = "pour"  # tilted about the grasps' midpoint until the outflow points the pour's tilt down
-    POUR_BACK = "pour_back"  # upright again (turned back about the same pivot), down to the height it was lifted to
+    POUR_BACK = "pour_back"  # upright again: the tilt undone about the same pivot
 
 
 class Mode(enum.StrEnum):
@@ -334,6 +334,9 @@ class PlanRequest:
     # Grasp targets: per side, the grasp the hand goes to as a transform of the perceived one on the right (X_GG':
     # rolled about or slid along the handle), as the reach to the pre-grasps chose it (None: as perceived).
     grasp_offsets_G: dict[str, RigidTransform] | None = None
+    # Held moves: a container's inside, left out of the scene (the pour's spout goes over it): the scene's points
+    # within the radius (m) of the vertical line through the point (3, W: the opening's centre) and below it.
+    inside_left_out: tuple[np.ndarray, float] | None = None
 
 
 @dataclass(frozen=True)

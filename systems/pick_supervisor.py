@@ -74,7 +74,7 @@ from systems.pick_tasks import Phase, PickTasks, Task, Then
 from systems.planning.aim_goals import aim_motion, aim_target
 from systems.planning.drop_zone import DropZone
 from systems.planning.place_goals import place_motion
-from systems.planning.pour_goals import pour_motion, pour_target
+from systems.planning.pour_goals import inside_left_out, pour_motion, pour_target
 
 CLOSE_S = 1.0  # s: the hands close over this long
 AIM_GOALS = (PlaceGoal.AIM_APPROACH, PlaceGoal.AIM, PlaceGoal.AIM_BACK)
@@ -354,6 +354,7 @@ class PickSupervisor(LeafSystem):
                 q_goal=status.q_home if phase.targets == Targets.HOME else None,
                 object_motion_W=object_motion(status.belief, phase.targets),
                 grasp_offsets_G=status.grasp_offsets_G if phase.targets == Targets.GRASP else None,
+                inside_left_out=inside_left_out(status.pour) if phase.goal in POUR_GOALS else None,
             )
         elif phase.kind in (PhaseKind.CLOSE, PhaseKind.OPEN):
             width = phase.hand_width + (max(status.grasp_widths, default=OPEN_WIDTH) if phase.beyond_grasp else 0.0)

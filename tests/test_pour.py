@@ -18,7 +18,9 @@ from systems.planning.pour_goals import (
     POUR_CLEARANCE_M,
     POUR_HEADING_W,
     POUR_TILT_MARGIN_RAD,
+    inside_left_out,
     outflow_elevation,
+    outside_of,
     pour_motion,
     pour_target,
 )
@@ -85,21 +87,29 @@ def test_the_pour_moves_turn_the_outflow_left_tilt_it_down_over_the_opening_then
     outflow = tool_O.moved(over).axis
     assert np.allclose(outflow[:2] / np.linalg.norm(outflow[:2]), POUR_HEADING_W, atol=1e-6)
     assert np.isclose(over.rotation().matrix()[2, 2], 1.0)  # (upright)
-    assert carried is not None  # (the can kept clear of the scene on the way over)
+    assert carried is not None  # (the can kept clear of the scene, the container's inside left out of it)
     motion, carried = pour_motion(PlaceGoal.POUR, ObjectBelief(X_WO, over), pour)
     poured = motion @ over
     tip = tool_O.moved(poured).tip
     assert np.allclose(tip, pour.centre_W + [0.0, 0.0, POUR_CLEARANCE_M], atol=1e-6)
     assert np.isclose(-outflow_elevation(poured, tool_O), pour.tilt_below_rad + POUR_TILT_MARGIN_RAD)
-    assert carried is None  # (the spout goes over the rim by design: the robot only is kept clear)
-    pivot_W = poured.multiply(pour.pivot_O)
     motion, _ = pour_motion(PlaceGoal.POUR_BACK, ObjectBelief(X_WO, poured), pour)
     back = motion @ poured
-    assert np.isclose(back.rotation().matrix()[2, 2], 1.0)
-    assert np.isclose(back.translation()[2], X_WO.translation()[2] + PLACE_LIFT_HEIGHT)
-    assert np.allclose(back.multiply(pour.pivot_O)[:2], pivot_W[:2], atol=1e-6)  # (turned back about the pivot)
+    assert np.allclose(back.GetAsMatrix4(), over.GetAsMatrix4(), atol=1e-6)  # (the tilt undone, about the pivot)
     with pytest.raises(ValueError, match="no pour goal"):
         pour_motion(PlaceGoal.CARRY, belief, pour)
+
+
+def test_the_containers_inside_is_left_out_of_the_scene_below_its_rim_and_the_rim_kept():
+    _, _, pour = _held_can(_pour_scenario())
+    centre, radius = inside_left_out(pour)
+    assert np.allclose(centre, pour.centre_W) and radius == pytest.approx(pour.radius - 0.005)
+    inside = centre + [0.5 * radius, 0.0, -0.03]
+    above = centre + [0.0, 0.0, 0.01]
+    rim = centre + [pour.radius, 0.0, 0.0]
+    beside = centre + [radius + 0.05, 0.0, -0.03]
+    kept = outside_of(np.array([inside, above, rim, beside]), centre, radius)
+    np.testing.assert_array_equal(kept, [above, rim, beside])
 
 
 def test_a_pour_with_the_true_grasps_and_tool_frame_passes_the_plant_judge():

@@ -158,7 +158,7 @@ class HeldMotions:
         for step in range(1, HELD_PATH_STEPS + 1):
             s = step / HELD_PATH_STEPS
             turn = RotationMatrix(AngleAxis(s * angle_axis.angle(), angle_axis.axis()))
-            partial = RigidTransform(centre + s * (moved_centre - centre)) @ RigidTransform(turn) @ RigidTransform(-centre)
+            partial = RigidTransform(turn, centre + s * (moved_centre - centre)) @ RigidTransform(-centre)
             targets = {side: partial @ X for side, X in start_poses.items()}
             result, tolerance = self._held_configuration(targets, X_E1E2, q)
             if not result.success:

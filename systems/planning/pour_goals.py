@@ -22,13 +22,13 @@ from pydrake.math import RigidTransform, RotationMatrix
 
 from systems.messages import ContainerSeen, GraspPoses, ObjectBelief, PlaceGoal, PourTarget
 from systems.perception.container_opening import Opening
-from systems.pick_tasks import PLACE_LIFT_HEIGHT
 from systems.shape_space.tool_frame import ToolFrame
 
 POUR_CLEARANCE_M = 0.025  # m: the spout's tip this far above the opening's rim while it pours (4 cm: 1-3 fewer of 24)
 # The pour task tilts the can this much past the asked tilt: the hands hold it within 0.01 rad of the plan, and the
 # grip gives a little (planned at the asked 20 deg, the plant's outflow fell 0.02 deg short).
 POUR_TILT_MARGIN_RAD = np.radians(1.0)
+RIM_KEPT_M = 0.005  # m: the scene's points this near the opening's rim, inside it, stay obstacles (the rim's own)
 MIN_OUTFLOW_RUN = 0.2  # of the outflow: its horizontal share, below which no direction to tilt it is defined
 # The outflow's horizontal direction while the pour task pours (module doc): 60 deg from straight ahead (+x_W) towards
 # the robot's left. Chosen on training cans (train_0-7 x yaws -0.25, 0, +0.25, their containers drawn, true grasps,
@@ -103,8 +103,9 @@ def pour_target(container: ContainerSeen, grasps: GraspPoses, X_WO: RigidTransfo
         raise ValueError(f"no tool frame to pour with: the registration handed on none ({grasps.message})")
     X_OW = X_WO.inverse()
     hands = [grasps.poses_W[f"{side}_grasp"].translation() for side in ("left", "right")]
-    return PourTarget(grasps.tool_W.moved(X_OW), X_OW.multiply(np.mean(hands, axis=0)),
-                      np.asarray(container.centre_W, float), float(container.radius), float(tilt_below_rad))  # fmt: skip
+    pivot_O = X_OW.multiply(np.mean(hands, axis=0))
+    centre_W = np.asarray(container.centre_W, float)
+    return PourTarget(grasps.tool_W.moved(X_OW), pivot_O, centre_W, float(container.radius), float(tilt_below_rad))
 
 
 def pour_motion(goal: PlaceGoal, belief: ObjectBelief, pour: PourTarget) -> tuple[RigidTransform, RigidTransform]:
@@ -119,18 +120,24 @@ def pour_motion(goal: PlaceGoal, belief: ObjectBelief, pour: PourTarget) -> tupl
     elif goal == PlaceGoal.POUR:
         X_goal = pour_poses(now, pour.tool_O, pour.pivot_O, opening, pour.tilt_below_rad + POUR_TILT_MARGIN_RAD)
         X_goal = X_goal.poured_W
-    elif goal == PlaceGoal.POUR_BACK:  # upright, and down to the height it was lifted to: the carry back then
-        X_goal = upright(now, pour.pivot_O)  # undoes the approach's turn and shift at the height the arms took it
-        X_goal = RigidTransform([0.0, 0.0, belief.seen_W.translation()[2] + PLACE_LIFT_HEIGHT]) @ RigidTransform(
-            X_goal.rotation(), [*X_goal.translation()[:2], 0.0]
-        )
+    elif goal == PlaceGoal.POUR_BACK:  # the tilt undone: the carry back leaves from over the container, upright
+        X_goal = upright(now, pour.pivot_O)
     else:
         raise ValueError(f"{goal!r} is no pour goal")
-    # The tilt and its undoing bring the spout over the container's rim by design (2.5 cm above it): only the robot
-    # is kept clear of the scene there (the can turns about the hands, over the opening); the approach keeps the
-    # perceived can clear of it too.
-    carried = now @ belief.seen_W.inverse() if goal == PlaceGoal.POUR_APPROACH else None
-    return X_goal @ now.inverse(), carried
+    return X_goal @ now.inverse(), now @ belief.seen_W.inverse()
+
+
+def inside_left_out(pour: PourTarget) -> tuple[np.ndarray, float]:
+    """The container's inside, left out of the scene the pour's held moves keep the can clear of (PlanRequest's
+    inside_left_out): within the opening's radius less RIM_KEPT_M of its axis, below the rim. The spout goes 2.5 cm
+    over the opening by design; the space the camera cannot see into inside the container is no obstacle to it."""
+    return pour.centre_W, pour.radius - RIM_KEPT_M
+
+
+def outside_of(points_W: np.ndarray, centre_W: np.ndarray, radius: float) -> np.ndarray:
+    """The points (N x 3, W, m) not within `radius` (m) of the vertical line through centre_W (3,) and below it."""
+    inside = (np.linalg.norm(points_W[:, :2] - centre_W[:2], axis=1) < radius) & (points_W[:, 2] <= centre_W[2])
+    return points_W[~inside]
 
 
 def upright(X_WO: RigidTransform, pivot_O: np.ndarray) -> RigidTransform:

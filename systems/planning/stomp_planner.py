@@ -27,6 +27,7 @@ from systems.planning.pick_motions import (
     PlanningError,
     time_parameterise,
 )
+from systems.planning.pour_goals import outside_of
 from systems.planning.straight_motions import WouldTouch
 from systems.planning.world import SIDES
 
@@ -119,6 +120,8 @@ class StompPlanner(LeafSystem):
                 if request.carried_motion_W is not None:
                     cloud = self.GetInputPort("obstacle_cloud_W").Eval(context)
                     carried = request.carried_motion_W.multiply(cloud.T).T if len(cloud) else None
+                if request.inside_left_out is not None and scene is not None:
+                    scene = outside_of(scene, *request.inside_left_out)
                 held = motions.held_move(request.q_start, request.X_motion_W, request.min_fraction, carried, scene)
                 keyframes = held.keyframes
                 start, end = (motions.world.grasp_frame_poses(q)["left"] for q in (keyframes[0], keyframes[-1]))
