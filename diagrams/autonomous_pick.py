@@ -68,8 +68,9 @@ from systems.shape_space.tool_frame import ToolFrame
 
 # Perceive once the object has settled on the table, s.
 PERCEIVE_AT_S = 0.5
-# A pick that has not ended by then is stopped, s.
+# A pick that has not ended by then is stopped, s (a pour: POUR_PICK_S; its held moves are more and longer).
 MAX_PICK_S = 60.0
+POUR_PICK_S = 90.0
 # The hands close this much further along their approach axis z_G than the perceived grasp, m:
 # registration is off by 1-2 cm, and the fingertips reach only 2.5 cm past the grasp frame, so a
 # hand that stops short can close on the handle's edge and lose it in the lift (the paper's
@@ -465,8 +466,11 @@ def _simulated_pick(
 
 
 def max_time_s(scenario: Scenario) -> float:
-    """The simulated time a pick may take (a clear: MAX_PICK_S per object it may take on, and one more), s."""
-    return MAX_PICK_S * (scenario.clear.max_objects + 1) if scenario.task == "clear" else MAX_PICK_S
+    """The simulated time a pick may take (a clear: MAX_PICK_S per object it may take on, and one more; a pour:
+    POUR_PICK_S), s."""
+    if scenario.task == "clear":
+        return MAX_PICK_S * (scenario.clear.max_objects + 1)
+    return POUR_PICK_S if scenario.task == "pour" else MAX_PICK_S
 
 
 def taken_on(done: ClearedObject) -> dict:
