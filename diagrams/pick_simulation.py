@@ -37,7 +37,7 @@ CLOSURE_SAMPLE_S = 0.01
 HELD_MOVES = (Mode.LIFT, Mode.CARRY, Mode.SET_DOWN, Mode.AIM_APPROACH, Mode.AIM, Mode.AIM_BACK, Mode.POUR_APPROACH,
               Mode.POUR, Mode.POUR_BACK)  # fmt: skip
 # The modes in which both hands hold the object (a place's, an aim's).
-HELD_MODES = (*HELD_MOVES, Mode.LOOK, Mode.LOOK_AGAIN, Mode.AIM_HOLD, Mode.POUR_HOLD)
+HELD_MODES = (*HELD_MOVES, Mode.LOOK, Mode.LOOK_AGAIN, Mode.LOOK_OVER, Mode.AIM_HOLD, Mode.POUR_HOLD)
 # The modes of a failed attempt's recovery (systems/pick_tasks.py's recovery_task).
 RECOVERY_MODES = (Mode.RECOVER_OPEN, Mode.RECOVER_RETREAT, Mode.RECOVER_HOME)
 

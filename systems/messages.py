@@ -79,6 +79,7 @@ class Mode(enum.StrEnum):
     AIM_BACK = "aim_back"
     # Pouring from a held can into a container: over it, tilted, hold, upright again.
     POUR_APPROACH = "pour_approach"
+    LOOK_OVER = "look_over"  # a look at the held can over the container, before the tilt
     POUR = "pour"
     POUR_HOLD = "pour_hold"
     POUR_BACK = "pour_back"

@@ -13,8 +13,8 @@ checks switch to:
             look_again, aim, aim_hold, aim_back, carry, set_down, release,
             retreat, confirm                                                 -> done
   pour      reach, [check], approach, close, look, lift, pour_approach,
-            look_again, pour, pour_hold, pour_back, carry, set_down,
-            release, retreat, confirm                                        -> done
+            look_over, pour, pour_hold, pour_back, carry, look_again,
+            set_down, release, retreat, confirm                              -> done
   back_off  back_off                                                         -> the pick's task from its reach
   recover   recover_open, recover_retreat, recover_home                      -> the next attempt (a new frame)
   set_back  carry, set_down, release, retreat                                -> the pick fails
@@ -253,18 +253,20 @@ def aim_task(check: bool = True, held_looks: bool = True) -> Task:
 def pour_task(check: bool = True, held_looks: bool = True) -> Task:
     """Beyond the paper: lift a can, carry it over the container (upright, its outflow turned to the robot's left),
     [look at the can in the hands,] tilt it until the outflow points the pour's tilt down, its spout's tip over the
-    opening, hold POUR_HOLD_S, bring it upright, carry it back over where it was taken and set it down there, let
-    go, back off, [look whether it stands there]. A pour out of reach sets the can back down (set_back_task)."""
+    opening, hold POUR_HOLD_S, bring it upright, carry it back over where it was taken, [look at it in the hands
+    again: the turns turn it in them,] set it down there, let go, back off, [look whether it stands there]. A pour
+    out of reach sets the can back down (set_back_task)."""
     phases = (
         *_grasping(check),
         _look(Mode.LOOK, held_looks),
         _lift(PLACE_LIFT_HEIGHT, MIN_LIFT_FRACTION),
         _aim(Mode.POUR_APPROACH, PlaceGoal.POUR_APPROACH),
-        _look(Mode.LOOK_AGAIN, held_looks),
+        _look(Mode.LOOK_OVER, held_looks),
         _aim(Mode.POUR, PlaceGoal.POUR),
         Phase(Mode.POUR_HOLD, PhaseKind.WAIT, wait_s=POUR_HOLD_S),
         Phase(Mode.POUR_BACK, PhaseKind.MOVE, MoveKind.HELD, goal=PlaceGoal.POUR_BACK),
         Phase(Mode.CARRY, PhaseKind.MOVE, MoveKind.HELD, goal=PlaceGoal.CARRY),
+        _look(Mode.LOOK_AGAIN, held_looks),
         *_letting_go(held_looks),
     )
     return Task(TaskName.POUR, phases, Then.DONE, if_check_fails=TaskName.RECOVER)

@@ -27,9 +27,11 @@ from systems.shape_space.tool_frame import ToolFrame
 # m: the spout's tip this far above the opening's rim while it pours. At 2.5 cm (one more training row of 24 reached)
 # the perceived spout, sloping down over the near rim, came within 1.7 cm of it: inside the planner's clearance.
 POUR_CLEARANCE_M = 0.04
-# The pour task tilts the can this much past the asked tilt: the hands hold it within 0.01 rad of the plan, and the
-# grip gives a little (planned at the asked 20 deg, the plant's outflow fell 0.02 deg short).
-POUR_TILT_MARGIN_RAD = np.radians(1.0)
+# The pour task tilts the can this much past the asked tilt: the hands hold it within 0.01 rad of the plan, the grip
+# gives a little, and the perceived outflow is off by a few degrees. At 1 deg, 4 of 9 autonomous pours on the test
+# cans fell 0.5-2.4 deg short (the ground-truth pour at the asked 20 deg, 0.02 deg); on the training cans the arms
+# reach 19 of 24 rows at 16 and at 18 deg, 16 at 21 deg.
+POUR_TILT_MARGIN_RAD = np.radians(4.0)
 RIM_KEPT_M = 0.005  # m: the scene's points this near the opening's rim, inside it, stay obstacles (the rim's own)
 MIN_OUTFLOW_RUN = 0.2  # of the outflow: its horizontal share, below which no direction to tilt it is defined
 # The outflow's horizontal direction while the pour task pours (module doc): 60 deg from straight ahead (+x_W) towards
