@@ -57,7 +57,6 @@ class AimJudge(PlaceJudge):
 
     def outcome(self) -> PickOutcome:
         outcome = super().outcome()
-        placed, placed_message = outcome.success, outcome.message
         aims = np.array(self.aims).reshape(-1, 3)
         held_s = len(aims) * SAMPLE_S
         use = {"task": "aim", "held_s": held_s, "board_touched": self.touched}
@@ -74,11 +73,4 @@ class AimJudge(PlaceJudge):
                 f"tip {1000 * nearest:.1f}-{1000 * farthest:.1f} mm off the face": low <= nearest and farthest <= high,
             }
         checks["the board touched"] = not self.touched
-        failed = [what for what, ok in checks.items() if not ok]
-        use["aimed"] = not failed
-        outcome.use = use
-        outcome.success = placed and not failed
-        aimed = "aimed" if not failed else "not aimed: " + "; ".join(failed)
-        placed_message = placed_message.replace("placed upright on the target", "set down where it stood")
-        outcome.message = f"{aimed}; {placed_message}"
-        return outcome
+        return self.judged_use(outcome, use, checks, "aimed")

@@ -310,6 +310,18 @@ class PlaceJudge(LiftJudge):
             self.max_slip = max(self.max_slip, float(np.linalg.norm(offset - self.held_offset)))
         return z
 
+    @staticmethod
+    def judged_use(outcome: PickOutcome, use: dict, checks: dict[str, bool], done: str) -> PickOutcome:
+        """The outcome of a task that uses the object, then sets it down where it stood: `use` (its figures) with
+        use[done] whether every check ({what: passed}) passed; a success where it was set down and they all passed;
+        the message says which failed (a use task's judge: aim_judge.py, pour_judge.py)."""
+        failed = [what for what, ok in checks.items() if not ok]
+        use[done] = not failed
+        set_down = outcome.message.replace("placed upright on the target", "set down where it stood")
+        outcome.use, outcome.success = use, outcome.success and not failed
+        outcome.message = f"{done if not failed else f'not {done}: ' + '; '.join(failed)}; {set_down}"
+        return outcome
+
     def target(self) -> RigidTransform:
         """Where the object is to end: the target, or where it had settled."""
         return self.X_rest if self.X_W_target is None else self.X_W_target

@@ -46,7 +46,6 @@ class PourJudge(PlaceJudge):
 
     def outcome(self) -> PickOutcome:
         outcome = super().outcome()
-        set_down, set_down_message = outcome.success, outcome.message
         pours = np.array(self.pours).reshape(-1, 3)
         held_s = len(pours) * SAMPLE_S
         moved = outcome.others_moved_m[-1] if outcome.others_moved_m else float("nan")
@@ -65,11 +64,4 @@ class PourJudge(PlaceJudge):
                 f"{np.degrees(self.tilt_below_rad):.0f})": -outflow >= self.tilt_below_rad - 1e-9,
             }
         checks[f"the container moved {1000 * moved:.1f} mm"] = moved < CONTAINER_MOVED_M
-        failed = [what for what, ok in checks.items() if not ok]
-        use["poured"] = not failed
-        outcome.use = use
-        outcome.success = set_down and not failed
-        poured = "poured" if not failed else "not poured: " + "; ".join(failed)
-        set_down_message = set_down_message.replace("placed upright on the target", "set down where it stood")
-        outcome.message = f"{poured}; {set_down_message}"
-        return outcome
+        return self.judged_use(outcome, use, checks, "poured")

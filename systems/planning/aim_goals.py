@@ -50,12 +50,21 @@ def aim_target(board: BoardSeen, grasps: GraspPoses, X_WO: RigidTransform) -> Ai
     """
     if not board.found:
         raise ValueError(board.message)
+    tool_O, pivot_O = held_tool(grasps, X_WO, "aim")
+    return AimTarget(level(tool_O), pivot_O, board.target_W, board.normal_W)
+
+
+def held_tool(grasps: GraspPoses, X_WO: RigidTransform, use: str) -> tuple[ToolFrame, np.ndarray]:
+    """The perceived tool frame and the grasps' midpoint (the turns' pivot, (3,) m), in O, the object at X_WO.
+
+    Raises:
+        ValueError: no tool frame (a poor fit's grasps from the seen handles carry none), naming the `use`.
+    """
     if grasps.tool_W is None:
-        raise ValueError(f"no tool frame to aim: the registration handed on none ({grasps.message})")
+        raise ValueError(f"no tool frame to {use}: the registration handed on none ({grasps.message})")
     X_OW = X_WO.inverse()
     hands = [grasps.poses_W[f"{side}_grasp"].translation() for side in ("left", "right")]
-    return AimTarget(level(grasps.tool_W.moved(X_OW)), X_OW.multiply(np.mean(hands, axis=0)), board.target_W,
-                     board.normal_W)  # fmt: skip
+    return grasps.tool_W.moved(X_OW), X_OW.multiply(np.mean(hands, axis=0))
 
 
 def level(tool_O: ToolFrame) -> ToolFrame:

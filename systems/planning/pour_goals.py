@@ -22,6 +22,7 @@ from pydrake.math import RigidTransform, RotationMatrix
 
 from systems.messages import ContainerSeen, GraspPoses, ObjectBelief, PlaceGoal, PourTarget
 from systems.perception.container_opening import Opening
+from systems.planning.aim_goals import held_tool
 from systems.shape_space.tool_frame import ToolFrame
 
 # m: the spout's tip this far above the opening's rim while it pours. At 2.5 cm (one more training row of 24 reached)
@@ -103,13 +104,9 @@ def pour_target(container: ContainerSeen, grasps: GraspPoses, X_WO: RigidTransfo
     """
     if not container.found:
         raise ValueError(container.message)
-    if grasps.tool_W is None:
-        raise ValueError(f"no tool frame to pour with: the registration handed on none ({grasps.message})")
-    X_OW = X_WO.inverse()
-    hands = [grasps.poses_W[f"{side}_grasp"].translation() for side in ("left", "right")]
-    pivot_O = X_OW.multiply(np.mean(hands, axis=0))
+    tool_O, pivot_O = held_tool(grasps, X_WO, "pour with")
     centre_W = np.asarray(container.centre_W, float)
-    return PourTarget(grasps.tool_W.moved(X_OW), pivot_O, centre_W, float(container.radius), float(tilt_below_rad))
+    return PourTarget(tool_O, pivot_O, centre_W, float(container.radius), float(tilt_below_rad))
 
 
 def pour_motion(goal: PlaceGoal, belief: ObjectBelief, pour: PourTarget) -> tuple[RigidTransform, RigidTransform]:
