@@ -9,8 +9,6 @@ POUR_HEADING_W, 60 deg left of straight ahead): there the arms reach the steepes
 Frames: W the world (z up); the container's base frame K: origin at the centre of its base on the table top, z up.
 """
 
-import dataclasses
-
 import numpy as np
 
 from diagrams.generation.objects.bowl import WALL_M
@@ -80,8 +78,3 @@ def _left_of_object(scenario: Scenario) -> float:
     X_WO = object_pose_on_table(scenario, model)
     points, _ = object_surface_W(model, X_WO, 2000)
     return float(points[:, 1].max() - X_WO.translation()[1])
-
-
-def with_container(scenario: Scenario, **changes) -> Scenario:
-    """A copy of the scenario with pour fields changed."""
-    return dataclasses.replace(scenario, pour=dataclasses.replace(scenario.pour, **changes))
