@@ -21,11 +21,8 @@ it (closing turned cans by up to 21 degrees, the lift a few more): the object be
 systems/planning/place_goals.py's. After a place, a look confirms where the object stands; clearly off its
 target, the hands take it again and set it down again (at most MAX_PLACE_CORRECTIONS times per attempt).
 
-An aim reads the board perceived in the same frame (``board``) and aims the tool frame perceived with the grasps
-(systems/planning/aim_goals.py); without either it fails before it moves. Its place target is where the object was
-seen: the drill goes back down where it was taken. A pour reads the container's opening perceived in the same frame
-(``container``) and pours with the same tool frame (systems/planning/pour_goals.py), the can likewise set down where
-it was taken.
+An aim (a pour) reads the board (the container) perceived in the same frame and uses the perceived tool frame
+(systems/pick_goals.py); without either it fails before it moves. It sets the object down where it was taken.
 
 A clear (the tasks' after_given_up set; a drop_zone given) places one object after another: each perceived object gets
 a spot in the drop zone where it touches nothing already set down there (systems/planning/drop_zone.py). Once it is
@@ -69,16 +66,12 @@ from systems.messages import (
     TaskName,
 )
 from systems.pick_checks import camera_silence, fail, not_holding, played_s, stage_message, status_silence
+from systems.pick_goals import AIM_GOALS, POUR_GOALS, held_goal_motion, read_use_targets
 from systems.pick_looks import MAX_CORRECTIONS, object_motion, placed_off_target, read_look
 from systems.pick_tasks import Phase, PickTasks, Task, Then
-from systems.planning.aim_goals import aim_motion, aim_target
 from systems.planning.drop_zone import DropZone
-from systems.planning.place_goals import place_motion
-from systems.planning.pour_goals import inside_left_out, pour_motion, pour_target
 
 CLOSE_S = 1.0  # s: the hands close over this long
-AIM_GOALS = (PlaceGoal.AIM_APPROACH, PlaceGoal.AIM, PlaceGoal.AIM_BACK)
-POUR_GOALS = (PlaceGoal.POUR_APPROACH, PlaceGoal.POUR, PlaceGoal.POUR_BACK)
 # A failed check that another attempt can put right: a hand closed on nothing, or lost the object.
 RETRIED_STAGES = (Stage.GRASP,)
 
@@ -118,10 +111,9 @@ class PickSupervisor(LeafSystem):
     held object (``look_trigger`` (1), answered by ``look_frame_id`` (1)) and reads ``look`` (ObjectEstimate:
     the object tracker's, told where to look by ``expected_X_WO`` (RigidTransform)); without looks it is
     skipped. An aim task reads ``board`` (BoardSeen, of the frame perceived), a pour task ``container``
-    (ContainerSeen, of the same frame). A clear tells perception what to leave
-    out (``left_out``: LeftOut). A move ends when the trajectory source's ``playback`` (Playback) reaches the plan's
-    end (unconnected: at the plan's end in context time); a frame or a move waited on too long ends the pick
-    (systems/pick_checks.py).
+    (ContainerSeen, of that frame). A clear tells perception what to leave out (``left_out``: LeftOut). A move ends
+    when the trajectory source's ``playback`` (Playback) reaches the plan's end (unconnected: at the plan's end in
+    context time); a frame or a move waited on too long ends the pick (systems/pick_checks.py).
 
     Args:
         tasks: the pick's tasks (lift_pick() or place_pick()).
@@ -160,7 +152,7 @@ class PickSupervisor(LeafSystem):
         self.from_camera, self.looks, self.status_lost_s = from_camera, looks, status_lost_s
         if max_attempts < 1:
             raise ValueError(f"max_attempts must be at least 1, not {max_attempts}")
-        self.max_attempts = max_attempts
+        self.max_attempts, self.pour_tilt_rad = max_attempts, pour_tilt_rad
         self.position_port = self.DeclareVectorInputPort("position_measured", num_joints)
         self.hand_state_ports = {side: self.DeclareVectorInputPort(f"{side}_hand_state", 2) for side in SIDES}
         self.plan_port = self.DeclareAbstractInputPort("plan", AbstractValue.Make(PlanResult()))
@@ -170,9 +162,9 @@ class PickSupervisor(LeafSystem):
         self.look_port = self.DeclareAbstractInputPort("look", AbstractValue.Make(ObjectEstimate(False)))
         self.board_port = self.DeclareAbstractInputPort("board", AbstractValue.Make(BoardSeen()))
         self.playback_port = self.DeclareAbstractInputPort("playback", AbstractValue.Make(Playback()))
-        self.aims = any(phase.goal in AIM_GOALS for phase in tasks.phases())
         self.container_port = self.DeclareAbstractInputPort("container", AbstractValue.Make(ContainerSeen()))
-        self.pours, self.pour_tilt_rad = any(phase.goal in POUR_GOALS for phase in tasks.phases()), pour_tilt_rad
+        goals = {phase.goal for phase in tasks.phases()}
+        self.aims, self.pours = not goals.isdisjoint(AIM_GOALS), not goals.isdisjoint(POUR_GOALS)
         self._state = self.DeclareAbstractState(AbstractValue.Make(PickStatus()))
         # A look request is state of its own: the tracker's inputs change only when a new look is asked for.
         self._look_state = self.DeclareAbstractState(AbstractValue.Make(LookRequest()))
@@ -302,20 +294,11 @@ class PickSupervisor(LeafSystem):
                 status.objects += (dataclasses.replace(status.current, message="no room left in the drop zone"),)
                 status.mode, status.message = Mode.DONE, clearing.summary(status, "the drop zone is full")
                 return
-        if self.aims:
-            board = self.board_port.Eval(context)
-            try:
-                status.aim = aim_target(board, result.grasps, result.X_WO_seen)
-            except ValueError as error:
-                fail(status, Stage.REGISTRATION if board.found else Stage.BOARD, str(error))
-                return
-        if self.pours:
-            container = self.container_port.Eval(context)
-            try:
-                status.pour = pour_target(container, result.grasps, result.X_WO_seen, self.pour_tilt_rad)
-            except ValueError as error:
-                fail(status, Stage.REGISTRATION if container.found else Stage.CONTAINER, str(error))
-                return
+        board = self.board_port.Eval(context) if self.aims else None
+        container = self.container_port.Eval(context) if self.pours else None
+        if failure := read_use_targets(status, result, board, container, self.pour_tilt_rad):
+            fail(status, *failure)
+            return
         self._start_task(context, status, self.tasks.main, 0, t)
 
     def _start_task(
@@ -335,13 +318,9 @@ class PickSupervisor(LeafSystem):
         phase = task.phases[index]
         status.mode = phase.name
         if phase.kind == PhaseKind.MOVE:
-            X_motion_W, carried = phase.X_motion_W or RigidTransform(), None
-            if phase.goal in AIM_GOALS:
-                X_motion_W, carried = aim_motion(phase.goal, status.belief, status.aim)
-            elif phase.goal in POUR_GOALS:
-                X_motion_W, carried = pour_motion(phase.goal, status.belief, status.pour)
-            elif phase.goal is not None:
-                X_motion_W, carried = place_motion(phase.goal, status.belief, self._place_target(status))
+            X_motion_W, carried, left_out = phase.X_motion_W or RigidTransform(), None, None
+            if phase.goal is not None:
+                X_motion_W, carried, left_out = held_goal_motion(phase.goal, status, self._place_target(status))
             status.request = PlanRequest(
                 status.request.id + 1 if status.request.id >= 0 else 1,
                 phase.name,
@@ -354,7 +333,7 @@ class PickSupervisor(LeafSystem):
                 q_goal=status.q_home if phase.targets == Targets.HOME else None,
                 object_motion_W=object_motion(status.belief, phase.targets),
                 grasp_offsets_G=status.grasp_offsets_G if phase.targets == Targets.GRASP else None,
-                inside_left_out=inside_left_out(status.pour) if phase.goal in POUR_GOALS else None,
+                inside_left_out=left_out,
             )
         elif phase.kind in (PhaseKind.CLOSE, PhaseKind.OPEN):
             width = phase.hand_width + (max(status.grasp_widths, default=OPEN_WIDTH) if phase.beyond_grasp else 0.0)

@@ -1,0 +1,53 @@
+"""What the pick's goal-directed held moves go towards (systems/pick_supervisor.py's): the use targets read once the
+object is perceived (an aim's board, a pour's container, with the perceived tool frame) and each goal's motion from
+where the object is believed to be (systems/planning/place_goals.py, aim_goals.py, pour_goals.py).
+
+An aim reads the board perceived in the frame the object was perceived in and aims the tool frame perceived with the
+grasps; a pour reads the container's opening perceived there and pours with the same tool frame. Without the board
+(the container) the pick fails at stage board (container), without a tool frame at registration, before any move.
+"""
+
+from pydrake.math import RigidTransform
+
+from systems.messages import BoardSeen, ContainerSeen, PerceptionResult, PickStatus, PlaceGoal, Stage
+from systems.planning.aim_goals import aim_motion, aim_target
+from systems.planning.place_goals import place_motion
+from systems.planning.pour_goals import inside_left_out, pour_motion, pour_target
+
+AIM_GOALS = (PlaceGoal.AIM_APPROACH, PlaceGoal.AIM, PlaceGoal.AIM_BACK)
+POUR_GOALS = (PlaceGoal.POUR_APPROACH, PlaceGoal.POUR, PlaceGoal.POUR_BACK)
+
+
+def read_use_targets(
+    status: PickStatus,
+    result: PerceptionResult,
+    board: BoardSeen | None,
+    container: ContainerSeen | None,
+    pour_tilt_rad: float,
+) -> tuple[Stage, str] | None:
+    """Sets status.aim from the board seen (None: no aim) and status.pour from the container seen (None: no pour),
+    with the tool frame perceived in `result`; returns why either cannot be, as (the stage that failed, its message),
+    or None."""
+    if board is not None:
+        try:
+            status.aim = aim_target(board, result.grasps, result.X_WO_seen)
+        except ValueError as error:
+            return (Stage.REGISTRATION if board.found else Stage.BOARD), str(error)
+    if container is not None:
+        try:
+            status.pour = pour_target(container, result.grasps, result.X_WO_seen, pour_tilt_rad)
+        except ValueError as error:
+            return (Stage.REGISTRATION if container.found else Stage.CONTAINER), str(error)
+    return None
+
+
+def held_goal_motion(
+    goal: PlaceGoal, status: PickStatus, place_target_W: RigidTransform
+) -> tuple[RigidTransform, RigidTransform | None, tuple | None]:
+    """A goal's held move from where the object is believed to be: (X_motion_W, carried_motion_W: the object's motion
+    since it was seen, or None; the scene region left out of it: a pour's container's inside, or None)."""
+    if goal in AIM_GOALS:
+        return *aim_motion(goal, status.belief, status.aim), None
+    if goal in POUR_GOALS:
+        return *pour_motion(goal, status.belief, status.pour), inside_left_out(status.pour)
+    return *place_motion(goal, status.belief, place_target_W), None
