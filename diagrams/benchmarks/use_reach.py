@@ -20,7 +20,7 @@ from diagrams.scenario import load_scenario, replace_object
 from diagrams.station import TABLE_HEIGHT, object_pose_on_table
 from systems.planning.aim_goals import aim_pose
 from systems.planning.pick_motions import PickMotions
-from systems.planning.pour_goals import outflow_elevation
+from systems.planning.pour_goals import outflow_elevation, turned_about
 
 LIFT_M = 0.10  # m: how high the object is held above where it stood
 TABLE_HALF_SIZE_M = (0.4, 0.6)  # m: the table top's half depth (x) and width (y): sdf/scene/table.sdf
@@ -57,12 +57,12 @@ def pour_reach_rows(
             hands = [grasps[f"{side}_grasp"].translation() for side in ("left", "right") if pivot in ("middle", side)]
             pivot_W = X_WO.multiply(np.mean(hands, axis=0))
             for turn in turns_deg:
-                turned = _about(pivot_W, RotationMatrix.MakeZRotation(np.radians(turn))) @ X_WO
+                turned = turned_about(pivot_W, RotationMatrix.MakeZRotation(np.radians(turn))) @ X_WO
                 outflow = tool.moved(turned).axis
                 across = np.cross([0.0, 0.0, 1.0], np.append(outflow[:2] / np.linalg.norm(outflow[:2]), 0.0))
                 answers, largest = {}, None
                 for tilt in sorted(tilts_deg):
-                    tilted = _about(pivot_W, RotationMatrix(AngleAxis(np.radians(tilt), across))) @ turned
+                    tilted = turned_about(pivot_W, RotationMatrix(AngleAxis(np.radians(tilt), across))) @ turned
                     problem = held_problem(motions, scenario, lift, tilted @ X_WO.inverse(), [])
                     answers[tilt] = "reached" if not isinstance(problem, str) else problem
                 for tilt in sorted(tilts_deg):  # the largest reached with every smaller one reached too
@@ -119,8 +119,3 @@ def _held(category: str, instance: str, yaw: float, lift: float):
     model = resolve_object(scenario.object)
     X_WO = RigidTransform([0.0, 0.0, lift]) @ object_pose_on_table(scenario, model)
     return scenario, X_WO, model.info.tool_frame(), model.info.control_poses()
-
-
-def _about(point_W: np.ndarray, rotation: RotationMatrix) -> RigidTransform:
-    """The turn by `rotation` about a point (W)."""
-    return RigidTransform(point_W) @ RigidTransform(rotation) @ RigidTransform(-point_W)

@@ -85,11 +85,11 @@ def pour_poses(
     pivot_W = X_WO.multiply(np.asarray(pivot_O, dtype=float))
     if heading_W is not None:
         yaw = np.arctan2(heading_W[1], heading_W[0]) - np.arctan2(outflow[1], outflow[0])
-        X_WO = _about(pivot_W, RotationMatrix.MakeZRotation((yaw + np.pi) % (2 * np.pi) - np.pi)) @ X_WO
+        X_WO = turned_about(pivot_W, RotationMatrix.MakeZRotation((yaw + np.pi) % (2 * np.pi) - np.pi)) @ X_WO
         outflow = tool_O.moved(X_WO).axis
     across = np.cross([0.0, 0.0, 1.0], np.append(outflow[:2] / run, 0.0))  # the tilt's axis: the spout down for > 0
     tilt = outflow_elevation(X_WO, tool_O) + tilt_below_rad
-    tilted = _about(pivot_W, RotationMatrix(AngleAxis(tilt, across))) @ X_WO
+    tilted = turned_about(pivot_W, RotationMatrix(AngleAxis(tilt, across))) @ X_WO
     target = opening.centre_W + [0.0, 0.0, clearance]
     shift = RigidTransform(target - tilted.multiply(tool_O.tip))
     return PourPoses(shift @ X_WO, shift @ tilted, float(tilt))
@@ -111,8 +111,8 @@ def pour_target(container: ContainerSeen, grasps: GraspPoses, X_WO: RigidTransfo
 
 def pour_motion(goal: PlaceGoal, belief: ObjectBelief, pour: PourTarget) -> tuple[RigidTransform, RigidTransform]:
     """The held move of a pour goal from where the object is believed to be, as (X_motion_W, carried_motion_W: the
-    object's motion since it was seen, the planner keeps the perceived object, moved by it, clear of the scene; None:
-    the robot only)."""
+    object's motion since it was seen; the planner keeps the perceived object, moved by it, clear of the scene, the
+    container's inside left out of it: inside_left_out)."""
     now = belief.now_W
     opening = Opening(pour.centre_W, pour.radius, 0)
     if goal == PlaceGoal.POUR_APPROACH:
@@ -130,8 +130,9 @@ def pour_motion(goal: PlaceGoal, belief: ObjectBelief, pour: PourTarget) -> tupl
 
 def inside_left_out(pour: PourTarget) -> tuple[np.ndarray, float]:
     """The container's inside, left out of the scene the pour's held moves keep the can clear of (PlanRequest's
-    inside_left_out): within the opening's radius less RIM_KEPT_M of its axis, below the rim. The spout goes 2.5 cm
-    over the opening by design; the space the camera cannot see into inside the container is no obstacle to it."""
+    inside_left_out): within the opening's radius less RIM_KEPT_M of its axis, below the rim. The spout goes
+    POUR_CLEARANCE_M over the opening by design; the space the camera cannot see into inside the container is no
+    obstacle to it."""
     return pour.centre_W, pour.radius - RIM_KEPT_M
 
 
@@ -149,9 +150,9 @@ def upright(X_WO: RigidTransform, pivot_O: np.ndarray) -> RigidTransform:
         return X_WO
     angle = float(np.arctan2(np.linalg.norm(cross), z[2]))
     pivot_W = X_WO.multiply(np.asarray(pivot_O, dtype=float))
-    return _about(pivot_W, RotationMatrix(AngleAxis(angle, cross / np.linalg.norm(cross)))) @ X_WO
+    return turned_about(pivot_W, RotationMatrix(AngleAxis(angle, cross / np.linalg.norm(cross)))) @ X_WO
 
 
-def _about(point_W: np.ndarray, rotation: RotationMatrix) -> RigidTransform:
+def turned_about(point_W: np.ndarray, rotation: RotationMatrix) -> RigidTransform:
     """The turn by `rotation` about a point (W)."""
     return RigidTransform(point_W) @ RigidTransform(rotation) @ RigidTransform(-np.asarray(point_W))
