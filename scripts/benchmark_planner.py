@@ -4,13 +4,16 @@ Families (diagrams/generation/planning_problems.py; problem k of a family and sp
   lift, carry, turn, set_down: held moves of an object both hands hold (closure and hand orientation kept, the
       object kept clear), with 0-3 boxes standing or hanging where the object's straight path goes;
   reach: both hands to their pre-grasps from under the table or the ready pose, past boxes;
-  aim: a held drill turned and moved until its bit points at a board's target, 5 mm off it (the board a box).
+  aim: a held drill turned and moved until its bit points at a board's target, 5 mm off it (the board a box);
+  pour: a held can turned, carried over a bowl or pot and tilted until it pours, its spout's tip over the opening
+      (the container a box; the closure kept, the hands' orientation free).
 Splits: `tune` (training objects; parameters are chosen here) and `report` (unseen objects; never tuned on).
 `--problems N` takes the first N kept problems of the split; the problems dropped on the way (no IK at start or
 goal, or either less than 2 cm clear) are counted in `dropped_share`.
 
 Planners (every path judged by the same dense checker: Drake's exact clearance of robot, held object, table
-and boxes, the joint limits, and in held moves the closure and hand orientation, at states 0.01 rad apart):
+and boxes, the joint limits, and in held moves the closure and hand orientation (where kept), at states 0.01 rad
+apart):
   stomp: the pick's STOMP (systems/planning/stomp.py) from the straight joint-space line;
   stomp_no_detours, stomp_no_projection, stomp_first_trajectory: ablations (held moves; the last also reaches);
   ompl: OMPL's RRTConnect (held: in a ProjectedStateSpace with the hand constraints) then simplification;

@@ -19,6 +19,7 @@ from diagrams.generation.planning_problems import (
     CARRIED_SURFACE_POINTS,
     DRAWN_WITH,
     MIN_CLEARANCE_M,
+    POUR_TILT_DEG,
     Dropped,
     PlanningProblem,
     check_path,
@@ -27,11 +28,13 @@ from diagrams.generation.planning_problems import (
     start_hands,
 )
 from diagrams.planning_scene import make_pick_motions, object_collision_surface_W
+from diagrams.pour_container import true_opening
 from diagrams.scenario import load_scenario, replace_object
 from systems.planning.aim_goals import AIM_STANDOFF_M
 from systems.planning.closure import ClosureConstraint, deviations
 from systems.planning.held_motions import CARRIED_MOST_SPHERES, CARRIED_RADIUS
 from systems.planning.obstacles import covering_centres
+from systems.planning.pour_goals import POUR_CLEARANCE_M, POUR_HEADING_W
 from systems.planning.stomp import Stomp
 from systems.planning.stomp_config import DetourConfig, FirstTrajectoryConfig, StompConfig
 from systems.planning.stomp_costs import StompProblem
@@ -105,6 +108,29 @@ def test_an_aim_problem_points_the_drills_bit_at_its_boards_target_and_the_board
     X_WB, size = board_box(problem.scenario)
     assert any(np.allclose(X.GetAsMatrix4(), X_WB.GetAsMatrix4()) and np.allclose(s, size) for X, s in problem.boxes)
     assert problem.check_world.clearance(problem.q_goal) >= MIN_CLEARANCE_M
+
+
+def test_a_pour_problem_tilts_the_cans_spout_over_its_containers_opening_keeping_only_the_closure(motions):
+    problem = kept(motions, "pour", 1)[0]
+    assert problem.scenario.object.category == "watering_can" and problem.orientation is None
+    opening = true_opening(problem.scenario)
+    tool = problem.model.info.tool_frame().moved(problem.X_WO_goal)  # where the goal holds the can
+    assert np.degrees(np.arcsin(-tool.axis[2])) > POUR_TILT_DEG[0] + 2.0  # the outflow down by the tilt and more
+    heading = tool.axis[:2] / np.linalg.norm(tool.axis[:2])
+    assert np.degrees(np.arccos(heading @ POUR_HEADING_W)) < 3.0
+    # The tip over the opening's centre, POUR_CLEARANCE_M above its rim (IK's tolerance: a few mm).
+    np.testing.assert_allclose(tool.tip, opening.centre_W + [0, 0, POUR_CLEARANCE_M], atol=0.01)
+    # The container is the first box: its footprint's square, up to the rim.
+    X_WB, size = problem.boxes[0]
+    np.testing.assert_allclose(X_WB.translation()[:2], opening.centre_W[:2], atol=1e-9)
+    assert X_WB.translation()[2] + size[2] / 2 == pytest.approx(opening.centre_W[2])
+    assert problem.check_world.clearance(problem.q_goal) >= MIN_CLEARANCE_M
+    # The hands turned with the can: no orientation kept, the dense checker judges the closure alone.
+    R_start, R_goal = (
+        problem.check_world.grasp_frame_poses(q)["left"].rotation() for q in (problem.q_start, problem.q_goal)
+    )
+    assert R_start.InvertAndCompose(R_goal).ToAngleAxis().angle() > 0.5
+    assert check_path(problem, np.stack([problem.q_start, problem.q_goal]))["hand_orientation_dev_rad"] == 0.0
 
 
 @pytest.mark.parametrize(("family", "index", "end"), [("turn", 134, "start"), ("reach", 322, "goal")])
@@ -306,6 +332,14 @@ def test_ompl_solves_a_small_carry_that_passes_the_dense_check(motions):
     check = check_path(problem, result.path)
     assert check["valid"], check
     assert check["closure_translation_dev_m"] < ClosureConstraint().t_max
+
+
+def test_ompl_solves_a_pour_on_the_closure_alone_that_passes_the_dense_check(motions):
+    problem = kept(motions, "pour", 1)[0]
+    result = ompl_plan(problem, motions.stomp, 20.0, OmplConfig())
+    assert result.solved, result.message
+    check = check_path(problem, result.path)
+    assert check["valid"], check
 
 
 @pytest.mark.slow

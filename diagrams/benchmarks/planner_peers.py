@@ -24,7 +24,7 @@ from pydrake.planning import KinematicTrajectoryOptimization
 from pydrake.solvers import SnoptSolver, Solve, SolverOptions
 from pydrake.trajectories import BsplineTrajectory
 
-from diagrams.generation.planning_problems import PlanningProblem, projected_straight_line, start_hands
+from diagrams.generation.planning_problems import PlanningProblem, hand_constraints, projected_straight_line
 from systems.planning.closure import ClosureConstraint
 from systems.planning.hand_constraints import HandConstraints
 from systems.planning.stomp import Stomp
@@ -95,15 +95,18 @@ class SingleStates:
 
 
 class HandConstraint(ob.Constraint):
-    """The closure (6 rows) and the left hand's world orientation (3 rows, or with upright_only its tilt, 2 rows
-    across the vertical seen from the hand): the right hand's orientation follows from these two. The errors and
+    """The closure (6 rows) and the left hand's world orientation where one is kept (3 rows, or with upright_only
+    its tilt, 2 rows across the vertical seen from the hand): the right hand's orientation follows from these two.
+    The errors and
     their analytic Jacobian are HandConstraints' (systems/planning/hand_constraints.py), from Drake's poses and
     frame Jacobians."""
 
     def __init__(self, constraints: HandConstraints, states: SingleStates):
         self.constraints, self.states = constraints, states
         self._last = None
-        if constraints.upright_only:  # two directions across the desired vertical seen from the left hand
+        if constraints.R_WE is None:  # the closure alone
+            self.rows = np.eye(6)
+        elif constraints.upright_only:  # two directions across the desired vertical seen from the left hand
             up = constraints.R_WE[0][2]
             basis = np.linalg.svd(np.eye(3) - np.outer(up, up))[0][:, :2]
             self.rows = np.zeros((8, 9))
@@ -118,7 +121,8 @@ class HandConstraint(ob.Constraint):
         x = np.array(x, float)
         if self._last is None or not np.array_equal(self._last[0], x):
             error, jacobian = self.constraints.error_and_jacobian_from(*self.states.hands(x))
-            self._last = (x, self.rows @ error[0, :9], self.rows @ jacobian[0, :9])
+            used = self.rows.shape[1]
+            self._last = (x, self.rows @ error[0, :used], self.rows @ jacobian[0, :used])
         return self._last[1], self._last[2]
 
     def function(self, x, out):
@@ -155,8 +159,7 @@ def ompl_plan(problem: PlanningProblem, stomp: Stomp, time_limit_s: float, confi
         return bool(stomp.clearance(q[None], problem.obstacles, held, kinematics.body_poses(q))[0] > required)
 
     if held:
-        X_E1E2, R_WE = start_hands(stomp.end_effectors, problem.q_start)
-        constraint = HandConstraint(stomp.constraints(X_E1E2, R_WE, problem.orientation.upright_only), kinematics)
+        constraint = HandConstraint(hand_constraints(stomp, problem), kinematics)
         constraint.setTolerance(config.tolerance)
         constraint.setMaxIterations(config.projection_iterations)
         if config.space == "atlas":
@@ -273,6 +276,8 @@ def _hand_constraints(problem: PlanningProblem, plant, context) -> list:
             plant, left, X_LR.rotation(), right, RotationMatrix(), 0.5 * limits.o_max, context
         ),
     ]
+    if problem.orientation is None:  # the closure alone
+        return constraints
     half = 0.5 * problem.orientation.o_max
     for frame, side in ((left, "left"), (right, "right")):
         if problem.orientation.upright_only:

@@ -8,10 +8,16 @@ turn keeping only their tilt; the object moves with the hands and must stay clea
   turn:     lifted 5-15 cm, turned 0.4-1.2 rad either way about the vertical between the hands (and moved up to
             8 cm);
   set_down: lifted 10-25 cm, set down 10-35 cm away, LIFT_START_M above the table;
-  aim:      a drill lifted AIM_RAISED_M, turned about the vertical between the hands and moved until its bit points
+  aim:      a drill lifted USE_RAISED_M, turned about the vertical between the hands and moved until its bit points
             along the normal of a vertical board (facing the robot, 15-25 cm in from the table's far edge, 0-10 cm
             either side of its middle) at a target 25-30 cm up and up to 10 cm along it, the bit's tip 5 mm off it
-            (systems/planning/aim_goals.py, the task's held move; the board is one of its boxes).
+            (systems/planning/aim_goals.py, the task's held move; the board is one of its boxes);
+  pour:     a watering can lifted USE_RAISED_M, turned about the vertical between the hands until its outflow
+            points POUR_HEADING_W and tilted about the same point until it points 14-24 deg down (an asked 10-20 deg
+            and the task's POUR_TILT_MARGIN_RAD), its spout's tip POUR_CLEARANCE_M over the opening of a bowl or pot
+            drawn beside it as the pour task draws it (systems/planning/pour_goals.py: the task's pour_approach and
+            pour in one move); the container is one of its boxes (its footprint's square, its height), and the
+            hands' orientation is free (the closure kept).
 Reaches (no constraint): both hands from the arms under the table top or from the ready pose to their pre-grasps
 of an object standing on the table, past boxes at the table's edge and a board above.
 
@@ -39,20 +45,25 @@ from diagrams.aim_board import AIM_TARGET_RANGE, board_box, board_placement
 from diagrams.evaluation import PAPER_CATEGORIES, PLACEMENT_HALF_SIZE_M, PLACEMENT_MAX_YAW
 from diagrams.generation.objects.library import ObjectModel, resolve_object
 from diagrams.planning_scene import MakeRobotScene, object_collision_surface_W, object_surface_W
-from diagrams.scenario import AimConfig, Scenario, initial_positions, load_scenario, replace_object
+from diagrams.pour_container import pour_container, true_opening
+from diagrams.scenario import AimConfig, PourConfig, Scenario, initial_positions, load_scenario, replace_object
 from diagrams.station import TABLE_HEIGHT, object_pose_on_table
 from systems.planning.aim_goals import aim_pose
 from systems.planning.closure import ClosureConstraint, OrientationConstraint, deviations, orientation_deviations
+from systems.planning.ik import IkResult
 from systems.planning.obstacles import Obstacles
 from systems.planning.pick_motions import PickMotions, PlannerConfig
+from systems.planning.pour_goals import POUR_HEADING_W, POUR_TILT_MARGIN_RAD, pour_poses
 from systems.planning.stomp import Stomp
+from systems.planning.straight_motions import PlanningError
 from systems.planning.world import LIMIT_TOLERANCE_RAD, SIDES, PlanningWorld
 
 # The planning core the problems are drawn with: SNOPT's IK, as when the families were first drawn (the batched IK
 # finds other, equally valid starts and goals: problem k would change).
 DRAWN_WITH = PlannerConfig(batched_ik=False)
-HELD_FAMILIES = ("lift", "carry", "turn", "set_down", "aim")
-FAMILIES = ("lift", "carry", "turn", "set_down", "reach", "aim")  # (a family's code in the seeds: its index here)
+HELD_FAMILIES = ("lift", "carry", "turn", "set_down", "aim", "pour")
+# (a family's code in the seeds: its index here; a new family goes last)
+FAMILIES = ("lift", "carry", "turn", "set_down", "reach", "aim", "pour")
 SPLITS = ("tune", "report")
 TUNE_FIRST_SEED = 0
 REPORT_FIRST_SEED = 100_000
@@ -62,7 +73,8 @@ REPORT_INSTANCES = 40
 # The object stands in evaluation's random-placement region (PLACEMENT_HALF_SIZE_M, PLACEMENT_MAX_YAW) about the
 # default scenario's object.xy (table top frame, m).
 PLACEMENT_CENTRE = (-0.12, 0.0)
-AIM_RAISED_M = 0.10  # an aim starts with the drill this far above where it rests (the aim task's lift)
+USE_RAISED_M = 0.10  # an aim or a pour starts with the object this far above where it rests (the tasks' lift)
+POUR_TILT_DEG = (10.0, 20.0)  # a pour's asked tilt below the horizontal (the task adds POUR_TILT_MARGIN_RAD)
 LIFT_START_M = 0.03  # a lift starts, and a set-down ends, with the object this far above the table top
 MIN_CLEARANCE_M = 0.02  # start and goal: every pair of robot, held object, table and boxes this far apart at least
 REACH_MIN_CLEARANCE_M = 0.01  # ... in a reach (the open hands come near the object at their pre-grasps)
@@ -92,7 +104,8 @@ class PlanningProblem:
 
     Attributes:
         held: both hands hold the object (closure constraint); else a reach.
-        orientation: the hands' orientation constraint of a held move (None for a reach).
+        orientation: the hands' orientation constraint of a held move (None: a reach, or a held move that keeps
+            only the closure: a pour).
         X_WO: the object's pose at q_start (a reach: where it stands).
         X_WO_goal: where q_goal holds it (a held move), else None.
         boxes: the obstacles besides the table, each (X_WB of its centre, size in m).
@@ -137,6 +150,16 @@ def start_hands(end_effectors, q_start: np.ndarray) -> tuple[np.ndarray, list[np
     return end_effectors.relative(q_start[None])[0], [X[0, :3, :3] for X in end_effectors.poses(q_start[None])]
 
 
+def hand_constraints(stomp: Stomp, problem: "PlanningProblem"):
+    """The hand constraints a held problem keeps from its start (HandConstraints): the closure, and the hands'
+    world orientation or tilt where the problem keeps one."""
+    X_E1E2, R_WE = start_hands(stomp.end_effectors, problem.q_start)
+    orientation = problem.orientation
+    if orientation is None:
+        return stomp.constraints(X_E1E2)
+    return stomp.constraints(X_E1E2, R_WE, orientation.upright_only)
+
+
 def problem_seed(family: str, split: str, index: int) -> np.random.SeedSequence:
     """The random stream of problem `index` of a family and split (nothing else enters it)."""
     first = TUNE_FIRST_SEED if split == "tune" else REPORT_FIRST_SEED
@@ -166,6 +189,8 @@ def make_problem(motions: PickMotions, family: str, split: str, index: int) -> P
         return _reach(motions, rng, scenario, model, X_WO_rest, points_rest, index, split)
     if family == "aim":
         return _aim(motions, rng, replace_object(scenario, category="drill"), index, split)
+    if family == "pour":
+        return _pour(motions, rng, replace_object(scenario, category="watering_can"), index, split)
     table = np.array(scenario.table_xyz) + [0, 0, TABLE_HEIGHT]  # the table top frame's origin in W
     raised, motion = _held_motion(rng, family, X_WO_rest, model, table[:2])
     X_WO = RigidTransform([0, 0, raised]) @ X_WO_rest
@@ -176,7 +201,7 @@ def make_problem(motions: PickMotions, family: str, split: str, index: int) -> P
         ahead = (points - points.mean(axis=0)) @ motion(1.0).translation()
         passing = points[ahead >= np.quantile(ahead, 1 - LIFT_LEADING_SHARE)]
     boxes = _held_boxes(rng, table[2], points, _arm_points(grasps), motion, passing)
-    problem = held_problem(motions, scenario, raised, motion(1.0), boxes, family == "turn")
+    problem = held_problem(motions, scenario, raised, motion(1.0), boxes, "tilt" if family == "turn" else "orientation")
     if isinstance(problem, str):
         return Dropped(family, split, index, problem)
     return dataclasses.replace(problem, family=family, split=split, index=index)
@@ -188,11 +213,16 @@ def held_problem(
     raised: float,
     motion: RigidTransform,
     boxes: list,
-    upright_only: bool = False,
+    kept: str = "orientation",
+    continued: bool = False,
 ) -> PlanningProblem | str:
     """The held move of the scenario's object from `raised` (m) above where it rests by `motion` (X_WO -> motion
-    X_WO), among `boxes`, the hands keeping their world orientation (upright_only: their tilt); or why there is
-    none (no IK at start or goal, or either of them less than MIN_CLEARANCE_M clear). Its family is "custom"."""
+    X_WO), among `boxes`, the hands keeping their world orientation (kept "orientation"), their tilt ("tilt") or
+    neither ("closure": only their relative pose); or why there is none (no IK at start or goal, or either of them
+    less than MIN_CLEARANCE_M clear). continued: where the goal's IK from the start fails, it is continued along the
+    motion from the start in small steps, as the pick's held moves find theirs (HeldMotions.held_path): after a
+    turn of more than a few tenths of a radian, IK from the start lands on another branch. Its family is
+    "custom"."""
     model = resolve_object(scenario.object)
     X_WO = RigidTransform([0, 0, raised]) @ object_pose_on_table(scenario, model)
     X_OG = {side: model.info.control_poses()[f"{side}_grasp"] for side in SIDES}
@@ -203,9 +233,11 @@ def held_problem(
     X_WG = world.grasp_frame_poses(start.q)
     X_E1E2 = X_WG["left"].InvertAndCompose(X_WG["right"])
     goal = _held_goal(motions, {side: motion @ X for side, X in X_WG.items()}, X_E1E2, start.q)
+    if continued and not goal.success:
+        goal = _held_goal_continued(motions, motion, start.q)
     if not goal.success:
         return f"no IK at the goal: {goal.message}"
-    orientation = OrientationConstraint(upright_only=upright_only)
+    orientation = None if kept == "closure" else OrientationConstraint(upright_only=kept == "tilt")
     q_start, q_goal = start.q, _on_constraints(motions, start.q, goal.q, orientation)
     if q_goal is None:
         return "no IK at the goal: off the closure or orientation constraint"
@@ -242,31 +274,65 @@ def _placement(rng: np.random.Generator, split: str) -> Scenario:
 def _aim(motions: PickMotions, rng, scenario: Scenario, index: int, split: str) -> PlanningProblem | Dropped:
     """An aim problem (module docstring): a drill at the scenario's place, lifted, aimed at a board's target."""
     model = resolve_object(scenario.object)
-    X_WO = RigidTransform([0, 0, AIM_RAISED_M]) @ object_pose_on_table(scenario, model)
+    X_WO = RigidTransform([0, 0, USE_RAISED_M]) @ object_pose_on_table(scenario, model)
     board_xyz = [TABLE_HALF_SIZE[0] - rng.uniform(0.15, 0.25), rng.uniform(-0.1, 0.1), 0.0]
     target_yz = [rng.uniform(*AIM_TARGET_RANGE[0]), rng.uniform(*AIM_TARGET_RANGE[1])]
     scenario = dataclasses.replace(scenario, aim=AimConfig(board_xyz, target_yz))
     board = board_placement(scenario)
+    goal = aim_pose(X_WO, model.info.tool_frame(), _pivot_O(model), board.target_W, board.normal_W)
+    boxes = [board_box(scenario), *_use_boxes(rng, scenario, model, X_WO, goal)]
+    problem = held_problem(motions, scenario, USE_RAISED_M, goal @ X_WO.inverse(), boxes, "tilt")
+    if isinstance(problem, str):
+        return Dropped("aim", split, index, problem)
+    return dataclasses.replace(problem, family="aim", split=split, index=index)
+
+
+def _pour(motions: PickMotions, rng, scenario: Scenario, index: int, split: str) -> PlanningProblem | Dropped:
+    """A pour problem (module docstring): a can at the scenario's place, lifted, turned, carried over a container
+    drawn beside it and tilted until it pours."""
+    model = resolve_object(scenario.object)
+    X_WO = RigidTransform([0, 0, USE_RAISED_M]) @ object_pose_on_table(scenario, model)
+    tilt = np.radians(rng.uniform(*POUR_TILT_DEG)) + POUR_TILT_MARGIN_RAD
+    scenario = dataclasses.replace(
+        scenario, task="pour", pour=PourConfig(), random_seed=int(rng.integers(2**31))
+    )  # the container drawn from the seed beside the can, as the task draws it
+    opening = true_opening(scenario)
+    poses = pour_poses(X_WO, model.info.tool_frame(), _pivot_O(model), opening, tilt, heading_W=POUR_HEADING_W)
+    container = pour_container(scenario)
+    diameter, _, height = container.size
+    centre = np.array(scenario.table_xyz) + [*container.xy, TABLE_HEIGHT + height / 2]
+    container_box = (RigidTransform(centre), np.array([diameter, diameter, height]))
+    boxes = [container_box, *_use_boxes(rng, scenario, model, X_WO, poses.poured_W)]
+    motion = poses.poured_W @ X_WO.inverse()
+    problem = held_problem(motions, scenario, USE_RAISED_M, motion, boxes, "closure", continued=True)
+    if isinstance(problem, str):
+        return Dropped("pour", split, index, problem)
+    return dataclasses.replace(problem, family="pour", split=split, index=index)
+
+
+def _pivot_O(model: ObjectModel) -> np.ndarray:
+    """The midpoint of the object's two grasps, in O (m): the use tasks' turns' centre."""
     grasps = model.info.control_poses()
-    pivot_O = 0.5 * (grasps["left_grasp"].translation() + grasps["right_grasp"].translation())
-    goal = aim_pose(X_WO, model.info.tool_frame(), pivot_O, board.target_W, board.normal_W)
-    motion = goal @ X_WO.inverse()  # a turn about the grasps' midpoint, then a translation
-    pivot = X_WO.multiply(pivot_O)
+    return 0.5 * (grasps["left_grasp"].translation() + grasps["right_grasp"].translation())
+
+
+def _use_boxes(rng, scenario: Scenario, model: ObjectModel, X_WO: RigidTransform, goal: RigidTransform) -> list:
+    """0-3 boxes (_held_boxes) where a point of the object passes part way from X_WO to `goal`, the object turned
+    about its grasps' midpoint by the share s of the turn and that point moved the share s of the way."""
+    motion = goal @ X_WO.inverse()
+    pivot = X_WO.multiply(_pivot_O(model))
     turn = motion.rotation().ToAngleAxis()
     shift = motion.translation() - pivot + motion.rotation().multiply(pivot)
 
-    def partial(s: float) -> RigidTransform:  # the share s of the turn and of the shift (where the boxes stand)
+    def partial(s: float) -> RigidTransform:
         turned = RigidTransform(RotationMatrix(AngleAxis(s * turn.angle(), turn.axis())))
         return RigidTransform(s * shift + pivot) @ turned @ RigidTransform(-pivot)
 
     points, _ = object_surface_W(model, X_WO, CHECK_POINTS)
+    grasps = model.info.control_poses()
     arms = _arm_points([X_WO @ grasps[f"{side}_grasp"] for side in SIDES])
     table_top = scenario.table_xyz[2] + TABLE_HEIGHT
-    boxes = [board_box(scenario), *_held_boxes(rng, table_top, points, arms, partial, points)]
-    problem = held_problem(motions, scenario, AIM_RAISED_M, motion, boxes, upright_only=True)
-    if isinstance(problem, str):
-        return Dropped("aim", split, index, problem)
-    return dataclasses.replace(problem, family="aim", split=split, index=index)
+    return _held_boxes(rng, table_top, points, arms, partial, points)
 
 
 def _held_motion(rng, family: str, X_WO_rest: RigidTransform, model: ObjectModel, table_xy):
@@ -409,11 +475,25 @@ def _held_goal(motions: PickMotions, targets: dict, X_E1E2: RigidTransform, q_st
     return goal
 
 
-def _on_constraints(motions: PickMotions, q_start, q_goal, orientation: OrientationConstraint) -> np.ndarray | None:
-    """q_goal projected onto the closure and orientation constraints of q_start, or None if it does not get within
-    a tenth of the closure's limits."""
+def _held_goal_continued(motions: PickMotions, motion: RigidTransform, q_start: np.ndarray) -> IkResult:
+    """Both hands moved by `motion` holding the object, solved along it from q_start (HeldMotions.held_path)."""
+    try:
+        path = motions.held_path(q_start, motion, 1.0)
+    except PlanningError as error:
+        return IkResult(False, q_start, str(error))
+    return IkResult(True, path.configurations[-1], "")
+
+
+def _on_constraints(
+    motions: PickMotions, q_start, q_goal, orientation: OrientationConstraint | None
+) -> np.ndarray | None:
+    """q_goal projected onto the closure and orientation constraints of q_start (None: the closure alone), or None
+    if it does not get within a tenth of the closure's limits."""
     X_E1E2, R_WE = start_hands(motions.world.end_effectors, q_start)
-    q_goal = motions.stomp.project(q_goal[None], X_E1E2, R_WE, steps=20, upright_only=orientation.upright_only)[0]
+    if orientation is None:
+        q_goal = motions.stomp.project(q_goal[None], X_E1E2, steps=20)[0]
+    else:
+        q_goal = motions.stomp.project(q_goal[None], X_E1E2, R_WE, steps=20, upright_only=orientation.upright_only)[0]
     t_dev, o_dev = deviations(motions.world.end_effectors, q_goal[None], X_E1E2)
     limits = ClosureConstraint()
     return q_goal if t_dev[0] <= 0.1 * limits.t_max and o_dev[0] <= 0.1 * limits.o_max else None
@@ -473,9 +553,7 @@ def projected_straight_line(problem: PlanningProblem, stomp: Stomp) -> np.ndarra
     s = np.linspace(0, 1, stomp.config.keyframes)[:, None]
     theta = (1 - s) * problem.q_start + s * problem.q_goal
     if problem.held:
-        X_E1E2, R_WE = start_hands(stomp.end_effectors, problem.q_start)
-        constraints = stomp.constraints(X_E1E2, R_WE, problem.orientation.upright_only)
-        theta[1:-1] = constraints.project(theta[1:-1], stomp.config.sampling.projection_steps)
+        theta[1:-1] = hand_constraints(stomp, problem).project(theta[1:-1], stomp.config.sampling.projection_steps)
     return theta
 
 
@@ -507,7 +585,9 @@ def check_path(problem: PlanningProblem, path: np.ndarray) -> dict:
         end_effectors = world.end_effectors
         X_E1E2, R_WE = start_hands(end_effectors, problem.q_start)
         t_dev, o_dev = deviations(end_effectors, states, X_E1E2)
-        hands = orientation_deviations(end_effectors, states, R_WE, problem.orientation.upright_only)
+        hands = np.zeros(1)  # the hands' orientation is free where the problem keeps none
+        if problem.orientation is not None:
+            hands = orientation_deviations(end_effectors, states, R_WE, problem.orientation.upright_only)
         closure = ClosureConstraint()
         row.update(
             closure_translation_dev_m=float(t_dev.max()),
@@ -515,6 +595,6 @@ def check_path(problem: PlanningProblem, path: np.ndarray) -> dict:
             hand_orientation_dev_rad=float(hands.max()),
         )
         valid = valid and t_dev.max() < closure.t_max and o_dev.max() < closure.o_max
-        valid = valid and hands.max() < problem.orientation.o_max
+        valid = valid and (problem.orientation is None or hands.max() < problem.orientation.o_max)
     row["valid"] = bool(valid)
     return row
