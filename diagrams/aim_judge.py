@@ -12,7 +12,8 @@ import numpy as np
 from pydrake.multibody.plant import MultibodyPlant
 
 from diagrams.aim_board import BOARD_INSTANCE, BoardPlacement
-from diagrams.pick_simulation import SAMPLE_S, PickOutcome, PlaceJudge
+from diagrams.pick_simulation import SAMPLE_S, PickOutcome
+from diagrams.tool_judge import ToolJudge
 from systems.messages import Mode
 from systems.shape_space.tool_frame import ToolFrame
 
@@ -22,12 +23,12 @@ AIM_OFF_SURFACE_M = (0.002, 0.010)  # m: the tip's distance off the face, at lea
 AIM_HELD_S = 1.5  # s of the 2 s hold sampled (the samples fall every SAMPLE_S)
 
 
-class AimJudge(PlaceJudge):
+class AimJudge(ToolJudge):
     """The aim task's judge (module docstring); its figures go to the outcome's `use`."""
 
     def __init__(self, plant: MultibodyPlant, context, mode_of, board: BoardPlacement, tool_O: ToolFrame):
-        super().__init__(plant, context, None, mode_of)
-        self.board, self.tool_O = board, tool_O
+        super().__init__(plant, context, mode_of, tool_O, Mode.AIM_HOLD)
+        self.board = board
         self.board_bodies = set(plant.GetBodyIndices(plant.GetModelInstanceByName(BOARD_INSTANCE)))
         self.aims: list[tuple[float, float, float]] = []  # (axis rad, across m, off m) per hold sample
         self.touched = False
@@ -37,7 +38,7 @@ class AimJudge(PlaceJudge):
         if self.body is None:
             return z
         if self.mode_of(self.context) == Mode.AIM_HOLD:
-            tool = self.tool_O.moved(self.body.EvalPoseInWorld(self.plant_context))
+            tool = self.tool_W()
             normal = self.board.normal_W
             axis = float(np.arccos(np.clip(tool.axis @ -normal, -1.0, 1.0)))
             offset = tool.tip - self.board.target_W  # (the target lies on the face; the disc on it is seen only)
@@ -59,7 +60,9 @@ class AimJudge(PlaceJudge):
         outcome = super().outcome()
         aims = np.array(self.aims).reshape(-1, 3)
         held_s = len(aims) * SAMPLE_S
-        use = {"task": "aim", "held_s": held_s, "board_touched": self.touched}
+        use = {"task": "aim", "held_s": held_s, "board_touched": self.touched,
+               "target_W": np.round(self.board.target_W, 4).tolist(),
+               "normal_W": np.round(self.board.normal_W, 4).tolist()}  # fmt: skip
         checks = {"never aimed": len(aims) > 0}
         if len(aims):
             axis, across = float(aims[:, 0].max()), float(aims[:, 1].max())

@@ -1,6 +1,11 @@
 """The pour task: its container, the container finder on a rendered frame, the pour's held moves, and whole pours
 judged on the plant (issue 80)."""
 
+import json
+import subprocess
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 from pydrake.math import RigidTransform
@@ -112,16 +117,32 @@ def test_the_containers_inside_is_left_out_of_the_scene_below_its_rim_and_the_ri
     np.testing.assert_array_equal(kept, [above, rim, beside])
 
 
-def test_a_pour_with_the_true_grasps_and_tool_frame_passes_the_plant_judge():
+def test_a_pour_with_the_true_grasps_and_tool_frame_passes_the_plant_judge(tmp_path):
     """The spout's tip over the opening (within its radius less 1 cm) and above the rim, the outflow at least the
-    scenario's 15 deg down, through a 2 s hold; the container not moved; the can set down where it stood."""
-    outcome = run_pick(_pour_scenario(), perception="ground_truth")
+    scenario's 15 deg down, through a 2 s hold; the container not moved; the can set down where it stood. The tip's
+    path is recorded and drawn (scripts/draw_use.py)."""
+    scenario = _pour_scenario()
+    outcome = run_pick(scenario, perception="ground_truth")
     use = outcome.use
     assert outcome.success, outcome.message
     assert use["poured"] and use["held_s"] >= 1.5 and use["container_moved_m"] < 0.005
     assert -use["outflow_elevation_rad"] >= np.radians(15.0) and use["tip_above_rim_m"] > 0.0
     assert use["tip_from_centre_m"] <= use["opening_radius_m"] - 0.01
     assert outcome.place["error_m"] <= 0.02 and outcome.place["tilt_rad"] <= np.radians(5.0)
+    # The path starts at the resting can's spout tip, and its points in the hold lie over the opening.
+    path, (first, last) = np.array(use["tip_path_W"]), use["hold_t_s"]
+    model = resolve_object(scenario.object)
+    rest_tip = model.info.tool_frame().moved(object_pose_on_table(scenario, model)).tip
+    assert np.linalg.norm(path[0, 1:] - rest_tip) < 0.01 and last - first >= 1.5
+    held = path[(path[:, 0] >= first) & (path[:, 0] <= last), 1:]
+    assert len(held) >= 6
+    assert np.linalg.norm(held[:, :2] - use["opening_centre_W"][:2], axis=1).max() <= use["tip_from_centre_m"] + 1e-3
+    outcome_file, figure = tmp_path / "pour.json", tmp_path / "pour.png"
+    outcome_file.write_text(json.dumps({"use": use, "message": outcome.message}))
+    script = Path(__file__).resolve().parents[1] / "scripts" / "draw_use.py"
+    drawn = subprocess.run([sys.executable, script, outcome_file, "--out", figure], capture_output=True, text=True)
+    assert drawn.returncode == 0, drawn.stderr
+    assert figure.stat().st_size > 10_000
 
 
 def test_a_container_out_of_reach_is_named_and_the_can_is_set_back_where_it_stood():
