@@ -79,7 +79,8 @@ class Mode(enum.StrEnum):
     AIM_BACK = "aim_back"
     # Pouring from a held can into a container: over it, tilted, hold, upright again.
     POUR_APPROACH = "pour_approach"
-    LOOK_OVER = "look_over"  # a look at the held can over the container, before the tilt
+    # A look at the held object before its use: the can over the container, the drill in front of the board.
+    LOOK_OVER = "look_over"
     POUR = "pour"
     POUR_HOLD = "pour_hold"
     POUR_BACK = "pour_back"

@@ -10,8 +10,8 @@ checks switch to:
   replace   reach, approach, close, look, lift, set_down, release, retreat,
             confirm                                                          -> done
   aim       reach, [check], approach, close, look, lift, aim_approach,
-            look_again, aim, aim_hold, aim_back, carry, set_down, release,
-            retreat, confirm                                                 -> done
+            look_over, aim, aim_hold, aim_back, carry, look_again,
+            set_down, release, retreat, confirm                              -> done
   pour      reach, [check], approach, close, look, lift, pour_approach,
             look_over, pour, pour_hold, pour_back, carry, look_again,
             set_down, release, retreat, confirm                              -> done
@@ -233,18 +233,20 @@ def replace_task(held_looks: bool = True) -> Task:
 
 def aim_task(check: bool = True, held_looks: bool = True) -> Task:
     """Beyond the paper: lift a drill, aim its bit at the board's target (in front of it, [look at the drill in the
-    hands,] onto it), hold AIM_HOLD_S, back off, carry it back over where it was taken and set it down there, let go,
-    back off, [look whether it stands there]. An aim out of reach sets the drill back down (set_back_task)."""
+    hands,] onto it), hold AIM_HOLD_S, back off, carry it back over where it was taken, [look at it in the hands
+    again: the turns turn it in them,] set it down there, let go, back off, [look whether it stands there]. An aim
+    out of reach sets the drill back down (set_back_task)."""
     phases = (
         *_grasping(check),
         _look(Mode.LOOK, held_looks),
         _lift(PLACE_LIFT_HEIGHT, MIN_LIFT_FRACTION),
         _aim(Mode.AIM_APPROACH, PlaceGoal.AIM_APPROACH),
-        _look(Mode.LOOK_AGAIN, held_looks),
+        _look(Mode.LOOK_OVER, held_looks),
         _aim(Mode.AIM, PlaceGoal.AIM),
         Phase(Mode.AIM_HOLD, PhaseKind.WAIT, wait_s=AIM_HOLD_S),
         Phase(Mode.AIM_BACK, PhaseKind.MOVE, MoveKind.HELD, goal=PlaceGoal.AIM_BACK),
         Phase(Mode.CARRY, PhaseKind.MOVE, MoveKind.HELD, goal=PlaceGoal.CARRY),
+        _look(Mode.LOOK_AGAIN, held_looks),  # the turns turn the drill in the hands: its set-down goal from a look
         *_letting_go(held_looks),
     )
     return Task(TaskName.AIM, phases, Then.DONE, if_check_fails=TaskName.RECOVER)
