@@ -38,7 +38,7 @@ class PourJudge(ToolJudge):
         z = super().sample(t)
         if self.body is not None and self.mode_of(self.context) == Mode.POUR_HOLD:
             X_WO = self.body.EvalPoseInWorld(self.plant_context)
-            tip = self.tool_W().tip
+            tip = self.tool_O.moved(X_WO).tip  # (the pose read once: the outflow below needs it too)
             offset = tip - self.opening.centre_W
             self.pours.append(
                 (float(np.linalg.norm(offset[:2])), float(offset[2]), outflow_elevation(X_WO, self.tool_O))

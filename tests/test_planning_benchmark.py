@@ -323,6 +323,11 @@ def test_stomp_checks_between_keyframes_densely_enough_for_the_exact_judge(motio
     assert result.success and check_path(problem, result.trajectory)["valid"], result.message
 
 
+def test_a_held_problem_refuses_a_constraint_it_does_not_know(motions):
+    with pytest.raises(ValueError, match="keeps one of"):
+        held_problem(motions, load_scenario(), 0.10, RigidTransform(), [], kept="upright")
+
+
 def test_ompl_solves_a_small_carry_that_passes_the_dense_check(motions):
     scenario = replace_object(load_scenario(), category="watering_can", instance="train_1", xy=[-0.12, 0.1])
     problem = held_problem(motions, scenario, 0.10, RigidTransform([0.0, -0.10, 0.0]), [])

@@ -65,6 +65,7 @@ HELD_FAMILIES = ("lift", "carry", "turn", "set_down", "aim", "pour")
 # (a family's code in the seeds: its index here; a new family goes last)
 FAMILIES = ("lift", "carry", "turn", "set_down", "reach", "aim", "pour")
 SPLITS = ("tune", "report")
+KEPT = ("orientation", "tilt", "closure")  # what a held problem keeps of its start: held_problem's `kept`
 TUNE_FIRST_SEED = 0
 REPORT_FIRST_SEED = 100_000
 TRAINING_INSTANCES = [f"train_{i}" for i in range(8)]
@@ -223,6 +224,8 @@ def held_problem(
     motion from the start in small steps, as the pick's held moves find theirs (HeldMotions.held_path): after a
     turn of more than a few tenths of a radian, IK from the start lands on another branch. Its family is
     "custom"."""
+    if kept not in KEPT:
+        raise ValueError(f"a held move keeps one of {KEPT}, not {kept!r}")
     model = resolve_object(scenario.object)
     X_WO = RigidTransform([0, 0, raised]) @ object_pose_on_table(scenario, model)
     X_OG = {side: model.info.control_poses()[f"{side}_grasp"] for side in SIDES}
@@ -490,10 +493,8 @@ def _on_constraints(
     """q_goal projected onto the closure and orientation constraints of q_start (None: the closure alone), or None
     if it does not get within a tenth of the closure's limits."""
     X_E1E2, R_WE = start_hands(motions.world.end_effectors, q_start)
-    if orientation is None:
-        q_goal = motions.stomp.project(q_goal[None], X_E1E2, steps=20)[0]
-    else:
-        q_goal = motions.stomp.project(q_goal[None], X_E1E2, R_WE, steps=20, upright_only=orientation.upright_only)[0]
+    R_kept, upright_only = (None, False) if orientation is None else (R_WE, orientation.upright_only)
+    q_goal = motions.stomp.project(q_goal[None], X_E1E2, R_kept, steps=20, upright_only=upright_only)[0]
     t_dev, o_dev = deviations(motions.world.end_effectors, q_goal[None], X_E1E2)
     limits = ClosureConstraint()
     return q_goal if t_dev[0] <= 0.1 * limits.t_max and o_dev[0] <= 0.1 * limits.o_max else None
