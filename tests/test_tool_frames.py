@@ -15,7 +15,7 @@ from systems.perception.shape_registrar import shape_space_file
 from systems.shape_space import folder as folder_tools
 from systems.shape_space.folder import pose_entries
 from systems.shape_space.registration import Registrar
-from systems.shape_space.space import ShapeSpace
+from systems.shape_space.space import POSE_NAMES, ShapeSpace, build_shape_space, tool_axes_agree
 from systems.shape_space.tool_frame import BIT_LENGTH_M, ToolFrame
 from systems.shape_space.tool_placement import returned_points, tool_end_in_image
 from systems.shape_space.visibility import visible_from
@@ -99,6 +99,48 @@ def test_registration_carries_the_tool_frame_to_an_unseen_instance(category, ins
     truth = load_info(directory / "info.yaml").tool_frame().moved(X_WO)
     tip, angle = result.tool_W.errors(truth)
     assert tip < 0.01 and angle < np.radians(3), (tip, np.degrees(angle))
+
+
+def test_a_tool_axis_turns_with_the_fitted_shape_only_where_the_annotated_models_axes_differ(tmp_path):
+    """The shipped drill spaces learnt from 48 and 88 bits along x_O: the axis stays, whatever the latent; the cans'
+    spouts differ, so theirs turns. A file from before the flag turns (as it did)."""
+    assert tool_axes_agree(np.array([1.0, 0, 0]), [np.array([1.0, 0, 0]), np.array([np.cos(0.01), np.sin(0.01), 0])])
+    assert not tool_axes_agree(np.array([1.0, 0, 0]), [np.array([np.cos(0.03), 0, np.sin(0.03)])])  # 1.7 deg
+    assert not tool_axes_agree(np.array([1.0, 0, 0]), [])  # the canonical's alone says nothing
+    drill, can = (ShapeSpace.load(shape_space_file(c)) for c in ("drill", "watering_can"))
+    assert not drill.tool_turns and can.tool_turns
+    turned = []
+    for space in (drill, can):
+        latents = np.random.default_rng(0).normal(size=(5, space.latent_size)) * 2 * np.sqrt(space.pca.variances)
+        axes = np.array([space.tool_at(z).axis for z in latents])
+        turned.append(np.degrees(np.arccos(np.clip(axes @ space.tool.axis, -1, 1))).max())
+    assert turned[0] == pytest.approx(0.0, abs=1e-6) and turned[1] > 1.0, turned
+    drill.save(tmp_path / "drill.npz")
+    assert not ShapeSpace.load(tmp_path / "drill.npz").tool_turns
+    with np.load(tmp_path / "drill.npz") as data:
+        np.savez(tmp_path / "old.npz", **{k: data[k] for k in data.files if k != "tool_turns"})
+    assert ShapeSpace.load(tmp_path / "old.npz").tool_turns
+
+
+@pytest.mark.slow
+def test_a_space_built_from_models_whose_tools_agree_keeps_the_axis():
+    """Three boxes with a tool out of their +x face: along x_O in each, the space keeps it; one turned 10 deg, the
+    axis turns with the shape."""
+    rng = np.random.default_rng(4)
+    clouds = {}
+    for k, (a, b, c) in enumerate([(0.10, 0.06, 0.08), (0.12, 0.06, 0.08), (0.11, 0.07, 0.09)]):
+        points = rng.uniform(-1, 1, (2000, 3))
+        face = rng.integers(3, size=len(points))
+        points[np.arange(len(points)), face] = np.sign(points[np.arange(len(points)), face])
+        clouds[f"box_{k}"] = points * [a, b, c] + [0, 0, c]
+    lid = RigidTransform(RotationMatrix.MakeXRotation(np.pi), [0.0, 0.0, 0.16])
+    poses = {"box_0": {pose: lid for pose in POSE_NAMES}}
+    along = {name: ToolFrame([0.12, 0.0, 0.08], [1.0, 0.0, 0.0]) for name in clouds}
+    space = build_shape_space("box", clouds, poses, 2, canonical="box_0", canonical_points=300, beta=0.08, tools=along)
+    assert not space.tool_turns
+    along["box_2"] = ToolFrame([0.12, 0.0, 0.08], [np.cos(0.17), 0.0, np.sin(0.17)])
+    space = build_shape_space("box", clouds, poses, 2, canonical="box_0", canonical_points=300, beta=0.08, tools=along)
+    assert space.tool_turns
 
 
 def test_a_poses_file_gives_the_canonical_models_tool_frame_in_its_files_frame_and_units(tmp_path):
