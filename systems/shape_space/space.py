@@ -115,21 +115,20 @@ class ShapeSpace:
         canonical surface within TOOL_RADIUS of the last TOOL_REACH of the tool's axis (the spout's end and rose, a
         drill's chuck) is carried by the field, the axis turned as that surface turned (its best rigid fit), and the
         tip put as far beyond the surface's far end, along the axis, as the canonical tip lies beyond its own. Where the
-        axis does not turn (tool_turns False), it stays the canonical one: the warp of a short tool's surface turns it
-        by a few degrees that no annotated model had (a drill's chuck: 1.9 deg median on extra_201-208 turned, 0.4
-        deg kept, kinect_v2 views)."""
+        axis does not turn (tool_turns False), it stays the canonical one from the end's centre (the end face as the
+        surface lies): the warp of a short tool's surface turns it by a few degrees that no annotated model had (a
+        drill's chuck: 1.9 deg median on extra_201-208 turned, 0.4 deg kept, kinect_v2 views)."""
         if self.tool is None:
             return None
+        reference = self.canonical_surface[self._tool_points]
         at_zero, per_component = self._tool_warp
         moved = at_zero + np.tensordot(np.ravel(latent), per_component, axes=1)
-        axis = self.tool.axis
-        if self.tool_turns:
-            reference = self.canonical_surface[self._tool_points]
-            turn, _ = Rotation.align_vectors(moved - moved.mean(axis=0), reference - reference.mean(axis=0))
-            axis = turn.apply(self.tool.axis)
-        along = moved @ axis
+        turn, _ = Rotation.align_vectors(moved - moved.mean(axis=0), reference - reference.mean(axis=0))
+        turned = turn.apply(self.tool.axis)  # the fitted surface's own axis: its end face lies across it
+        along = moved @ turned
         end = moved[along >= along.max() - TOOL_END_BAND].mean(axis=0)
-        return ToolFrame(end + (along.max() - end @ axis + self.tool_beyond) * axis, axis)
+        axis = turned if self.tool_turns else self.tool.axis
+        return ToolFrame(end + (along.max() - end @ turned + self.tool_beyond) * axis, axis)
 
     @functools.cached_property
     def _tool_warp(self) -> tuple[np.ndarray, np.ndarray]:
