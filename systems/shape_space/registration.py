@@ -31,7 +31,7 @@ from systems.shape_space.fit_judging import Registration, SeenPoints, judged
 from systems.shape_space.grasp_placement import placed_on_seen_handles
 from systems.shape_space.shape_fit import ShapeFit, ShapeFitter
 from systems.shape_space.space import ShapeSpace
-from systems.shape_space.tool_placement import tool_end_in_image, tool_on_seen_surface
+from systems.shape_space.tool_placement import tool_centred_on_seen, tool_end_in_image, tool_on_seen_surface
 from systems.shape_space.visibility import visible_from
 
 # The seen points kept by the even thinning (more: slower, the grasps within 0.1 mm).
@@ -161,6 +161,8 @@ class Registrar:
                 placed = tool_on_seen_surface(tool_W, beyond, seen_model, seen.observed_W, shape_W, seen.viewpoint_W)
                 if seen.view is not None:  # along the axis: where the colour mask ends
                     placed = tool_end_in_image(placed, beyond, shape_W + placed.tip - tool_W.tip, seen.view)
+                if not self.space.tool_turns:  # the axis is the category's: across it, the seen tube's centre
+                    placed = tool_centred_on_seen(placed, beyond, seen.observed_W)
                 tool_W = placed
         return judged(fit, shape_W, poses_W, seen, tool_W)
 

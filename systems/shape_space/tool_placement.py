@@ -13,6 +13,7 @@ with flying pixels about it; a dead band or a fit check of the across move helpe
 """
 
 import numpy as np
+from scipy.optimize import least_squares
 from scipy.spatial import cKDTree
 
 from systems.messages import DepthView
@@ -36,6 +37,15 @@ MIN_END_PIXELS = 5
 # ones are those seen less obliquely (returned_points), deg.
 GRAZING_LIMIT_DEG = 75.0
 NORMAL_NEIGHBOURS = 12  # surface points per normal estimate
+# The tool's cross-section fitted across a known axis (tool_centred_on_seen): the seen points over its last
+# SECTION_LENGTH (m) up to SECTION_AHEAD beyond the frame's end, within TOOL_WINDOW_RADIUS of the axis, at least
+# MIN_SECTION_POINTS of them; residuals beyond SECTION_LOSS_SCALE (m) count less and less (soft-L1: flying pixels);
+# a fitted radius outside SECTION_RADII (m) is no tool's.
+SECTION_LENGTH = 0.04
+SECTION_AHEAD = 0.005
+MIN_SECTION_POINTS = 30
+SECTION_LOSS_SCALE = 0.002
+SECTION_RADII = (0.004, 0.035)
 MASK_EDGE_PERCENTILE = 5  # of the mask's pixels across the tool's last stretch: its edges (a stray pixel is not one)
 
 
@@ -153,3 +163,37 @@ def _window(points: np.ndarray, end: np.ndarray, axis: np.ndarray) -> np.ndarray
     across = np.linalg.norm(offset - along[:, None] * axis, axis=1)
     inside = (along > -TOOL_WINDOW_BACK) & (along < TOOL_WINDOW_AHEAD) & (across < TOOL_WINDOW_RADIUS)
     return points[inside]
+
+
+def tool_centred_on_seen(tool_W: ToolFrame, beyond: float, observed_W: np.ndarray) -> ToolFrame:
+    """The tool frame (W) moved across its axis onto the axis of the tool the camera saw, where the axis's direction
+    is known (a drill's bit runs along its housing: ShapeSpace.tool_turns False): the seen points (N x 3, W) over
+    the tool's last SECTION_LENGTH are a tapering tube about it (a chuck narrows to its end), whose cross-sections'
+    centre is fitted (robust least squares: each point's distance from the axis minus a radius that changes linearly
+    along it). A depth camera sees the tube's near half, whose centroid lies nearer the camera than the axis: the
+    circle says where the axis is, the centroids do not. As it was where too little is seen or the fit is no tool's.
+    beyond: how far (m) the tip lies beyond the tool's surface along its axis."""
+    axis = tool_W.axis
+    end = tool_W.tip - beyond * axis
+    offset = np.asarray(observed_W, dtype=float) - end
+    along = offset @ axis
+    across = offset - along[:, None] * axis
+    inside = (along > -SECTION_LENGTH) & (along < SECTION_AHEAD)
+    inside &= np.linalg.norm(across, axis=1) < TOOL_WINDOW_RADIUS
+    if inside.sum() < MIN_SECTION_POINTS:
+        return tool_W
+    u = np.cross(axis, [1.0, 0.0, 0.0] if abs(axis[0]) < 0.9 else [0.0, 1.0, 0.0])
+    u /= np.linalg.norm(u)
+    v = np.cross(axis, u)
+    section = np.column_stack([across[inside] @ u, across[inside] @ v])
+    a = along[inside]
+
+    def residuals(x):  # x: the centre (2), the radius at the end, its change per metre along
+        return np.linalg.norm(section - x[:2], axis=1) - (x[2] + x[3] * a)
+
+    radius = float(np.median(np.linalg.norm(section, axis=1)))
+    fit = least_squares(residuals, [0.0, 0.0, radius, 0.0], loss="soft_l1", f_scale=SECTION_LOSS_SCALE, max_nfev=100)
+    centre, end_radius = fit.x[:2], fit.x[2]
+    if not SECTION_RADII[0] <= end_radius <= SECTION_RADII[1] or np.linalg.norm(centre) > TOOL_WINDOW_RADIUS:
+        return tool_W
+    return ToolFrame(tool_W.tip + centre[0] * u + centre[1] * v, axis)
