@@ -166,13 +166,14 @@ def _window(points: np.ndarray, end: np.ndarray, axis: np.ndarray) -> np.ndarray
 
 
 def tool_centred_on_seen(tool_W: ToolFrame, beyond: float, observed_W: np.ndarray) -> ToolFrame:
-    """The tool frame (W) moved across its axis onto the axis of the tool the camera saw, where the axis's direction
-    is known (a drill's bit runs along its housing: ShapeSpace.tool_turns False): the seen points (N x 3, W) over
-    the tool's last SECTION_LENGTH are a tapering tube about it (a chuck narrows to its end), whose cross-sections'
-    centre is fitted (robust least squares: each point's distance from the axis minus a radius that changes linearly
-    along it). A depth camera sees the tube's near half, whose centroid lies nearer the camera than the axis: the
-    circle says where the axis is, the centroids do not. As it was where too little is seen or the fit is no tool's.
-    beyond: how far (m) the tip lies beyond the tool's surface along its axis."""
+    """The tool frame (W) moved across its axis onto the axis of the tool the camera saw: the seen points (N x 3, W)
+    over the tool's last SECTION_LENGTH are a tube about it that narrows or widens towards its end (a chuck, a
+    spout and its rose), whose cross-sections' centre is fitted (robust least squares: each point's distance from
+    the axis minus a radius that changes linearly along it). A depth camera sees the tube's near half, whose
+    centroid lies nearer the camera than the axis: the circle says where the axis is, the centroids do not. The axis
+    keeps its direction (a drill's is the category's; a can's as the fitted spout turned it, within a few degrees).
+    As it was where too little is seen or the fit is no tool's. beyond: how far (m) the tip lies beyond the tool's
+    surface along its axis."""
     axis = tool_W.axis
     end = tool_W.tip - beyond * axis
     offset = np.asarray(observed_W, dtype=float) - end
