@@ -161,7 +161,7 @@ class Registrar:
                 placed = tool_on_seen_surface(tool_W, beyond, seen_model, seen.observed_W, shape_W, seen.viewpoint_W)
                 if seen.view is not None:  # along the axis: where the colour mask ends
                     placed = tool_end_in_image(placed, beyond, shape_W + placed.tip - tool_W.tip, seen.view)
-                placed = tool_centred_on_seen(placed, beyond, seen.observed_W)  # across the axis: the seen tube's
+                placed = tool_centred_on_seen(placed, beyond, seen.observed_W)  # across: onto the seen tube's axis
                 tool_W = placed
         return judged(fit, shape_W, poses_W, seen, tool_W)
 

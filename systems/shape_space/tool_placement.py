@@ -9,7 +9,10 @@ so the visible half of a tube biases both alike).
 
 Chosen on the tuning range extra_201-208 (48 rendered views, kinect_v2, 2026-12-03), tip error medians cans / drills:
 as fitted 19.3 / 6.5 mm, moved along only 19.0 / 5.2 mm, along and across 11.0 / 8.8 mm (the drills' chuck is seen
-with flying pixels about it; a dead band or a fit check of the across move helped neither).
+with flying pixels about it; a dead band or a fit check of the across move helped neither). The centroids' premise
+did not hold (a tube's seen near half and the fitted surface's differ): the tip is then moved across the axis onto
+the centre of the seen tool's cross-sections (tool_centred_on_seen): tuning range 10.5 / 5.1 -> 3.8 / 4.3 mm
+(2026-12-05, the drills' axis kept as the category's).
 """
 
 import numpy as np
@@ -37,7 +40,8 @@ MIN_END_PIXELS = 5
 # ones are those seen less obliquely (returned_points), deg.
 GRAZING_LIMIT_DEG = 75.0
 NORMAL_NEIGHBOURS = 12  # surface points per normal estimate
-# The tool's cross-section fitted across a known axis (tool_centred_on_seen): the seen points over its last
+MASK_EDGE_PERCENTILE = 5  # of the mask's pixels across the tool's last stretch: its edges (a stray pixel is not one)
+# The tool's cross-section fitted across its axis (tool_centred_on_seen): the seen points over its last
 # SECTION_LENGTH (m) up to SECTION_AHEAD beyond the frame's end, within TOOL_WINDOW_RADIUS of the axis, at least
 # MIN_SECTION_POINTS of them; residuals beyond SECTION_LOSS_SCALE (m) count less and less (soft-L1: flying pixels);
 # a fitted radius outside SECTION_RADII (m) is no tool's.
@@ -46,7 +50,6 @@ SECTION_AHEAD = 0.005
 MIN_SECTION_POINTS = 30
 SECTION_LOSS_SCALE = 0.002
 SECTION_RADII = (0.004, 0.035)
-MASK_EDGE_PERCENTILE = 5  # of the mask's pixels across the tool's last stretch: its edges (a stray pixel is not one)
 
 
 def tool_on_seen_surface(
