@@ -17,6 +17,7 @@ from systems.shape_space.handle_centring import handle_centring
 from systems.shape_space.pca_em import pca_em
 from systems.shape_space.registration import Registrar, evenly_thinned
 from systems.shape_space.space import POSE_NAMES, ShapeSpace, build_shape_space, scaled_copy
+from systems.shape_space.tool_frame import ToolFrame
 from systems.shape_space.visibility import visible_from
 
 
@@ -153,6 +154,21 @@ def test_scaled_copies_let_a_few_models_span_a_proportion_they_lack():
         result = Registrar(space).register(taller, RigidTransform())
         errors[copies] = abs(result.grasp_poses_W["left_grasp"].translation()[2] - 0.20)
     assert errors[0] > 0.03 and errors[4] < 0.01, errors
+
+
+@pytest.mark.slow
+def test_a_space_built_from_models_whose_tools_agree_keeps_the_axis():
+    """Three boxes with a tool out of their +x face: along x_O in each, the space keeps it; one turned 10 deg, the
+    axis turns with the shape."""
+    sizes = [(0.10, 0.06, 0.08), (0.12, 0.06, 0.08), (0.11, 0.07, 0.09)]
+    clouds = {f"box_{i}": box_family(*size, count=2000) for i, size in enumerate(sizes)}
+    lid = RigidTransform(RotationMatrix.MakeXRotation(np.pi), [0.0, 0.0, 0.16])
+    poses = {"box_0": {pose: lid for pose in POSE_NAMES}}
+    tools = {name: ToolFrame([0.12, 0.0, 0.08], [1.0, 0.0, 0.0]) for name in clouds}
+    options = {"canonical": "box_0", "canonical_points": 300, "beta": 0.08}
+    assert not build_shape_space("box", clouds, poses, 2, tools=tools, **options).tool_turns
+    tools["box_2"] = ToolFrame([0.12, 0.0, 0.08], [np.cos(0.17), 0.0, np.sin(0.17)])
+    assert build_shape_space("box", clouds, poses, 2, tools=tools, **options).tool_turns
 
 
 def test_a_negative_number_of_scaled_copies_is_refused():

@@ -15,7 +15,7 @@ from systems.perception.shape_registrar import shape_space_file
 from systems.shape_space import folder as folder_tools
 from systems.shape_space.folder import pose_entries
 from systems.shape_space.registration import Registrar
-from systems.shape_space.space import POSE_NAMES, ShapeSpace, build_shape_space, tool_axes_agree
+from systems.shape_space.space import ShapeSpace, tool_axes_agree
 from systems.shape_space.tool_frame import BIT_LENGTH_M, ToolFrame
 from systems.shape_space.tool_placement import returned_points, tool_centred_on_seen, tool_end_in_image
 from systems.shape_space.visibility import visible_from
@@ -120,27 +120,6 @@ def test_a_tool_axis_turns_with_the_fitted_shape_only_where_the_annotated_models
     with np.load(tmp_path / "drill.npz") as data:
         np.savez(tmp_path / "old.npz", **{k: data[k] for k in data.files if k != "tool_turns"})
     assert ShapeSpace.load(tmp_path / "old.npz").tool_turns
-
-
-@pytest.mark.slow
-def test_a_space_built_from_models_whose_tools_agree_keeps_the_axis():
-    """Three boxes with a tool out of their +x face: along x_O in each, the space keeps it; one turned 10 deg, the
-    axis turns with the shape."""
-    rng = np.random.default_rng(4)
-    clouds = {}
-    for k, (a, b, c) in enumerate([(0.10, 0.06, 0.08), (0.12, 0.06, 0.08), (0.11, 0.07, 0.09)]):
-        points = rng.uniform(-1, 1, (2000, 3))
-        face = rng.integers(3, size=len(points))
-        points[np.arange(len(points)), face] = np.sign(points[np.arange(len(points)), face])
-        clouds[f"box_{k}"] = points * [a, b, c] + [0, 0, c]
-    lid = RigidTransform(RotationMatrix.MakeXRotation(np.pi), [0.0, 0.0, 0.16])
-    poses = {"box_0": {pose: lid for pose in POSE_NAMES}}
-    along = {name: ToolFrame([0.12, 0.0, 0.08], [1.0, 0.0, 0.0]) for name in clouds}
-    space = build_shape_space("box", clouds, poses, 2, canonical="box_0", canonical_points=300, beta=0.08, tools=along)
-    assert not space.tool_turns
-    along["box_2"] = ToolFrame([0.12, 0.0, 0.08], [np.cos(0.17), 0.0, np.sin(0.17)])
-    space = build_shape_space("box", clouds, poses, 2, canonical="box_0", canonical_points=300, beta=0.08, tools=along)
-    assert space.tool_turns
 
 
 def test_a_poses_file_gives_the_canonical_models_tool_frame_in_its_files_frame_and_units(tmp_path):

@@ -115,10 +115,9 @@ def tool_end_in_image(tool_W: ToolFrame, beyond: float, surface_W: np.ndarray, v
     if last.sum() < MIN_TOOL_POINTS or depth <= 0 or px_per_m * TOOL_END_LENGTH < MIN_END_PIXELS:
         return tool_W  # too little of the tool fitted there, or its axis nearly along the ray: no end to read
     radius = float(np.median(across[last]))
-    u = np.cross(axis, [1.0, 0.0, 0.0] if abs(axis[0]) < 0.9 else [0.0, 1.0, 0.0])
-    u /= np.linalg.norm(u)
+    u, v = _across(axis)
     angles = np.linspace(0.0, 2 * np.pi, 72, endpoint=False)
-    rim = end + radius * (np.outer(np.cos(angles), u) + np.outer(np.sin(angles), np.cross(axis, u)))
+    rim = end + radius * (np.outer(np.cos(angles), u) + np.outer(np.sin(angles), v))
     along_dir = (e1 - e0) / np.linalg.norm(e1 - e0)
     across_dir = np.array([-along_dir[1], along_dir[0]])
     rows, columns = np.nonzero(view.mask)
@@ -159,6 +158,13 @@ def returned_points(model_W: np.ndarray, surface_W: np.ndarray, viewpoint_W: np.
     return model_W[facing >= np.cos(np.radians(GRAZING_LIMIT_DEG))]
 
 
+def _across(axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Two unit directions across the unit `axis`, at right angles to it and to each other."""
+    u = np.cross(axis, [1.0, 0.0, 0.0] if abs(axis[0]) < 0.9 else [0.0, 1.0, 0.0])
+    u /= np.linalg.norm(u)
+    return u, np.cross(axis, u)
+
+
 def _window(points: np.ndarray, end: np.ndarray, axis: np.ndarray) -> np.ndarray:
     """The points (N x 3) in the window about the tool's end."""
     offset = points - end
@@ -186,9 +192,7 @@ def tool_centred_on_seen(tool_W: ToolFrame, beyond: float, observed_W: np.ndarra
     inside &= np.linalg.norm(across, axis=1) < TOOL_WINDOW_RADIUS
     if inside.sum() < MIN_SECTION_POINTS:
         return tool_W
-    u = np.cross(axis, [1.0, 0.0, 0.0] if abs(axis[0]) < 0.9 else [0.0, 1.0, 0.0])
-    u /= np.linalg.norm(u)
-    v = np.cross(axis, u)
+    u, v = _across(axis)
     section = np.column_stack([across[inside] @ u, across[inside] @ v])
     a = along[inside]
 
