@@ -149,23 +149,27 @@ def test_a_poses_file_gives_the_canonical_models_tool_frame_in_its_files_frame_a
         folder_tools.folder_instances(tmp_path, tmp_path / "poses.yaml")
 
 
-def _chuck(radius=0.018, length=0.05, points=20000):
-    """A capped cylinder (a chuck) along +x from the origin to x = length: surface points (N x 3), unit normals."""
+def _chuck(radius=0.018, length=0.05, points=20000, end_radius=None):
+    """A capped cylinder (a chuck) along +x from the origin to x = length, or a frustum narrowing to end_radius:
+    surface points (N x 3), unit normals."""
+    end_radius = radius if end_radius is None else end_radius
     rng = np.random.default_rng(3)
     side = rng.uniform(0.0, 2 * np.pi, points)
     x = rng.uniform(0.0, length, points)
-    wall = np.column_stack([x, radius * np.cos(side), radius * np.sin(side)])
-    r, t = radius * np.sqrt(rng.uniform(0, 1, points // 4)), rng.uniform(0, 2 * np.pi, points // 4)
+    r_x = radius + (end_radius - radius) * x / length
+    wall = np.column_stack([x, r_x * np.cos(side), r_x * np.sin(side)])
+    slope = (radius - end_radius) / length
+    wall_normals = np.column_stack([np.full(points, slope), np.cos(side), np.sin(side)])
+    r, t = end_radius * np.sqrt(rng.uniform(0, 1, points // 4)), rng.uniform(0, 2 * np.pi, points // 4)
     cap = np.column_stack([np.full(len(r), length), r * np.cos(t), r * np.sin(t)])
-    normals = np.vstack([np.column_stack([0 * x, np.cos(side), np.sin(side)]), np.tile([1.0, 0, 0], (len(r), 1))])
+    wall_normals /= np.linalg.norm(wall_normals, axis=1, keepdims=True)
+    normals = np.vstack([wall_normals, np.tile([1.0, 0, 0], (len(r), 1))])
     return np.vstack([wall, cap]), normals
 
 
-def test_the_tool_end_is_read_where_the_mask_ends_and_its_middle_across():
-    """A chuck pointing away from a camera behind and above it: a frame 9 mm short and 6 mm aside is moved back onto
-    the chuck its mask shows, within 2 mm."""
-    surface, _ = _chuck()
-    forward = np.array([np.cos(0.6), 0.0, -np.sin(0.6)])  # looking along +x, 0.6 rad down
+def _view_of(surface):
+    """The mask (DepthView) of `surface` (N x 3) in a camera behind and above it, looking along +x 0.6 rad down."""
+    forward = np.array([np.cos(0.6), 0.0, -np.sin(0.6)])
     right = np.array([0.0, -1.0, 0.0])
     X_WC = RigidTransform(RotationMatrix(np.column_stack([right, np.cross(forward, right), forward])), [-0.8, 0, 0.6])
     focal, centre, shape = (580.0, 580.0), (320.0, 240.0), (480, 640)
@@ -174,13 +178,36 @@ def test_the_tool_end_is_read_where_the_mask_ends_and_its_middle_across():
     assert p[:, 2].min() > 0 and uv.min() >= 0 and uv[:, 0].max() < shape[1] and uv[:, 1].max() < shape[0]
     mask = np.zeros(shape, bool)
     mask[uv[:, 1], uv[:, 0]] = True
-    view = DepthView(np.ones(shape), X_WC, focal, centre, mask)
+    return DepthView(np.ones(shape), X_WC, focal, centre, mask)
+
+
+def test_the_tool_end_is_read_where_the_mask_ends_and_its_middle_across():
+    """A chuck pointing away from a camera behind and above it: a frame 9 mm short and 6 mm aside is moved back onto
+    the chuck its mask shows, within 2 mm."""
+    surface, _ = _chuck()
+    view = _view_of(surface)
     truth = ToolFrame(np.array([0.05 + BIT_LENGTH_M, 0.0, 0.0]), np.array([1.0, 0.0, 0.0]))
     off = np.array([-0.009, 0.006, 0.0])  # short along the axis, aside
     placed = tool_end_in_image(ToolFrame(truth.tip + off, truth.axis), BIT_LENGTH_M, surface + off, view)
     tip, _ = placed.errors(truth)
     assert tip < 0.002, 1000 * (placed.tip - truth.tip)
-    assert tool_end_in_image(truth, BIT_LENGTH_M, surface, DepthView(np.ones(shape), X_WC, focal, centre)) is truth
+    no_mask = DepthView(view.depth, view.X_WC, view.focal, view.centre)
+    assert tool_end_in_image(truth, BIT_LENGTH_M, surface, no_mask) is truth
+
+
+def test_a_tapering_tools_end_is_read_with_its_end_as_wide_as_the_seen_tube():
+    """A chuck narrowing from 22 to 12 mm radius: its surface's median width over its last stretch is wider than its
+    end, and the tip read from the mask's end with it lands millimetres short; with the seen tube's end radius
+    (tool_centred_on_seen's) it lands within 1 mm, from 6 mm short or 6 mm beyond."""
+    surface, _ = _chuck(radius=0.022, end_radius=0.012)
+    view = _view_of(surface)
+    truth = ToolFrame(np.array([0.05 + BIT_LENGTH_M, 0.0, 0.0]), np.array([1.0, 0.0, 0.0]))
+    median_width = tool_end_in_image(truth, BIT_LENGTH_M, surface, view)
+    assert truth.tip[0] - median_width.tip[0] > 0.002
+    for along in (-0.006, 0.006):
+        off = np.array([along, 0.0, 0.0])
+        placed = tool_end_in_image(ToolFrame(truth.tip + off, truth.axis), BIT_LENGTH_M, surface + off, view, 0.012)
+        assert abs(placed.tip[0] - truth.tip[0]) < 0.001, 1000 * (placed.tip - truth.tip)
 
 
 def test_the_points_a_depth_sensor_returns_face_its_ray_within_the_grazing_limit():
@@ -211,9 +238,12 @@ def test_a_known_axis_is_moved_onto_the_centre_of_the_seen_tools_cross_sections(
     seen = np.vstack([seen, edge - 0.03 * (camera - edge) / np.linalg.norm(camera - edge, axis=1, keepdims=True)])
     truth = ToolFrame(np.array([0.05 + BIT_LENGTH_M, 0.0, 0.0]), np.array([1.0, 0.0, 0.0]))
     off = np.array([0.003, -0.004, 0.005])
-    placed = tool_centred_on_seen(ToolFrame(truth.tip + off, truth.axis), BIT_LENGTH_M, seen)
+    tube = tool_centred_on_seen(ToolFrame(truth.tip + off, truth.axis), BIT_LENGTH_M, seen)
+    placed = tube.tool_W
     assert np.abs(placed.tip[1:] - truth.tip[1:]).max() < 0.001, 1000 * (placed.tip - truth.tip)
     assert placed.tip[0] == pytest.approx(truth.tip[0] + off[0]) and np.allclose(placed.axis, truth.axis)
-    assert tool_centred_on_seen(truth, BIT_LENGTH_M, seen[:20]) is truth
-    flat = np.column_stack([rng.uniform(0.0, 0.05, 500), rng.uniform(-0.03, 0.03, 500), np.zeros(500)])  # a plane
-    assert tool_centred_on_seen(truth, BIT_LENGTH_M, flat) is truth
+    assert tube.end_radius == pytest.approx(0.018, abs=0.0015)  # (its width at the frame's end, 3 mm beyond the cap)
+    for too_little in (seen[:20], np.column_stack([rng.uniform(0.0, 0.05, 500), rng.uniform(-0.03, 0.03, 500),
+                                                   np.zeros(500)])):  # too few points; a plane  # fmt: skip
+        tube = tool_centred_on_seen(truth, BIT_LENGTH_M, too_little)
+        assert tube.tool_W is truth and tube.end_radius is None

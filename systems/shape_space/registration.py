@@ -159,10 +159,12 @@ class Registrar:
             if tool_W is not None:
                 beyond = self.space.tool_beyond
                 placed = tool_on_seen_surface(tool_W, beyond, seen_model, seen.observed_W, shape_W, seen.viewpoint_W)
-                if seen.view is not None:  # along the axis: where the colour mask ends
-                    placed = tool_end_in_image(placed, beyond, shape_W + placed.tip - tool_W.tip, seen.view)
-                placed = tool_centred_on_seen(placed, beyond, seen.observed_W)  # across: onto the seen tube's axis
-                tool_W = placed
+                tube = tool_centred_on_seen(placed, beyond, seen.observed_W)  # across: onto the seen tube's axis
+                if seen.view is not None:  # along the axis: where the colour mask ends; then across again there
+                    surface_W = shape_W + tube.tool_W.tip - tool_W.tip
+                    placed = tool_end_in_image(tube.tool_W, beyond, surface_W, seen.view, tube.end_radius)
+                    tube = tool_centred_on_seen(placed, beyond, seen.observed_W)
+                tool_W = tube.tool_W
         return judged(fit, shape_W, poses_W, seen, tool_W)
 
 

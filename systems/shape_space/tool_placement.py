@@ -15,6 +15,8 @@ the centre of the seen tool's cross-sections (tool_centred_on_seen): tuning rang
 (2026-12-05, the drills' axis kept as the category's).
 """
 
+from dataclasses import dataclass
+
 import numpy as np
 from scipy.optimize import least_squares
 from scipy.spatial import cKDTree
@@ -85,14 +87,20 @@ def tool_on_seen_surface(
     return ToolFrame(tool_W.tip + shift, axis)
 
 
-def tool_end_in_image(tool_W: ToolFrame, beyond: float, surface_W: np.ndarray, view: DepthView) -> ToolFrame:
+def tool_end_in_image(
+    tool_W: ToolFrame, beyond: float, surface_W: np.ndarray, view: DepthView, end_radius: float | None = None
+) -> ToolFrame:
     """The tool frame moved along its axis so that the tool's end face, as the frame puts it, ends in the image where
     the object's mask does.
 
-    The end face is a circle about the axis at the frame's end (the tip less `beyond`), as wide as the fitted surface
-    (M x 3, W, as the frame was placed) is over the tool's last TOOL_END_LENGTH; its outline reaches as far along the
-    projected axis as its farthest projected point. The mask's pixels are taken in a band about the projected axis;
-    the difference of the two reaches (pixels) is turned into metres along the axis. The colour image's mask ends
+    The end face is a circle about the axis at the frame's end (the tip less `beyond`), `end_radius` wide (m: the
+    seen tube's, SeenTube.end_radius), or where none is given as wide as the fitted surface (M x 3, W, as the frame
+    was placed) is over the tool's last TOOL_END_LENGTH; its outline reaches as far along the projected axis as its
+    farthest projected point. The fitted surface's width there is a latent shape's, and a tapering tool's median
+    width over its last stretch is not its end's: a millimetre of radius off puts the tip up to a millimetre off
+    along (tuning range's drills, the fitted width: +3.4 mm along, median; the seen tube's: +0.8 mm). The mask's
+    pixels are taken in a band about the projected axis; the difference of the two reaches (pixels) is turned into
+    metres along the axis. The colour image's mask ends
     where the tool does (within a pixel on rendered frames); the depth loses the last millimetres of a tool pointing
     away from the camera (mixed and grazing pixels), so the seen points end short of it."""
     if view.mask is None or not view.mask.any():
@@ -114,7 +122,7 @@ def tool_end_in_image(tool_W: ToolFrame, beyond: float, surface_W: np.ndarray, v
     px_per_m = np.linalg.norm(e1 - e0) / 0.01
     if last.sum() < MIN_TOOL_POINTS or depth <= 0 or px_per_m * TOOL_END_LENGTH < MIN_END_PIXELS:
         return tool_W  # too little of the tool fitted there, or its axis nearly along the ray: no end to read
-    radius = float(np.median(across[last]))
+    radius = float(np.median(across[last])) if end_radius is None else end_radius
     u, v = _across(axis)
     angles = np.linspace(0.0, 2 * np.pi, 72, endpoint=False)
     rim = end + radius * (np.outer(np.cos(angles), u) + np.outer(np.sin(angles), v))
@@ -174,7 +182,16 @@ def _window(points: np.ndarray, end: np.ndarray, axis: np.ndarray) -> np.ndarray
     return points[inside]
 
 
-def tool_centred_on_seen(tool_W: ToolFrame, beyond: float, observed_W: np.ndarray) -> ToolFrame:
+@dataclass(frozen=True)
+class SeenTube:
+    """The tool frame moved onto the tool the camera saw (tool_centred_on_seen), and that tube's radius at the frame's
+    end (m; None where too little was seen or the fit was no tool's: the frame then as it was)."""
+
+    tool_W: ToolFrame
+    end_radius: float | None
+
+
+def tool_centred_on_seen(tool_W: ToolFrame, beyond: float, observed_W: np.ndarray) -> SeenTube:
     """The tool frame (W) moved across its axis onto the axis of the tool the camera saw: the seen points (N x 3, W)
     over the tool's last SECTION_LENGTH are a tube about it that narrows or widens towards its end (a chuck, a
     spout and its rose), whose cross-sections' centre is fitted (robust least squares: each point's distance from
@@ -191,7 +208,7 @@ def tool_centred_on_seen(tool_W: ToolFrame, beyond: float, observed_W: np.ndarra
     inside = (along > -SECTION_LENGTH) & (along < SECTION_AHEAD)
     inside &= np.linalg.norm(across, axis=1) < TOOL_WINDOW_RADIUS
     if inside.sum() < MIN_SECTION_POINTS:
-        return tool_W
+        return SeenTube(tool_W, None)
     u, v = _across(axis)
     section = np.column_stack([across[inside] @ u, across[inside] @ v])
     a = along[inside]
@@ -201,7 +218,7 @@ def tool_centred_on_seen(tool_W: ToolFrame, beyond: float, observed_W: np.ndarra
 
     radius = float(np.median(np.linalg.norm(section, axis=1)))
     fit = least_squares(residuals, [0.0, 0.0, radius, 0.0], loss="soft_l1", f_scale=SECTION_LOSS_SCALE, max_nfev=100)
-    centre, end_radius = fit.x[:2], fit.x[2]
+    centre, end_radius = fit.x[:2], float(fit.x[2])
     if not SECTION_RADII[0] <= end_radius <= SECTION_RADII[1] or np.linalg.norm(centre) > TOOL_WINDOW_RADIUS:
-        return tool_W
-    return ToolFrame(tool_W.tip + centre[0] * u + centre[1] * v, axis)
+        return SeenTube(tool_W, None)
+    return SeenTube(ToolFrame(tool_W.tip + centre[0] * u + centre[1] * v, axis), end_radius)
