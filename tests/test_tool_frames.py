@@ -242,8 +242,8 @@ def test_a_known_axis_is_moved_onto_the_centre_of_the_seen_tools_cross_sections(
     placed = tube.tool_W
     assert np.abs(placed.tip[1:] - truth.tip[1:]).max() < 0.001, 1000 * (placed.tip - truth.tip)
     assert placed.tip[0] == pytest.approx(truth.tip[0] + off[0]) and np.allclose(placed.axis, truth.axis)
-    assert tube.end_radius == pytest.approx(0.018, abs=0.0015)  # (its width at the frame's end, 3 mm beyond the cap)
-    for too_little in (seen[:20], np.column_stack([rng.uniform(0.0, 0.05, 500), rng.uniform(-0.03, 0.03, 500),
-                                                   np.zeros(500)])):  # too few points; a plane  # fmt: skip
+    assert tube.end_radius == pytest.approx(0.018, abs=0.0015)  # the chuck's radius
+    plane = np.column_stack([rng.uniform(0.0, 0.05, 500), rng.uniform(-0.03, 0.03, 500), np.zeros(500)])
+    for too_little in (seen[:20], plane):  # too few points; points that are no tube's
         tube = tool_centred_on_seen(truth, BIT_LENGTH_M, too_little)
         assert tube.tool_W is truth and tube.end_radius is None

@@ -102,9 +102,9 @@ def tool_end_in_image(
     width over its last stretch is not its end's: a millimetre of radius off puts the tip up to a millimetre off
     along (tuning range's drills, the fitted width: +3.4 mm along, median; the seen tube's: +0.8 mm). The mask's
     pixels are taken in a band about the projected axis; the difference of the two reaches (pixels) is turned into
-    metres along the axis. The colour image's mask ends
-    where the tool does (within a pixel on rendered frames); the depth loses the last millimetres of a tool pointing
-    away from the camera (mixed and grazing pixels), so the seen points end short of it."""
+    metres along the axis. The colour image's mask ends where the tool does (within a pixel on rendered frames); the
+    depth loses the last millimetres of a tool pointing away from the camera (mixed and grazing pixels), so the seen
+    points end short of it."""
     if view.mask is None or not view.mask.any():
         return tool_W
     X_CW = view.X_WC.inverse()
