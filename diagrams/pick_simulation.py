@@ -292,7 +292,7 @@ class PlaceJudge(LiftJudge):
         z = super().sample(t)
         mode, last = self.mode_of(self.context), self.last_mode
         self.last_mode = mode
-        if self.body is not None and mode == Mode.RELEASE and last != Mode.RELEASE:
+        if self.body is not None and mode == Mode.RELAX and last != Mode.RELAX:  # (then the hands open)
             self.X_set_down = self.body.EvalPoseInWorld(self.plant_context)
         if last not in self.held_modes:
             self.held_offset = None  # a new grasp

@@ -37,6 +37,7 @@ class Targets(enum.StrEnum):
     GRASP = "grasp"  # the grasp poses' <side>_grasp
     RETREAT = "retreat"  # each hand back along its approach axis from where it is
     HOME = "home"  # (free moves) back to the joint configuration PlanRequest.q_goal, where the pick started
+    MEASURED = "measured"  # (straight moves) the command to PlanRequest.q_goal, where the arms are measured now
 
 
 class PlaceGoal(enum.StrEnum):
@@ -69,6 +70,7 @@ class Mode(enum.StrEnum):
     CARRY = "carry"
     LOOK_AGAIN = "look_again"
     SET_DOWN = "set_down"
+    RELAX = "relax"  # the arms' command brought to where they are: what a held move left pressing is let go
     RELEASE = "release"
     RETREAT = "retreat"
     CONFIRM = "confirm"  # a look at the object set down: does it stand where it was to go?

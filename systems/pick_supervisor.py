@@ -8,7 +8,7 @@ look switches to, is the tasks' data. A failure at any point leaves the arms hol
 trajectory source holds the last played trajectory's end) and names the stage.
 
 Modes: waiting -> perceiving -> (the task's phases: reach, approach, close, lift, then hold; or close,
-look, lift, carry, look_again, set_down, release, retreat, confirm) -> done, or failed.
+look, lift, carry, look_again, set_down, relax, release, retreat, confirm) -> done, or failed.
 
 Checks and retries (systems/pick_checks.py): after closing, each hand must hold something, and after the lift and
 the carry it must still do. A failed check is one failed attempt: the
@@ -330,7 +330,7 @@ class PickSupervisor(LeafSystem):
                 X_motion_W,
                 phase.min_fraction,
                 carried,
-                q_goal=status.q_home if phase.targets == Targets.HOME else None,
+                q_goal=self._joint_goal(context, status, phase.targets),
                 object_motion_W=object_motion(status.belief, phase.targets),
                 grasp_offsets_G=status.grasp_offsets_G if phase.targets == Targets.GRASP else None,
                 inside_left_out=left_out,
@@ -341,6 +341,14 @@ class PickSupervisor(LeafSystem):
         elif self._looks_at(phase) and look is not None:
             look = LookRequest(look.id + 1, status.belief.now_W)
         return look
+
+    def _joint_goal(self, context, status: PickStatus, targets: Targets | None) -> np.ndarray | None:
+        """A move's joint goal (rad): where the pick started for HOME, where the arms are measured for MEASURED."""
+        if targets == Targets.HOME:
+            return status.q_home
+        if targets == Targets.MEASURED:
+            return self.position_port.Eval(context).copy()
+        return None
 
     def _after(self, context, status: PickStatus, task: Task, t: float, look: LookRequest | None):
         """What comes after the task's last phase; returns the look request."""

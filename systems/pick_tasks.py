@@ -6,18 +6,18 @@ checks switch to:
 
   lift      reach, [check], approach, close, lift, hold                      -> done
   place     reach, [check], approach, close, look, lift, carry, look_again,
-            set_down, release, retreat, confirm                              -> done
-  replace   reach, approach, close, look, lift, set_down, release, retreat,
-            confirm                                                          -> done
+            set_down, relax, release, retreat, confirm                       -> done
+  replace   reach, approach, close, look, lift, set_down, relax, release,
+            retreat, confirm                                                 -> done
   aim       reach, [check], approach, close, look, lift, aim_approach,
             look_over, aim, aim_hold, aim_back, carry, look_again,
-            set_down, release, retreat, confirm                              -> done
+            set_down, relax, release, retreat, confirm                       -> done
   pour      reach, [check], approach, close, look, lift, pour_approach,
             look_over, pour, pour_hold, pour_back, carry, look_again,
-            set_down, release, retreat, confirm                              -> done
+            set_down, relax, release, retreat, confirm                       -> done
   back_off  back_off                                                         -> the pick's task from its reach
   recover   recover_open, recover_retreat, recover_home                      -> the next attempt (a new frame)
-  set_back  carry, set_down, release, retreat                                -> the pick fails
+  set_back  carry, set_down, relax, release, retreat                         -> the pick fails
   give_up   next_object_open, next_object_retreat                            -> the next object (clear)
   home      next_object_home                                                 -> the next object (clear)
 
@@ -172,11 +172,14 @@ def _look(name: Mode, held_looks: bool) -> Phase:
 
 
 def _letting_go(held_looks: bool, if_unreachable: TaskName | None = None) -> tuple[Phase, ...]:
-    """Set the object down on the place target, let go, back off, and look whether it stands there. if_unreachable:
-    the task run where no plan sets it down there (None: the pick fails holding it)."""
+    """Set the object down on the place target, bring the arms' command to where they are (relax: the two arms
+    held the object through position errors that press on it still; opened, a finger kept pressing it and the
+    back-off dragged it along), let go, back off, and look whether it stands there. if_unreachable: the task run
+    where no plan sets it down there (None: the pick fails holding it)."""
     confirm = Phase(Mode.CONFIRM, PhaseKind.CONFIRM_PLACED, if_off=TaskName.REPLACE) if held_looks else None
     return (
         Phase(Mode.SET_DOWN, PhaseKind.MOVE, MoveKind.HELD, goal=PlaceGoal.SET_DOWN, if_unreachable=if_unreachable),
+        Phase(Mode.RELAX, PhaseKind.MOVE, MoveKind.STRAIGHT, Targets.MEASURED),
         Phase(Mode.RELEASE, PhaseKind.OPEN, hand_width=RELEASE_MARGIN, beyond_grasp=True, wait_s=SETTLE_S),
         Phase(Mode.RETREAT, PhaseKind.MOVE, MoveKind.STRAIGHT, Targets.RETREAT),
         confirm or Phase(Mode.CONFIRM, PhaseKind.WAIT),
@@ -282,8 +285,8 @@ def _aim(name: Mode, goal: PlaceGoal) -> Phase:
 def set_back_task() -> Task:
     """The held object's goal is out of reach: carry it back over where it was taken, set it down there, let go,
     back off; then the pick fails with the failure that started this."""
-    set_down, release, retreat, _ = _letting_go(held_looks=False)  # (no confirm: the pick fails after it)
-    phases = (Phase(Mode.CARRY, PhaseKind.MOVE, MoveKind.HELD, goal=PlaceGoal.CARRY), set_down, release, retreat)
+    *letting_go, _ = _letting_go(held_looks=False)  # (no confirm: the pick fails after it)
+    phases = (Phase(Mode.CARRY, PhaseKind.MOVE, MoveKind.HELD, goal=PlaceGoal.CARRY), *letting_go)
     return Task(TaskName.SET_BACK, phases, Then.FAIL, if_check_fails=None)
 
 

@@ -14,7 +14,7 @@ from diagrams.planning_scene import grasp_configuration, make_pick_motions, true
 from diagrams.scenario import initial_positions
 from systems.messages import GraspPoses, HandCommand, PlanRequest, PlanResult
 from systems.perception.camera_latch import CameraLatch
-from systems.planning import stomp_planner
+from systems.planning import pick_motions, stomp_planner
 from systems.planning.plan_telemetry import PlanTelemetry
 from systems.planning.stomp_planner import StompPlanner
 from systems.planning.straight_motions import WouldTouch
@@ -149,6 +149,26 @@ def test_a_back_off_whose_first_step_would_touch_the_robot_stays_where_it_is(pla
     assert plan.success, plan.message
     for t in np.linspace(plan.trajectory.start_time(), plan.trajectory.end_time(), 5):
         np.testing.assert_allclose(plan.trajectory.value(t).ravel(), BACK_OFF_INTO_THE_TORSO, atol=1e-12)
+
+
+def test_a_relaxing_move_ends_where_the_arms_are_within_their_limits(planner, scenario):
+    """The command after a set-down (q_start) is brought to where the arms are measured (q_goal), slowly; a joint
+    measured past its limit is commanded to the limit; an unknown measurement is refused."""
+    world = planner.motions.world
+    q_start = grasp_configuration(scenario, planner.motions)
+    measured = q_start + 0.005
+    measured[3] = world.upper[3] + 0.01
+    relax = PlanRequest(id=10, phase="relax", q_start=q_start, path="straight", targets="measured", q_goal=measured)
+    plan = planner.plan(relax, 0.0, _planner_context(planner, relax, GraspPoses(False)))
+    assert plan.success, plan.message
+    trajectory = plan.trajectory
+    np.testing.assert_allclose(trajectory.value(trajectory.start_time()).ravel(), q_start, atol=1e-12)
+    np.testing.assert_allclose(trajectory.value(trajectory.end_time()).ravel(), np.clip(measured, world.lower,
+                               world.upper), atol=1e-12)  # fmt: skip
+    assert trajectory.end_time() - trajectory.start_time() >= pick_motions.SPARSE_SEGMENT_S - 1e-9
+    relax.q_goal = np.full_like(q_start, np.nan)
+    plan = planner.plan(relax, 0.0, _planner_context(planner, relax, GraspPoses(False)))
+    assert not plan.success and "not finite" in plan.message
 
 
 def _line(q0, q1, t0, t1):

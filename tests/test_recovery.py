@@ -18,6 +18,7 @@ from systems.messages import (
     OPEN_WIDTH,
     ClearedObject,
     GraspPoses,
+    MoveKind,
     ObjectEstimate,
     PerceptionResult,
     PickStatus,
@@ -254,11 +255,11 @@ def test_a_look_after_the_place_takes_an_object_off_its_target_again_once():
     dut, context, simulator = _place_supervisor(target)
     off = RigidTransform([0.7, 0.03, 0.8])  # 3 cm off the target
     status, modes = _play_until(dut, context, simulator, "confirm", off)
-    assert modes[-4:] == ["set_down", "release", "retreat", "confirm"]
+    assert modes[-5:] == ["set_down", "relax", "release", "retreat", "confirm"]
     status, modes = _play_until(dut, context, simulator, "confirm", off)
     assert status.task == TaskName.REPLACE and status.place_corrections == 1 and status.attempt == 1
-    assert modes == ["confirm", "reach", "approach", "close", "look", "lift", "set_down", "release", "retreat",
-                     "confirm"]  # fmt: skip
+    assert modes == ["confirm", "reach", "approach", "close", "look", "lift", "set_down", "relax", "release",
+                     "retreat", "confirm"]  # fmt: skip
     status, _ = _play_until(dut, context, simulator, "done", off)
     assert status.mode == "done" and status.place_corrections == 1  # still off after one: it ends as it stands
 
@@ -276,6 +277,18 @@ def test_a_look_after_the_place_takes_an_object_off_its_target_again_once():
     dut, context, simulator = _place_supervisor(target)
     status, _ = _play_until(dut, context, simulator, "done", None)  # the look finds nothing: nothing to correct
     assert status.mode == "done" and status.place_corrections == 0
+
+
+def test_before_letting_go_the_arms_command_is_brought_to_where_they_are():
+    dut, context, simulator = _place_supervisor(RigidTransform([0.7, 0.0, 0.8]))
+    _play_until(dut, context, simulator, "set_down", None)
+    pressed = Q0 + 0.004 * np.sign(np.arange(14) - 6.5)  # the arms short of the set-down's command
+    dut.GetInputPort("position_measured").FixValue(context, pressed)
+    status, _ = _play_until(dut, context, simulator, "relax", None)
+    request = dut.GetOutputPort("plan_request").Eval(context)
+    assert request.path == MoveKind.STRAIGHT and request.targets == Targets.MEASURED
+    np.testing.assert_array_equal(request.q_goal, pressed)
+    assert dut.GetOutputPort("hand_command").Eval(context).width < OPEN_WIDTH  # still holding it
 
 
 def test_the_retaken_object_is_reached_where_the_look_found_it():

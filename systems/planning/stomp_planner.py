@@ -126,6 +126,8 @@ class StompPlanner(LeafSystem):
                 keyframes = held.keyframes
                 start, end = (motions.world.grasp_frame_poses(q)["left"] for q in (keyframes[0], keyframes[-1]))
                 result.achieved_motion_W = end @ start.inverse()
+            elif request.targets == Targets.MEASURED:
+                keyframes, min_segment = self._to_measured(request), SPARSE_SEGMENT_S
             elif request.targets == Targets.HOME:
                 if request.path != MoveKind.FREE or request.q_goal is None:
                     raise PlanningError("going home is a free move to a q_goal")
@@ -193,6 +195,17 @@ class StompPlanner(LeafSystem):
             return self.motions.reach(request.q_start, targets, points, scene_W=scene).keyframes, None
         grasps = self._targets(dataclasses.replace(request, targets=Targets.GRASP), context, deeper=False)
         return self.motions.reach_pregrasps(request.q_start, targets, grasps, cloud, points, scene, self.deeper)
+
+    def _to_measured(self, request: PlanRequest) -> np.ndarray:
+        """A relaxing move's keyframes: from the command to where the arms are measured (q_goal, within the joint
+        limits), each hand where it is; what a held move left pressing on the object, the arms pushing against it
+        towards a command they do not reach, is let go."""
+        if request.path != MoveKind.STRAIGHT or request.q_goal is None:
+            raise PlanningError("a move to where the arms are is a straight move to a q_goal")
+        if not np.all(np.isfinite(request.q_goal)):
+            raise PlanningError("where the arms are is not known (the measured position is not finite)")
+        world = self.motions.world
+        return np.stack([request.q_start, np.clip(request.q_goal, world.lower, world.upper)])
 
     def _retreat(self, q_start: np.ndarray, targets: dict[str, RigidTransform]) -> np.ndarray:
         """A back-off's keyframes: as far along its line as the arms reach, at least one step of it; where its
