@@ -20,7 +20,7 @@ from systems.messages import BoardSeen, ContainerSeen, GraspPoses, PerceptionRes
 from systems.perception.board_finder import BoardFinder
 from systems.perception.camera_latch import CameraLatch
 from systems.perception.container_finder import ContainerFinder
-from systems.perception.object_tracker import ObjectTracker
+from systems.perception.object_tracker import AIM_MIN_TILT_CHANGE_RAD, MIN_TILT_CHANGE_RAD, ObjectTracker
 from systems.perception.part_segmenter import DEFAULT_PART_WEIGHTS, PartSegmenter
 from systems.perception.perception_result import PerceptionResultCollector
 from systems.perception.pose_estimator import CategoryPrior, PoseEstimator
@@ -112,8 +112,10 @@ def MakePoseEstimator(scenario: Scenario) -> PoseEstimator:
 
 
 def MakeObjectTracker(scenario: Scenario) -> ObjectTracker:
-    """An ObjectTracker with the intrinsics and mounting of the scenario's depth camera."""
-    return ObjectTracker(*depth_camera(scenario))
+    """An ObjectTracker with the intrinsics and mounting of the scenario's depth camera; an aim's takes every tilt
+    its looks refine."""
+    tilt = AIM_MIN_TILT_CHANGE_RAD if scenario.task == "aim" else MIN_TILT_CHANGE_RAD
+    return ObjectTracker(*depth_camera(scenario), min_tilt_change_rad=tilt)
 
 
 def MakePerception(

@@ -1,11 +1,21 @@
 """The object tracker alone: planar ICP of cropped depth points onto a reconstruction, from the expected pose."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 import trimesh
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 
-from systems.perception.object_tracker import MAX_CORRECTION_RAD, TRACK_SELF_MARGIN_M, refine_pose, track
+from diagrams.perception import MakeObjectTracker
+from systems.perception.object_tracker import (
+    AIM_MIN_TILT_CHANGE_RAD,
+    MAX_CORRECTION_RAD,
+    MIN_TILT_CHANGE_RAD,
+    TRACK_SELF_MARGIN_M,
+    refine_pose,
+    track,
+)
 from systems.planning.sphere_model import off_the_robot
 
 
@@ -46,16 +56,10 @@ def test_the_tracker_finds_how_far_the_object_turned_and_moved_in_the_hands(scen
 )
 def test_a_look_far_from_the_expectation_is_not_taken(scene, X_moved):
     """Turned 26-47 deg or shifted 6-8 cm, ICP from the expected pose stalls in a wrong fit (with the earlier
-    thresholds, 35 deg and 8 cm were taken as 12 deg and 3 deg turns): the look must say so, not move it. (Where
-    the 6-DoF refinement brings a stalled fit onto the true pose, within the largest correction trusted, that
-    pose is taken: the 26 deg turn.)"""
+    thresholds, 35 deg and 8 cm were taken as 12 deg and 3 deg turns): the look must say so, not move it."""
     _, model_O, X_expected = scene
-    X_true = X_expected @ X_moved
-    found = track(X_true.multiply(model_O.T).T, model_O, X_expected)
-    if found.found:
-        error = found.X_WO.inverse() @ X_true
-        assert np.linalg.norm(error.translation()) < 0.002 and error.rotation().ToAngleAxis().angle() < 0.01
-        return
+    found = track((X_expected @ X_moved).multiply(model_O.T).T, model_O, X_expected)
+    assert not found.found
     assert "poor fit" in found.message or "not trusted" in found.message
 
 
@@ -72,19 +76,42 @@ def test_points_on_the_robots_spheres_are_left_out():
     np.testing.assert_array_equal(off_the_robot(points, np.zeros((0, 4)), TRACK_SELF_MARGIN_M), points)
 
 
-def test_a_small_tilt_is_found_as_seen(scene):
-    """Seen turned and moved along the table, and tilted 1 deg more than expected (less than the 2 deg under which
-    the planar pose once stood): the look finds the turn, the move and that small tilt, from exact points."""
+def test_a_tilt_within_what_one_look_tells_is_kept(scene):
+    """Seen at the tilt it was expected at (turned and moved along the table only), the look keeps the tilt
+    and height: the 6-DoF refinement finds no tilt change of MIN_TILT_CHANGE_RAD, and the planar fit finds the
+    turn and move."""
+    _, model_O, _ = scene
+    X_expected = RigidTransform(RollPitchYaw(0.03, -0.04, 0.3), [0.7, 0.0, 0.86])
+    X_true = RigidTransform(RotationMatrix.MakeZRotation(np.radians(6.0))) @ X_expected
+    X_true.set_translation(X_expected.translation() + [0.01, -0.01, 0.0])
+    found = track(X_true.multiply(model_O.T).T, model_O, X_expected)
+    assert found.found and "tilt kept" in found.message, found.message
+    tilt = RollPitchYaw(found.X_WO.rotation()).vector()[:2]
+    np.testing.assert_allclose(tilt, RollPitchYaw(X_expected.rotation()).vector()[:2], atol=1e-9)
+    assert found.X_WO.translation()[2] == X_expected.translation()[2]
+    error = found.X_WO.inverse() @ X_true
+    assert np.linalg.norm(error.translation()) < 0.002
+    assert abs(RollPitchYaw(error.rotation()).yaw_angle()) < np.radians(0.5)
+
+
+def test_an_aims_look_takes_a_small_tilt_as_seen(scene):
+    """An aim's tracker takes every tilt it refines (AIM_MIN_TILT_CHANGE_RAD): seen turned and moved along the
+    table, and tilted 1 deg more than expected (within what a place's look keeps), the look finds the turn, the
+    move and that small tilt, from exact points."""
     _, model_O, _ = scene
     X_expected = RigidTransform(RollPitchYaw(0.03, -0.04, 0.3), [0.7, 0.0, 0.86])
     X_true = RigidTransform(RotationMatrix.MakeZRotation(np.radians(6.0))) @ X_expected
     X_true.set_rotation(RotationMatrix.MakeXRotation(np.radians(1.0)) @ X_true.rotation())
     X_true.set_translation(X_expected.translation() + [0.01, -0.01, 0.0])
-    found = track(X_true.multiply(model_O.T).T, model_O, X_expected)
-    assert found.found and "hangs" in found.message, found.message
-    error = found.X_WO.inverse() @ X_true
-    assert error.rotation().ToAngleAxis().angle() < np.radians(0.3)
-    assert np.linalg.norm(error.translation()) < 0.002
+    points_W = X_true.multiply(model_O.T).T
+    kept = track(points_W, model_O, X_expected)
+    assert kept.found and "tilt kept" in kept.message, kept.message
+    found = track(points_W, model_O, X_expected, min_tilt_change_rad=AIM_MIN_TILT_CHANGE_RAD)
+    assert found.found and "hangs" in found.message and "tilt kept" not in found.message, found.message
+    for estimate, at_most_rad in ((kept, np.radians(1.1)), (found, np.radians(0.3))):
+        error = estimate.X_WO.inverse() @ X_true
+        assert error.rotation().ToAngleAxis().angle() < at_most_rad
+    assert np.linalg.norm((found.X_WO.inverse() @ X_true).translation()) < 0.002
 
 
 def test_an_object_hanging_tilted_and_lower_in_the_hands_is_found_so(scene):
@@ -122,3 +149,12 @@ def test_the_refinement_leaves_a_direction_the_points_do_not_constrain_where_it_
     roll, pitch, _ = RollPitchYaw(X_refined.rotation()).vector()
     assert abs(np.degrees(pitch) - 3.0) < 0.5  # seen: the barrel's axis tilts
     assert abs(roll) < np.radians(0.5)  # unseen: the belief's roll (0), not the true 8 deg
+
+
+def test_an_aims_tracker_takes_every_refined_tilt_and_the_others_keep_small_ones(scenario):
+    for task, smallest in (
+        ("aim", AIM_MIN_TILT_CHANGE_RAD),
+        ("pour", MIN_TILT_CHANGE_RAD),
+        ("place", MIN_TILT_CHANGE_RAD),
+    ):
+        assert MakeObjectTracker(dataclasses.replace(scenario, task=task)).min_tilt_change_rad == smallest

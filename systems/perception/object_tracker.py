@@ -17,12 +17,11 @@ the pose it was at), where it is believed to be now, and where the robot's own b
     6-DoF (refine_pose): robust point-to-plane Gauss-Newton on the points farther than FAR_FROM_ROBOT_M from
     the robot (fingers pull a fit towards where the hands are, that is, towards the belief), with priors
     about the planar pose, so that a direction the points barely constrain (a drill's roll about its barrel)
-    stays where it was. The refined pose is taken whatever tilt it finds (with too few points away from the
-    hands, the planar pose stands). A threshold of 2 deg, under which the planar pose stood, kept a drill's
-    closure tilt of 3 deg (the refinement saw 1.6-1.9) through every look before the aim: the bit's tip 16 mm
-    off the target. On the tuning drills' held looks (64 looks of 22 aims, extra_201-208 x 3 yaws) the refined
-    pose put the bit's tip 4.5 / 6.8 mm (p50 / p90) off and its axis 0.40 / 1.24 deg; with the threshold,
-    5.2 / 12.3 mm and 0.69 / 1.50 deg.
+    stays where it was. The refined pose is taken when it tilts the object by at least min_tilt_change_rad from
+    the planar pose; a smaller tilt is within what one look tells, and the planar pose stands (with too few points
+    away from the hands, too). The default, MIN_TILT_CHANGE_RAD, suits a place or a pour; an aim takes every
+    refined tilt (AIM_MIN_TILT_CHANGE_RAD), because there the bit's direction matters to a fraction of a degree
+    (docs/history/perception_parameters.md).
   * refused (found False, the reason said) when fewer than MIN_TRACK_POINTS points remain, the fit is poorer
     than MAX_FIT_ERROR_M, or it moves the object more than MAX_CORRECTION_M / MAX_CORRECTION_RAD: a
     look that disagrees that much is not trusted over the first one.
@@ -69,6 +68,10 @@ YAW_PRIOR_RAD = np.radians(5.0)
 XY_PRIOR_M = 0.01
 HEIGHT_PRIOR_M = 0.01
 REFINE_ITERATIONS = 20
+# Chosen on looks at training cans and drills carried over the box, and on the tuning drills' aims and cans' pours
+# (docs/history/perception_parameters.md).
+MIN_TILT_CHANGE_RAD = np.radians(2.0)
+AIM_MIN_TILT_CHANGE_RAD = 0.0
 
 
 class _ModelField:
@@ -151,11 +154,15 @@ def refine_pose(points_W: np.ndarray, model_O: np.ndarray, X_WO: RigidTransform)
 
 
 def track(
-    points_W: np.ndarray, model_O: np.ndarray, X_WO_expected: RigidTransform, robot_spheres_W=None
+    points_W: np.ndarray,
+    model_O: np.ndarray,
+    X_WO_expected: RigidTransform,
+    robot_spheres_W=None,
+    min_tilt_change_rad: float = MIN_TILT_CHANGE_RAD,
 ) -> ObjectEstimate:
     """Planar ICP of observed points (N x 3 in W, already cropped) onto the model (M x 3 in O) from the
     expected pose, then the 6-DoF refinement of the points away from the robot (spheres S x 4, centre in W and
-    radius, m) where it tilts the object clearly; the refined X_WO, or why not."""
+    radius, m) where it tilts the object by min_tilt_change_rad (rad) or more; the X_WO found, or why not."""
     if len(points_W) < MIN_TRACK_POINTS:
         return ObjectEstimate(False, message=f"only {len(points_W)} points where the object was expected")
     points_W = voxel_thin(points_W)
@@ -166,7 +173,11 @@ def track(
         X_refined = refine_pose(far, model_O, X)
         tilt = (_tilt(X.rotation()).inverse() @ _tilt(X_refined.rotation())).ToAngleAxis().angle()
         height = X_refined.translation()[2] - X.translation()[2]
-        X, tilt_said = X_refined, f"hangs {np.degrees(tilt):.1f} deg and {1000 * height:+.0f} mm off the belief"
+        said = f"hangs {np.degrees(tilt):.1f} deg and {1000 * height:+.0f} mm off the belief"
+        if tilt >= min_tilt_change_rad:
+            X, tilt_said = X_refined, said
+        else:
+            tilt_said = f"tilt kept ({said}: within what one look tells)"
     field = _ModelField(model_O)
     distance, _ = field.query(X.inverse().multiply(points_W.T).T)
     inlier = distance < TRACK_INLIER_M
@@ -209,12 +220,19 @@ class ObjectTracker(LeafSystem):
     (ObjectEstimate: X_WO and the points it was fitted to, or why not).
 
     Args:
-        intrinsics: the depth camera's. X_BC: the depth sensor in the camera body.
+        intrinsics: the depth camera's. X_BC: the depth sensor in the camera body. min_tilt_change_rad: the
+        smallest tilt off the planar pose that a look takes (track()).
     """
 
-    def __init__(self, intrinsics: CameraInfo, X_BC: RigidTransform | None = None):
+    def __init__(
+        self,
+        intrinsics: CameraInfo,
+        X_BC: RigidTransform | None = None,
+        min_tilt_change_rad: float = MIN_TILT_CHANGE_RAD,
+    ):
         super().__init__()
         self.intrinsics, self.X_BC = intrinsics, X_BC or RigidTransform()
+        self.min_tilt_change_rad = min_tilt_change_rad
         self.DeclareAbstractInputPort("depth_image", AbstractValue.Make(ImageDepth32F()))
         for name, model in (
             ("camera_pose", RigidTransform()),
@@ -241,7 +259,7 @@ class ObjectTracker(LeafSystem):
         lower[2] = max(lower[2], SUPPORT_CLEARANCE)
         inside = np.all((in_O >= lower) & (in_O <= upper), axis=1)
         points_W = off_the_robot(points_W[inside], robot_spheres_W, TRACK_SELF_MARGIN_M)
-        return track(points_W, model_O, X_WO_expected, robot_spheres_W)
+        return track(points_W, model_O, X_WO_expected, robot_spheres_W, self.min_tilt_change_rad)
 
     def _calc(self, context, output):
         depth = np.asarray(self.GetInputPort("depth_image").Eval(context).data)[:, :, 0]
