@@ -18,9 +18,11 @@ from systems.messages import (
     OPEN_WIDTH,
     ClearedObject,
     GraspPoses,
+    Mode,
     MoveKind,
     ObjectEstimate,
     PerceptionResult,
+    PhaseKind,
     PickStatus,
     PlanResult,
     Targets,
@@ -28,7 +30,16 @@ from systems.messages import (
 )
 from systems.perception.grasp_offset import GraspOffset
 from systems.pick_supervisor import PickSupervisor
-from systems.pick_tasks import lift_pick, place_pick
+from systems.pick_tasks import (
+    PickTasks,
+    aim_task,
+    lift_pick,
+    place_pick,
+    place_task,
+    pour_task,
+    replace_task,
+    set_back_task,
+)
 
 Q0 = np.linspace(-0.5, 0.5, 14)
 # The injected fault: every grasp 5 cm back along its approach axis. The hands grip 3 cm off: this drill
@@ -213,9 +224,11 @@ def test_a_look_that_finds_the_object_where_it_was_changes_nothing():
     assert _status(dut, context).mode == "approach" and request.object_motion_W is None
 
 
-def _place_supervisor(target: RigidTransform, max_attempts: int = 1):
-    """The place task's supervisor, the object seen at its place target (the test plans no motion)."""
-    dut = PickSupervisor(place_pick(), perceive_at_s=0.1, place_target_W=target, looks=True, max_attempts=max_attempts)
+def _place_supervisor(target: RigidTransform, max_attempts: int = 1, tasks: PickTasks | None = None):
+    """The place task's supervisor (or one of `tasks`), the object seen at its place target (the test plans no
+    motion)."""
+    tasks = tasks or place_pick()
+    dut = PickSupervisor(tasks, perceive_at_s=0.1, place_target_W=target, looks=True, max_attempts=max_attempts)
     context = dut.CreateDefaultContext()
     for port, value in (("position_measured", Q0), ("frame_id", [1.0]), ("look_frame_id", [0.0])):
         dut.GetInputPort(port).FixValue(context, value)
@@ -255,11 +268,11 @@ def test_a_look_after_the_place_takes_an_object_off_its_target_again_once():
     dut, context, simulator = _place_supervisor(target)
     off = RigidTransform([0.7, 0.03, 0.8])  # 3 cm off the target
     status, modes = _play_until(dut, context, simulator, "confirm", off)
-    assert modes[-5:] == ["set_down", "relax", "release", "retreat", "confirm"]
+    assert modes[-4:] == ["set_down", "release", "retreat", "confirm"]
     status, modes = _play_until(dut, context, simulator, "confirm", off)
     assert status.task == TaskName.REPLACE and status.place_corrections == 1 and status.attempt == 1
-    assert modes == ["confirm", "reach", "approach", "close", "look", "lift", "set_down", "relax", "release",
-                     "retreat", "confirm"]  # fmt: skip
+    assert modes == ["confirm", "reach", "approach", "close", "look", "lift", "set_down", "release", "retreat",
+                     "confirm"]  # fmt: skip
     status, _ = _play_until(dut, context, simulator, "done", off)
     assert status.mode == "done" and status.place_corrections == 1  # still off after one: it ends as it stands
 
@@ -279,12 +292,30 @@ def test_a_look_after_the_place_takes_an_object_off_its_target_again_once():
     assert status.mode == "done" and status.place_corrections == 0
 
 
-def test_before_letting_go_the_arms_command_is_brought_to_where_they_are():
-    dut, context, simulator = _place_supervisor(RigidTransform([0.7, 0.0, 0.8]))
+def test_an_aim_relaxes_before_letting_go_and_the_other_set_downs_do_not():
+    """The aim's letting go: set down, relax (a straight move of the command to where the arms are), release; the
+    place, pour, re-place and set-back open the hands straight after the set-down."""
+    names = [phase.name for phase in aim_task().phases]
+    assert names[names.index(Mode.SET_DOWN) : names.index(Mode.SET_DOWN) + 3] == [Mode.SET_DOWN, Mode.RELAX,
+                                                                                  Mode.RELEASE]  # fmt: skip
+    relax = aim_task().phases[names.index(Mode.RELAX)]
+    assert relax.kind == PhaseKind.MOVE and relax.path == MoveKind.STRAIGHT and relax.targets == Targets.MEASURED
+    for task in (place_task(), pour_task(), replace_task(), set_back_task()):
+        names = [phase.name for phase in task.phases]
+        assert Mode.RELAX not in names and names[names.index(Mode.SET_DOWN) + 1] == Mode.RELEASE, task.name
+
+
+def test_a_relax_asks_for_the_command_to_go_where_the_arms_are_measured():
+    place = place_task()
+    relax = next(phase for phase in aim_task().phases if phase.name == Mode.RELAX)
+    phases = tuple(p for phase in place.phases for p in ((relax, phase) if phase.name == Mode.RELEASE else (phase,)))
+    tasks = place_pick()
+    tasks = dataclasses.replace(tasks, tasks={**tasks.tasks, place.name: dataclasses.replace(place, phases=phases)})
+    dut, context, simulator = _place_supervisor(RigidTransform([0.7, 0.0, 0.8]), tasks=tasks)
     _play_until(dut, context, simulator, "set_down", None)
     pressed = Q0 + 0.004 * np.sign(np.arange(14) - 6.5)  # the arms short of the set-down's command
     dut.GetInputPort("position_measured").FixValue(context, pressed)
-    status, _ = _play_until(dut, context, simulator, "relax", None)
+    _play_until(dut, context, simulator, "relax", None)
     request = dut.GetOutputPort("plan_request").Eval(context)
     assert request.path == MoveKind.STRAIGHT and request.targets == Targets.MEASURED
     np.testing.assert_array_equal(request.q_goal, pressed)
