@@ -8,7 +8,7 @@ look switches to, is the tasks' data. A failure at any point leaves the arms hol
 trajectory source holds the last played trajectory's end) and names the stage.
 
 Modes: waiting -> perceiving -> (the task's phases: reach, approach, close, lift, then hold; or close,
-look, lift, carry, look_again, set_down, relax, release, retreat, confirm) -> done, or failed.
+look, lift, carry, look_again, set_down, release, retreat, confirm) -> done, or failed.
 
 Checks and retries (systems/pick_checks.py): after closing, each hand must hold something, and after the lift and
 the carry it must still do. A failed check is one failed attempt: the
