@@ -1,15 +1,28 @@
-"""What the pick's goal-directed held moves go towards (systems/pick_supervisor.py's): the use targets read once the
-object is perceived (an aim's board, a pour's container, with the perceived tool frame) and each goal's motion from
-where the object is believed to be (systems/planning/place_goals.py, aim_goals.py, pour_goals.py).
+"""What the pick's moves go towards (systems/pick_supervisor.py's): each move phase's PlanRequest, the use targets
+read once the object is perceived (an aim's board, a pour's container, with the perceived tool frame) and each
+held goal's motion from where the object is believed to be (systems/planning/place_goals.py, aim_goals.py,
+pour_goals.py).
 
 An aim reads the board perceived in the frame the object was perceived in and aims the tool frame perceived with the
 grasps; a pour reads the container's opening perceived there and pours with the same tool frame. Without the board
 (the container) the pick fails at stage board (container), without a tool frame at registration, before any move.
 """
 
+import numpy as np
 from pydrake.math import RigidTransform
 
-from systems.messages import BoardSeen, ContainerSeen, PerceptionResult, PickStatus, PlaceGoal, Stage
+from systems.messages import (
+    BoardSeen,
+    ContainerSeen,
+    PerceptionResult,
+    PickStatus,
+    PlaceGoal,
+    PlanRequest,
+    Stage,
+    Targets,
+)
+from systems.pick_looks import object_motion
+from systems.pick_tasks import Phase
 from systems.planning.aim_goals import aim_motion, aim_target
 from systems.planning.place_goals import place_motion
 from systems.planning.pour_goals import inside_left_out, pour_motion, pour_target
@@ -51,3 +64,29 @@ def held_goal_motion(
     if goal in POUR_GOALS:
         return *pour_motion(goal, status.belief, status.pour), inside_left_out(status.pour)
     return *place_motion(goal, status.belief, place_target_W), None
+
+
+def move_request(
+    phase: Phase, status: PickStatus, place_target_W: RigidTransform, measured_q: np.ndarray
+) -> PlanRequest:
+    """The next PlanRequest, for a move phase, from where the last plan ended: a held goal's motion from where the
+    object is believed to be (or the phase's own motion), its targets, and a joint goal where it names one (HOME:
+    where the pick started; MEASURED: where the arms are measured, `measured_q`, rad)."""
+    X_motion_W, carried, left_out = phase.X_motion_W or RigidTransform(), None, None
+    if phase.goal is not None:
+        X_motion_W, carried, left_out = held_goal_motion(phase.goal, status, place_target_W)
+    q_goal = {Targets.HOME: status.q_home, Targets.MEASURED: np.array(measured_q, dtype=float)}.get(phase.targets)
+    return PlanRequest(
+        status.request.id + 1 if status.request.id >= 0 else 1,
+        phase.name,
+        status.plan_end_q,
+        phase.path,
+        phase.targets or Targets.PREGRASP,
+        X_motion_W,
+        phase.min_fraction,
+        carried,
+        q_goal=q_goal,
+        object_motion_W=object_motion(status.belief, phase.targets),
+        grasp_offsets_G=status.grasp_offsets_G if phase.targets == Targets.GRASP else None,
+        inside_left_out=left_out,
+    )

@@ -66,8 +66,8 @@ from systems.messages import (
     TaskName,
 )
 from systems.pick_checks import camera_silence, fail, not_holding, played_s, stage_message, status_silence
-from systems.pick_goals import AIM_GOALS, POUR_GOALS, held_goal_motion, read_use_targets
-from systems.pick_looks import MAX_CORRECTIONS, object_motion, placed_off_target, read_look
+from systems.pick_goals import AIM_GOALS, POUR_GOALS, move_request, read_use_targets
+from systems.pick_looks import MAX_CORRECTIONS, placed_off_target, read_look
 from systems.pick_tasks import Phase, PickTasks, Task, Then
 from systems.planning.drop_zone import DropZone
 
@@ -318,37 +318,14 @@ class PickSupervisor(LeafSystem):
         phase = task.phases[index]
         status.mode = phase.name
         if phase.kind == PhaseKind.MOVE:
-            X_motion_W, carried, left_out = phase.X_motion_W or RigidTransform(), None, None
-            if phase.goal is not None:
-                X_motion_W, carried, left_out = held_goal_motion(phase.goal, status, self._place_target(status))
-            status.request = PlanRequest(
-                status.request.id + 1 if status.request.id >= 0 else 1,
-                phase.name,
-                status.plan_end_q,
-                phase.path,
-                phase.targets or Targets.PREGRASP,
-                X_motion_W,
-                phase.min_fraction,
-                carried,
-                q_goal=self._joint_goal(context, status, phase.targets),
-                object_motion_W=object_motion(status.belief, phase.targets),
-                grasp_offsets_G=status.grasp_offsets_G if phase.targets == Targets.GRASP else None,
-                inside_left_out=left_out,
-            )
+            measured_q = self.position_port.Eval(context)
+            status.request = move_request(phase, status, self._place_target(status), measured_q)
         elif phase.kind in (PhaseKind.CLOSE, PhaseKind.OPEN):
             width = phase.hand_width + (max(status.grasp_widths, default=OPEN_WIDTH) if phase.beyond_grasp else 0.0)
             status.hand = HandCommand(min(width, OPEN_WIDTH), status.hand.at(t), t, CLOSE_S)
         elif self._looks_at(phase) and look is not None:
             look = LookRequest(look.id + 1, status.belief.now_W)
         return look
-
-    def _joint_goal(self, context, status: PickStatus, targets: Targets | None) -> np.ndarray | None:
-        """A move's joint goal (rad): where the pick started for HOME, where the arms are measured for MEASURED."""
-        if targets == Targets.HOME:
-            return status.q_home
-        if targets == Targets.MEASURED:
-            return self.position_port.Eval(context).copy()
-        return None
 
     def _after(self, context, status: PickStatus, task: Task, t: float, look: LookRequest | None):
         """What comes after the task's last phase; returns the look request."""

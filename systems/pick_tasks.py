@@ -177,7 +177,7 @@ def _letting_go(held_looks: bool, if_unreachable: TaskName | None = None, relax:
     holding it). relax: the two arms hold the object through their position errors, which press on it still after
     the set-down; an aimed drill, opened, kept a finger pressing its grip and the back-off dragged it over, and a
     relax first lets go of that (3 of the 5 such aims on random placements; docs/use.md). A can set down after a
-    place turned further as the hands opened after a relax (test_0: 3.4 -> 5.1 deg), so only the aim relaxes."""
+    place turned further as the hands opened after a relax (test_0: 4.3 -> 5.1 deg), so only the aim relaxes."""
     confirm = Phase(Mode.CONFIRM, PhaseKind.CONFIRM_PLACED, if_off=TaskName.REPLACE) if held_looks else None
     return (
         Phase(Mode.SET_DOWN, PhaseKind.MOVE, MoveKind.HELD, goal=PlaceGoal.SET_DOWN, if_unreachable=if_unreachable),

@@ -29,14 +29,15 @@ from systems.messages import (
     TaskName,
 )
 from systems.perception.grasp_offset import GraspOffset
+from systems.pick_goals import move_request
 from systems.pick_supervisor import PickSupervisor
 from systems.pick_tasks import (
-    PickTasks,
     aim_task,
     lift_pick,
     place_pick,
     place_task,
     pour_task,
+    recovery_task,
     replace_task,
     set_back_task,
 )
@@ -224,11 +225,9 @@ def test_a_look_that_finds_the_object_where_it_was_changes_nothing():
     assert _status(dut, context).mode == "approach" and request.object_motion_W is None
 
 
-def _place_supervisor(target: RigidTransform, max_attempts: int = 1, tasks: PickTasks | None = None):
-    """The place task's supervisor (or one of `tasks`), the object seen at its place target (the test plans no
-    motion)."""
-    tasks = tasks or place_pick()
-    dut = PickSupervisor(tasks, perceive_at_s=0.1, place_target_W=target, looks=True, max_attempts=max_attempts)
+def _place_supervisor(target: RigidTransform, max_attempts: int = 1):
+    """The place task's supervisor, the object seen at its place target (the test plans no motion)."""
+    dut = PickSupervisor(place_pick(), perceive_at_s=0.1, place_target_W=target, looks=True, max_attempts=max_attempts)
     context = dut.CreateDefaultContext()
     for port, value in (("position_measured", Q0), ("frame_id", [1.0]), ("look_frame_id", [0.0])):
         dut.GetInputPort(port).FixValue(context, value)
@@ -306,20 +305,15 @@ def test_an_aim_relaxes_before_letting_go_and_the_other_set_downs_do_not():
 
 
 def test_a_relax_asks_for_the_command_to_go_where_the_arms_are_measured():
-    place = place_task()
+    status = PickStatus(plan_end_q=Q0, q_home=np.zeros(14))
     relax = next(phase for phase in aim_task().phases if phase.name == Mode.RELAX)
-    phases = tuple(p for phase in place.phases for p in ((relax, phase) if phase.name == Mode.RELEASE else (phase,)))
-    tasks = place_pick()
-    tasks = dataclasses.replace(tasks, tasks={**tasks.tasks, place.name: dataclasses.replace(place, phases=phases)})
-    dut, context, simulator = _place_supervisor(RigidTransform([0.7, 0.0, 0.8]), tasks=tasks)
-    _play_until(dut, context, simulator, "set_down", None)
     pressed = Q0 + 0.004 * np.sign(np.arange(14) - 6.5)  # the arms short of the set-down's command
-    dut.GetInputPort("position_measured").FixValue(context, pressed)
-    _play_until(dut, context, simulator, "relax", None)
-    request = dut.GetOutputPort("plan_request").Eval(context)
+    request = move_request(relax, status, RigidTransform(), pressed)
     assert request.path == MoveKind.STRAIGHT and request.targets == Targets.MEASURED
+    np.testing.assert_array_equal(request.q_start, Q0)
     np.testing.assert_array_equal(request.q_goal, pressed)
-    assert dut.GetOutputPort("hand_command").Eval(context).width < OPEN_WIDTH  # still holding it
+    home = next(phase for phase in recovery_task().phases if phase.targets == Targets.HOME)
+    np.testing.assert_array_equal(move_request(home, status, RigidTransform(), pressed).q_goal, status.q_home)
 
 
 def test_the_retaken_object_is_reached_where_the_look_found_it():

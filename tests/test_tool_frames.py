@@ -10,7 +10,7 @@ from pydrake.math import RigidTransform, RotationMatrix
 from diagrams.generation.objects import catalog, shop_held_out, unfamiliar
 from diagrams.generation.objects.library import load_info
 from diagrams.generation.objects.watering_can import spout_axis
-from systems.messages import DepthView
+from systems.perception.depth_view import DepthView
 from systems.perception.shape_registrar import shape_space_file
 from systems.shape_space import folder as folder_tools
 from systems.shape_space.folder import pose_entries

@@ -17,8 +17,8 @@ from diagrams.generation.objects.unfamiliar import DESIGNS, instances
 from diagrams.pick_simulation import object_body, station_plant
 from diagrams.scenario import replace_object
 from systems.categories import wider_shape_space_file
-from systems.messages import DepthView
 from systems.parallel import THREADS
+from systems.perception.depth_view import DepthView
 from systems.perception.instances import named_object
 from systems.perception.shape_registrar import registrar_of, scale_prior, shape_space_file
 from systems.shape_space import fit_judging

@@ -34,9 +34,10 @@ from pydrake.systems.framework import LeafSystem
 from pydrake.systems.sensors import CameraInfo, ImageDepth32F
 from scipy.spatial import cKDTree
 
-from systems.messages import DepthView, ObjectEstimate, PartRole, SeenPart, Segmentation
+from systems.messages import ObjectEstimate, PartRole, SeenPart, Segmentation
 from systems.paths import cache_dir, save_npz_atomically
 from systems.perception.depth_cleaning import flying_pixels
+from systems.perception.depth_view import DepthView
 
 MIN_POSE_POINTS = 50
 MAX_OBJECT_RADIUS = 0.35  # m from the points' median: farther points are strays

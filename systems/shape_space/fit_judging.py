@@ -12,7 +12,7 @@ import numpy as np
 from pydrake.math import RigidTransform
 from scipy.spatial import cKDTree
 
-from systems.messages import DepthView
+from systems.perception.depth_view import DepthView
 from systems.shape_space.shape_fit import ShapeFit
 from systems.shape_space.space import GRASP_NAMES
 from systems.shape_space.tool_frame import ToolFrame

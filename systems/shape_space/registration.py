@@ -24,9 +24,9 @@ import numpy as np
 import open3d as o3d
 from pydrake.math import RigidTransform, RotationMatrix
 
-from systems.messages import DepthView
 from systems.parallel import THREADS, parallel_map
 from systems.perception.depth_cleaning import dense_inliers
+from systems.perception.depth_view import DepthView
 from systems.shape_space.fit_judging import Registration, SeenPoints, judged
 from systems.shape_space.grasp_placement import placed_on_seen_handles
 from systems.shape_space.shape_fit import ShapeFit, ShapeFitter

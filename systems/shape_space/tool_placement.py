@@ -23,7 +23,7 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.spatial import cKDTree
 
-from systems.messages import DepthView
+from systems.perception.depth_view import DepthView
 from systems.shape_space.tool_frame import ToolFrame
 
 # The window about the fitted tool's far end (m): from TOOL_WINDOW_BACK behind it to TOOL_WINDOW_AHEAD beyond it along
