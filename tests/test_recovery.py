@@ -32,6 +32,8 @@ from systems.perception.grasp_offset import GraspOffset
 from systems.pick_goals import move_request
 from systems.pick_supervisor import PickSupervisor
 from systems.pick_tasks import (
+    AIM_RELEASE_MARGIN,
+    RELEASE_MARGIN,
     aim_task,
     lift_pick,
     place_pick,
@@ -292,16 +294,19 @@ def test_a_look_after_the_place_takes_an_object_off_its_target_again_once():
 
 
 def test_an_aim_relaxes_before_letting_go_and_the_other_set_downs_do_not():
-    """The aim's letting go: set down, relax (a straight move of the command to where the arms are), release; the
-    place, pour, re-place and set-back open the hands straight after the set-down."""
+    """The aim's letting go: set down, relax (a straight move of the command to where the arms are), release wider
+    than the others; the place, pour, re-place and set-back open the hands straight after the set-down."""
     names = [phase.name for phase in aim_task().phases]
     assert names[names.index(Mode.SET_DOWN) : names.index(Mode.SET_DOWN) + 3] == [Mode.SET_DOWN, Mode.RELAX,
                                                                                   Mode.RELEASE]  # fmt: skip
     relax = aim_task().phases[names.index(Mode.RELAX)]
     assert relax.kind == PhaseKind.MOVE and relax.path == MoveKind.STRAIGHT and relax.targets == Targets.MEASURED
+    release = aim_task().phases[names.index(Mode.RELEASE)]
+    assert release.beyond_grasp and release.hand_width == AIM_RELEASE_MARGIN > RELEASE_MARGIN
     for task in (place_task(), pour_task(), replace_task(), set_back_task()):
         names = [phase.name for phase in task.phases]
         assert Mode.RELAX not in names and names[names.index(Mode.SET_DOWN) + 1] == Mode.RELEASE, task.name
+        assert task.phases[names.index(Mode.RELEASE)].hand_width == RELEASE_MARGIN, task.name
 
 
 def test_a_relax_asks_for_the_command_to_go_where_the_arms_are_measured():
