@@ -454,11 +454,11 @@ class PickStatus:
     # A move out of reach whose task sets the object back down first: the pick's failure, told once it is down.
     pending_failure: tuple[str, str] | None = None
     # The clear task: the objects taken on so far, the one under way (where it was seen, its spot in the drop zone)
-    # and its place target.
+    # and its place target (a clear's spot, or a place target moved where no plan set the object down on it).
     objects: tuple[ClearedObject, ...] = ()
     current: ClearedObject | None = None
     place_target_W: RigidTransform | None = None
     homing: bool = False  # the frame asked for is the scene the move home avoids (no object is taken on from it)
-    # The other spots in the zone the object may go to, best first ((X_WO, its footprint there) each): where no plan
-    # carries it to one, the next.
+    # The other spots the object may go to, best first ((X_WO, its footprint there or None) each): a clear's in the
+    # zone, a place's beside its target (place_goals.nudged_targets); where no plan carries it to one, the next.
     spare_spots: tuple = ()

@@ -70,6 +70,7 @@ from systems.pick_goals import AIM_GOALS, POUR_GOALS, move_request, read_use_tar
 from systems.pick_looks import MAX_CORRECTIONS, placed_off_target, read_look
 from systems.pick_tasks import Phase, PickTasks, Task, Then
 from systems.planning.drop_zone import DropZone
+from systems.planning.place_goals import PLACE_NUDGE_M, nudged_targets
 
 CLOSE_S = 1.0  # s: the hands close over this long
 # A failed check that another attempt can put right: a hand closed on nothing, or lost the object.
@@ -285,6 +286,8 @@ class PickSupervisor(LeafSystem):
             fail(status, result.failed_stage, result.message)
             return
         status.belief = ObjectBelief.seen(result.X_WO_seen)
+        if self.place_target_W is not None and not self.clears:  # set down beside the target if not on it
+            status.spare_spots = tuple((X_WO, None) for X_WO in nudged_targets(self.place_target_W))
         if self.clears:
             spots, status.current = clearing.chosen_spots(self.drop_zone, status, result)
             status.place_target_W, status.spare_spots = (spots[0][0], tuple(spots[1:])) if spots else (None, ())
@@ -393,11 +396,13 @@ class PickSupervisor(LeafSystem):
                     self._next_object(context, status, t, homing=status.task != self.tasks.home)
                     return True, look
                 placing = phase.goal in (PlaceGoal.CARRY, PlaceGoal.SET_DOWN) and status.task == self.tasks.main
-                if self.clears and placing and status.spare_spots:
+                if placing and status.spare_spots:
                     (X_WO, footprint), *rest = status.spare_spots  # no plan to this spot: carry it to the next one
-                    logging.warning("%s; trying the next spot in the drop zone", plan.message)
+                    where = "the next spot in the drop zone" if self.clears else f"{PLACE_NUDGE_M * 100:.0f} cm off it"
+                    logging.warning("%s; trying %s", plan.message, where)
                     status.place_target_W, status.spare_spots = X_WO, tuple(rest)
-                    status.current = clearing.with_spot(status.current, X_WO, footprint)
+                    if self.clears:
+                        status.current = clearing.with_spot(status.current, X_WO, footprint)
                     carry = self.tasks[status.task].index(Mode.CARRY)
                     return True, self._start_phase(context, status, carry, t, look)
                 if phase.if_unreachable is None:

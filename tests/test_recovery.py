@@ -293,6 +293,30 @@ def test_a_look_after_the_place_takes_an_object_off_its_target_again_once():
     assert status.mode == "done" and status.place_corrections == 0
 
 
+def test_a_set_down_with_no_plan_tries_the_place_target_a_centimetre_off_it():
+    """No plan sets the object down on the target: it is carried 1 cm off it (towards the robot first) and set
+    down there; where no nudge has a plan either, the pick fails at planning."""
+    target = RigidTransform([0.7, 0.0, 0.8])
+    dut, context, simulator = _place_supervisor(target)
+    tried = []
+    for _ in range(5):
+        status, _ = _play_until(dut, context, simulator, "set_down", target)
+        assert status.mode == "set_down"
+        tried.append(dut.GetOutputPort("status").Eval(context).place_target_W)
+        request = dut.GetOutputPort("plan_request").Eval(context)
+        failed = PlanResult(request.id, request.phase, False, None, "STOMP: the goal configuration is near the box")
+        dut.GetInputPort("plan").FixValue(context, AbstractValue.Make(failed))
+        simulator.AdvanceTo(context.get_time() + 0.05)
+        status = _status(dut, context)
+        if status.mode == "failed":
+            break
+        assert status.mode == "carry" and status.task == TaskName.PLACE
+    assert tried[0] is None  # the target itself first
+    offsets = [np.round(X.translation() - target.translation(), 6).tolist() for X in tried[1:]]
+    assert offsets == [[-0.01, 0.0, 0.0], [0.01, 0.0, 0.0], [0.0, -0.01, 0.0], [0.0, 0.01, 0.0]]
+    assert status.mode == "failed" and status.failed_stage == "planning" and "near the box" in status.message
+
+
 def test_an_aim_relaxes_before_letting_go_and_the_other_set_downs_do_not():
     """The aim's letting go: set down, relax (a straight move of the command to where the arms are), release wider
     than the others; the place, pour, re-place and set-back open the hands straight after the set-down."""

@@ -65,6 +65,14 @@ def test_stomp_rejects_bad_goals_and_keeps_its_time_limit(planning):
     colliding = _colliding_configuration(world)
     in_collision = motions.stomp.plan(BELOW_TABLE, colliding, scene)
     assert not in_collision.success and "goal configuration collides" in in_collision.message
+    # A goal nearer an obstacle than any plan keeps (2 mm of the required 5): no plan can end there; said at once.
+    costs = motions.stomp.costs
+    centres = costs.spheres.centres_W(costs.kinematics.body_poses(q_goal[None]))[0]
+    top = int(np.argmax(centres[:, 2] + costs.spheres.radius))  # (nothing else of the robot reaches as high)
+    above = centres[top] + [0.0, 0.0, costs.spheres.radius[top] + 0.002]
+    too_near = motions.stomp.plan(BELOW_TABLE, q_goal, world.planning_obstacles().add_points(above[None]))
+    assert not too_near.success and too_near.iterations == 0 and 0.0 < too_near.min_clearance_m <= 0.005
+    assert "the goal configuration is" in too_near.message and "mm from an obstacle" in too_near.message
 
     config = motions.stomp.config
     config = dataclasses.replace(

@@ -217,6 +217,13 @@ class Stomp:
             return StompResult(
                 False, theta, 0, 0.0, float(clearance[[0, -1]].min()), f"the {which} configuration collides"
             )
+        required = config.costs.required_clearance
+        if clearance[-1] <= required:  # (every keyframe of a solution is more than that clear; the goal is fixed)
+            return StompResult(
+                False, theta, 0, 0.0, float(clearance[-1]),
+                f"the goal configuration is {1000 * clearance[-1]:.1f} mm from an obstacle (a plan keeps "
+                f"{1000 * required:.0f} mm)",
+            )  # fmt: skip
         first, restarts = self.starts.first(theta, problem, clearance, rng, vias=not given)
         if first.solution:  # nothing to optimise (0 iterations)
             return _result(first, 0, start, FIRST_DRAWN)
