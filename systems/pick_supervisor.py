@@ -70,7 +70,7 @@ from systems.pick_goals import AIM_GOALS, POUR_GOALS, move_request, read_use_tar
 from systems.pick_looks import MAX_CORRECTIONS, placed_off_target, read_look
 from systems.pick_tasks import Phase, PickTasks, Task, Then
 from systems.planning.drop_zone import DropZone
-from systems.planning.place_goals import PLACE_NUDGE_M, nudged_targets
+from systems.planning.place_goals import nudged_targets
 
 CLOSE_S = 1.0  # s: the hands close over this long
 # A failed check that another attempt can put right: a hand closed on nothing, or lost the object.
@@ -398,7 +398,9 @@ class PickSupervisor(LeafSystem):
                 placing = phase.goal in (PlaceGoal.CARRY, PlaceGoal.SET_DOWN) and status.task == self.tasks.main
                 if placing and status.spare_spots:
                     (X_WO, footprint), *rest = status.spare_spots  # no plan to this spot: carry it to the next one
-                    where = "the next spot in the drop zone" if self.clears else f"{PLACE_NUDGE_M * 100:.0f} cm off it"
+                    off = X_WO.translation() - (self.place_target_W or X_WO).translation()  # (a place's target moved)
+                    where = f"{100 * np.linalg.norm(off):.1f} cm off the target"
+                    where = "the next spot in the drop zone" if self.clears else where
                     logging.warning("%s; trying %s", plan.message, where)
                     status.place_target_W, status.spare_spots = X_WO, tuple(rest)
                     if self.clears:

@@ -293,13 +293,14 @@ def test_a_look_after_the_place_takes_an_object_off_its_target_again_once():
     assert status.mode == "done" and status.place_corrections == 0
 
 
-def test_a_set_down_with_no_plan_tries_the_place_target_a_centimetre_off_it():
-    """No plan sets the object down on the target: it is carried 1 cm off it (towards the robot first) and set
-    down there; where no nudge has a plan either, the pick fails at planning."""
+def test_a_set_down_with_no_plan_tries_the_place_target_half_a_centimetre_and_a_centimetre_off_it():
+    """No plan sets the object down on the target: it is carried 5 mm off it (towards the robot first, then away,
+    then to either side), then 1 cm, and set down there; where no nudge has a plan either, the pick fails at
+    planning."""
     target = RigidTransform([0.7, 0.0, 0.8])
     dut, context, simulator = _place_supervisor(target)
     tried = []
-    for _ in range(5):
+    for _ in range(9):
         status, _ = _play_until(dut, context, simulator, "set_down", target)
         assert status.mode == "set_down"
         tried.append(dut.GetOutputPort("status").Eval(context).place_target_W)
@@ -313,7 +314,8 @@ def test_a_set_down_with_no_plan_tries_the_place_target_a_centimetre_off_it():
         assert status.mode == "carry" and status.task == TaskName.PLACE
     assert tried[0] is None  # the target itself first
     offsets = [np.round(X.translation() - target.translation(), 6).tolist() for X in tried[1:]]
-    assert offsets == [[-0.01, 0.0, 0.0], [0.01, 0.0, 0.0], [0.0, -0.01, 0.0], [0.0, 0.01, 0.0]]
+    directions = [[-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 1.0, 0.0]]
+    assert offsets == [[n * c for c in d] for n in (0.005, 0.01) for d in directions]
     assert status.mode == "failed" and status.failed_stage == "planning" and "near the box" in status.message
 
 
