@@ -398,9 +398,8 @@ class PickSupervisor(LeafSystem):
                 placing = phase.goal in (PlaceGoal.CARRY, PlaceGoal.SET_DOWN) and status.task == self.tasks.main
                 if placing and status.spare_spots:
                     (X_WO, footprint), *rest = status.spare_spots  # no plan to this spot: carry it to the next one
-                    off = X_WO.translation() - (self.place_target_W or X_WO).translation()  # (a place's target moved)
-                    where = f"{100 * np.linalg.norm(off):.1f} cm off the target"
-                    where = "the next spot in the drop zone" if self.clears else where
+                    x, y = X_WO.translation()[:2]  # (a place's: its target moved, place_goals.nudged_targets)
+                    where = "the next spot in the drop zone" if self.clears else f"the target at ({x:.3f}, {y:.3f})"
                     logging.warning("%s; trying %s", plan.message, where)
                     status.place_target_W, status.spare_spots = X_WO, tuple(rest)
                     if self.clears:
