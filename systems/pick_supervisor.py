@@ -398,8 +398,9 @@ class PickSupervisor(LeafSystem):
                 placing = phase.goal in (PlaceGoal.CARRY, PlaceGoal.SET_DOWN) and status.task == self.tasks.main
                 if placing and status.spare_spots:
                     (X_WO, footprint), *rest = status.spare_spots  # no plan to this spot: carry it to the next one
-                    x, y = X_WO.translation()[:2]  # (a place's: its target moved, place_goals.nudged_targets)
-                    where = "the next spot in the drop zone" if self.clears else f"the target at ({x:.3f}, {y:.3f})"
+                    where = "the next spot in the drop zone"
+                    if not self.clears:  # a place's target moved (place_goals.nudged_targets)
+                        where = "the target at ({:.3f}, {:.3f})".format(*X_WO.translation()[:2])
                     logging.warning("%s; trying %s", plan.message, where)
                     status.place_target_W, status.spare_spots = X_WO, tuple(rest)
                     if self.clears:
