@@ -67,7 +67,7 @@ def held_goal_motion(
 
 
 def move_request(
-    phase: Phase, status: PickStatus, place_target_W: RigidTransform, measured_q: np.ndarray
+    phase: Phase, status: PickStatus, place_target_W: RigidTransform | None, measured_q: np.ndarray
 ) -> PlanRequest:
     """The next PlanRequest, for a move phase, from where the last plan ended: a held goal's motion from where the
     object is believed to be (or the phase's own motion), its targets, and a joint goal where it names one (HOME:

@@ -322,7 +322,8 @@ class PickSupervisor(LeafSystem):
         status.mode = phase.name
         if phase.kind == PhaseKind.MOVE:
             measured_q = self.position_port.Eval(context)
-            status.request = move_request(phase, status, self._place_target(status), measured_q)
+            place_target_W = self._place_target(status) if phase.goal is not None else None  # (no belief going home)
+            status.request = move_request(phase, status, place_target_W, measured_q)
         elif phase.kind in (PhaseKind.CLOSE, PhaseKind.OPEN):
             width = phase.hand_width + (max(status.grasp_widths, default=OPEN_WIDTH) if phase.beyond_grasp else 0.0)
             status.hand = HandCommand(min(width, OPEN_WIDTH), status.hand.at(t), t, CLOSE_S)

@@ -207,6 +207,24 @@ def test_a_perceived_object_gets_a_spot_in_the_zone_and_the_place_task_carries_i
     assert ZONE.contains(status.current.footprint_W, DROP_OVERHANG_M + 1e-9).all()
 
 
+def test_after_an_object_is_cleared_the_frame_of_the_scene_sends_the_arms_home_with_no_object_believed():
+    """Between two objects the supervisor believes no object (the next is not seen yet): the move home needs none.
+    (A move's place target was read from the belief on every move once: the second object of every table ended
+    the clear with an AttributeError.)"""
+    X_WO = RigidTransform([0.7, 0.1, 0.8])
+    shape = X_WO.multiply(np.array([[x, y, z] for x in (-0.1, 0.1) for y in (-0.05, 0.05) for z in (0, 0.2)]).T).T
+    seen = PerceptionResult(True, category="drill", X_WO_seen=X_WO, points_W=shape, reconstruction_W=shape)
+    dut, context, simulator = _clear_supervisor(seen)
+    cleared = ClearedObject("watering_can", (0.7, -0.06), attempts=1, cleared=True, target_xy_W=(0.67, -0.22))
+    backed_off = Q0 + 0.1
+    between = PickStatus(Mode.PERCEIVING, perceive_id=1, plan_end_q=backed_off, q_home=Q0, objects=(cleared,))
+    context.get_mutable_abstract_state(0).set_value(dataclasses.replace(between, homing=True))
+    simulator.AdvanceTo(0.1)
+    status = dut.GetOutputPort("status").Eval(context)
+    assert status.task == TaskName.HOME and status.belief is None and not status.homing
+    assert np.array_equal(status.request.q_goal, Q0) and np.array_equal(status.request.q_start, backed_off)
+
+
 @pytest.mark.slow
 def test_the_tables_to_clear_are_seeded_and_keep_their_promises(scenario):
     for k in range(3):
