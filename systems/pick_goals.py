@@ -71,7 +71,8 @@ def move_request(
 ) -> PlanRequest:
     """The next PlanRequest, for a move phase, from where the last plan ended: a held goal's motion from where the
     object is believed to be (or the phase's own motion), its targets, and a joint goal where it names one (HOME:
-    where the pick started; MEASURED: where the arms are measured, `measured_q`, rad)."""
+    where the pick started; MEASURED: where the arms are measured, `measured_q`, rad). `place_target_W`: where a
+    held goal sets the object down (None for a move without a held goal: between a clear's objects none is believed)."""
     X_motion_W, carried, left_out = phase.X_motion_W or RigidTransform(), None, None
     if phase.goal is not None:
         X_motion_W, carried, left_out = held_goal_motion(phase.goal, status, place_target_W)
