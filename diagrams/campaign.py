@@ -18,12 +18,13 @@ import os
 import time
 from collections.abc import Iterator
 from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures.process import BrokenProcessPool
 from multiprocessing import get_context
 from pathlib import Path
 
 from tqdm import tqdm
 
-from diagrams.evaluation import Trial, record_key, run_trial_in_worker, trial_key, wilson_interval
+from diagrams.evaluation import Trial, crashed_record, record_key, run_trial_in_worker, trial_key, wilson_interval
 
 # Every pick runs in a worker process with single-threaded numerics (torch, BLAS, OpenMP), one pick per CPU:
 # threaded reductions round differently, and a pick in a multi-threaded process lifted its can 12 um higher
@@ -78,11 +79,35 @@ def _single_threaded_children() -> Iterator[None]:
                 os.environ[name] = value
 
 
-def _in_pool(function, items: list, jobs: int) -> Iterator[tuple[int, object]]:
+def _in_pool(function, items: list, jobs: int, on_crash) -> Iterator[tuple[int, object]]:
+    """(n, function(items[n])) as each finishes in `jobs` workers. A worker that dies (the simulator's C++ aborts
+    its process: a simulation blown up to NaN) breaks the whole pool: the items it left unfinished run again one at
+    a time, each in a pool of its own, and one that dies alone too gives on_crash(item, why)."""
+    left = dict(enumerate(items))
+    try:
+        for n, result in _pooled(function, left, jobs):
+            del left[n]
+            yield n, result
+    except BrokenProcessPool as error:
+        logging.warning("a worker process died (%s): its %d unfinished items run again one by one", error, len(left))
+    for n, item in list(left.items()):
+        try:
+            ((_, result),) = _pooled(function, {n: item}, 1)
+        except BrokenProcessPool as error:
+            result = on_crash(item, str(error) or type(error).__name__)
+        yield n, result
+
+
+def _pooled(function, items: dict, jobs: int) -> Iterator[tuple[int, object]]:
+    """(n, function(item)) for each of items {n: item}, as each finishes in `jobs` spawned worker processes."""
     with _single_threaded_children(), ProcessPoolExecutor(jobs, mp_context=get_context("spawn")) as pool:
-        futures = {pool.submit(function, item): n for n, item in enumerate(items)}
+        futures = {pool.submit(function, item): n for n, item in items.items()}
         for future in as_completed(futures):
             yield futures[future], future.result()
+
+
+def _reraise(item, why: str):
+    raise RuntimeError(f"a worker process died on {item!r}: {why}")
 
 
 def _on_ray(function, items: list, address: str, jobs: int) -> Iterator[tuple[int, object]]:
@@ -103,17 +128,20 @@ def _on_ray(function, items: list, address: str, jobs: int) -> Iterator[tuple[in
             ray.shutdown()
 
 
-def fan_out(function, items: list, jobs: int = 1, ray_address: str | None = None) -> Iterator[tuple[int, object]]:
+def fan_out(
+    function, items: list, jobs: int = 1, ray_address: str | None = None, on_crash=_reraise
+) -> Iterator[tuple[int, object]]:
     """(item number, function(item)) as each finishes, computed in `jobs` single-threaded worker processes, or as
     Ray tasks of one CPU when ray_address is not None ("" starts a local Ray with `jobs` CPUs).
 
-    `function` must be importable by the workers (a module-level function of the installed packages).
+    `function` must be importable by the workers (a module-level function of the installed packages). An item
+    whose worker process dies gives on_crash(item, why) (local workers; default: a RuntimeError).
     """
     if ray_address is not None and importlib.util.find_spec("ray") is None:
         raise RuntimeError(RAY_MISSING)
     if ray_address is not None:
         return _on_ray(function, items, ray_address, jobs)
-    return _in_pool(function, items, jobs)
+    return _in_pool(function, items, jobs, on_crash)
 
 
 def run_campaign(
@@ -145,7 +173,7 @@ def run_campaign(
     todo = [trial for trial in trials if trial_key(trial) not in done]
     if done:
         print(f"resuming: {len(done)} of {len(trials)} picks already in {records_path}, {len(todo)} to run")
-    finished = fan_out(run_trial_in_worker, todo, jobs, ray_address)
+    finished = fan_out(run_trial_in_worker, todo, jobs, ray_address, on_crash=crashed_record)
     successes = sum(r["success"] for r in done.values())
     bar = tqdm(total=len(trials), initial=len(done), unit="pick", dynamic_ncols=True)
     start = time.perf_counter()

@@ -162,11 +162,15 @@ def run_trial_in_worker(trial: Trial) -> dict:
     return run_trial(trial)
 
 
-def run_trial(trial: Trial) -> dict:
-    """Runs one autonomous pick in simulation; a JSON-ready record of what happened."""
-    from diagrams.autonomous_pick import run_pick  # (heavy: torch, the shape spaces)
+def crashed_record(trial: Trial, why: str) -> dict:
+    """The record of a trial whose worker process died before it ended (`why`: how it died)."""
+    message = f"the simulation's process died ({why}); nothing of the pick was recorded"
+    return _trial_record(trial) | {"success": False, "failed_stage": "crash", "message": message, "stages": {}}
+
+
+def _trial_record(trial: Trial) -> dict:
+    """What a trial's record says before it runs: its scenario and seed."""
     from systems.perception.pose_noise import draw_yaw_offset
-    from systems.planning.pick_motions import PlanningError
 
     scenario = trial.scenario
     record = {
@@ -185,6 +189,16 @@ def run_trial(trial: Trial) -> dict:
     if scenario.clutter:
         record["clutter"] = [clutter_name(other) for other in scenario.clutter]
         record["requested_category"] = scenario.requested_category
+    return record
+
+
+def run_trial(trial: Trial) -> dict:
+    """Runs one autonomous pick in simulation; a JSON-ready record of what happened."""
+    from diagrams.autonomous_pick import run_pick  # (heavy: torch, the shape spaces)
+    from systems.planning.pick_motions import PlanningError
+
+    scenario = trial.scenario
+    record = _trial_record(trial)
     if trial.with_oracle:
         record["xy"] = list(scenario.object.xy)
         record["oracle"] = _oracle_record(scenario)

@@ -27,6 +27,7 @@ from systems.perception.pose_estimator import CategoryPrior, PoseEstimator
 from systems.perception.pose_noise import PoseYawOffset, draw_yaw_offset
 from systems.perception.robot_spheres import RobotSpheres
 from systems.perception.scene_cloud import SEEN_SPACING_M, SceneCloud
+from systems.perception.scene_memory import SceneMemory
 from systems.perception.segmenter import Segmenter
 from systems.perception.shape_registrar import ShapeRegistrar
 
@@ -126,7 +127,8 @@ def MakePerception(
 ) -> Diagram:
     """Perception as one subsystem ("perception"): camera_latch -> segmenter -> pose_estimator ->
     [registration_yaw_noise] -> shape_registrar, gathered by perception_result; with robot_spheres, also
-    scene_cloud: the rest of the scene as seen (systems/perception/scene_cloud.py).
+    scene_cloud: the rest of the scene as seen (systems/perception/scene_cloud.py), and scene_memory: with what the
+    robot hides in the frame remembered from the frame before (systems/perception/scene_memory.py).
 
     Input ports: color_image, depth_image, camera_pose (the camera's), trigger (1: the frame wanted), image_health
     (optional LinkHealth: the latch waits for fresh images), and with
@@ -196,7 +198,18 @@ def MakePerception(
             ("object_cloud_W", registrar.GetOutputPort("reconstructed_cloud_W")),
         ):
             builder.Connect(source, scene.GetInputPort(port))
-        builder.ExportOutput(scene.GetOutputPort("scene_cloud_W"), "scene_cloud_W")
+        memory = builder.AddNamedSystem("scene_memory", SceneMemory(intrinsics, X_BC, offset_s=latch_offset(scenario)))
+        for port, source in (
+            ("scene_cloud_W", scene.GetOutputPort("scene_cloud_W")),
+            ("depth_image", latch.GetOutputPort("depth_image")),
+            ("camera_pose", latch.GetOutputPort("camera_pose")),
+            ("robot_spheres_W", robot.GetOutputPort("spheres_W")),
+            ("object_cloud_W", registrar.GetOutputPort("reconstructed_cloud_W")),
+            ("frame_id", latch.GetOutputPort("frame_id")),
+        ):
+            builder.Connect(source, memory.GetInputPort(port))
+        builder.ConnectInput("trigger", memory.GetInputPort("trigger"))
+        builder.ExportOutput(memory.GetOutputPort("scene_cloud_W"), "scene_cloud_W")
     if scenario.task == "aim":  # the board and its target, in the same frame
         board = builder.AddNamedSystem("board_finder", BoardFinder(*depth_camera(scenario)))
         for port in ("color_image", "depth_image", "camera_pose"):

@@ -116,6 +116,16 @@ def test_workers_run_single_threaded_and_the_callers_environment_is_left_as_it_w
     assert "OMP_NUM_THREADS" not in os.environ and os.environ["OPENBLAS_NUM_THREADS"] == "2"
 
 
+def test_an_item_whose_worker_process_dies_is_named_and_the_others_still_finish():
+    """A C++ abort in the simulator (a simulation blown up to NaN) takes its worker process with it; the campaign
+    used to end there, every unfinished pick lost. Here the second item kills its worker."""
+    items = ["1 + 1", "__import__('os')._exit(3)", "2 + 2"]
+    results = dict(campaign.fan_out(eval, items, jobs=2, on_crash=lambda item, why: ("died", item)))
+    assert results == {0: 2, 1: ("died", items[1]), 2: 4}
+    with pytest.raises(RuntimeError, match="a worker process died on"):
+        dict(campaign.fan_out(eval, items[1:2], jobs=1))
+
+
 def test_ray_missing_is_said_with_how_to_get_it(scenario, monkeypatch):
     monkeypatch.setitem(sys.modules, "ray", None)  # as if it were not installed
     with pytest.raises(RuntimeError, match=r"pip install -e '\.\[cluster\]'"):

@@ -20,14 +20,19 @@ class SphereGroup(IntEnum):
     RIGHT = 2  # the right arm and hand
 
 
-def off_the_robot(points_W: np.ndarray, robot_spheres_W: np.ndarray, margin: float) -> np.ndarray:
-    """The points (N x 3 in W) farther than `margin` (m) from every sphere (S x 4: centre in W, radius; m)."""
-    if not len(robot_spheres_W) or not len(points_W):
-        return points_W
+def on_the_robot(points_W: np.ndarray, robot_spheres_W: np.ndarray, margin: float) -> np.ndarray:
+    """Which points (N x 3 in W) lie within `margin` (m) of a sphere (S x 4: centre in W, radius; m): N bools."""
     on_robot = np.zeros(len(points_W), bool)
+    if not len(robot_spheres_W) or not len(points_W):
+        return on_robot
     for index in cKDTree(points_W).query_ball_point(robot_spheres_W[:, :3], robot_spheres_W[:, 3] + margin):
         on_robot[index] = True
-    return points_W[~on_robot]
+    return on_robot
+
+
+def off_the_robot(points_W: np.ndarray, robot_spheres_W: np.ndarray, margin: float) -> np.ndarray:
+    """The points (N x 3 in W) farther than `margin` (m) from every sphere (S x 4: centre in W, radius; m)."""
+    return points_W[~on_the_robot(points_W, robot_spheres_W, margin)]
 
 
 @dataclass
