@@ -68,8 +68,11 @@ def given_up(status: PickStatus, in_zone: bool) -> ClearedObject:
 
 
 def left_out(zone: DropZone | None, status: PickStatus) -> LeftOut:
-    """What perception leaves out looking for the next object: the zone, and where the objects given up stood."""
-    return LeftOut(zone, tuple(done.seen_outline_W for done in status.objects[status.pass_from :] if not done.cleared))
+    """What perception leaves out looking for the next object: the zone, where the objects given up stood, and
+    where those set down in the zone stand (their footprints at their spots)."""
+    given_up = tuple(done.seen_outline_W for done in status.objects[status.pass_from :] if not done.cleared)
+    placed = tuple(done.footprint_W for done in status.objects if done.cleared and done.footprint_W is not None)
+    return LeftOut(zone, given_up, placed)
 
 
 def next_pass(status: PickStatus) -> int | None:

@@ -387,10 +387,11 @@ class ObjectBelief:
 @dataclass(frozen=True)
 class LeftOut:
     """What the clear task's segmenter leaves out when it looks for the next object: the drop zone (objects there are
-    cleared) and where the objects it gave up on stood."""
+    cleared, and so are those near where it set objects down) and where the objects it gave up on stood."""
 
     zone: DropZone | None = None  # None: no zone
     given_up_W: tuple[np.ndarray, ...] = ()  # the outlines of the objects given up, as seen (M x 2, x, y in W, m)
+    placed_W: tuple[np.ndarray, ...] = ()  # the footprints of the objects set down in the zone, at their spots (ditto)
 
 
 @dataclass(frozen=True)

@@ -103,6 +103,10 @@ def test_the_segmenter_takes_the_familiar_object_nearest_the_zone_and_leaves_out
     assert "1 given up" in segmentation.message
     segmentation, _ = chosen(LeftOut(given_up_W=(first, _around(centre))))
     assert not segmentation.found and segmentation.message.startswith("nothing to clear"), segmentation.message
+    # Set down in the zone, but seen with its points' centre 2.5 cm off the footprint at its spot: still placed.
+    placed = _around(first.mean(axis=0) + [0.0, -0.025 - 0.01], half_size=0.01)
+    segmentation, centre = chosen(LeftOut(placed_W=(placed,)))
+    assert segmentation.found and nearest(centre) == 1 and "1 in the drop zone" in segmentation.message
 
 
 @pytest.mark.slow

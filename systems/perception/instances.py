@@ -216,6 +216,11 @@ def named_object(instances: list[Instance], classes, category: str, shape) -> Se
 # m: an object whose points' centre (x, y) lies this near the outline of one the clear task gave up (the convex outline
 # of its points, completed) is that object (the centre of a drill's points may lie between its handles)
 GIVEN_UP_MARGIN_M = 0.03
+# m: an object whose points' centre lies this near the footprint of one the clear set down in the zone is that one: it
+# stands within the place's 2 cm of its spot, and a camera that sees its near side only puts the centre on the robot's
+# side of it, outside the zone where the spot is at its edge (report table 0, 2026-12-05: a can set down 4 cm inside
+# the zone's edge, seen with its centre on the edge, was taken on again and carried out of the zone)
+PLACED_MARGIN_M = 0.03
 # m: an object whose lowest seen points are higher above the table top does not stand on it (the arms backed off above
 # it do not; an object whose base another hides may show its lowest points several centimetres up)
 CLEAR_FLOAT_M = 0.10
@@ -231,7 +236,8 @@ def next_object(
     table_top_z: float,
 ) -> Segmentation:
     """The clear task's next object: of the objects the network labelled one of its categories (each at least
-    CANDIDATE_SHARE of the largest of its category left), not standing in the drop zone (its points' centre) nor where
+    CANDIDATE_SHARE of the largest of its category left), not standing in the drop zone (its points' centre in it,
+    or within PLACED_MARGIN_M of the footprint of an object set down there) nor where
     an object was given up (left_out: its points' centre within GIVEN_UP_MARGIN_M of one's outline), the one nearest
     first_near_W (its points' centre, x and y, m: the drop zone's centre; the objects nearest it stand in the way of
     the others' carries).
@@ -243,7 +249,8 @@ def next_object(
         if not len(points) or np.percentile(points[:, 2], LOWEST_PERCENTILE) - table_top_z > CLEAR_FLOAT_M:
             continue  # (not standing on the table)
         centre = points.mean(axis=0)
-        if left_out.zone is not None and left_out.zone.contains(centre[:2]):
+        placed = any(distance_to(footprint, centre[:2]) <= PLACED_MARGIN_M for footprint in left_out.placed_W)
+        if placed or (left_out.zone is not None and left_out.zone.contains(centre[:2])):
             in_zone += 1
         elif any(distance_to(outline, centre[:2]) <= GIVEN_UP_MARGIN_M for outline in left_out.given_up_W):
             given_up += 1
