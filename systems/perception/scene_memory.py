@@ -134,8 +134,11 @@ class SceneMemory(LeafSystem):
         frame_id = float(self.GetInputPort("frame_id").Eval(context)[0])
         scene_W = self.GetInputPort("scene_cloud_W").Eval(context)
         image = self.GetInputPort("depth_image").Eval(context)
-        if frame_id == remembered.frame_id or image.width() == 0:
-            output.set_value(remembered.scene_W if frame_id == remembered.frame_id else scene_W)
+        if frame_id == remembered.frame_id:  # (the latch still waits for the frame after the one remembered)
+            output.set_value(remembered.scene_W)
+            return
+        if image.width() == 0:  # no frame yet
+            output.set_value(scene_W)
             return
         X_WC = self.GetInputPort("camera_pose").Eval(context) @ self.X_BC
         output.set_value(
