@@ -12,11 +12,13 @@ from pydrake.geometry import Meshcat, MeshcatParams
 from diagrams.autonomous_pick import run_pick
 from diagrams.scenario import replace_object
 
-# ENVIRONMENT.md: what renders meshcat's WebGL page headless here (software GL, no network).
+# ENVIRONMENT.md: what renders meshcat's WebGL page headless here (software GL, no network), plus `--timeout`:
+# Chromium 156 (Debian's of 2026-11-26) never ends the 5 s of virtual time on a recorded pick's page (its animation
+# plays), on an idle machine too; the real-time stop after 30 s ends it with the page drawn (4-13 s seen here).
 CHROMIUM_FLAGS = (
     "--headless --no-sandbox --disable-gpu --disable-quic --no-first-run --disable-background-networking "
     "--disable-component-update --disable-sync --enable-unsafe-swiftshader --window-size=1024,768 "
-    "--virtual-time-budget=5000"
+    "--virtual-time-budget=5000 --timeout=30000"
 ).split()
 
 
@@ -25,17 +27,13 @@ def screenshot(html: Path, tmp_path: Path) -> np.ndarray:
     chromium = shutil.which("chromium")
     assert chromium, "chromium is not installed: `make apt` installs it"
     png = html.with_suffix(".png")
-    # Headless Chromium now and then never ends its virtual time on a loaded machine (once in a `make test`, 120 s;
-    # the same page alone took seconds): a second try with a fresh profile, then the timeout stands.
-    for attempt in range(2):
-        profile = tmp_path / f"profile_{html.stem}_{attempt}"
-        command = [chromium, *CHROMIUM_FLAGS, f"--user-data-dir={profile}", f"--screenshot={png}", html.as_uri()]
-        try:
-            subprocess.run(command, check=True, capture_output=True, timeout=120)
-            break
-        except subprocess.TimeoutExpired:
-            if attempt == 1:
-                raise
+    command = [
+        chromium,
+        *CHROMIUM_FLAGS,
+        f"--user-data-dir={tmp_path / ('profile_' + html.stem)}",
+        f"--screenshot={png}",
+    ]
+    subprocess.run([*command, html.as_uri()], check=True, capture_output=True, timeout=180)
     image = cv2.imread(str(png))
     assert image is not None, f"chromium wrote no screenshot {png}"
     return cv2.cvtColor(image, cv2.COLOR_BGR2HSV)
