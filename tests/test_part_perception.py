@@ -12,7 +12,9 @@ import pytest
 from diagrams.benchmarks.part_perception import perceive_view
 from diagrams.benchmarks.registration import true_grasps
 from diagrams.generation.objects import catalog
+from diagrams.generation.synthetic_scenes import SyntheticScene
 from systems.messages import PartRole
+from systems.perception import part_crop
 from systems.perception.part_segmenter import DEFAULT_PART_WEIGHTS, PartSegmenter
 
 
@@ -20,6 +22,33 @@ def test_the_part_network_is_shipped_and_names_the_roles():
     network = PartSegmenter()
     assert DEFAULT_PART_WEIGHTS.is_file() and network.metadata["classes"] == [r.name for r in PartRole]
     assert network.parts_of(np.zeros((48, 64, 3), np.uint8), np.zeros((48, 64), bool)).max() == 0
+
+
+def test_the_best_class_at_the_masks_pixels_comes_from_the_window_resized_also_where_it_leaves_the_image():
+    mask = np.zeros((40, 60), bool)
+    mask[0:10, 50:60] = True  # the image's top-right corner: the window about it reaches past the image
+    window = part_crop.window_about(mask)
+    assert window.row < 0 and window.column + window.side > 60
+    scores = np.zeros((2, 8, 8), np.float32)
+    scores[1, :4, :] = 1.0  # class 1 best in the window's top half, class 0 in its bottom half
+    best = part_crop.best_class_at(scores, window, mask)
+    rows = np.nonzero(mask)[0] - window.row  # in the window
+    top, bottom = rows < window.side / 2 - 1, rows > window.side / 2 + 1
+    assert top.any() and bottom.any() and (best[top] == 1).all() and (best[bottom] == 0).all()
+    with pytest.raises(ValueError, match="outside the window"):
+        part_crop.best_class_at(scores, part_crop.Window(20, 0, 10), mask)
+
+
+def test_the_part_network_in_bfloat16_labels_a_rendered_can_as_in_float32(scenario):
+    """bfloat16 runs where the CPU has it natively (PartSegmenter's default there): the same parts, near enough."""
+    scene = SyntheticScene(scenario, np.random.default_rng(3), classes=("background", "watering_can"),
+                           instances=("train_0",), cameras=1, camera_jitter=False)  # fmt: skip
+    frame = scene.render(placement=("watering_can", "train_0", 0.4, np.array([0.75, 0.05])))
+    mask = frame.labels == 1
+    float32 = PartSegmenter(bfloat16=False).parts_of(frame.rgb, mask)
+    bfloat16 = PartSegmenter(bfloat16=True).parts_of(frame.rgb, mask)
+    assert np.count_nonzero(mask) > 2000 and len(np.unique(float32[mask])) >= 3
+    assert np.mean(float32[mask] == bfloat16[mask]) > 0.97
 
 
 @pytest.mark.slow

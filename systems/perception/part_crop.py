@@ -61,15 +61,21 @@ def cut(image: np.ndarray, window: Window, size: int = PART_INPUT, labels: bool 
     return cv2.resize(np.ascontiguousarray(piece), (size, size), interpolation=interpolation)
 
 
-def pasted(scores: np.ndarray, window: Window, shape: tuple[int, int]) -> np.ndarray:
-    """Per-class scores of a window (C x size x size) back in an image of `shape` (C x H x W): resized to the window
-    (bilinear), the part outside the window's reach -inf."""
-    out = np.full((scores.shape[0], *shape), -np.inf, np.float32)
-    resized = np.stack([cv2.resize(s, (window.side, window.side), interpolation=cv2.INTER_LINEAR) for s in scores])
+def best_class_at(scores: np.ndarray, window: Window, mask: np.ndarray) -> np.ndarray:
+    """The best class at each of the mask's pixels, from a window's per-class scores (C x size x size) resized to
+    the window (bilinear): an int array in the order of `image[mask]`.
+
+    Args:
+        mask: H x W bool, every pixel inside the window (a window about the mask is).
+
+    Raises:
+        ValueError: a mask pixel outside the window.
+    """
     top, left = max(window.row, 0), max(window.column, 0)
-    bottom, right = min(window.row + window.side, shape[0]), min(window.column + window.side, shape[1])
-    if bottom > top and right > left:
-        out[:, top:bottom, left:right] = resized[
-            :, top - window.row : bottom - window.row, left - window.column : right - window.column
-        ]
-    return out
+    bottom, right = min(window.row + window.side, mask.shape[0]), min(window.column + window.side, mask.shape[1])
+    inside = mask[top:bottom, left:right]
+    if np.count_nonzero(inside) != np.count_nonzero(mask):
+        raise ValueError(f"the mask reaches outside the window {window}")
+    resized = np.stack([cv2.resize(s, (window.side, window.side), interpolation=cv2.INTER_LINEAR) for s in scores])
+    seen = resized[:, top - window.row : bottom - window.row, left - window.column : right - window.column]
+    return np.argmax(seen[:, inside], axis=0)

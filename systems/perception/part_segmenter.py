@@ -3,8 +3,12 @@
 A RefineNet-style network (segmentation_network.RefineNetLite, its classes the PartRole values) reads the square
 window about the object's mask (part_crop) at the camera's resolution or finer, so that handles a few pixels thick
 at the segmenter's input size are 10-20 pixels thick here. Its scores, with the mirror image's (test-time flip),
-are pasted back into the camera image; the object's pixels take the best part role (PartRole.NONE is never given
-to an object pixel: the mask says what is the object, the part network only which part of it).
+are resized back to the window in the camera image; the object's pixels take the best part role (PartRole.NONE is
+never given to an object pixel: the mask says what is the object, the part network only which part of it).
+
+On a CPU that computes bfloat16 natively (AVX512-BF16 or AMX) the network runs in bfloat16: 10-25 % faster than
+float32 on these 2 cores (benchmark_perception.py --parts: 16.6 against 18.6 ms a frame, 2026-12-05), the same part
+on 99.9 % of a rendered can's pixels. Elsewhere bfloat16 is emulated and slow, and it runs in float32.
 """
 
 from pathlib import Path
@@ -19,13 +23,22 @@ from systems.perception.parts import PartRole
 DEFAULT_PART_WEIGHTS = MODELS_DIR / "part_segmenter.pt"
 
 
+def native_bfloat16() -> bool:
+    """Whether this CPU computes bfloat16 convolutions natively (oneDNN's own test; False where torch lacks it)."""
+    try:
+        return bool(torch.ops.mkldnn._is_mkldnn_bf16_supported())
+    except (AttributeError, RuntimeError):
+        return False
+
+
 class PartSegmenter:
     """Labels an object's pixels with their functional parts (PartRole)."""
 
-    def __init__(self, weights: Path = DEFAULT_PART_WEIGHTS, flip: bool = True):
+    def __init__(self, weights: Path = DEFAULT_PART_WEIGHTS, flip: bool = True, bfloat16: bool | None = None):
         """Args:
         weights: the part network's (scripts/train_part_network.py).
         flip: also read the mirror image and sum the two score maps.
+        bfloat16: run the network in bfloat16; None: where the CPU computes it natively (native_bfloat16).
 
         Raises:
             FileNotFoundError: no such weights.
@@ -35,16 +48,17 @@ class PartSegmenter:
         roles = tuple(metadata.get("classes", ()))
         if roles != tuple(role.name for role in PartRole):
             raise ValueError(f"{weights} is no part network: its classes are {roles}")
-        self.model = model.to(memory_format=torch.channels_last)
+        self.dtype = torch.bfloat16 if (native_bfloat16() if bfloat16 is None else bfloat16) else torch.float32
+        self.model = model.to(self.dtype, memory_format=torch.channels_last)
         self.flip = flip
         self.metadata = metadata
 
     def scores(self, window_rgb: np.ndarray) -> np.ndarray:
         """The network's part scores (len(PartRole) x S x S) for one window (S x S x 3 uint8)."""
-        x = segmentation_network.to_input(window_rgb)
+        x = segmentation_network.to_input(window_rgb).to(self.dtype)
         batch = torch.cat([x, x.flip(-1)]) if self.flip else x
         with torch.no_grad():
-            out = self.model(batch.contiguous(memory_format=torch.channels_last))
+            out = self.model(batch.contiguous(memory_format=torch.channels_last)).float()
         scores = out[0] + out[1].flip(-1) if self.flip else out[0]
         return scores.numpy()
 
@@ -59,7 +73,6 @@ class PartSegmenter:
         window = part_crop.window_about(mask)
         if window is None:
             return parts
-        scores = part_crop.pasted(self.scores(part_crop.cut(rgb[:, :, :3], window)), window, mask.shape)
-        object_scores = scores[1:, mask]  # every role but NONE
-        parts[mask] = (np.argmax(object_scores, axis=0) + 1).astype(np.uint8)
+        window_scores = self.scores(part_crop.cut(rgb[:, :, :3], window))[1:]  # every role but NONE
+        parts[mask] = (part_crop.best_class_at(window_scores, window, mask) + 1).astype(np.uint8)
         return parts
