@@ -129,7 +129,7 @@ def MakePickDiagram(
     n = motions.world.kinematics.dof  # the planned joints: the arms, and the torso if it is free
     margin = GRASP_DEPTH_MARGIN if perception == "camera" else 0.0
     planner = builder.AddNamedSystem("stomp_planner", StompPlanner(motions, latency_s, margin))
-    source = builder.AddNamedSystem("trajectory_source", JointTrajectorySource(n))
+    source = builder.AddNamedSystem("trajectory_source", JointTrajectorySource(n, pause_at_last_status=hardware))
     hands = builder.AddNamedSystem("hand_command", HandCommandSource())
     from_camera = perception == "camera"
     held_looks = scenario.place.looks and scenario.task in ("place", "aim", "pour", "clear")

@@ -66,6 +66,33 @@ def test_the_trajectory_source_pauses_while_the_status_is_stale_and_plays_on_fro
     np.testing.assert_allclose(source.GetOutputPort("position").Eval(context), [1.0, 1.0])
 
 
+def test_behind_a_command_guard_the_source_pauses_where_the_plan_was_at_the_last_status():
+    """The guard holds the position the robot last reported; the status is stale only a watchdog period later. So
+    the pause holds the plan's point at the last status (0.3 s: 0.15 rad), and the plan goes on from there once
+    the status returns: nothing the robot never received is caught up (a restarted driver's can swept off)."""
+    source = JointTrajectorySource(num_joints=2, pause_at_last_status=True)
+    simulator = Simulator(source)
+    context = simulator.get_mutable_context()
+    source.GetInputPort("plan").FixValue(context, _plan(0.0, 2.0))
+    source.GetInputPort("position_measured").FixValue(context, np.zeros(2))
+    health = source.GetInputPort("status_health")
+    health.FixValue(context, FRESH)
+    simulator.AdvanceTo(1.3)
+    health.FixValue(context, dataclasses.replace(FRESH, received_at=0.3, stale=True))
+    simulator.AdvanceTo(1.8)
+    np.testing.assert_allclose(source.GetOutputPort("position").Eval(context), [0.15, 0.15], atol=1e-9)
+    assert source.GetOutputPort("playback").Eval(context).paused_for_s == pytest.approx(1.5, abs=0.01)
+    health.FixValue(context, dataclasses.replace(FRESH, received_at=1.8))
+    simulator.AdvanceTo(2.3)  # back: on from 0.15 rad, half a second played since
+    np.testing.assert_allclose(source.GetOutputPort("position").Eval(context), [0.4, 0.4], atol=0.01)
+    # A status that stopped before the plan started: held at the plan's start.
+    source.GetInputPort("plan").FixValue(context, _plan(2.4, 3.4, plan_id=2))
+    simulator.AdvanceTo(2.6)
+    health.FixValue(context, dataclasses.replace(FRESH, received_at=2.35, stale=True))
+    simulator.AdvanceTo(3.0)
+    np.testing.assert_allclose(source.GetOutputPort("position").Eval(context), [0.0, 0.0], atol=1e-9)
+
+
 def test_a_stopped_plan_is_held_where_it_was_stopped_until_the_next_plan():
     source, simulator, context = _source_playing()
     source.GetInputPort("status_health").FixValue(context, FRESH)

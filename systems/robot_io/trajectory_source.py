@@ -2,8 +2,13 @@
 
 While the robot's status is stale (``status_health``), the source pauses: it holds the point of the trajectory it
 had reached, and plays on from there once the status returns. The trajectory's time then runs behind the context's
-by the pauses (``playback``). Asked to stop a plan (``stop``: the supervisor found the held object dropped), it holds
-the plan's point at the time given until the next plan.
+by the pauses (``playback``). Behind a command guard (a robot on LCM: systems/robot_io/lcm_safety.py), which holds
+the position the robot last reported, the pause holds the point the plan was at when that report arrived: the
+status goes stale only a watchdog period later, and the plan played meanwhile reached no robot that had stopped (a
+driver killed, frozen), so, resumed from where the guard held, nothing is caught up at the velocity limit off the
+planned path (a restarted driver's move home swept a can off the table that way, 2026-12-06). Asked to stop a plan
+(``stop``: the supervisor found the held object dropped), it holds the plan's point at the time given until the
+next plan.
 """
 
 import math
@@ -60,13 +65,15 @@ class JointTrajectorySource(LeafSystem):
     ``plan`` (PlanResult): its trajectory is taken up once it succeeds, and played at context time less the pauses,
     held at its end afterwards. ``position_measured`` (num_joints, rad): latched once finite (the hardware
     station's status is NaN until the robot has answered) and held until a plan arrives. ``status_health``
-    (LinkHealth): while stale, the playing pauses (unconnected: never). ``stop`` (2: a plan's id, a time of its
-    trajectory, s): that plan is held at that time until the next one. ``position`` (num_joints, rad): the command.
-    ``playback`` (Playback): the plan played and the time reached.
+    (LinkHealth): while stale, the playing pauses (unconnected: never); with `pause_at_last_status`, at the plan's
+    time when the last status arrived (no earlier than the plan's start), else where it has got to. ``stop`` (2: a
+    plan's id, a time of its trajectory, s): that plan is held at that time until the next one. ``position``
+    (num_joints, rad): the command. ``playback`` (Playback): the plan played and the time reached.
     """
 
-    def __init__(self, num_joints: int = 14, period_s: float = 0.01):
+    def __init__(self, num_joints: int = 14, period_s: float = 0.01, pause_at_last_status: bool = False):
         super().__init__()
+        self.pause_at_last_status = pause_at_last_status
         self.DeclareAbstractInputPort("plan", AbstractValue.Make(PlanResult()))
         self.DeclareVectorInputPort("position_measured", num_joints)
         self.health_port = self.DeclareAbstractInputPort("status_health", AbstractValue.Make(LinkHealth()))
@@ -84,7 +91,8 @@ class JointTrajectorySource(LeafSystem):
             if np.all(np.isfinite(measured)):
                 playing = replace(playing, hold_q=measured.copy())
         plan = self.GetInputPort("plan").Eval(context)
-        stale = self.health_port.HasValue(context) and self.health_port.Eval(context).stale
+        health = self.health_port.Eval(context) if self.health_port.HasValue(context) else None
+        stale = health is not None and health.stale
         if plan.success and plan.id != playing.plan_id:  # (taken up paused: its own pause starts now)
             if playing.stopped:  # (a stop's hold is no pause)
                 playing = replace(playing, paused_at_s=math.nan)
@@ -97,13 +105,20 @@ class JointTrajectorySource(LeafSystem):
                 playing = playing.pause_ended(t)
             playing = replace(playing, paused_at_s=t, delay_s=t - stop[1], stopped=True)
         elif stale and not playing.paused:
-            playing = replace(playing, paused_at_s=t)
+            playing = replace(playing, paused_at_s=self._pause_time(playing, health, t))
         elif not stale and playing.paused and not playing.stopped:
             playing = playing.pause_ended(t)
         if playing is before:
             return EventStatus.DidNothing()
         state.get_mutable_abstract_state(self._state).set_value(playing)
         return EventStatus.Succeeded()
+
+    def _pause_time(self, playing: _Playing, health: LinkHealth, t: float) -> float:
+        """The context time whose point of the plan a pause seen at t holds (module docstring), s."""
+        if not self.pause_at_last_status or playing.trajectory is None:
+            return t
+        started_s = playing.trajectory.start_time() + playing.delay_s  # (context time)
+        return min(t, max(health.received_at, started_s))
 
     def _calc(self, context, output):
         playing = context.get_abstract_state(self._state).get_value()
