@@ -27,6 +27,7 @@ from systems.pick_supervisor import PickSupervisor
 from systems.pick_tasks import clear_pick
 from systems.planning.drop_zone import (
     DROP_ALTERNATIVES,
+    DROP_CENTRE_INSET_M,
     DROP_GAP_M,
     DROP_OVERHANG_M,
     DropZone,
@@ -53,7 +54,8 @@ def test_the_drop_zone_takes_objects_apart_inside_it_until_none_fits():
         spot = spots[0]
         assert 1 <= len(spots) <= DROP_ALTERNATIVES and not any(s.IsNearlyEqualTo(spot, 1e-9) for s in spots[1:])
         footprint = footprint_at(outline_O, spot)
-        assert ZONE.contains(footprint, DROP_OVERHANG_M + 1e-9).all() and ZONE.contains(footprint.mean(axis=0))
+        assert ZONE.contains(footprint, DROP_OVERHANG_M + 1e-9).all()
+        assert ZONE.contains(footprint.mean(axis=0), -DROP_CENTRE_INSET_M + 1e-9)
         assert spot.translation()[2] == X_WO.translation()[2]
         assert all(outlines_apart(footprint, other, DROP_GAP_M - 1e-9) for other in dropped)
         dropped.append(footprint)
