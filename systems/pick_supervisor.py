@@ -266,6 +266,10 @@ class PickSupervisor(LeafSystem):
         """Reads perception's result; a stage that found nothing ends the pick."""
         result = self.perception_port.Eval(context)
         status.perceived = True
+        if status.homing:  # (the frame's scene is what the move home avoids; the arms hide the table in it)
+            status.homing = False
+            self._start_task(context, status, self.tasks.home, 0, t)
+            return
         if self.clears and result.failed_stage == Stage.SEGMENTATION and status.current is None:  # nothing left
             if (pass_from := clearing.next_pass(status)) is not None:  # those given up before the table changed
                 logging.info("%s; a new pass over the table for those given up before others left", result.message)
@@ -273,10 +277,6 @@ class PickSupervisor(LeafSystem):
                 self._look_at_the_table(context, status, t)
                 return
             status.mode, status.message, status.homing = Mode.DONE, clearing.summary(status, result.message), False
-            return
-        if status.homing:  # (the frame's scene is what the move home avoids)
-            status.homing = False
-            self._start_task(context, status, self.tasks.home, 0, t)
             return
         if not result.found:  # (a clear's object given up; one under way, retried and not seen again, keeps its record)
             if self.clears and status.current is None:
