@@ -35,9 +35,9 @@ def _plan(start_s: float, end_s: float, plan_id: int = 1) -> PlanResult:
     return PlanResult(plan_id, "move", True, trajectory)
 
 
-def _source_playing():
+def _source_playing(pause_at_last_status: bool = False):
     """A trajectory source (2 joints) given _plan(0, 2), its simulator and context."""
-    source = JointTrajectorySource(num_joints=2)
+    source = JointTrajectorySource(num_joints=2, pause_at_last_status=pause_at_last_status)
     simulator = Simulator(source)
     context = simulator.get_mutable_context()
     source.GetInputPort("plan").FixValue(context, _plan(0.0, 2.0))
@@ -70,11 +70,7 @@ def test_behind_a_command_guard_the_source_pauses_where_the_plan_was_at_the_last
     """The guard holds the position the robot last reported; the status is stale only a watchdog period later. So
     the pause holds the plan's point at the last status (0.3 s: 0.15 rad), and the plan goes on from there once
     the status returns: nothing the robot never received is caught up (a restarted driver's can swept off)."""
-    source = JointTrajectorySource(num_joints=2, pause_at_last_status=True)
-    simulator = Simulator(source)
-    context = simulator.get_mutable_context()
-    source.GetInputPort("plan").FixValue(context, _plan(0.0, 2.0))
-    source.GetInputPort("position_measured").FixValue(context, np.zeros(2))
+    source, simulator, context = _source_playing(pause_at_last_status=True)
     health = source.GetInputPort("status_health")
     health.FixValue(context, FRESH)
     simulator.AdvanceTo(1.3)
@@ -85,12 +81,16 @@ def test_behind_a_command_guard_the_source_pauses_where_the_plan_was_at_the_last
     health.FixValue(context, dataclasses.replace(FRESH, received_at=1.8))
     simulator.AdvanceTo(2.3)  # back: on from 0.15 rad, half a second played since
     np.testing.assert_allclose(source.GetOutputPort("position").Eval(context), [0.4, 0.4], atol=0.01)
-    # A status that stopped before the plan started: held at the plan's start.
+    # A status that stopped before the plan started (2.2 s; the plan from 2.4 s): held at the plan's start, and on
+    # from there once back, no later (paused from 2.2 s, the plan would wait 0.2 s longer: 0.3 rad at 3.5 s).
     source.GetInputPort("plan").FixValue(context, _plan(2.4, 3.4, plan_id=2))
     simulator.AdvanceTo(2.6)
-    health.FixValue(context, dataclasses.replace(FRESH, received_at=2.35, stale=True))
+    health.FixValue(context, dataclasses.replace(FRESH, received_at=2.2, stale=True))
     simulator.AdvanceTo(3.0)
     np.testing.assert_allclose(source.GetOutputPort("position").Eval(context), [0.0, 0.0], atol=1e-9)
+    health.FixValue(context, dataclasses.replace(FRESH, received_at=3.0))
+    simulator.AdvanceTo(3.5)
+    np.testing.assert_allclose(source.GetOutputPort("position").Eval(context), [0.5, 0.5], atol=0.02)
 
 
 def test_a_stopped_plan_is_held_where_it_was_stopped_until_the_next_plan():
