@@ -34,10 +34,6 @@ HELD_TURN_SPEED_RAD_S = 0.3
 HELD_GOAL_POSITION_TOLERANCE = 0.001
 # (At most 0.04 rad: a set-down object must stand within 5 degrees of upright.)
 HELD_GOAL_ANGLE_TOLERANCES = (0.01, 0.04)
-# The held move's goal, solved again onto its hands' targets within this (m, rad; the right hand's pose relative to
-# the left within it too): with those tolerances and a pull towards the configuration before, the goal sits at their
-# edge, behind the motion (1 mm in each axis and 10 mrad: an aimed bit's tip stopped some 2 mm short of its goal).
-HELD_GOAL_EXACT_TOLERANCES = (0.0001, 0.001)
 HELD_PATH_STEPS = 10  # configurations solved along a held move's motion
 PROJECTION_STEPS = 15
 # A carried object as spheres of this radius (m) for the collision cost, centred on its points so that every
@@ -66,7 +62,6 @@ class HeldPath:
     configurations: np.ndarray  # K x n, from q_start
     reached: float  # the share of the motion the last one reaches, in (0, 1]
     angle_tolerance: float  # rad: the largest of the hands' angle tolerances used along it
-    goal_on_target: bool = False  # the last one holds the hands on their targets within HELD_GOAL_EXACT_TOLERANCES
 
 
 class HeldMotions:
@@ -146,7 +141,7 @@ class HeldMotions:
     def held_path(self, q_start: np.ndarray, X_motion_W: RigidTransform, min_fraction: float) -> HeldPath:
         """Configurations holding the object along the motion (HELD_PATH_STEPS of it, each solved from the one
         before, so the arms stay on their branch), the share of the motion reached and the hands' angle
-        tolerance used. The last is solved again onto its targets (HELD_GOAL_EXACT_TOLERANCES) where it can be.
+        tolerance used.
 
         Raises:
             PlanningError: not even min_fraction of the motion is reachable.
@@ -169,24 +164,11 @@ class HeldMotions:
             if not result.success:
                 break
             path.append(result.q)
-            q, worst, last_targets = result.q, max(worst, tolerance), targets
+            q, worst = result.q, max(worst, tolerance)
         reached = (len(path) - 1) / HELD_PATH_STEPS
         if reached < min_fraction - 1e-9 or len(path) == 1:
             raise PlanningError(f"the moved hands are out of reach ({reached:.0%} of the motion at most)")
-        exact = self._on_target(last_targets, X_E1E2, path[-1])
-        if exact is not None:
-            path[-1] = exact
-        return HeldPath(np.stack(path), reached, worst, exact is not None)
-
-    def _on_target(self, targets, X_E1E2, q: np.ndarray) -> np.ndarray | None:
-        """q (a held configuration within the path's tolerances of `targets`) solved again onto them, within
-        HELD_GOAL_EXACT_TOLERANCES, the right hand as exactly at X_E1E2 from the left; None where that finds none
-        near q (within MAX_STRAIGHT_STEP: a joint limit in the way, say)."""
-        position, angle = HELD_GOAL_EXACT_TOLERANCES
-        result = self.ik.solve_held(targets["left"], X_E1E2, q, position, angle, closure_tolerances=(position, angle))
-        if result.success and np.abs(result.q - q).max() <= MAX_STRAIGHT_STEP:
-            return result.q
-        return None
+        return HeldPath(np.stack(path), reached, worst)
 
     def _held_configuration(self, targets, X_E1E2, q_near):
         """Both hands at `targets` (the right one exactly at X_E1E2 from the left), near q_near (no joint more
