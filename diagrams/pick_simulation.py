@@ -38,7 +38,7 @@ HELD_MOVES = (Mode.LIFT, Mode.CARRY, Mode.SET_DOWN, Mode.AIM_APPROACH, Mode.AIM,
               Mode.POUR, Mode.POUR_BACK)  # fmt: skip
 # The modes in which both hands hold the object (a place's, an aim's).
 HELD_MODES = (*HELD_MOVES, Mode.LOOK, Mode.LOOK_AGAIN, Mode.LOOK_OVER, Mode.AIM_HOLD, Mode.POUR_HOLD)
-# The modes that begin to let go of a set-down object (the relax, then the opening).
+# The modes that begin to let go of a set-down object (an aim's relax, then the opening).
 LETTING_GO = (Mode.RELAX, Mode.RELEASE)
 # The modes of a failed attempt's recovery (systems/pick_tasks.py's recovery_task).
 RECOVERY_MODES = (Mode.RECOVER_OPEN, Mode.RECOVER_RETREAT, Mode.RECOVER_HOME)
@@ -294,7 +294,7 @@ class PlaceJudge(LiftJudge):
         z = super().sample(t)
         mode, last = self.mode_of(self.context), self.last_mode
         self.last_mode = mode
-        if self.body is not None and mode in LETTING_GO and last not in LETTING_GO:  # (the relax comes first)
+        if self.body is not None and mode in LETTING_GO and last not in LETTING_GO:  # (an aim relaxes first)
             self.X_set_down = self.body.EvalPoseInWorld(self.plant_context)
         if last not in self.held_modes:
             self.held_offset = None  # a new grasp
