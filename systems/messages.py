@@ -304,6 +304,9 @@ class PlanRequest:
     # Held moves: a container's inside, left out of the scene (the pour's spout goes over it): the scene's points
     # within the radius (m) of the vertical line through the point (3, W: the opening's centre) and below it.
     inside_left_out: tuple[np.ndarray, float] | None = None
+    # Held moves: plan them only where the hands can then back off the whole way from the move's end (the retreat,
+    # straight along their approach axes; a clear's set-down, whose next spot in the zone can be tried instead).
+    full_back_off: bool = False
 
 
 @dataclass(frozen=True)

@@ -67,12 +67,18 @@ def held_goal_motion(
 
 
 def move_request(
-    phase: Phase, status: PickStatus, place_target_W: RigidTransform | None, measured_q: np.ndarray
+    phase: Phase,
+    status: PickStatus,
+    place_target_W: RigidTransform | None,
+    measured_q: np.ndarray,
+    full_back_off: bool = False,
 ) -> PlanRequest:
     """The next PlanRequest, for a move phase, from where the last plan ended: a held goal's motion from where the
     object is believed to be (or the phase's own motion), its targets, and a joint goal where it names one (HOME:
     where the pick started; MEASURED: where the arms are measured, `measured_q`, rad). `place_target_W`: where a
-    held goal sets the object down (None for a move without a held goal: between a clear's objects none is believed)."""
+    held goal sets the object down (None for a move without a held goal: between a clear's objects none is believed).
+    full_back_off: the held move is planned only where the hands can then back off the whole way
+    (PlanRequest.full_back_off)."""
     X_motion_W, carried, left_out = phase.X_motion_W or RigidTransform(), None, None
     if phase.goal is not None:
         X_motion_W, carried, left_out = held_goal_motion(phase.goal, status, place_target_W)
@@ -90,4 +96,5 @@ def move_request(
         object_motion_W=object_motion(status.belief, phase.targets),
         grasp_offsets_G=status.grasp_offsets_G if phase.targets == Targets.GRASP else None,
         inside_left_out=left_out,
+        full_back_off=full_back_off,
     )

@@ -323,7 +323,11 @@ class PickSupervisor(LeafSystem):
         if phase.kind == PhaseKind.MOVE:
             measured_q = self.position_port.Eval(context)
             place_target_W = self._place_target(status) if phase.goal is not None else None  # (no belief going home)
-            status.request = move_request(phase, status, place_target_W, measured_q)
+            # A clear's set-down with a spot left to try: only where the hands can back off from it the whole way
+            # (a back-off cut short leaves the fingers about the handle, and the next move sweeps them past it).
+            spot_left = self.clears and status.task == self.tasks.main and bool(status.spare_spots)
+            full_back_off = spot_left and phase.goal == PlaceGoal.SET_DOWN
+            status.request = move_request(phase, status, place_target_W, measured_q, full_back_off)
         elif phase.kind in (PhaseKind.CLOSE, PhaseKind.OPEN):
             width = phase.hand_width + (max(status.grasp_widths, default=OPEN_WIDTH) if phase.beyond_grasp else 0.0)
             status.hand = HandCommand(min(width, OPEN_WIDTH), status.hand.at(t), t, CLOSE_S)

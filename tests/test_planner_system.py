@@ -127,6 +127,25 @@ def test_a_back_off_beyond_reach_ends_where_the_arms_stop_and_an_approach_does_n
     assert not plan.success and "IK failed" in plan.message
 
 
+def test_a_held_move_asked_for_a_full_back_off_fails_where_the_arms_cannot_back_off_from_its_end(
+    planner, scenario, monkeypatch
+):
+    """A clear's set-down (a held move 2 cm down) asked to leave room for the whole back-off: planned where the
+    arms reach 10 cm back from its end, refused, naming the back-off, where they do not (made 45 cm here); without
+    the ask the same move is planned."""
+    q_grasp = grasp_configuration(scenario, planner.motions)
+    down = RigidTransform([0.0, 0.0, -0.02])
+    for request_id, back_off_m, full, planned in ((10, 0.1, True, True), (11, 0.45, True, False),
+                                                   (12, 0.45, False, True)):  # fmt: skip
+        monkeypatch.setattr(stomp_planner, "RETREAT_M", back_off_m)
+        set_down = PlanRequest(id=request_id, phase="set_down", q_start=q_grasp, path="held", X_motion_W=down,
+                               full_back_off=full)  # fmt: skip
+        plan = planner.plan(set_down, 0.0, _planner_context(planner, set_down, GraspPoses(False)))
+        assert plan.success == planned, plan.message
+        if not planned:
+            assert plan.message.startswith("set_down: the hands could not back off 45 cm from its end")
+
+
 # Where the held-out bulb can's pick stood at its pre-grasps at -0.25 rad when a look found the can moved (seed 5): the
 # back-off's first step along -z_G would take the right forearm into the torso.
 BACK_OFF_INTO_THE_TORSO = np.array(

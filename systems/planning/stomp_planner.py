@@ -151,6 +151,8 @@ class StompPlanner(LeafSystem):
                 trajectory = time_parameterise(keyframes, motions.world.velocity_limits, start_s, min_segment)
             else:
                 trajectory = self._held_trajectory(keyframes, held, start_s, result)
+                if request.full_back_off:
+                    self._check_back_off(trajectory.value(trajectory.end_time()).ravel())
             result.success, result.trajectory, result.message = True, trajectory, f"{len(keyframes)} keyframes"
             result.grasp_paths_W = self._grasp_paths(trajectory)
         except PlanningError as error:
@@ -217,6 +219,19 @@ class StompPlanner(LeafSystem):
             logging.warning("back-off: %s; the hands stay where they are", error)
             return np.stack([q_start, q_start])
 
+    def _check_back_off(self, q_end: np.ndarray) -> None:
+        """Raises PlanningError unless the hands, let go at q_end, can back off the whole RETREAT_M from there."""
+        try:
+            self.motions.straight(q_end, self._retreat_targets(q_end))
+        except PlanningError as error:
+            why = f"the hands could not back off {RETREAT_M * 100:.0f} cm from its end ({error})"
+            raise PlanningError(why) from error
+
+    def _retreat_targets(self, q: np.ndarray) -> dict[str, RigidTransform]:
+        """Each hand's grasp frame at q moved RETREAT_M back along its approach axis z_G, in W."""
+        back = RigidTransform([0.0, 0.0, -RETREAT_M])
+        return {side: X @ back for side, X in self.motions.world.grasp_frame_poses(q).items()}
+
     def _scene(self, context) -> np.ndarray | None:
         """The scene as the camera saw it (its occupied points, N x 3 in W), or None where there is none."""
         if not self.GetInputPort("scene_cloud_W").HasValue(context):
@@ -239,8 +254,7 @@ class StompPlanner(LeafSystem):
 
     def _targets(self, request: PlanRequest, context, deeper: bool = True) -> dict[str, RigidTransform]:
         if request.targets == Targets.RETREAT:
-            back = RigidTransform([0.0, 0.0, -RETREAT_M])
-            return {side: X @ back for side, X in self.motions.world.grasp_frame_poses(request.q_start).items()}
+            return self._retreat_targets(request.q_start)
         grasps = self.GetInputPort("grasp_poses").Eval(context)
         if not grasps.found:
             raise PlanningError(f"no grasp poses ({grasps.message})")
