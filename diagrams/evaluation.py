@@ -165,7 +165,19 @@ def run_trial_in_worker(trial: Trial) -> dict:
 def crashed_record(trial: Trial, why: str) -> dict:
     """The record of a trial whose worker process died before it ended (`why`: how it died)."""
     message = f"the simulation's process died ({why}); nothing of the pick was recorded"
-    return _trial_record(trial) | {"success": False, "failed_stage": "crash", "message": message, "stages": {}}
+    return _unjudged(trial, "crash", message)
+
+
+def _unjudged(trial: Trial, stage: str, message: str) -> dict:
+    """The record of a trial that ended with no judgement (its process died, its simulation diverged): failed; a
+    clear's familiar objects all counted, none cleared, the distractors' moves unknown (NaN)."""
+    record = _trial_record(trial) | {"success": False, "failed_stage": stage, "message": message, "stages": {}}
+    scenario = trial.scenario
+    if scenario.task == "clear":
+        familiar = int(scenario.object.present) + sum(bool(other.instance) for other in scenario.clutter)
+        record["clear"] = {"objects": [], "familiar_objects": familiar, "objects_cleared": 0, "taken_on": [],
+                           "others_moved_m_max": float("nan")}  # fmt: skip
+    return record
 
 
 def _trial_record(trial: Trial) -> dict:
@@ -196,6 +208,7 @@ def run_trial(trial: Trial) -> dict:
     """Runs one autonomous pick in simulation; a JSON-ready record of what happened."""
     from diagrams.autonomous_pick import run_pick  # (heavy: torch, the shape spaces)
     from systems.planning.pick_motions import PlanningError
+    from systems.robot_io.gravity_compensation import SimulationDiverged
 
     scenario = trial.scenario
     record = _trial_record(trial)
@@ -207,6 +220,9 @@ def run_trial(trial: Trial) -> dict:
     except (PlanningError, ValueError, FileNotFoundError) as error:  # e.g. a model that cannot be loaded
         logging.warning("trial %s yaw %+.2f #%d: %s", trial.name, trial.yaw, trial.index, error)
         return record | {"success": False, "failed_stage": "setup", "message": str(error), "stages": {}}
+    except (SimulationDiverged, SystemExit) as error:  # (pydrake turns a failed Drake check into SystemExit)
+        logging.warning("trial %s yaw %+.2f #%d: the simulation failed: %s", trial.name, trial.yaw, trial.index, error)
+        return record | _unjudged(trial, "simulation", f"the simulation failed: {error}")
     failed_stage = outcome.failed_stage or ("" if outcome.success else "execution")
     return record | {
         "success": bool(outcome.success),
@@ -234,11 +250,14 @@ def _oracle_record(scenario: Scenario) -> dict:
     """Whether the ground-truth pick (the same diagram, perception replaced by the truth) does this scenario."""
     from diagrams.autonomous_pick import run_pick
     from systems.planning.pick_motions import PlanningError
+    from systems.robot_io.gravity_compensation import SimulationDiverged
 
     try:
         outcome = run_pick(scenario, perception="ground_truth")
     except (PlanningError, ValueError, FileNotFoundError) as error:
         return {"success": False, "failed_stage": "setup", "message": str(error)}
+    except (SimulationDiverged, SystemExit) as error:
+        return {"success": False, "failed_stage": "simulation", "message": f"the simulation failed: {error}"}
     failed_stage = outcome.failed_stage or ("" if outcome.success else "execution")
     return {"success": bool(outcome.success), "failed_stage": failed_stage, "message": outcome.message,
             "attempts_made": outcome.attempts_made}  # fmt: skip
@@ -383,7 +402,9 @@ def _clears(records: list[dict]) -> dict:
         "objects_cleared_per_table_mean": cleared / len(clears),
         "attempts_per_object_mean": float(np.mean([done["attempts"] for done in taken])) if taken else float("nan"),
         "sim_s_per_object_mean": sum(r.get("sim_time_s", 0.0) for r in clears) / max(len(taken), 1),
-        "others_moved_m_max": max(r["clear"]["others_moved_m_max"] for r in clears),
+        "others_moved_m_max": max(
+            (m for r in clears if np.isfinite(m := r["clear"]["others_moved_m_max"])), default=float("nan")
+        ),
     }
 
 

@@ -24,6 +24,7 @@ from diagrams.cli import add_scenario_options, scenario_arguments, scenario_from
 from diagrams.hardware_station import RobotNotResponding
 from diagrams.scenario import clutter_name
 from systems.planning.pick_motions import PlanningError
+from systems.robot_io.gravity_compensation import SimulationDiverged
 
 
 def parse_args(argv=None):
@@ -80,7 +81,7 @@ def main(argv=None) -> int:
             outcome = lcm_pick.run_with_spawned_driver(scenario, scenario_arguments(args))
         else:
             outcome = lcm_pick.run_on_robot(scenario, args.lcm_url, meshcat)
-    except (PlanningError, ValueError, FileNotFoundError, RobotNotResponding) as error:
+    except (PlanningError, ValueError, FileNotFoundError, RobotNotResponding, SimulationDiverged) as error:
         print(f"error: {error}", file=sys.stderr)
         outcome = None
         report = {"success": False, "error": str(error)}

@@ -23,11 +23,13 @@ from diagrams.evaluation import (
     generated_objects,
     make_trials,
     random_placements,
+    run_trial,
     summarize,
 )
 from diagrams.evaluation_report import CampaignSettings, describe, report
 from systems.messages import ObjectEstimate
 from systems.perception.pose_noise import PoseYawOffset, draw_yaw_offset
+from systems.robot_io.gravity_compensation import SimulationDiverged
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -239,3 +241,34 @@ def test_summary_of_cluttered_tables_keeps_the_largest_move_of_another_object(sc
     assert summary["others_moved_m_max"] == 0.05 and summary["picks_moving_others"] == 1
     assert summary["requested_category_share"] == 1.0
     assert "others_moved_m_max" not in summarize([_record("test_0", 0.0, True)])
+
+
+DIVERGED = SimulationDiverged("the simulated plant's state is not finite at t = 41.2 s")
+DRAKE_CHECK = SystemExit("Failure at multibody_plant.h: condition 'AllFinite(q_v)' failed.")
+
+
+@pytest.mark.parametrize("failure", [DIVERGED, DRAKE_CHECK])
+def test_a_table_whose_simulation_fails_counts_its_objects_uncleared_and_the_campaign_goes_on(
+    scenario, monkeypatch, failure
+):
+    """pydrake ends the process (SystemExit) where a Drake check fails, as on a plant state blown up to NaN: in a
+    worker that ended the whole campaign with nothing reported (report table 7, 2026-12-06). The table is now a
+    failed record, its familiar objects all counted and none cleared; the summary's largest distractor move is the
+    judged tables'."""
+    import diagrams.autonomous_pick
+
+    def failing(*args, **kwargs):
+        raise failure
+
+    monkeypatch.setattr(diagrams.autonomous_pick, "run_pick", failing)
+    (trial,) = clutter_trials(dataclasses.replace(scenario, task="clear"), "watering_can", 1)
+    record = run_trial(trial)
+    assert not record["success"] and record["failed_stage"] == "simulation"
+    assert record["message"].startswith("the simulation failed: ") and str(failure) in record["message"]
+    familiar = 1 + sum(bool(other.instance) for other in trial.scenario.clutter)
+    assert familiar >= 2 and record["clear"]["familiar_objects"] == familiar
+    judged = _record("clutter_report_1", 0.0, True) | {"clear": {"objects": [{}], "familiar_objects": 2,
+        "objects_cleared": 2, "taken_on": [{"attempts": 1}], "others_moved_m_max": 0.004}}  # fmt: skip
+    summary = summarize([record, judged])
+    assert summary["familiar_objects"] == familiar + 2 and summary["objects_cleared"] == 2
+    assert summary["others_moved_m_max"] == 0.004

@@ -10,7 +10,7 @@ from pydrake.systems.analysis import Simulator
 
 from diagrams.scenario import CameraNoiseConfig, initial_positions, load_scenario
 from diagrams.station import MakeStation, true_label_image
-from systems.robot_io.gravity_compensation import GravityCompensation
+from systems.robot_io.gravity_compensation import GravityCompensation, SimulationDiverged
 
 INPUTS = {"centauro.position", "left_hand.position", "right_hand.position"}
 OUTPUTS = {
@@ -114,6 +114,19 @@ def test_gravity_compensation_alone_cancels_gravity(station):
     assert len(actuated) == 15  # the torso's actuator too
     np.testing.assert_allclose(tau, -tau_g[actuated], atol=1e-9)
     assert np.linalg.norm(tau) > 1.0
+
+
+def test_gravity_compensation_names_a_plant_state_that_is_not_finite(station):
+    """A blown-up simulation (NaN positions) is named; Drake's own check in SetPositionsAndVelocities would end the
+    process (SystemExit), losing a campaign's worker with it."""
+    plant = station.GetSubsystemByName("plant")
+    dut = GravityCompensation(plant, plant.GetModelInstanceByName("centauro"))
+    context = dut.CreateDefaultContext()
+    x = plant.GetPositionsAndVelocities(plant.CreateDefaultContext())
+    x[3] = np.nan
+    dut.GetInputPort("state").FixValue(context, x)
+    with pytest.raises(SimulationDiverged, match="state is not finite at t = 0.000 s"):
+        dut.GetOutputPort("actuation").Eval(context)
 
 
 @pytest.mark.slow

@@ -6,6 +6,10 @@ from pydrake.multibody.tree import ModelInstanceIndex
 from pydrake.systems.framework import BasicVector, LeafSystem
 
 
+class SimulationDiverged(RuntimeError):
+    """The simulated plant's state is no longer finite (a contact blew up): nothing after it can be trusted."""
+
+
 class GravityCompensation(LeafSystem):
     """Outputs the actuator torques that cancel gravity on one model instance.
 
@@ -39,6 +43,10 @@ class GravityCompensation(LeafSystem):
 
     def _calc_actuation(self, context, output: BasicVector):
         x = self.state_input.Eval(context)
+        if not np.all(np.isfinite(x)):  # (Drake's own check would end the process: SystemExit)
+            raise SimulationDiverged(
+                f"the simulated plant's state is not finite at t = {context.get_time():.3f} s (the simulation diverged)"
+            )
         self._plant.SetPositionsAndVelocities(self._plant_context, x)
         tau_g = self._plant.CalcGravityGeneralizedForces(self._plant_context)
         output.SetFromVector(-tau_g[self._dof_of_actuator])
