@@ -44,13 +44,7 @@ class ClearJudge(LiftJudge):
         super().__init__(plant, context)
         self.zone, self.context, self.mode_of = zone, context, mode_of
         self.first_moved = {}  # distractor index -> (t s, the pick's mode) when it first moved too far
-        self.familiar = []
-        if scenario.object.present:
-            self.familiar.append(_familiar(plant, OBJECT_INSTANCE, scenario.object))
-        for index, other in enumerate(scenario.clutter):
-            if other.instance:
-                config = ObjectConfig(category=other.kind, instance=other.instance)
-                self.familiar.append(_familiar(plant, CLUTTER_INSTANCE.format(index), config))
+        self.familiar = [_familiar(plant, name, config) for name, config in familiar_objects(scenario)]
         self.distractors = [index for index, other in enumerate(scenario.clutter) if not other.instance]
 
     def sample(self, t: float) -> float:
@@ -101,6 +95,17 @@ class ClearJudge(LiftJudge):
             f": {'; '.join(problems)}" if problems else ""
         )
         return outcome
+
+
+def familiar_objects(scenario: Scenario) -> list[tuple[str, ObjectConfig]]:
+    """The familiar objects on a table to clear, as (model instance name, config): the scenario's object, where
+    present, and every clutter object that is a category's instance."""
+    familiar = [(OBJECT_INSTANCE, scenario.object)] if scenario.object.present else []
+    for index, other in enumerate(scenario.clutter):
+        if other.instance:
+            config = ObjectConfig(category=other.kind, instance=other.instance)
+            familiar.append((CLUTTER_INSTANCE.format(index), config))
+    return familiar
 
 
 def _familiar(plant: MultibodyPlant, model_name: str, config: ObjectConfig) -> _Familiar:

@@ -165,18 +165,19 @@ def run_trial_in_worker(trial: Trial) -> dict:
 def crashed_record(trial: Trial, why: str) -> dict:
     """The record of a trial whose worker process died before it ended (`why`: how it died)."""
     message = f"the simulation's process died ({why}); nothing of the pick was recorded"
-    return _unjudged(trial, "crash", message)
+    return _unjudged(_trial_record(trial), trial.scenario, "crash", message)
 
 
-def _unjudged(trial: Trial, stage: str, message: str) -> dict:
-    """The record of a trial that ended with no judgement (its process died, its simulation diverged): failed; a
-    clear's familiar objects all counted, none cleared, the distractors' moves unknown (NaN)."""
-    record = _trial_record(trial) | {"success": False, "failed_stage": stage, "message": message, "stages": {}}
-    scenario = trial.scenario
+def _unjudged(record: dict, scenario: Scenario, stage: str, message: str) -> dict:
+    """A trial's record (`record`: what it said before it ran) ended with no judgement (its process died, its
+    simulation diverged): failed; a clear's familiar objects all counted, none cleared, the distractors' moves
+    unknown (NaN)."""
+    from diagrams.clear_judge import familiar_objects
+
+    record = record | {"success": False, "failed_stage": stage, "message": message, "stages": {}}
     if scenario.task == "clear":
-        familiar = int(scenario.object.present) + sum(bool(other.instance) for other in scenario.clutter)
-        record["clear"] = {"objects": [], "familiar_objects": familiar, "objects_cleared": 0, "taken_on": [],
-                           "others_moved_m_max": float("nan")}  # fmt: skip
+        record["clear"] = {"objects": [], "familiar_objects": len(familiar_objects(scenario)), "objects_cleared": 0,
+                           "taken_on": [], "others_moved_m_max": float("nan")}  # fmt: skip
     return record
 
 
@@ -222,7 +223,7 @@ def run_trial(trial: Trial) -> dict:
         return record | {"success": False, "failed_stage": "setup", "message": str(error), "stages": {}}
     except (SimulationDiverged, SystemExit) as error:  # (pydrake turns a failed Drake check into SystemExit)
         logging.warning("trial %s yaw %+.2f #%d: the simulation failed: %s", trial.name, trial.yaw, trial.index, error)
-        return record | _unjudged(trial, "simulation", f"the simulation failed: {error}")
+        return _unjudged(record, scenario, "simulation", f"the simulation failed: {error}")
     failed_stage = outcome.failed_stage or ("" if outcome.success else "execution")
     return record | {
         "success": bool(outcome.success),

@@ -265,8 +265,9 @@ def test_a_table_whose_simulation_fails_counts_its_objects_uncleared_and_the_cam
     record = run_trial(trial)
     assert not record["success"] and record["failed_stage"] == "simulation"
     assert record["message"].startswith("the simulation failed: ") and str(failure) in record["message"]
-    familiar = 1 + sum(bool(other.instance) for other in trial.scenario.clutter)
+    familiar = 1 + sum(bool(other.instance) for other in trial.scenario.clutter)  # (the object and its neighbours)
     assert familiar >= 2 and record["clear"]["familiar_objects"] == familiar
+    assert record["seed"] == trial.scenario.random_seed  # (what the record said before it ran is kept)
     judged = _record("clutter_report_1", 0.0, True) | {"clear": {"objects": [{}], "familiar_objects": 2,
         "objects_cleared": 2, "taken_on": [{"attempts": 1}], "others_moved_m_max": 0.004}}  # fmt: skip
     summary = summarize([record, judged])
