@@ -4,6 +4,7 @@ import dataclasses
 
 import numpy as np
 import pytest
+import torch
 from pydrake.common.value import AbstractValue
 from pydrake.math import RigidTransform, RollPitchYaw
 from pydrake.systems.analysis import Simulator
@@ -354,6 +355,25 @@ def test_tiny_training_run_reduces_loss():
     assert all(name.split("/")[1].startswith("train") for row in data["instances"] for name in row.split(",") if name)
     _, history = train(data["rgb"], data["labels"], len(CLASSES), epochs=4, seed=0, batch_size=4, learning_rate=3e-3)
     assert history[-1] < 0.8 * history[0]
+
+
+def test_the_inference_copy_folds_the_batch_norms_and_scores_as_the_trained_network():
+    model, _ = segmentation_network.load(DEFAULT_WEIGHTS)
+    fused = segmentation_network.for_inference(model)
+    assert not any(isinstance(m, torch.nn.BatchNorm2d) for m in fused.modules())
+    assert any(isinstance(m, torch.nn.BatchNorm2d) for m in model.modules())  # the trained network untouched
+    image = torch.rand(2, 3, 96, 128, generator=torch.Generator().manual_seed(0)) - 0.5
+    with torch.no_grad():
+        torch.testing.assert_close(fused(image), model(image), atol=1e-4, rtol=1e-4)
+
+
+def test_chained_residual_pooling_takes_the_maxima_of_five_by_five_windows():
+    pooling = segmentation_network.ChainedResidualPooling(4, stages=1)
+    torch.nn.init.dirac_(pooling.convs[0].weight)  # the conv passes each channel through
+    x = torch.randn(1, 4, 9, 11, generator=torch.Generator().manual_seed(1))
+    with torch.no_grad():
+        relu = torch.relu(x)
+        torch.testing.assert_close(pooling(x), relu + torch.nn.functional.max_pool2d(relu, 5, 1, 2))
 
 
 def test_wide_split_frames_hold_only_the_wider_familys_training_members():

@@ -16,6 +16,7 @@ import numpy as np
 import torch
 from torch import nn
 from torch.nn import functional as F
+from torch.nn.utils.fusion import fuse_conv_bn_eval
 
 # Network input size (width, height); camera images are resized to it.
 INPUT_SIZE = (320, 240)
@@ -62,7 +63,8 @@ class ChainedResidualPooling(nn.Module):
         x = F.relu(x)
         out, path = x, x
         for conv in self.convs:
-            path = conv(F.max_pool2d(path, 5, 1, 2))
+            # (the 5 x 5 max pool as 1 x 5 then 5 x 1: the same maxima in less time on the CPU)
+            path = conv(F.max_pool2d(F.max_pool2d(path, (1, 5), 1, (0, 2)), (5, 1), 1, (2, 0)))
             out = out + path
         return out
 
@@ -115,7 +117,20 @@ class RefineNetLite(nn.Module):
             refined = self.refine[i](self.reduce[i](features[i]), refined)
         up = F.interpolate(self.fine_from_refined(refined), size=stem.shape[-2:], mode="bilinear", align_corners=False)
         scores = self.classifier(self.fine(up + self.fine_from_stem(stem)))
-        return F.interpolate(scores, size=image.shape[-2:], mode="bilinear", align_corners=False)
+        # (upsampled in float32 and the plain layout: bfloat16 or channels-last take twice the time here)
+        return F.interpolate(scores.float().contiguous(), size=image.shape[-2:], mode="bilinear", align_corners=False)
+
+
+def for_inference(model: RefineNetLite) -> RefineNetLite:
+    """A copy of the model (in eval mode) for inference alone: each batch norm folded into the convolution before
+    it (torch's fuse_conv_bn_eval), the same scores within float rounding in less time. Not for training."""
+    fused = copy.deepcopy(model).eval()
+    fused.stem[0], fused.stem[1] = fuse_conv_bn_eval(fused.stem[0], fused.stem[1]), nn.Identity()
+    for block in fused.encoder:
+        block.conv1, block.bn1 = fuse_conv_bn_eval(block.conv1, block.bn1), nn.Identity()
+        block.conv2, block.bn2 = fuse_conv_bn_eval(block.conv2, block.bn2), nn.Identity()
+        block.shortcut[0], block.shortcut[1] = fuse_conv_bn_eval(block.shortcut[0], block.shortcut[1]), nn.Identity()
+    return fused
 
 
 def with_classes(model: RefineNetLite, num_classes: int) -> RefineNetLite:

@@ -130,9 +130,9 @@ class Segmenter(LeafSystem):
     ):
         super().__init__()
         self.part_segmenter = part_segmenter
-        self.model, metadata = segmentation_network.load(weights)
+        model, metadata = segmentation_network.load(weights)
         # Channels-last: the CPU's convolutions take about a third of the time (the scores the same within 1e-5)
-        self.model = self.model.to(memory_format=torch.channels_last)
+        self.model = segmentation_network.for_inference(model).to(memory_format=torch.channels_last)
         self.classes = tuple(metadata["classes"])
         self.min_pixels, self.category, self.intrinsics, self.flip = min_pixels, category, intrinsics, flip
         self.X_BC, self.table_top_z = X_BC or RigidTransform(), table_top_z
