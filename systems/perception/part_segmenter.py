@@ -59,7 +59,7 @@ class PartSegmenter:
         x = segmentation_network.to_input(window_rgb).to(self.dtype)
         batch = torch.cat([x, x.flip(-1)]) if self.flip else x
         with torch.no_grad():
-            out = self.model(batch.contiguous(memory_format=torch.channels_last)).float()
+            out = self.model(batch.contiguous(memory_format=torch.channels_last))  # (float32 scores)
         scores = out[0] + out[1].flip(-1) if self.flip else out[0]
         return scores.numpy()
 
