@@ -8,11 +8,13 @@ import numpy as np
 from pydrake.math import RigidTransform
 from scipy.spatial import QhullError
 
-from systems.messages import ClearedObject, LeftOut, PerceptionResult, PickStatus
+from systems.messages import ClearedObject, LeftOut, ObjectBelief, PerceptionResult, PickStatus
+from systems.perception.pose_estimator import voxel_thin
 from systems.planning.drop_zone import DropZone, drop_spots, footprint_at, footprint_O
 from systems.planning.outlines import convex_outline
 
 SEEN_POINT_HALF_SIZE_M = 0.02  # m: an object seen as points on a line is given this outline about their centre
+SHAPE_CELL_M = 0.01  # m: an object's inferred shape kept as one point per cube of this side (the scene's cell)
 
 
 def not_seen_again(result: PerceptionResult, attempts: int) -> PerceptionResult:
@@ -46,7 +48,25 @@ def chosen_spots(zone: DropZone, status: PickStatus, result: PerceptionResult) -
     outline_O = footprint_O(shape, result.X_WO_seen)
     dropped = [done.footprint_W for done in status.objects if done.cleared]
     spots = [(X_WO, footprint_at(outline_O, X_WO)) for X_WO in drop_spots(zone, dropped, outline_O, result.X_WO_seen)]
+    if record is not None and result.reconstruction_W is not None and len(result.reconstruction_W):
+        record = dataclasses.replace(record, shape_W=voxel_thin(result.reconstruction_W, SHAPE_CELL_M))
     return spots, (with_spot(record, *spots[0]) if spots else record)
+
+
+def placed(record: ClearedObject, belief: ObjectBelief | None, attempts: int) -> ClearedObject:
+    """The record of the object under way, set down in the zone: cleared, its shape moved to where the belief
+    (its pose as seen, and since, after the set-down and the look that confirmed it) says it stands."""
+    shape_W = record.shape_W
+    if shape_W is not None and belief is not None:
+        shape_W = (belief.now_W @ belief.seen_W.inverse()).multiply(shape_W.T).T
+    return dataclasses.replace(record, cleared=True, attempts=attempts, shape_W=shape_W)
+
+
+def set_down_shapes(status: PickStatus) -> np.ndarray | None:
+    """The shapes of the objects set down in the zone where they stand (N x 3 in W, m), for the free moves to plan
+    around (PlanRequest.set_down_W); None where there is none."""
+    shapes = [done.shape_W for done in status.objects if done.cleared and done.shape_W is not None]
+    return np.vstack(shapes) if shapes else None
 
 
 def with_spot(record: ClearedObject, X_WO: RigidTransform, footprint_W: np.ndarray) -> ClearedObject:

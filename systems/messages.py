@@ -307,6 +307,9 @@ class PlanRequest:
     # Held moves: plan them only where the hands can then back off the whole way from the move's end (the retreat,
     # straight along their approach axes; a clear's set-down, whose next spot in the zone can be tried instead).
     full_back_off: bool = False
+    # More of the scene (N x 3 points in W, m), planned around as the camera's: a clear's objects set down in the
+    # drop zone, on its free moves (the arms that have just backed off one hide it from the camera; None: no more).
+    set_down_W: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -412,6 +415,9 @@ class ClearedObject:
     message: str = ""
     # Taken on in a later pass over the table (it may have been given up in an earlier one: a record of its own).
     later_pass: bool = False
+    # Its inferred shape (N x 3 in W, m; the registrar's, thinned): where it was seen, and once cleared where it was
+    # believed to stand after the set-down (None: no shape was inferred).
+    shape_W: np.ndarray | None = None
 
 
 @dataclass(frozen=True)

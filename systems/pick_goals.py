@@ -72,13 +72,14 @@ def move_request(
     place_target_W: RigidTransform | None,
     measured_q: np.ndarray,
     full_back_off: bool = False,
+    set_down_W: np.ndarray | None = None,
 ) -> PlanRequest:
     """The next PlanRequest, for a move phase, from where the last plan ended: a held goal's motion from where the
     object is believed to be (or the phase's own motion), its targets, and a joint goal where it names one (HOME:
     where the pick started; MEASURED: where the arms are measured, `measured_q`, rad). `place_target_W`: where a
     held goal sets the object down (None for a move without a held goal: between a clear's objects none is believed).
     full_back_off: the held move is planned only where the hands can then back off the whole way
-    (PlanRequest.full_back_off)."""
+    (PlanRequest.full_back_off). set_down_W: more of the scene to plan around (PlanRequest.set_down_W)."""
     X_motion_W, carried, left_out = phase.X_motion_W or RigidTransform(), None, None
     if phase.goal is not None:
         X_motion_W, carried, left_out = held_goal_motion(phase.goal, status, place_target_W)
@@ -97,4 +98,5 @@ def move_request(
         grasp_offsets_G=status.grasp_offsets_G if phase.targets == Targets.GRASP else None,
         inside_left_out=left_out,
         full_back_off=full_back_off,
+        set_down_W=set_down_W,
     )

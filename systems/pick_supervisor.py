@@ -52,6 +52,7 @@ from systems.messages import (
     LeftOut,
     LookRequest,
     Mode,
+    MoveKind,
     ObjectBelief,
     ObjectEstimate,
     PerceptionResult,
@@ -327,7 +328,9 @@ class PickSupervisor(LeafSystem):
             # (a back-off cut short leaves the fingers about the handle, and the next move sweeps them past it).
             spot_left = self.clears and status.task == self.tasks.main and bool(status.spare_spots)
             full_back_off = spot_left and phase.goal == PlaceGoal.SET_DOWN
-            status.request = move_request(phase, status, place_target_W, measured_q, full_back_off)
+            # A clear's free moves plan around what it set down in the zone (the arms backed off one hide it).
+            set_down = clearing.set_down_shapes(status) if self.clears and phase.path == MoveKind.FREE else None
+            status.request = move_request(phase, status, place_target_W, measured_q, full_back_off, set_down)
         elif phase.kind in (PhaseKind.CLOSE, PhaseKind.OPEN):
             width = phase.hand_width + (max(status.grasp_widths, default=OPEN_WIDTH) if phase.beyond_grasp else 0.0)
             status.hand = HandCommand(min(width, OPEN_WIDTH), status.hand.at(t), t, CLOSE_S)
@@ -348,7 +351,7 @@ class PickSupervisor(LeafSystem):
         elif task.then == Then.NEXT_OBJECT:
             self._next_object(context, status, t, homing=task.name != self.tasks.home)
         elif self.clears:  # placed: a look for the scene, home, the next object
-            status.objects += (dataclasses.replace(status.current, cleared=True, attempts=status.attempt),)
+            status.objects += (clearing.placed(status.current, status.belief, status.attempt),)
             status.current = None
             self._next_object(context, status, t, homing=True)
         else:

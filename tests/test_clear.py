@@ -20,8 +20,18 @@ from diagrams.perception import MakeSegmenter
 from diagrams.planning_scene import make_pick_motions
 from diagrams.scenario import ClutterObjectConfig, load_scenario, overlay_scenario, replace_object
 from diagrams.station import drop_zone, settled_frame
-from systems.clear_progress import left_out, next_pass, summary
-from systems.messages import ClearedObject, LeftOut, Mode, PerceptionResult, PickStatus, PlanResult, Stage, TaskName
+from systems.clear_progress import chosen_spots, left_out, next_pass, placed, set_down_shapes, summary
+from systems.messages import (
+    ClearedObject,
+    LeftOut,
+    Mode,
+    ObjectBelief,
+    PerceptionResult,
+    PickStatus,
+    PlanResult,
+    Stage,
+    TaskName,
+)
 from systems.perception.pose_estimator import depth_to_points
 from systems.pick_supervisor import PickSupervisor
 from systems.pick_tasks import clear_pick
@@ -225,7 +235,8 @@ def test_after_an_object_is_cleared_the_frame_of_the_scene_sends_the_arms_home_w
     nothing = PerceptionResult(False, Stage.SEGMENTATION, "nothing to clear: no familiar object left (0 in the drop "
                                "zone, 0 given up)")  # fmt: skip
     dut, context, simulator = _clear_supervisor(seen if found else nothing)
-    cleared = ClearedObject("watering_can", (0.7, -0.06), attempts=1, cleared=True, target_xy_W=(0.67, -0.22))
+    where = np.array([[0.66, -0.24, 0.8], [0.68, -0.2, 0.9]])  # (its shape where it stands)
+    cleared = ClearedObject("watering_can", (0.7, -0.06), 1, cleared=True, target_xy_W=(0.67, -0.22), shape_W=where)
     backed_off = Q0 + 0.1
     between = PickStatus(Mode.PERCEIVING, perceive_id=1, plan_end_q=backed_off, q_home=Q0, objects=(cleared,))
     context.get_mutable_abstract_state(0).set_value(dataclasses.replace(between, homing=True))
@@ -233,6 +244,24 @@ def test_after_an_object_is_cleared_the_frame_of_the_scene_sends_the_arms_home_w
     status = dut.GetOutputPort("status").Eval(context)
     assert status.task == TaskName.HOME and status.belief is None and not status.homing
     assert np.array_equal(status.request.q_goal, Q0) and np.array_equal(status.request.q_start, backed_off)
+    assert np.array_equal(status.request.set_down_W, where)  # the move home plans around what stands in the zone
+
+
+def test_an_object_set_down_keeps_its_shape_where_it_is_believed_to_stand():
+    """The record of a cleared object carries its inferred shape moved as the belief moved the object (the carry,
+    the set-down, the look after it); the objects given up add none to what the free moves plan around."""
+    X_WO_seen = RigidTransform([0.7, 0.1, 0.8])
+    shape = X_WO_seen.multiply(np.array([[x, y, 0.1] for x in (-0.1, 0.1) for y in (-0.05, 0.05)]).T).T
+    seen = PerceptionResult(True, category="drill", X_WO_seen=X_WO_seen, points_W=shape, reconstruction_W=shape)
+    status = PickStatus(objects=(ClearedObject("drill", (0.7, 0.4), 1, shape_W=np.zeros((1, 3))),))  # (given up)
+    _, record = chosen_spots(ZONE, status, seen)
+    assert record.shape_W.shape == (4, 3) and set_down_shapes(status) is None
+    X_WO_now = RigidTransform(RotationMatrix.MakeZRotation(-0.5), [0.67, -0.22, 0.8])
+    done = placed(record, ObjectBelief(X_WO_seen, X_WO_now), attempts=2)
+    assert done.cleared and done.attempts == 2
+    np.testing.assert_allclose(done.shape_W, X_WO_now.multiply(X_WO_seen.inverse().multiply(record.shape_W.T)).T)
+    status.objects += (done,)
+    np.testing.assert_array_equal(set_down_shapes(status), done.shape_W)
 
 
 @pytest.mark.slow

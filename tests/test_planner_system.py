@@ -16,6 +16,7 @@ from systems.messages import GraspPoses, HandCommand, PlanRequest, PlanResult
 from systems.perception.camera_latch import CameraLatch
 from systems.planning import pick_motions, stomp_planner
 from systems.planning.plan_telemetry import PlanTelemetry
+from systems.planning.sphere_model import on_the_robot
 from systems.planning.stomp_planner import StompPlanner
 from systems.planning.straight_motions import WouldTouch
 from systems.robot_io.hand_command import HandCommandSource
@@ -192,6 +193,33 @@ def test_a_relaxing_move_ends_where_the_arms_are_within_their_limits(planner, sc
 
 def _line(q0, q1, t0, t1):
     return PiecewisePolynomial.FirstOrderHold([t0, t1], np.column_stack([q0, q1]))
+
+
+def test_a_free_move_plans_around_the_objects_a_clear_set_down(planner, scenario):
+    """The move home from the grasps, with a 12 cm cube of points where its straight joint line takes the right hand
+    halfway (PlanRequest.set_down_W: what a clear set down, which the camera may not see): no sphere of the robot
+    meets the cube along the played plan, where the straight line goes through it."""
+    world = planner.motions.world
+    q_home, q_start = initial_positions(scenario), grasp_configuration(scenario, planner.motions)
+    halfway = world.grasp_frame_poses(0.5 * (q_start + q_home))["right"].translation()
+    steps = np.arange(-0.06, 0.061, 0.01)
+    cube = halfway + np.array([[x, y, z] for x in steps for y in steps for z in steps])
+
+    def spheres(q):
+        return np.column_stack([world.spheres.centres_W(world.kinematics.body_poses(q[None]))[0], world.spheres.radius])
+
+    line = [q_start + s * (q_home - q_start) for s in np.linspace(0.0, 1.0, 50)]
+    assert any(on_the_robot(cube, spheres(q), 0.0).any() for q in line)  # (the cube stands in the straight way)
+    request = PlanRequest(id=7, phase="next_object_home", q_start=q_start, path="free", targets="home",
+                          q_goal=q_home, set_down_W=cube)  # fmt: skip
+    context = _planner_context(planner, request, GraspPoses(False))
+    Simulator(planner, context).AdvanceTo(LATENCY_S + 0.02)
+    plan = planner.GetOutputPort("plan").Eval(context)
+    assert plan.success, plan.message
+    trajectory = plan.trajectory
+    for t in np.linspace(trajectory.start_time(), trajectory.end_time(), 200):
+        assert not on_the_robot(cube, spheres(trajectory.value(t).ravel()), 0.0).any(), t
+    np.testing.assert_allclose(trajectory.value(trajectory.end_time()).ravel(), q_home, atol=1e-6)
 
 
 def test_trajectory_source_holds_plays_and_ignores_failed_plans():

@@ -111,6 +111,8 @@ class StompPlanner(LeafSystem):
         motions = self.motions
         result = PlanResult(request.id, request.phase)
         scene = self._scene(context)
+        if request.set_down_W is not None and len(request.set_down_W):
+            scene = request.set_down_W if scene is None else np.vstack([scene, request.set_down_W])
         try:
             if request.path not in tuple(MoveKind):
                 raise PlanningError(f"unknown path {request.path!r} (one of {', '.join(MoveKind)})")
