@@ -13,13 +13,15 @@ from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.systems.analysis import Simulator
 
 from diagrams.autonomous_pick import run_pick
+from diagrams.benchmarks.zone_reach import carry_reach
 from diagrams.generation.clear_scenes import ZONE_CLEARANCE_M, arms_reach, clear_scene
 from diagrams.generation.clutter_scenes import scene_outlines
+from diagrams.generation.objects.library import resolve_object
 from diagrams.paths import REPO_ROOT
 from diagrams.perception import MakeSegmenter
 from diagrams.planning_scene import make_pick_motions
 from diagrams.scenario import ClutterObjectConfig, load_scenario, overlay_scenario, replace_object
-from diagrams.station import drop_zone, settled_frame
+from diagrams.station import drop_zone, object_pose_on_table, settled_frame
 from systems.clear_progress import chosen_spots, left_out, next_pass, placed, set_down_shapes, summary
 from systems.messages import (
     ClearedObject,
@@ -299,6 +301,21 @@ def test_the_tables_stand_familiar_objects_only_where_the_arms_reach_them(scenar
             scenario, category=category, instance=other.instance, file="", xy=other.xy, yaw=other.yaw
         )
         assert arms_reach(motions, alone), other
+
+
+@pytest.mark.slow
+def test_the_zone_reach_tells_a_spot_the_arms_carry_to_from_one_beyond_them(scenario):
+    """benchmark_use_reach.py --task clear's core: a carry of no length is reached, one 1.2 m to the robot's right is
+    not, and an object the arms do not lift has no answer (the drill report table 4 was first drawn with)."""
+    motions = make_pick_motions(scenario)
+    assert scenario.object.category == "watering_can"
+    X_WO = object_pose_on_table(scenario, resolve_object(scenario.object))
+    here = X_WO.translation()[:2]
+    reached = carry_reach(motions, scenario, np.array([here, here - [0.0, 1.2]]), [0.0])
+    assert reached.tolist() == [[True], [False]]
+    out_of_reach = replace_object(scenario, category="drill", instance="extra_2313", file="", xy=[-0.0999, 0.1938],
+                                  yaw=-0.1936)  # fmt: skip
+    assert carry_reach(motions, out_of_reach, np.array([here]), [0.0]) is None
 
 
 def test_scenario_checks_the_drop_zone():

@@ -132,9 +132,15 @@ def _familiar_objects(base: Scenario, rng, k: int, split: str, count: int, zone:
 
 def arms_reach(motions: PickMotions, scenario: Scenario) -> bool:
     """Whether the arms reach the scenario's object where it stands as the pick moves, the object alone on the
-    table: both hands at its true pre-grasps or another grasp of their families (the pick's reach around the
-    object, the torso turning where it must: ReachMotions.reach_pregrasps), straight on to the grasps, and
-    straight up PLACE_LIFT_HEIGHT with it."""
+    table (lifted_configuration)."""
+    return lifted_configuration(motions, scenario) is not None
+
+
+def lifted_configuration(motions: PickMotions, scenario: Scenario) -> np.ndarray | None:
+    """The arms' configuration holding the scenario's object, alone on the table, PLACE_LIFT_HEIGHT above where it
+    stands, reached as the pick moves: both hands at its true pre-grasps or another grasp of their families (the
+    pick's reach around the object, the torso turning where it must: ReachMotions.reach_pregrasps), straight on to
+    the grasps, and straight up with it; None where the arms do not reach it so."""
     poses = true_grasp_poses(scenario)
     grasps = {side: poses[f"{side}_grasp"] for side in SIDES}
     model = resolve_object(scenario.object)
@@ -145,10 +151,10 @@ def arms_reach(motions: PickMotions, scenario: Scenario) -> bool:
         )
         held = {side: grasps[side] @ chosen[side] for side in SIDES}
         q_grasp = motions.straight(keyframes[-1], held)[-1]
-        motions.straight(q_grasp, {side: RigidTransform([0, 0, PLACE_LIFT_HEIGHT]) @ X for side, X in held.items()})
+        lift = {side: RigidTransform([0, 0, PLACE_LIFT_HEIGHT]) @ X for side, X in held.items()}
+        return motions.straight(q_grasp, lift)[-1]
     except PlanningError:
-        return False
-    return True
+        return None
 
 
 def _zone_outline(scenario: Scenario) -> np.ndarray:
