@@ -12,8 +12,8 @@ normal, its tip 5 mm off the target).
 Printed: per object the share of spots reached at each turn; per turn a map of the zone (x down, y across, both in W)
 with the number of objects reaching each spot, and the same at any of the turns.
 
-Reached: IK under the closure from the held start (the object lifted 10 cm), torso free, as the planner benchmark
-draws its problems (diagrams/benchmarks/use_reach.py). The true grasps and tool frame place the object: this
+Pour and aim reached: IK under the closure from the held start (the object lifted 10 cm), torso free, as the planner
+benchmark draws its problems (diagrams/benchmarks/use_reach.py). The true grasps and tool frame place the object: this
 measures the arms' reach, not perception.
 
 python scripts/benchmark_use_reach.py --task pour --json pour_reach.json
@@ -117,16 +117,18 @@ def _print_zone_maps(rows: list[dict], turns: list[float]) -> tuple[int, str]:
     if not lifted:
         return 0, "no object lifted"
     xs, ys = lifted[0]["xs_W"], lifted[0]["ys_W"]
-    counts = {turn: np.sum([row["reached"][str(turn)] for row in lifted], axis=0) for turn in turns}
+    reached = {f"turn {turn:+.2f} rad": [row["reached"][str(turn)] for row in lifted] for turn in turns}
+    reached["at any of the turns"] = [np.any([row["reached"][str(turn)] for turn in turns], axis=0) for row in lifted]
     print(f"\nobjects (of {len(lifted)} lifted) carried to each spot; rows x, columns y in W: "
           + " ".join(f"{y:+.2f}" for y in ys))  # fmt: skip
-    counts["any"] = np.sum([np.any([row["reached"][str(turn)] for turn in turns], axis=0) for row in lifted], axis=0)
-    for turn, count in counts.items():
-        print("at any of the turns" if turn == "any" else f"turn {turn:+.2f} rad")
+    for label, maps in reached.items():
+        count = np.sum(maps, axis=0)
+        print(label)
         for i, x in enumerate(xs):
             print(f"  x {x:.2f}  " + " ".join(f"{n:5d}" for n in count[i]))
-    every = int(np.sum(counts["any"] == len(lifted)))
-    summary = f"spots every object lifted is carried to at one turn or another: {every} of {counts['any'].size}"
+    anywhere = np.sum(reached["at any of the turns"], axis=0)
+    every = int(np.sum(anywhere == len(lifted)))
+    summary = f"spots every object lifted is carried to at one turn or another: {every} of {anywhere.size}"
     summary += f" ({len(lifted)} of {len(rows)} objects lifted)"
     return every, summary
 

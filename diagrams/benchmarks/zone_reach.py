@@ -24,8 +24,6 @@ from systems.planning.pick_motions import PickMotions
 from systems.planning.place_goals import place_motion
 from systems.planning.straight_motions import PlanningError
 
-FAMILIAR = ("watering_can", "drill")  # the clear tables' familiar categories (clear_scenes)
-
 
 def zone_grid(scenario: Scenario, step: float) -> tuple[np.ndarray, np.ndarray]:
     """The spots' centres along x and y of W (m): `step` apart, half a step in from the zone's marks."""
@@ -77,7 +75,7 @@ def zone_reach_rows(
     for k in range(tables):
         table = clear_scene(base, k, split)
         familiar = [(table.object.category, table.object.instance, table.object.xy, table.object.yaw)]
-        familiar += [(o.kind, o.instance, o.xy, o.yaw) for o in table.clutter if o.kind in FAMILIAR]
+        familiar += [(o.kind, o.instance, o.xy, o.yaw) for o in table.clutter if o.instance]  # (not distractors)
         for category, instance, xy, yaw in familiar:
             alone = replace_object(base, category=category, instance=instance, file="", xy=list(xy), yaw=yaw)
             reached = carry_reach(motions, alone, spots, turns_rad)
