@@ -34,7 +34,12 @@ def main():
     parser.add_argument("--scenes", type=int, default=60)
     parser.add_argument("--seed", type=int, default=2024, help="held-out scenes' seed (training used others)")
     parser.add_argument("--weights", type=Path, default=DEFAULT_WEIGHTS)
-    parser.add_argument("--threads", type=int, default=2, help="torch CPU threads")
+    parser.add_argument(
+        "--threads",
+        type=int,
+        help="torch's CPU threads (default: with --parts 1, as evaluate.py runs the pick: OpenMP on one thread, the "
+        "image and its mirror image on two; else 2)",
+    )
     add_sensor_option(parser, default="kinect_v2")
     parser.add_argument("--json", type=Path, help="write the results here")
     parser.add_argument("--figure", type=Path, help="write a mosaic of the first 6 scenes here (.png)")
@@ -55,12 +60,13 @@ def main():
         "--part-folders", dest="part_folders", type=Path, nargs="*", default=[], help="with --parts: families' folders"
     )
     args = parser.parse_args()
-    torch.set_num_threads(args.threads)
+    torch.set_num_threads(args.threads or (1 if args.parts else 2))
     if args.parts:
         subjects = part_perception.generated_subjects()
         for folder in args.part_folders:
             subjects += part_perception.folder_subjects(folder)
         results = part_perception.run(with_sensor(load_scenario(), args.sensor), subjects, args.seed, args.sensor)
+        results["torch_threads"] = torch.get_num_threads()
         part_perception.print_table(results)
         if args.json:
             write_json(args.json, results)

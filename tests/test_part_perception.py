@@ -8,13 +8,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import torch
 
 from diagrams.benchmarks.part_perception import perceive_view
 from diagrams.benchmarks.registration import true_grasps
 from diagrams.generation.objects import catalog
 from diagrams.generation.synthetic_scenes import SyntheticScene
 from systems.messages import PartRole
-from systems.perception import part_crop
+from systems.perception import part_crop, segmentation_network
 from systems.perception.part_segmenter import DEFAULT_PART_WEIGHTS, PartSegmenter
 
 
@@ -49,6 +50,18 @@ def test_the_part_network_in_bfloat16_labels_a_rendered_can_as_in_float32(scenar
     bfloat16 = PartSegmenter(bfloat16=True).parts_of(frame.rgb, mask)
     assert np.count_nonzero(mask) > 2000 and len(np.unique(float32[mask])) >= 3
     assert np.mean(float32[mask] == bfloat16[mask]) > 0.97
+
+
+def test_the_part_scores_sum_the_window_and_its_mirror_image_as_the_trained_network_scores_them():
+    """The frozen network, the image and its mirror image on two threads: the trained network's scores."""
+    network = PartSegmenter(bfloat16=False)
+    window = np.random.default_rng(4).integers(0, 256, (part_crop.PART_INPUT, part_crop.PART_INPUT, 3), np.uint8)
+    trained, _ = segmentation_network.load(DEFAULT_PART_WEIGHTS)
+    x = segmentation_network.to_input(window)
+    with torch.no_grad():
+        expected = trained(x)[0] + trained(x.flip(-1))[0].flip(-1)
+    np.testing.assert_allclose(network.scores(window), expected.numpy(), atol=1e-3)
+    assert network.scores(window).shape == (len(PartRole), part_crop.PART_INPUT, part_crop.PART_INPUT)
 
 
 @pytest.mark.slow

@@ -367,6 +367,15 @@ def test_the_inference_copy_folds_the_batch_norms_and_scores_as_the_trained_netw
         torch.testing.assert_close(fused(image), model(image), atol=1e-4, rtol=1e-4)
 
 
+def test_the_frozen_network_scores_as_the_inference_copy_it_was_traced_from():
+    model = segmentation_network.for_inference(segmentation_network.load(DEFAULT_WEIGHTS)[0])
+    image = torch.rand(1, 3, 96, 128, generator=torch.Generator().manual_seed(0)) - 0.5
+    frozen = segmentation_network.frozen(model, torch.zeros(1, 3, 96, 128))
+    assert isinstance(frozen, torch.jit.ScriptModule)
+    with torch.no_grad():
+        torch.testing.assert_close(frozen(image), model(image), atol=1e-5, rtol=1e-5)
+
+
 def test_chained_residual_pooling_takes_the_maxima_of_five_by_five_windows():
     pooling = segmentation_network.ChainedResidualPooling(4, stages=1)
     torch.nn.init.dirac_(pooling.convs[0].weight)  # the conv passes each channel through

@@ -28,6 +28,7 @@ from diagrams.generation.synthetic_scenes import SyntheticScene
 from diagrams.perception import MakePoseEstimator, MakeSegmenter
 from diagrams.scenario import Scenario
 from systems.messages import GraspPoses, ObjectEstimate, PartRole, Segmentation
+from systems.parallel import THREADS
 from systems.perception.images import to_depth_image, to_rgba_image
 from systems.perception.part_segmenter import PartSegmenter
 from systems.perception.parts import part_name
@@ -214,5 +215,6 @@ def print_table(results: dict) -> None:
     print(
         f"part network, median per frame: {1000 * results['part_network_s_median']:.1f} ms in "
         f"{results['part_network_dtype']} (target <= 15 ms); "
-        f"float32 on the same frames {1000 * results['part_network_float32_s_median']:.1f} ms"
+        f"float32 on the same frames {1000 * results['part_network_float32_s_median']:.1f} ms; torch's OpenMP on "
+        f"{results.get('torch_threads', '?')} thread(s), the image and its mirror image on {THREADS}"
     )

@@ -6,10 +6,10 @@ at the segmenter's input size are 10-20 pixels thick here. Its scores, with the 
 are resized back to the window in the camera image; the object's pixels take the best part role (PartRole.NONE is
 never given to an object pixel: the mask says what is the object, the part network only which part of it).
 
-On a CPU that computes bfloat16 natively (AVX512-BF16 or AMX) the network runs in bfloat16: 10-25 % faster than
-float32 on these 2 cores (benchmark_perception.py --parts: 16.6 against 18.6 ms a frame, 2026-12-05; 21.5 against
-26.9 ms on a slower day, 2026-12-06, with the batch norms folded), the same part on 99.9 % of a rendered can's
-pixels. Elsewhere bfloat16 is emulated and slow, and it runs in float32.
+On a CPU that computes bfloat16 natively (AVX512-BF16 or AMX) the network runs in bfloat16, the same part on
+99.9 % of a rendered can's pixels; elsewhere bfloat16 is emulated and slow, and it runs in float32. Traced and frozen
+(segmentation_network.frozen), the image and its mirror image on the two cores at once: 12.6 ms a frame as
+evaluate.py runs a pick (torch on one thread; benchmark_perception.py --parts, 2026-12-06; float32 15.0 ms).
 """
 
 from pathlib import Path
@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from systems.parallel import parallel_map
 from systems.paths import MODELS_DIR
 from systems.perception import part_crop, segmentation_network
 from systems.perception.parts import PartRole
@@ -50,18 +51,24 @@ class PartSegmenter:
         if roles != tuple(role.name for role in PartRole):
             raise ValueError(f"{weights} is no part network: its classes are {roles}")
         self.dtype = torch.bfloat16 if (native_bfloat16() if bfloat16 is None else bfloat16) else torch.float32
-        self.model = segmentation_network.for_inference(model).to(self.dtype, memory_format=torch.channels_last)
+        model = segmentation_network.for_inference(model).to(self.dtype, memory_format=torch.channels_last)
+        example = torch.zeros((1, 3, part_crop.PART_INPUT, part_crop.PART_INPUT), dtype=self.dtype)
+        self.model = segmentation_network.frozen(model, example.contiguous(memory_format=torch.channels_last))
         self.flip = flip
         self.metadata = metadata
 
     def scores(self, window_rgb: np.ndarray) -> np.ndarray:
         """The network's part scores (len(PartRole) x S x S) for one window (S x S x 3 uint8)."""
         x = segmentation_network.to_input(window_rgb).to(self.dtype)
-        batch = torch.cat([x, x.flip(-1)]) if self.flip else x
-        with torch.no_grad():
-            out = self.model(batch.contiguous(memory_format=torch.channels_last))  # (float32 scores)
-        scores = out[0] + out[1].flip(-1) if self.flip else out[0]
-        return scores.numpy()
+        if not self.flip:
+            return self._scores(x)[0].numpy()
+        scores, mirrored = parallel_map(self._scores, [x, x.flip(-1)])  # (on the cores at once, as the segmenter)
+        return (scores[0] + mirrored[0].flip(-1)).numpy()
+
+    def _scores(self, x: torch.Tensor) -> torch.Tensor:
+        """The network's float32 part scores (1 x C x S x S, no gradient) for one window's input (1 x 3 x S x S)."""
+        with torch.no_grad():  # (in the calling thread: torch's gradient mode is per thread)
+            return self.model(x.contiguous(memory_format=torch.channels_last))
 
     def parts_of(self, rgb: np.ndarray, mask: np.ndarray) -> np.ndarray:
         """The part role of each of the object's pixels (H x W uint8 PartRole values; NONE off the mask).

@@ -132,7 +132,11 @@ class Segmenter(LeafSystem):
         self.part_segmenter = part_segmenter
         model, metadata = segmentation_network.load(weights)
         # Channels-last: the CPU's convolutions take about a third of the time (the scores the same within 1e-5)
-        self.model = segmentation_network.for_inference(model).to(memory_format=torch.channels_last)
+        model = segmentation_network.for_inference(model).to(memory_format=torch.channels_last)
+        example = torch.zeros((1, 3, *segmentation_network.INPUT_SIZE[::-1])).contiguous(
+            memory_format=torch.channels_last
+        )
+        self.model = segmentation_network.frozen(model, example)  # (a quarter less time, 2026-12-06: 37 -> 28 ms)
         self.classes = tuple(metadata["classes"])
         self.min_pixels, self.category, self.intrinsics, self.flip = min_pixels, category, intrinsics, flip
         self.X_BC, self.table_top_z = X_BC or RigidTransform(), table_top_z
