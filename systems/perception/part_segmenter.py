@@ -8,7 +8,7 @@ never given to an object pixel: the mask says what is the object, the part netwo
 
 On a CPU that computes bfloat16 natively (AVX512-BF16 or AMX) the network runs in bfloat16, the same part on
 99.9 % of a rendered can's pixels; elsewhere bfloat16 is emulated and slow, and it runs in float32. Traced and frozen
-(segmentation_network.frozen), the image and its mirror image on the two cores at once: 12.6 ms a frame as
+(segmentation_network.frozen), the image and its mirror image on the two cores at once: 12.5 ms a frame as
 evaluate.py runs a pick (torch on one thread; benchmark_perception.py --parts, 2026-12-06; float32 15.0 ms).
 """
 

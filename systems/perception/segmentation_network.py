@@ -140,7 +140,7 @@ WARM_UP_CALLS = 3
 
 
 def frozen(model: nn.Module, example: torch.Tensor) -> nn.Module:
-    """The inference model traced on an example input and frozen (TorchScript): the same kernels, the same scores,
+    """The inference model traced on an example input and frozen (TorchScript): the same scores within float rounding,
     without Python's call between each module, which on these 2 cores is a fifth to a quarter of a frame's time
     (2026-12-06: the part network 11.7 -> 9.4 ms in bfloat16, the segmenter 37 -> 28 ms). The example's batch size,
     dtype and layout are those it is then called with; it is run WARM_UP_CALLS times here, so that a pick's first
