@@ -1,6 +1,8 @@
 """Perception systems alone (FixValue / Eval) on rendered frames, and wired to the station."""
 
 import dataclasses
+import os
+import shutil
 
 import numpy as np
 import pytest
@@ -374,6 +376,16 @@ def test_the_frozen_network_scores_as_the_inference_copy_it_was_traced_from():
     assert isinstance(frozen, torch.jit.ScriptModule)
     with torch.no_grad():
         torch.testing.assert_close(frozen(image), model(image), atol=1e-5, rtol=1e-5)
+
+
+def test_a_network_for_inference_is_built_once_per_file_and_built_again_when_the_file_changes(tmp_path):
+    weights = tmp_path / "segmenter.pt"
+    shutil.copy(DEFAULT_WEIGHTS, weights)
+    model, metadata = segmentation_network.load_for_inference(weights, torch.float32, (48, 64))
+    again, metadata_again = segmentation_network.load_for_inference(weights, torch.float32, (48, 64))
+    assert again is model and metadata_again == metadata and metadata_again is not metadata
+    os.utime(weights, ns=(weights.stat().st_atime_ns, weights.stat().st_mtime_ns + 10**9))  # (the file rewritten)
+    assert segmentation_network.load_for_inference(weights, torch.float32, (48, 64))[0] is not model
 
 
 def test_chained_residual_pooling_takes_the_maxima_of_five_by_five_windows():

@@ -46,14 +46,12 @@ class PartSegmenter:
             FileNotFoundError: no such weights.
             ValueError: the weights are no part network's (their classes are not the PartRole names).
         """
-        model, metadata = segmentation_network.load(weights)
+        self.dtype = torch.bfloat16 if (native_bfloat16() if bfloat16 is None else bfloat16) else torch.float32
+        input_hw = (part_crop.PART_INPUT, part_crop.PART_INPUT)
+        self.model, metadata = segmentation_network.load_for_inference(weights, self.dtype, input_hw)
         roles = tuple(metadata.get("classes", ()))
         if roles != tuple(role.name for role in PartRole):
             raise ValueError(f"{weights} is no part network: its classes are {roles}")
-        self.dtype = torch.bfloat16 if (native_bfloat16() if bfloat16 is None else bfloat16) else torch.float32
-        model = segmentation_network.for_inference(model).to(self.dtype, memory_format=torch.channels_last)
-        example = torch.zeros((1, 3, part_crop.PART_INPUT, part_crop.PART_INPUT), dtype=self.dtype)
-        self.model = segmentation_network.frozen(model, example.contiguous(memory_format=torch.channels_last))
         self.flip = flip
         self.metadata = metadata
 

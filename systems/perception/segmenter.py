@@ -130,13 +130,9 @@ class Segmenter(LeafSystem):
     ):
         super().__init__()
         self.part_segmenter = part_segmenter
-        model, metadata = segmentation_network.load(weights)
-        # Channels-last: the CPU's convolutions take about a third of the time (the scores the same within 1e-5)
-        model = segmentation_network.for_inference(model).to(memory_format=torch.channels_last)
-        example = torch.zeros((1, 3, *segmentation_network.INPUT_SIZE[::-1])).contiguous(
-            memory_format=torch.channels_last
-        )
-        self.model = segmentation_network.frozen(model, example)  # (a quarter less time, 2026-12-06: 37 -> 28 ms)
+        # Folded, channels-last (the CPU's convolutions take about a third of the time) and frozen (a quarter less)
+        input_hw = segmentation_network.INPUT_SIZE[::-1]
+        self.model, metadata = segmentation_network.load_for_inference(weights, torch.float32, input_hw)
         self.classes = tuple(metadata["classes"])
         self.min_pixels, self.category, self.intrinsics, self.flip = min_pixels, category, intrinsics, flip
         self.X_BC, self.table_top_z = X_BC or RigidTransform(), table_top_z
