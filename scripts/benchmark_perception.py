@@ -66,7 +66,6 @@ def main():
         for folder in args.part_folders:
             subjects += part_perception.folder_subjects(folder)
         results = part_perception.run(with_sensor(load_scenario(), args.sensor), subjects, args.seed, args.sensor)
-        results["torch_threads"] = torch.get_num_threads()
         part_perception.print_table(results)
         if args.json:
             write_json(args.json, results)

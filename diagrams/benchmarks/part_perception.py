@@ -15,6 +15,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+import torch
 import trimesh
 from pydrake.common.value import AbstractValue
 from pydrake.math import RigidTransform
@@ -199,6 +200,7 @@ def run(scenario: Scenario, subjects: list[Subject], seed: int, sensor_name: str
         "iou": iou,
         "part_network_s_median": float(np.median(seconds)) if seconds else float("nan"),
         "part_network_dtype": dtype,
+        "torch_threads": torch.get_num_threads(),
         "part_network_float32_s_median": float(np.median(float32_seconds)) if float32_seconds else float("nan"),
         "frames": rows,
     }
@@ -216,5 +218,5 @@ def print_table(results: dict) -> None:
         f"part network, median per frame: {1000 * results['part_network_s_median']:.1f} ms in "
         f"{results['part_network_dtype']} (target <= 15 ms); "
         f"float32 on the same frames {1000 * results['part_network_float32_s_median']:.1f} ms; torch's OpenMP on "
-        f"{results.get('torch_threads', '?')} thread(s), the image and its mirror image on {THREADS}"
+        f"{results['torch_threads']} thread(s), the image and its mirror image on {THREADS}"
     )

@@ -150,15 +150,11 @@ def frozen(model: nn.Module, example: torch.Tensor) -> nn.Module:
     frame meets the optimised module.
 
     torch 2.13 (pinned in pyproject.toml) marks TorchScript deprecated in favour of torch.compile, which takes 53 s
-    to compile the part network on this VM, in every process; its warning is not repeated here. Where a later torch
-    has no TorchScript, the eager model is returned as it is.
+    to compile the part network on this VM, in every process; its warning is not repeated here.
     """
-    model = model.eval()
-    if not (hasattr(torch.jit, "trace") and hasattr(torch.jit, "freeze")):
-        return model
     with torch.no_grad(), warnings.catch_warnings():
         warnings.filterwarnings("ignore", message=r".*torch\.jit.* is deprecated", category=DeprecationWarning)
-        traced = torch.jit.freeze(torch.jit.trace(model, example))
+        traced = torch.jit.freeze(torch.jit.trace(model.eval(), example))
         for _ in range(WARM_UP_CALLS):
             traced(example)
     return traced
@@ -174,9 +170,11 @@ def load_for_inference(path, dtype: torch.dtype, input_hw: tuple[int, int]) -> t
         FileNotFoundError: no such file (the message says how to make it).
     """
     path = Path(path).resolve()
-    if not path.is_file():
-        raise FileNotFoundError(MISSING_WEIGHTS.format(path))
-    model, metadata = _frozen_network(path, path.stat().st_mtime_ns, dtype, tuple(input_hw))
+    try:
+        modified_ns = path.stat().st_mtime_ns
+    except FileNotFoundError:
+        raise FileNotFoundError(MISSING_WEIGHTS.format(path)) from None
+    model, metadata = _frozen_network(path, modified_ns, dtype, tuple(input_hw))
     return model, copy.deepcopy(metadata)
 
 

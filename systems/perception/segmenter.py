@@ -141,7 +141,8 @@ class Segmenter(LeafSystem):
         if first_near_W is not None and (category or intrinsics is None or table_top_z is None):
             raise ValueError("the clear task's segmenter chooses among every category and needs the depth camera")
         self.first_near_W = first_near_W
-        # One inference now: torch's first call is several times slower than the next ones.
+        # One inference now: the network comes warmed up, but each of the pool's threads' first call into torch
+        # takes longer (2026-12-06: a first segmentation 40 ms without this, then 28 ms)
         self.segment(np.zeros((*segmentation_network.INPUT_SIZE[::-1], 3), np.uint8))
         self.color_image_port = self.DeclareAbstractInputPort("color_image", AbstractValue.Make(ImageRgba8U()))
         self.depth_image_port = self.DeclareAbstractInputPort("depth_image", AbstractValue.Make(ImageDepth32F()))
