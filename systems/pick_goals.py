@@ -99,4 +99,5 @@ def move_request(
         inside_left_out=left_out,
         full_back_off=full_back_off,
         set_down_W=set_down_W,
+        exact_goal=phase.exact_goal,
     )

@@ -80,6 +80,7 @@ class Phase:
     X_motion_W: RigidTransform | None = None  # held moves: the object's motion in W
     min_fraction: float = 1.0  # held moves: the shortest share of the motion's translation that will do
     goal: PlaceGoal | None = None  # held moves to the place target
+    exact_goal: bool = False  # held moves: the goal solved onto the hands' targets (PlanRequest.exact_goal)
     check_held: bool = False  # moves: once played, both hands must still hold the object
     hand_width: float | None = None  # closing and opening, m
     beyond_grasp: bool = False  # opening: hand_width is beyond the widest measured grasp (letting go)
@@ -98,6 +99,8 @@ class Phase:
             raise ValueError(f"phase {self.name}: only checks and confirms name a task to switch to, and they must")
         if self.if_unreachable is not None and self.path != MoveKind.HELD:
             raise ValueError(f"phase {self.name}: only held moves name a task for a goal out of reach")
+        if self.exact_goal and self.path != MoveKind.HELD:
+            raise ValueError(f"phase {self.name}: only held moves solve their goal onto the hands' targets")
 
 
 class Then(enum.StrEnum):
@@ -253,9 +256,10 @@ def aim_task(check: bool = True, held_looks: bool = True) -> Task:
         *_grasping(check),
         _look(Mode.LOOK, held_looks),
         _lift(PLACE_LIFT_HEIGHT, MIN_LIFT_FRACTION),
-        _aim(Mode.AIM_APPROACH, PlaceGoal.AIM_APPROACH),
+        # The aim's moves end on their goals: the path's tolerances left an aimed bit's tip ~2 mm short of its stop.
+        _aim(Mode.AIM_APPROACH, PlaceGoal.AIM_APPROACH, exact_goal=True),
         _look(Mode.LOOK_OVER, held_looks),
-        _aim(Mode.AIM, PlaceGoal.AIM),
+        _aim(Mode.AIM, PlaceGoal.AIM, exact_goal=True),
         Phase(Mode.AIM_HOLD, PhaseKind.WAIT, wait_s=AIM_HOLD_S),
         Phase(Mode.AIM_BACK, PhaseKind.MOVE, MoveKind.HELD, goal=PlaceGoal.AIM_BACK),
         Phase(Mode.CARRY, PhaseKind.MOVE, MoveKind.HELD, goal=PlaceGoal.CARRY),
@@ -287,9 +291,12 @@ def pour_task(check: bool = True, held_looks: bool = True) -> Task:
     return Task(TaskName.POUR, phases, Then.DONE, if_check_fails=TaskName.RECOVER)
 
 
-def _aim(name: Mode, goal: PlaceGoal) -> Phase:
-    """A held move towards an aim or a pour; out of reach, the object is set back down."""
-    return Phase(name, PhaseKind.MOVE, MoveKind.HELD, goal=goal, if_unreachable=TaskName.SET_BACK)
+def _aim(name: Mode, goal: PlaceGoal, exact_goal: bool = False) -> Phase:
+    """A held move towards an aim or a pour (with exact_goal, its goal solved onto the hands' targets); out of
+    reach, the object is set back down."""
+    return Phase(
+        name, PhaseKind.MOVE, MoveKind.HELD, goal=goal, exact_goal=exact_goal, if_unreachable=TaskName.SET_BACK
+    )
 
 
 def set_back_task() -> Task:

@@ -34,6 +34,10 @@ HELD_TURN_SPEED_RAD_S = 0.3
 HELD_GOAL_POSITION_TOLERANCE = 0.001
 # (At most 0.04 rad: a set-down object must stand within 5 degrees of upright.)
 HELD_GOAL_ANGLE_TOLERANCES = (0.01, 0.04)
+# A tool's precise move (an aim) has its goal solved again onto its hands' targets within this (m, rad; the right
+# hand's pose relative to the left within it too): with the tolerances above and a pull towards the configuration
+# before, the goal sits at their edge, behind the motion (an aimed bit's tip stopped some 2 mm short of its goal).
+HELD_GOAL_EXACT_TOLERANCES = (0.0001, 0.001)
 HELD_PATH_STEPS = 10  # configurations solved along a held move's motion
 PROJECTION_STEPS = 15
 # A carried object as spheres of this radius (m) for the collision cost, centred on its points so that every
@@ -62,6 +66,7 @@ class HeldPath:
     configurations: np.ndarray  # K x n, from q_start
     reached: float  # the share of the motion the last one reaches, in (0, 1]
     angle_tolerance: float  # rad: the largest of the hands' angle tolerances used along it
+    goal_on_target: bool = False  # the last one holds the hands on their targets within HELD_GOAL_EXACT_TOLERANCES
 
 
 class HeldMotions:
@@ -84,6 +89,7 @@ class HeldMotions:
         min_fraction: float = 1.0,
         carried_points_W: np.ndarray | None = None,
         scene_W: np.ndarray | None = None,
+        exact_goal: bool = False,
     ) -> HeldMove:
         """Keyframes moving both hands (and the object they hold) by X_motion_W (X_WG -> X_motion_W X_WG),
         keeping the hands' relative pose (closure constraint) and, where the goal allows it, their world
@@ -94,14 +100,15 @@ class HeldMotions:
         0.01 rad, the hands may tilt together (the closure still holds) by up to 0.04 rad. With
         carried_points_W (the held object's points in W at q_start), the object is kept clear of the scene
         too (a carry over a box); without, only the robot is. scene_W: the scene as the camera saw it (occupied
-        points, N x 3 in W), kept clear of too.
+        points, N x 3 in W), kept clear of too. exact_goal: the goal solved onto the hands' targets
+        (held_path's exact_goal), for a tool's precise move.
 
         Raises:
             PlanningError: the moved hands are out of reach, or STOMP found no constrained path.
         """
         stomp, end_effectors = self.stomp, self.world.end_effectors
         q_start = np.asarray(q_start, float)
-        first = self.held_path(q_start, X_motion_W, min_fraction)
+        first = self.held_path(q_start, X_motion_W, min_fraction, exact_goal)
         path = first.configurations
         X_E1E2 = end_effectors.relative(q_start[None])[0]
         R_WE = [X[0, :3, :3] for X in end_effectors.poses(q_start[None])]
@@ -138,10 +145,13 @@ class HeldMotions:
         )  # fmt: skip
         return HeldMove(result.trajectory, X_E1E2)
 
-    def held_path(self, q_start: np.ndarray, X_motion_W: RigidTransform, min_fraction: float) -> HeldPath:
+    def held_path(
+        self, q_start: np.ndarray, X_motion_W: RigidTransform, min_fraction: float, exact_goal: bool = False
+    ) -> HeldPath:
         """Configurations holding the object along the motion (HELD_PATH_STEPS of it, each solved from the one
         before, so the arms stay on their branch), the share of the motion reached and the hands' angle
-        tolerance used.
+        tolerance used. With exact_goal, the last is solved again onto its targets (HELD_GOAL_EXACT_TOLERANCES)
+        where it can be.
 
         Raises:
             PlanningError: not even min_fraction of the motion is reachable.
@@ -164,11 +174,24 @@ class HeldMotions:
             if not result.success:
                 break
             path.append(result.q)
-            q, worst = result.q, max(worst, tolerance)
+            q, worst, last_targets = result.q, max(worst, tolerance), targets
         reached = (len(path) - 1) / HELD_PATH_STEPS
         if reached < min_fraction - 1e-9 or len(path) == 1:
             raise PlanningError(f"the moved hands are out of reach ({reached:.0%} of the motion at most)")
-        return HeldPath(np.stack(path), reached, worst)
+        exact = self._on_target(last_targets, X_E1E2, path[-1]) if exact_goal else None
+        if exact is not None:
+            path[-1] = exact
+        return HeldPath(np.stack(path), reached, worst, exact is not None)
+
+    def _on_target(self, targets, X_E1E2, q: np.ndarray) -> np.ndarray | None:
+        """q (a held configuration within the path's tolerances of `targets`) solved again onto them, within
+        HELD_GOAL_EXACT_TOLERANCES, the right hand as exactly at X_E1E2 from the left; None where that finds none
+        near q (within MAX_STRAIGHT_STEP: a joint limit in the way, say)."""
+        position, angle = HELD_GOAL_EXACT_TOLERANCES
+        result = self.ik.solve_held(targets["left"], X_E1E2, q, position, angle, closure_tolerances=(position, angle))
+        if result.success and np.abs(result.q - q).max() <= MAX_STRAIGHT_STEP:
+            return result.q
+        return None
 
     def _held_configuration(self, targets, X_E1E2, q_near):
         """Both hands at `targets` (the right one exactly at X_E1E2 from the left), near q_near (no joint more

@@ -124,7 +124,9 @@ class StompPlanner(LeafSystem):
                     carried = request.carried_motion_W.multiply(cloud.T).T if len(cloud) else None
                 if request.inside_left_out is not None and scene is not None:
                     scene = outside_of(scene, *request.inside_left_out)
-                held = motions.held_move(request.q_start, request.X_motion_W, request.min_fraction, carried, scene)
+                held = motions.held_move(
+                    request.q_start, request.X_motion_W, request.min_fraction, carried, scene, request.exact_goal
+                )
                 keyframes = held.keyframes
                 start, end = (motions.world.grasp_frame_poses(q)["left"] for q in (keyframes[0], keyframes[-1]))
                 result.achieved_motion_W = end @ start.inverse()
