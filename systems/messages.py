@@ -310,8 +310,8 @@ class PlanRequest:
     # More of the scene (N x 3 points in W, m), planned around as the camera's: a clear's objects set down in the
     # drop zone, on its free moves (the arms that have just backed off one hide it from the camera; None: no more).
     set_down_W: np.ndarray | None = None
-    # Held moves: the goal solved onto the hands' targets within 0.1 mm and 1 mrad, not the path's 1 mm and 10 mrad (a
-    # tool's precise move: an aim).
+    # Held moves: the goal solved onto the hands' targets within 0.1 mm and 1 mrad, not the path's 1 mm and 10-40 mrad
+    # (a tool's precise move: an aim).
     exact_goal: bool = False
 
 

@@ -192,30 +192,36 @@ def test_held_move_is_played_within_the_closure_constraint_densely(lift_problem,
 
 
 def test_a_held_move_with_an_exact_goal_ends_with_both_hands_on_their_moved_poses(lift_problem, scenario):
-    """An aim's kind of held move (6 cm across, 8 cm up, 0.2 rad about the vertical) asked for an exact goal: its
-    path's goal holds the left hand on its moved pose within HELD_GOAL_EXACT_TOLERANCES, and STOMP's plan, its goal
-    projected onto the closure, ends with both hands within 1 mm and 3 mrad of theirs. Without it the goal stays
-    within the path's own tolerances (1 mm a side, 10 mrad), at their edge: 1.6-4.5 mm and 11-15 mrad off at STOMP's
-    end on this motion (measured when the exact goal was added)."""
+    """An aim's kind of held move (6 cm across, 8 cm up, 0.2 rad about the vertical): by default its path's goal holds
+    the left hand within the path's tolerances of its moved pose (1 mm a side, 10 mrad), at their edge, and STOMP's
+    plan ends both hands more than 1 mm off theirs (2026-12-07: the goal 1.7 mm and 10 mrad off, STOMP's end 2.2 and
+    4.9 mm, 13 mrad). Asked for an exact goal, the path's goal is within HELD_GOAL_EXACT_TOLERANCES and STOMP's plan,
+    its goal projected onto the closure, ends both hands within 1 mm and 3 mrad (0.4 and 0.5 mm, 1.8 mrad)."""
     _, q_grasp, _, _ = lift_problem
     motions = make_pick_motions(scenario)
     X_motion = RigidTransform(RotationMatrix.MakeZRotation(0.2), [0.0, -0.06, 0.08])
-    assert not motions.held_path(q_grasp, X_motion, 1.0).goal_on_target
-    path = motions.held_path(q_grasp, X_motion, 1.0, exact_goal=True)
-    held = motions.held_move(q_grasp, X_motion, exact_goal=True)
     start = motions.world.grasp_frame_poses(q_grasp)
-    position, angle = HELD_GOAL_EXACT_TOLERANCES
-    assert path.reached == 1.0 and path.goal_on_target
 
     def off(q_end, side):
+        """How far the hand is from its moved pose: (m, rad)."""
         X, target = motions.world.grasp_frame_poses(q_end)[side], X_motion @ start[side]
-        return np.abs(X.translation() - target.translation()), target.rotation().InvertAndCompose(X.rotation())
+        turn = target.rotation().InvertAndCompose(X.rotation()).ToAngleAxis().angle()
+        return np.linalg.norm(X.translation() - target.translation()), turn
 
+    default = motions.held_path(q_grasp, X_motion, 1.0)
+    assert off(default.configurations[-1], "left")[0] > 0.001  # (within 1 mm a side, not in norm)
+    held = motions.held_move(q_grasp, X_motion)
+    assert all(off(held.keyframes[-1], side)[0] > 0.001 for side in ("left", "right"))
+
+    path = motions.held_path(q_grasp, X_motion, 1.0, exact_goal=True)
+    held = motions.held_move(q_grasp, X_motion, exact_goal=True)
+    position, angle = HELD_GOAL_EXACT_TOLERANCES
+    assert path.reached == 1.0
     offset, turn = off(path.configurations[-1], "left")
-    assert offset.max() < position + 1e-6 and turn.ToAngleAxis().angle() < angle + 1e-6
+    assert offset < np.sqrt(3) * position + 1e-6 and turn < angle + 1e-6
     for side in ("left", "right"):
         offset, turn = off(held.keyframes[-1], side)
-        assert np.linalg.norm(offset) < 0.001 and turn.ToAngleAxis().angle() < 0.003
+        assert offset < 0.001 and turn < 0.003
 
 
 # Both hands closed on one drill (unseen extra_1013 on the workspace map, as measured after the grasp): the

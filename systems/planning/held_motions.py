@@ -66,7 +66,6 @@ class HeldPath:
     configurations: np.ndarray  # K x n, from q_start
     reached: float  # the share of the motion the last one reaches, in (0, 1]
     angle_tolerance: float  # rad: the largest of the hands' angle tolerances used along it
-    goal_on_target: bool = False  # the last one holds the hands on their targets within HELD_GOAL_EXACT_TOLERANCES
 
 
 class HeldMotions:
@@ -178,20 +177,20 @@ class HeldMotions:
         reached = (len(path) - 1) / HELD_PATH_STEPS
         if reached < min_fraction - 1e-9 or len(path) == 1:
             raise PlanningError(f"the moved hands are out of reach ({reached:.0%} of the motion at most)")
-        exact = self._on_target(last_targets, X_E1E2, path[-1]) if exact_goal else None
-        if exact is not None:
-            path[-1] = exact
-        return HeldPath(np.stack(path), reached, worst, exact is not None)
+        if exact_goal:
+            path[-1] = self._on_target(last_targets, X_E1E2, path[-1])
+        return HeldPath(np.stack(path), reached, worst)
 
-    def _on_target(self, targets, X_E1E2, q: np.ndarray) -> np.ndarray | None:
+    def _on_target(self, targets, X_E1E2, q: np.ndarray) -> np.ndarray:
         """q (a held configuration within the path's tolerances of `targets`) solved again onto them, within
-        HELD_GOAL_EXACT_TOLERANCES, the right hand as exactly at X_E1E2 from the left; None where that finds none
-        near q (within MAX_STRAIGHT_STEP: a joint limit in the way, say)."""
+        HELD_GOAL_EXACT_TOLERANCES, the right hand as exactly at X_E1E2 from the left; q itself where that finds
+        none near it (within MAX_STRAIGHT_STEP: a joint limit in the way, say)."""
         position, angle = HELD_GOAL_EXACT_TOLERANCES
         result = self.ik.solve_held(targets["left"], X_E1E2, q, position, angle, closure_tolerances=(position, angle))
         if result.success and np.abs(result.q - q).max() <= MAX_STRAIGHT_STEP:
             return result.q
-        return None
+        logging.info("held move: no configuration near its goal holds the hands on their targets; the goal kept")
+        return q
 
     def _held_configuration(self, targets, X_E1E2, q_near):
         """Both hands at `targets` (the right one exactly at X_E1E2 from the left), near q_near (no joint more
