@@ -6,9 +6,10 @@ Frames: W the world (z up), B the camera body (camera_pose is X_WB), C the depth
 Every valid pixel (no flying pixel) outside the object's mask (grown by scene_cloud's MASK_GROWTH_PX) is
 back-projected to W; the points above the known table top are thinned to one per SPACING_M cube and grouped into
 clusters (DBSCAN, points within CLUSTER_EPS_M of one another). Each cluster is asked for an opening
-(container_opening.opening_of: its highest band a circle of a container's size); of those that are one, the
-widest-seen rim (the most rim points) is the container. The robot's arms, the can's handle and a box are no
-circle, and are passed over.
+(container_opening.opening_of: walls round a vertical axis, its highest band a circle about it of a container's
+size; part of the round will do); of those that are one, the widest-seen rim (the most rim points) is the container
+(a container the can cuts in two is two clusters: the larger part wins). The robot's arms, the can's handle and a
+box are no circle, and are passed over.
 """
 
 import cv2
