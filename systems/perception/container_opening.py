@@ -27,7 +27,8 @@ MIN_RIM_POINTS = 30
 SLICE_M = 0.005  # m: the walls' slices of height, each a circle about the axis
 MAX_WALL_SPREAD_M = 0.004  # m: the walls' points off their slices' circles, a robust standard deviation
 MAX_RIM_RMS_M = 0.006  # m: the rim's points off the opening's circle, root mean square
-MAX_CENTRE_SD_M = 0.003  # m: the axis's standard deviation, largest across, from the fit (a short arc: large)
+MAX_CENTRE_SD_M = 0.005  # m: the axis's standard deviation, largest across, from the fit (a short arc: large); the pour
+# needs the spout within the opening's radius less 1 cm of its centre (radii 5.5 cm and more)
 MAX_CLOSED_SHARE = 0.1  # of the highest points, within half the radius of the axis: a top, not a rim (a disc: 25%)
 RIM_OUTLIER_M = 0.015  # m: a rim point this far off the first circle is not the rim's
 OPENING_RADIUS_M = (0.03, 0.3)  # m: the radii of the containers poured into
