@@ -9,6 +9,7 @@ from pydrake.math import RigidTransform, RotationMatrix
 from diagrams.generation.objects import catalog
 from diagrams.generation.objects.bowl import bowl_mesh
 from systems.perception.board_target import board_of
+from systems.perception.container_finder import points_over
 from systems.perception.container_opening import Opening, opening_of
 from systems.planning.aim_goals import AIM_STANDOFF_M, aim_pose
 from systems.planning.pour_goals import POUR_CLEARANCE_M, outflow_elevation, pour_poses
@@ -48,6 +49,18 @@ def test_an_opening_is_found_from_a_third_of_its_round(pot):
     opening = opening_of(far)
     np.testing.assert_allclose(opening.centre_W[:2], xyz[:2], atol=0.007)
     assert 0.08 - 0.008 <= opening.radius <= 0.08 + 0.002
+
+
+def test_an_opening_with_something_over_it_is_none():
+    """points_over counts what the camera saw over an opening (a lid, the rest of a round body it is a piece of), not
+    beside it, nor far above it (a hand at the robot's start)."""
+    opening = Opening(np.array([0.6, 0.25, 0.83]), 0.08, 100)
+    grid = np.stack(np.meshgrid(np.linspace(-0.04, 0.04, 9), np.linspace(-0.04, 0.04, 9)), -1).reshape(-1, 2)
+    lid = np.column_stack([grid + [0.6, 0.25], np.full(len(grid), 0.88)])
+    assert points_over(opening, lid) == len(lid)
+    assert points_over(opening, lid + [0.2, 0.0, 0.0]) == 0  # (beside it)
+    assert points_over(opening, lid + [0.0, 0.0, 0.2]) == 0  # (high above it)
+    assert points_over(opening, lid - [0.0, 0.0, 0.04]) == 0  # (the rim's own band)
 
 
 def test_what_is_no_opening_is_said_so():

@@ -8,8 +8,9 @@ back-projected to W; the points above the known table top are thinned to one per
 clusters (DBSCAN, points within CLUSTER_EPS_M of one another). Each cluster is asked for an opening
 (container_opening.opening_of: walls round a vertical axis, its highest band a circle about it of a container's
 size; part of the round will do); of those that are one, the widest-seen rim (the most rim points) is the container
-(a container the can cuts in two is two clusters: the larger part wins). The robot's arms, the can's handle and a
-box are no circle, and are passed over.
+(a container the can cuts in two is two clusters: the larger part wins). An opening with something seen over it
+(points_over) is none: a piece of a round body is round too. The robot's arms, the can's handle and a box are no
+circle, and are passed over.
 """
 
 import cv2
@@ -21,7 +22,7 @@ from pydrake.systems.framework import LeafSystem
 from pydrake.systems.sensors import CameraInfo, ImageDepth32F
 
 from systems.messages import ContainerSeen, Segmentation
-from systems.perception.container_opening import opening_of
+from systems.perception.container_opening import Opening, opening_of
 from systems.perception.depth_cleaning import flying_pixels
 from systems.perception.pose_estimator import depth_to_points, voxel_thin
 from systems.perception.scene_cloud import MASK_GROWTH_PX, TABLE_MARGIN_M
@@ -29,6 +30,12 @@ from systems.perception.scene_cloud import MASK_GROWTH_PX, TABLE_MARGIN_M
 SPACING_M = 0.004  # m: the points are thinned to one per cube of this size
 CLUSTER_EPS_M = 0.015  # m: DBSCAN's neighbourhood
 MIN_CLUSTER_POINTS = 60  # a cluster of fewer thinned points is no container
+# An opening has nothing over it: no more than MAX_POINTS_OVER thinned points within its radius less COVER_INSET_M of
+# its axis, COVER_BAND_M above its rim (a lid, or the rest of a taller round thing: a piece of a can's body cut off
+# by its spout had the can's top 11-20 cm over it; the hands at the robot's start hang higher).
+COVER_INSET_M = 0.01
+COVER_BAND_M = (0.02, 0.15)
+MAX_POINTS_OVER = 20
 
 
 def find_container(
@@ -37,12 +44,19 @@ def find_container(
     """The container's opening in one frame (H x W depth in m; object_mask H x W bool, the object to leave out, may
     be empty; X_WC the depth sensor's pose; table_top_z the table top's height in W, m)."""
     clusters = above_table_clusters(depth, object_mask, intrinsics, X_WC, table_top_z)
+    seen = np.vstack(clusters) if clusters else np.zeros((0, 3))
     openings, refusals = [], []
     for points in clusters:
+        what = f"a cluster of {len(points)} points"
         try:
-            openings.append(opening_of(points, f"a cluster of {len(points)} points"))
+            opening = opening_of(points, what)
         except ValueError as error:
             refusals.append(str(error))
+            continue
+        if (over := points_over(opening, seen)) > MAX_POINTS_OVER:
+            refusals.append(f"{what}: no opening: {over} points seen over it (at most {MAX_POINTS_OVER})")
+        else:
+            openings.append(opening)
     if not openings:
         why = f"; the largest: {refusals[0]}" if refusals else ""
         return ContainerSeen(False, message=f"no container seen: {len(clusters)} clusters above the table{why}")
@@ -52,6 +66,15 @@ def find_container(
         f"a container's opening {200 * best.radius:.1f} cm across at {np.round(best.centre_W, 3)} (of "
         f"{len(openings)} openings in {len(clusters)} clusters)",
     )  # fmt: skip
+
+
+def points_over(opening: Opening, points_W: np.ndarray) -> int:
+    """How many of the points (N x 3 in W, m) lie over the opening: within its radius less COVER_INSET_M of its axis,
+    COVER_BAND_M above its rim."""
+    across = np.linalg.norm(points_W[:, :2] - opening.centre_W[:2], axis=1)
+    above = points_W[:, 2] - opening.centre_W[2]
+    low, high = COVER_BAND_M
+    return int(np.sum((across < opening.radius - COVER_INSET_M) & (above > low) & (above < high)))
 
 
 def above_table_clusters(

@@ -4,14 +4,14 @@ radius, for pouring into it.
 A bowl or a pot is round about a vertical axis: every height of its walls is a circle about the same centre. The
 axis is fitted to all its seen points at once (`_axis`: the points in 5 mm slices of height, each point's distance
 from the axis against its slice's mean distance, robust least squares), so that part of the round is enough: a
-container at the image's edge, or cut in two by the can in front of it, shows a third of its rim or less, and a circle
-fitted to that arc alone came out 5-45 mm off (2026-12-07, the pour's random placements), where the walls put the
-axis within 3 mm. The rim is the band of points within RIM_BAND_M of the highest; the opening is the circle about the
-axis through them (their median distance), at the rim's height. No opening, and said so: too few points, a closed
-top (a box's, a cylinder's: its highest points fill the circle), walls that are no surface of revolution, a rim off
-its circle, an axis the seen part leaves undetermined, or a size no container has. A sliver of a closed top (a
-cylinder cut by the image's edge, a third of it seen) passes for an arc of a rim; the finder takes the opening with
-the most rim points.
+container at the image's edge, or cut in two by the can in front of it, shows a third of its rim or less, and a
+circle fitted to that arc alone came out 5-45 mm off (2026-12-07, the pour's random placements), where the walls put
+the axis within 2.5 mm (1.3 mm median). The rim is the band of points within RIM_BAND_M of the highest; the opening
+is the circle about the axis through them (their median distance), at the rim's height. No opening, and said so: too
+few points, a closed top (a box's, a cylinder's: its highest points fill the circle), walls that are no surface of
+revolution, a rim off its circle, an axis the seen part leaves undetermined, or a size no container has. A sliver of
+a closed top (a cylinder cut by the image's edge, a third of it seen) passes for an arc of a rim; the finder takes
+the opening with the most rim points, and none with something seen over it (container_finder.points_over).
 
 A bowl's walls are its inside on the far side and its outside on the near one, a wall's thickness apart: the axis
 comes out about half that thickness off (3 mm on a 6 mm wall, noise-free views).
@@ -21,6 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import least_squares
+from scipy.stats import median_abs_deviation
 
 RIM_BAND_M = 0.012  # m: the points this near the highest are the rim
 MIN_RIM_POINTS = 30
@@ -30,7 +31,7 @@ MAX_RIM_RMS_M = 0.006  # m: the rim's points off the opening's circle, root mean
 MAX_CENTRE_SD_M = 0.005  # m: the axis's standard deviation, largest across, from the fit (a short arc: large); the pour
 # needs the spout within the opening's radius less 1 cm of its centre (radii 5.5 cm and more)
 MAX_CLOSED_SHARE = 0.1  # of the highest points, within half the radius of the axis: a top, not a rim (a disc: 25%)
-RIM_OUTLIER_M = 0.015  # m: a rim point this far off the first circle is not the rim's
+RIM_OUTLIER_M = 0.015  # m: a rim point this far off the rim's median distance from the axis is not the rim's
 OPENING_RADIUS_M = (0.03, 0.3)  # m: the radii of the containers poured into
 LOSS_SCALE_M = 0.003  # m: residuals beyond this count less and less (soft-L1)
 
@@ -113,7 +114,7 @@ def _axis(points: np.ndarray, first: np.ndarray) -> tuple[np.ndarray, float, flo
     radial = offset / np.maximum(np.linalg.norm(offset, axis=1), 1e-9)[:, None]
     jacobian = slice_mean(radial)[slices] - radial  # d(residual)/d(centre)
     fitted = residuals(centre)
-    spread = 1.4826 * np.median(np.abs(fitted - np.median(fitted)))  # (the residuals' robust standard deviation)
+    spread = median_abs_deviation(fitted, scale="normal")  # (the residuals' robust standard deviation)
     information = jacobian.T @ jacobian
     worst = np.linalg.eigvalsh(information)[0]
     centre_sd = spread / np.sqrt(worst) if worst > 0 else np.inf
