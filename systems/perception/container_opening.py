@@ -62,13 +62,14 @@ def opening_of(points_W: np.ndarray, what: str = "the container") -> Opening:
         raise ValueError(f"{what}: {len(rim)} points on its rim; an opening needs at least {MIN_RIM_POINTS}")
     centre, wall_spread, centre_sd = _axis(points, _circle(rim[:, :2])[0])
     distance = np.linalg.norm(rim[:, :2] - centre, axis=1)
-    closed = float(np.mean(distance < 0.5 * np.median(distance)))
+    middle = np.median(distance)
+    closed = float(np.mean(distance < 0.5 * middle))
     if closed > MAX_CLOSED_SHARE:
         raise ValueError(
             f"{what}: no opening: {100 * closed:.0f}% of its highest points lie within half its radius of its axis (a"
             f" closed top: at most {100 * MAX_CLOSED_SHARE:.0f}%)"
         )
-    rim = rim[np.abs(distance - np.median(distance)) < RIM_OUTLIER_M]
+    rim = rim[np.abs(distance - middle) < RIM_OUTLIER_M]
     if len(rim) < MIN_RIM_POINTS:
         raise ValueError(f"{what}: its highest points lie on no circle (no rim seen)")
     distance = np.linalg.norm(rim[:, :2] - centre, axis=1)
@@ -109,12 +110,12 @@ def _axis(points: np.ndarray, first: np.ndarray) -> tuple[np.ndarray, float, flo
         distance = np.linalg.norm(points[:, :2] - centre, axis=1)
         return distance - slice_mean(distance)[slices, 0]
 
-    centre = least_squares(residuals, first, loss="soft_l1", f_scale=LOSS_SCALE_M).x
+    solution = least_squares(residuals, first, loss="soft_l1", f_scale=LOSS_SCALE_M)
+    centre = solution.x
     offset = points[:, :2] - centre
     radial = offset / np.maximum(np.linalg.norm(offset, axis=1), 1e-9)[:, None]
     jacobian = slice_mean(radial)[slices] - radial  # d(residual)/d(centre)
-    fitted = residuals(centre)
-    spread = median_abs_deviation(fitted, scale="normal")  # (the residuals' robust standard deviation)
+    spread = median_abs_deviation(solution.fun, scale="normal")  # (the residuals' robust standard deviation)
     information = jacobian.T @ jacobian
     worst = np.linalg.eigvalsh(information)[0]
     centre_sd = spread / np.sqrt(worst) if worst > 0 else np.inf
