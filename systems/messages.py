@@ -313,6 +313,9 @@ class PlanRequest:
     # Held moves: the goal solved onto the hands' targets within 0.1 mm and 1 mrad, not the path's 1 mm and 10-40 mrad
     # (a tool's precise move: an aim).
     exact_goal: bool = False
+    # Held moves: other motions (X_motion_W each) to try in turn where X_motion_W is out of reach or finds no plan (a
+    # pour's tilt, rolled about the outflow: systems/planning/pour_goals.py, pour_rolls).
+    alternatives: tuple[RigidTransform, ...] = ()
 
 
 @dataclass(frozen=True)

@@ -25,7 +25,7 @@ from systems.pick_looks import object_motion
 from systems.pick_tasks import Phase
 from systems.planning.aim_goals import aim_motion, aim_target
 from systems.planning.place_goals import place_motion
-from systems.planning.pour_goals import inside_left_out, pour_motion, pour_target
+from systems.planning.pour_goals import inside_left_out, pour_motion, pour_rolls, pour_target
 
 AIM_GOALS = (PlaceGoal.AIM_APPROACH, PlaceGoal.AIM, PlaceGoal.AIM_BACK)
 POUR_GOALS = (PlaceGoal.POUR_APPROACH, PlaceGoal.POUR, PlaceGoal.POUR_BACK)
@@ -81,8 +81,11 @@ def move_request(
     full_back_off: the held move is planned only where the hands can then back off the whole way
     (PlanRequest.full_back_off). set_down_W: more of the scene to plan around (PlanRequest.set_down_W)."""
     X_motion_W, carried, left_out = phase.X_motion_W or RigidTransform(), None, None
+    alternatives = ()
     if phase.goal is not None:
         X_motion_W, carried, left_out = held_goal_motion(phase.goal, status, place_target_W)
+    if phase.goal == PlaceGoal.POUR:  # (the tilt rolled about the outflow where it is out of reach)
+        X_motion_W, *alternatives = pour_rolls(status.belief, status.pour)
     q_goal = {Targets.HOME: status.q_home, Targets.MEASURED: np.array(measured_q, dtype=float)}.get(phase.targets)
     return PlanRequest(
         status.request.id + 1 if status.request.id >= 0 else 1,
@@ -100,4 +103,5 @@ def move_request(
         full_back_off=full_back_off,
         set_down_W=set_down_W,
         exact_goal=phase.exact_goal,
+        alternatives=tuple(alternatives),
     )

@@ -147,6 +147,25 @@ def test_a_held_move_asked_for_a_full_back_off_fails_where_the_arms_cannot_back_
             assert plan.message.startswith("set_down: the hands could not back off 45 cm from its end")
 
 
+def test_a_held_move_takes_the_first_of_its_alternatives_that_reaches(planner, scenario):
+    """A pour's tilt rolled about the outflow, made simple: a lift of 45 cm (out of reach) is refused with its reason;
+    with alternatives (another 45 cm, then 3 cm) the first that reaches is planned, and its achieved motion is that
+    one's; where none reaches, the first's reason is given with the count of the others tried."""
+    q_grasp = grasp_configuration(scenario, planner.motions)
+    up_3, far = RigidTransform([0.0, 0.0, 0.03]), RigidTransform([0.0, 0.0, 0.45])
+    for request_id, alternatives, planned in ((30, (), False), (31, (far, up_3), True), (32, (far,), False)):
+        lift = PlanRequest(id=request_id, phase="pour", q_start=q_grasp, path="held", X_motion_W=far,
+                           alternatives=alternatives)  # fmt: skip
+        plan = planner.plan(lift, 0.0, _planner_context(planner, lift, GraspPoses(False)))
+        assert plan.success == planned, plan.message
+        if planned:  # (the left hand moved 3 cm up)
+            hand = planner.motions.world.grasp_frame_poses(q_grasp)["left"].translation()
+            np.testing.assert_allclose(plan.achieved_motion_W.multiply(hand), hand + [0.0, 0.0, 0.03], atol=0.002)
+        else:
+            assert plan.message.startswith("pour: the moved hands are out of reach"), plan.message
+            assert ("nor any of 1 other options" in plan.message) == bool(alternatives)
+
+
 # Where the held-out bulb can's pick stood at its pre-grasps at -0.25 rad when a look found the can moved (seed 5): the
 # back-off's first step along -z_G would take the right forearm into the torso.
 BACK_OFF_INTO_THE_TORSO = np.array(

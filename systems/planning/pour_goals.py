@@ -40,6 +40,12 @@ MIN_OUTFLOW_RUN = 0.2  # of the outflow: its horizontal share, below which no di
 # the task's held moves by continuation, 20 deg down, 4 cm clearance): 17 of 24 rows reach the pour and the carry
 # back, against 8 at 52 deg, 9-12 at 67-75 deg and 1 at 90 deg (docs/use.md).
 POUR_HEADING_W = np.array([np.cos(np.radians(60.0)), np.sin(np.radians(60.0))])
+# deg: the tilt's goal turned about the outflow's line through the spout's tip (right-handed about the outflow; at
+# POUR_HEADING_W negative turns bring the can's top towards the robot), tried in turn where the one before is out of
+# reach: the tip and the outflow stay as asked, the hands move. With the true poses of the issue's 40 random
+# placements (IK along the moves, as the task finds them: a throwaway probe, 2026-12-07), no turn reached the tilt in
+# 12, these four in 17 (-45 deg added none).
+POUR_ROLLS_DEG = (0.0, -15.0, -30.0, 15.0)
 
 
 @dataclass(frozen=True)
@@ -126,6 +132,17 @@ def pour_motion(goal: PlaceGoal, belief: ObjectBelief, pour: PourTarget) -> tupl
     else:
         raise ValueError(f"{goal!r} is no pour goal")
     return X_goal @ now.inverse(), now @ belief.seen_W.inverse()
+
+
+def pour_rolls(belief: ObjectBelief, pour: PourTarget) -> tuple[RigidTransform, ...]:
+    """The pour's tilt (X_motion_W from where the object is believed to be) with its goal turned about the outflow's
+    line through the spout's tip by each of POUR_ROLLS_DEG in turn; the first (0) is pour_motion's."""
+    tilt, _ = pour_motion(PlaceGoal.POUR, belief, pour)
+    poured = pour.tool_O.moved(tilt @ belief.now_W)  # (in W)
+    return tuple(
+        turned_about(poured.tip, RotationMatrix(AngleAxis(np.radians(roll), poured.axis))) @ tilt
+        for roll in POUR_ROLLS_DEG
+    )
 
 
 def inside_left_out(pour: PourTarget) -> tuple[np.ndarray, float]:

@@ -124,9 +124,7 @@ class StompPlanner(LeafSystem):
                     carried = request.carried_motion_W.multiply(cloud.T).T if len(cloud) else None
                 if request.inside_left_out is not None and scene is not None:
                     scene = outside_of(scene, *request.inside_left_out)
-                held = motions.held_move(
-                    request.q_start, request.X_motion_W, request.min_fraction, carried, scene, request.exact_goal
-                )
+                held = self._held_option(request, carried, scene)
                 keyframes = held.keyframes
                 start, end = (motions.world.grasp_frame_poses(q)["left"] for q in (keyframes[0], keyframes[-1]))
                 result.achieved_motion_W = end @ start.inverse()
@@ -222,6 +220,31 @@ class StompPlanner(LeafSystem):
         except WouldTouch as error:
             logging.warning("back-off: %s; the hands stay where they are", error)
             return np.stack([q_start, q_start])
+
+    def _held_option(self, request: PlanRequest, carried: np.ndarray | None, scene: np.ndarray | None):
+        """The held move (HeldMove) of the first of the request's motions, X_motion_W then its alternatives, that
+        reaches and finds a plan. carried: the held object's points (N x 3 in W, at q_start) or None; scene: the
+        scene's (or None).
+
+        Raises:
+            PlanningError: none does (the first's reason, and how many others were tried).
+        """
+        options = (request.X_motion_W, *request.alternatives)
+        failures = []
+        for n, X_motion_W in enumerate(options):
+            try:
+                held = self.motions.held_move(
+                    request.q_start, X_motion_W, request.min_fraction, carried, scene, request.exact_goal
+                )
+            except PlanningError as error:
+                failures.append(error)
+                continue
+            if n:
+                logging.info("%s: option %d of %d (the first: %s)", request.phase, n + 1, len(options), failures[0])
+            return held
+        if len(options) == 1:
+            raise failures[0]
+        raise PlanningError(f"{failures[0]}; nor any of {len(options) - 1} other options")
 
     def _check_back_off(self, q_end: np.ndarray) -> None:
         """Raises PlanningError unless the hands, let go at q_end, can back off the whole RETREAT_M from there."""
