@@ -316,10 +316,6 @@ class PlanRequest:
     # Held moves: other motions (X_motion_W each) to try in turn where X_motion_W is out of reach or finds no plan (a
     # pour's tilt, rolled about the outflow: systems/planning/pour_goals.py, pour_rolls).
     alternatives: tuple[RigidTransform, ...] = ()
-    # Reaches to the pre-grasps: the held moves after the grasp, in order, each as the motions (X_motion_W) any of which
-    # will do: the reach goes first to where the arms then reach them by IK along each (a pour's lift, carry over the
-    # container and tilt; HeldMotions.held_sequence), else anywhere it reaches. (): no such moves.
-    then_held: tuple[tuple[RigidTransform, ...], ...] = ()
 
 
 @dataclass(frozen=True)

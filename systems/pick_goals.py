@@ -22,16 +22,10 @@ from systems.messages import (
     Targets,
 )
 from systems.pick_looks import object_motion
-from systems.pick_tasks import PLACE_LIFT_HEIGHT, Phase
+from systems.pick_tasks import Phase
 from systems.planning.aim_goals import aim_motion, aim_target
 from systems.planning.place_goals import place_motion
-from systems.planning.pour_goals import (
-    inside_left_out,
-    pour_motion,
-    pour_moves_after_grasp,
-    pour_rolls,
-    pour_target,
-)
+from systems.planning.pour_goals import inside_left_out, pour_motion, pour_rolls, pour_target
 
 AIM_GOALS = (PlaceGoal.AIM_APPROACH, PlaceGoal.AIM, PlaceGoal.AIM_BACK)
 POUR_GOALS = (PlaceGoal.POUR_APPROACH, PlaceGoal.POUR, PlaceGoal.POUR_BACK)
@@ -92,9 +86,6 @@ def move_request(
         X_motion_W, carried, left_out = held_goal_motion(phase.goal, status, place_target_W)
     if phase.goal == PlaceGoal.POUR:  # (the tilt rolled about the outflow where it is out of reach)
         X_motion_W, *alternatives = pour_rolls(status.belief, status.pour)
-    then_held = ()
-    if phase.targets == Targets.PREGRASP and status.pour is not None and status.belief is not None:
-        then_held = pour_moves_after_grasp(status.belief, status.pour, PLACE_LIFT_HEIGHT)
     q_goal = {Targets.HOME: status.q_home, Targets.MEASURED: np.array(measured_q, dtype=float)}.get(phase.targets)
     return PlanRequest(
         status.request.id + 1 if status.request.id >= 0 else 1,
@@ -113,5 +104,4 @@ def move_request(
         set_down_W=set_down_W,
         exact_goal=phase.exact_goal,
         alternatives=tuple(alternatives),
-        then_held=then_held,
     )

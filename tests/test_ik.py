@@ -9,7 +9,6 @@ from diagrams.planning_scene import make_pick_motions, true_grasp_poses
 from diagrams.scenario import initial_positions, replace_object
 from systems.planning.ik import HALF_TURN, LAST_RESORT_MAJOR_ITERATIONS
 from systems.planning.pick_motions import PlannerConfig
-from systems.planning.straight_motions import PlanningError
 from systems.planning.world import SIDES
 
 MARGIN = 0.1  # rad, as the reach asks for its goals first (REACH_LIMIT_MARGIN)
@@ -58,46 +57,6 @@ def test_batched_ik_names_a_hand_out_of_reach(scenario, motions):
     targets = {"left": poses["left_pregrasp"], "right": far @ poses["right_pregrasp"]}
     result = motions[True].ik.solve(targets, initial_positions(scenario), restarts=4)
     assert not result.success and result.message == "right hand: target out of reach"
-
-
-def test_an_accepted_solution_is_sought_among_the_arms_other_answers(scenario, motions):
-    """solve(accept=...): the nearest solution refused, another branch of an arm (a joint more than 0.3 rad away)
-    that still reaches the targets; everything refused: a failure that says how many were."""
-    poses = true_grasp_poses(scenario)
-    targets = {side: poses[f"{side}_pregrasp"] for side in SIDES}
-    q0, ik, world = initial_positions(scenario), motions[True].ik, motions[True].world
-    first = ik.solve(targets, q0, restarts=12)
-    assert first.success, first.message
-    other = ik.solve(targets, q0, restarts=12, accept=lambda q, _: np.abs(q - first.q).max() > 0.3)
-    assert other.success, other.message
-    assert np.abs(other.q - first.q).max() > 0.3 and _reached(world, other.q, targets)
-    none = ik.solve(targets, q0, restarts=12, accept=lambda q, _: False)
-    assert not none.success and none.message.startswith("none of ") and none.message.endswith(" solutions accepted")
-
-
-def test_a_reach_goes_where_the_moves_after_the_grasp_reach_else_where_any_reach_goes(scenario, motions):
-    """reach_pregrasps(then_check=...): the grasp configuration the approach ends at is one then_check accepts (here:
-    any but the plain reach's branch), the approach still reaching the grasps; where then_check accepts none, the
-    plain reach's keyframes."""
-    poses = true_grasp_poses(scenario)
-    pregrasps, grasps = ({side: poses[f"{side}_{name}"] for side in SIDES} for name in ("pregrasp", "grasp"))
-    q0, reaches = initial_positions(scenario), motions[True]
-    plain, _ = reaches.reach_pregrasps(q0, pregrasps, grasps)
-    plain_grasp = reaches.straight(plain[-1], grasps)[-1]
-
-    def elsewhere(q_grasp):
-        if np.abs(q_grasp - plain_grasp).max() <= 0.3:
-            raise PlanningError("the plain reach's branch")
-
-    other, _ = reaches.reach_pregrasps(q0, pregrasps, grasps, then_check=elsewhere)
-    assert np.abs(reaches.straight(other[-1], grasps)[-1] - plain_grasp).max() > 0.3
-    assert _reached(reaches.world, other[-1], pregrasps)
-
-    def nowhere(q_grasp):
-        raise PlanningError("never")
-
-    fallback, _ = reaches.reach_pregrasps(q0, pregrasps, grasps, then_check=nowhere)
-    np.testing.assert_array_equal(fallback, plain)
 
 
 def test_the_last_resorts_cap_on_snopts_iterations_stops_a_solve_and_keeps_a_reachable_answer(scenario, motions):

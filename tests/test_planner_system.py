@@ -18,7 +18,7 @@ from systems.planning import pick_motions, stomp_planner
 from systems.planning.plan_telemetry import PlanTelemetry
 from systems.planning.sphere_model import on_the_robot
 from systems.planning.stomp_planner import StompPlanner
-from systems.planning.straight_motions import PlanningError, WouldTouch
+from systems.planning.straight_motions import WouldTouch
 from systems.robot_io.hand_command import HandCommandSource
 from systems.robot_io.joint_plan import SPEED_FRACTION
 from systems.robot_io.trajectory_source import JointTrajectorySource
@@ -164,18 +164,6 @@ def test_a_held_move_takes_the_first_of_its_alternatives_that_reaches(planner, s
         else:
             assert plan.message.startswith("pour: the moved hands are out of reach"), plan.message
             assert ("nor any of 1 other options" in plan.message) == bool(alternatives)
-
-
-def test_held_moves_in_sequence_each_take_the_first_of_their_motions_that_reaches(planner, scenario):
-    """held_sequence: 3 cm up, then 45 cm up (out of reach) or 2 cm up: ends 5 cm up; with no second motion that
-    reaches, fails naming the stage."""
-    q_grasp = grasp_configuration(scenario, planner.motions)
-    up_2, up_3, far = (RigidTransform([0.0, 0.0, z]) for z in (0.02, 0.03, 0.45))
-    q_end = planner.motions.held.held_sequence(q_grasp, ((up_3,), (far, up_2)))
-    start, end = (planner.motions.world.grasp_frame_poses(q)["left"].translation() for q in (q_grasp, q_end))
-    np.testing.assert_allclose(end - start, [0.0, 0.0, 0.05], atol=0.005)  # (each move within 2 mm)
-    with pytest.raises(PlanningError, match="held move 2 of 2 after it: the moved hands are out of reach"):
-        planner.motions.held.held_sequence(q_grasp, ((up_3,), (far,)))
 
 
 # Where the held-out bulb can's pick stood at its pre-grasps at -0.25 rad when a look found the can moved (seed 5): the

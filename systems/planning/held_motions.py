@@ -181,26 +181,6 @@ class HeldMotions:
             path[-1] = self._on_target(last_targets, X_E1E2, path[-1])
         return HeldPath(np.stack(path), reached, worst)
 
-    def held_sequence(self, q_start: np.ndarray, stages: tuple[tuple[RigidTransform, ...], ...]) -> np.ndarray:
-        """Where held moves one after another end (rad): each stage the first of its motions (X_motion_W) that
-        reaches the whole way (held_path) from where the stage before ended.
-
-        Raises:
-            PlanningError: a stage none of whose motions reaches (which, and the first's reason).
-        """
-        q = np.asarray(q_start, float)
-        for n, motions in enumerate(stages):
-            failure = None
-            for X_motion_W in motions:
-                try:
-                    q = self.held_path(q, X_motion_W, 1.0).configurations[-1]
-                    break
-                except PlanningError as error:
-                    failure = failure or error
-            else:
-                raise PlanningError(f"held move {n + 1} of {len(stages)} after it: {failure}")
-        return q
-
     def _on_target(self, targets, X_E1E2, q: np.ndarray) -> np.ndarray:
         """q (a held configuration within the path's tolerances of `targets`) solved again onto them, within
         HELD_GOAL_EXACT_TOLERANCES, the right hand as exactly at X_E1E2 from the left; q itself where that finds

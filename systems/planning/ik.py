@@ -10,7 +10,7 @@ candidate yaw (where it stands, then turned to face the targets, then as each ar
 and both arms together with the torso free from the first candidate where each arm reaches."""
 
 import itertools
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -47,10 +47,6 @@ NOMINAL_PULL_DECAY = 0.7
 # SNOPT's major iterations in the last resort (its default allows 1000 or more): where it reaches a target it needs
 # few, and where it does not, the cap bounds the time it spends failing.
 LAST_RESORT_MAJOR_ITERATIONS = 100
-# solve() with `accept`: at most this many pairs of the arms' answers are tried, and an arm's answers count as
-# distinct where a joint differs by more than DISTINCT_ANSWER_RAD (another branch of its elbow or wrist).
-ACCEPT_COMBINATIONS = 16
-DISTINCT_ANSWER_RAD = 0.3
 
 
 @dataclass
@@ -204,7 +200,6 @@ class DualArmIk:
         limit_margin: float = 0.0,
         torso_yaws: Iterable[float] | None = None,
         alternatives: dict[str, list[RigidTransform]] | None = None,
-        accept: Callable[[np.ndarray, dict[str, int]], bool] | None = None,
     ) -> IkResult:
         """Arm joints putting each side's grasp frame at X_WG[side], nearest to q_guess.
 
@@ -224,9 +219,6 @@ class DualArmIk:
                 X_WG[side] on the right (e.g. other grasps of the same handle): the next is tried only where the
                 ones before leave that hand out of reach; IkResult.choice says which one each hand was solved for
                 (default: X_WG alone).
-            accept: where given, only a solution it accepts (q, the choice of alternatives) is returned, the
-                others passed over: more of each arm's answers are combined (ACCEPT_COMBINATIONS), farther from
-                q_guess (a reach whose held moves after the grasp must reach from its end).
         """
         q_guess = np.asarray(q_guess, dtype=float)
         options = (
@@ -237,7 +229,6 @@ class DualArmIk:
             restarts,
             limit_margin,
             alternatives,
-            accept,
         )
         failures = []
         if torso_yaws is None or self.world.torso is None:
@@ -252,7 +243,7 @@ class DualArmIk:
 
     def _solve_at_torso(
         self, X_WG, q_guess, torso, position_tolerance, angle_tolerance, min_distance, allow_half_turn, restarts,
-        limit_margin, alternatives, accept=None,
+        limit_margin, alternatives,
     ) -> IkResult:  # fmt: skip
         """solve()'s answer with each arm solved alone at the torso yaw `torso` (rad), then both together with
         the torso free (when it is planned)."""
@@ -278,32 +269,21 @@ class DualArmIk:
             if not per_arm[side]:
                 return IkResult(False, q_guess, f"{side} hand: target out of reach")
             per_arm[side].sort(key=lambda item: np.sum((item[1] - q_guess) ** 2))
-        if accept is None:
-            pairs = itertools.islice(itertools.product(per_arm["left"][:4], per_arm["right"][:4]), 8)
-        else:  # (each arm's distinct answers, the pairs nearest q_guess first)
-            distinct = {side: _distinct(per_arm[side], 7 * (side == "right")) for side in SIDES}
-            pairs = sorted(itertools.product(distinct["left"], distinct["right"]),
-                           key=lambda pair: np.sum((pair[0][1][:7] - q_guess[:7]) ** 2)
-                           + np.sum((pair[1][1][7:14] - q_guess[7:14]) ** 2))[:ACCEPT_COMBINATIONS]  # fmt: skip
-        rejected = 0
-        for (left_X, left_q), (right_X, right_q) in pairs:
+        for (left_X, left_q), (right_X, right_q) in itertools.islice(
+            itertools.product(per_arm["left"][:4], per_arm["right"][:4]), 8
+        ):
             start = left_q.copy()
             start[7:14] = right_q[7:14]
             if min_distance is None:
-                result = IkResult(True, start, "solved per arm", choice)
-            elif self.batched and self.world.clearance(start, max_distance=2 * min_distance) >= min_distance:
-                result = IkResult(True, start, "solved per arm, clear", choice)
-            else:
-                result = self._solve_once(
-                    {"left": left_X, "right": right_X}, start, start, position_tolerance, angle_tolerance,
-                    min_distance, limit_margin, torso=True,
-                )  # fmt: skip
-                result = IkResult(result.success, result.q, result.message, choice)
-            if result.success and (accept is None or accept(result.q, choice)):
-                return result
-            rejected += result.success
-        if rejected:
-            return IkResult(False, q_guess, f"none of {rejected} solutions accepted")
+                return IkResult(True, start, "solved per arm", choice)
+            if self.batched and self.world.clearance(start, max_distance=2 * min_distance) >= min_distance:
+                return IkResult(True, start, "solved per arm, clear", choice)
+            result = self._solve_once(
+                {"left": left_X, "right": right_X}, start, start, position_tolerance, angle_tolerance, min_distance,
+                limit_margin, torso=True,
+            )  # fmt: skip
+            if result.success:
+                return IkResult(True, result.q, result.message, choice)
         return IkResult(False, q_guess, "each hand reaches its target, but not without a collision")
 
     def _arm_answers(
@@ -489,15 +469,3 @@ class DualArmIk:
         result = Solve(prog, None, options)
         q_arms = result.GetSolution(q)[arm]
         return IkResult(result.is_success(), q_arms, str(result.get_solution_result()))
-
-
-def _distinct(answers: list[tuple[RigidTransform, np.ndarray]], first: int) -> list[tuple[RigidTransform, np.ndarray]]:
-    """One arm's answers (target, q), in order, without those whose arm joints (q[first:first + 7]) lie within
-    DISTINCT_ANSWER_RAD of one kept before."""
-    kept = []
-    for X, q in answers:
-        if all(
-            np.abs(q[first : first + 7] - other[first : first + 7]).max() > DISTINCT_ANSWER_RAD for _, other in kept
-        ):
-            kept.append((X, q))
-    return kept

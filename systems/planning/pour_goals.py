@@ -145,20 +145,6 @@ def pour_rolls(belief: ObjectBelief, pour: PourTarget) -> tuple[RigidTransform, 
     )
 
 
-def pour_moves_after_grasp(
-    belief: ObjectBelief, pour: PourTarget, lift_m: float
-) -> tuple[tuple[RigidTransform, ...], ...]:
-    """The held moves of a pour after the grasp (PlanRequest.then_held), from where the object is believed to stand:
-    the lift (lift_m, m, straight up), the approach over the container, and the tilt (pour_rolls: any of them). The
-    looks after the grasp move the task's goals a little: a reach whose tilt just reached by this account may still
-    fall short at the pour (extra_1005: the tilt at 80 %; with 5 deg more tilt asked here, the reach found no goal
-    at all there, in 5 minutes of IK)."""
-    lift = RigidTransform([0.0, 0.0, lift_m])
-    lifted = belief.moved(lift)
-    approach, _ = pour_motion(PlaceGoal.POUR_APPROACH, lifted, pour)
-    return (lift,), (approach,), pour_rolls(lifted.moved(approach), pour)
-
-
 def inside_left_out(pour: PourTarget) -> tuple[np.ndarray, float]:
     """The container's inside, left out of the scene the pour's held moves keep the can clear of (PlanRequest's
     inside_left_out): within the opening's radius less RIM_KEPT_M of its axis, below the rim. The spout goes

@@ -12,7 +12,7 @@ from pydrake.math import RigidTransform
 
 from systems.parallel import parallel_calls
 from systems.planning.grasp_alternatives import grasp_alternatives, pregrasp_alternatives
-from systems.planning.ik import DISTINCT_ANSWER_RAD, DualArmIk, IkResult
+from systems.planning.ik import DualArmIk, IkResult
 from systems.planning.obstacles import Obstacles
 from systems.planning.stomp import Stomp
 from systems.planning.straight_motions import PlanningError, StraightMotions
@@ -27,14 +27,6 @@ SCREENING_ITERATIONS = 100
 # Where a pre-grasp is out of reach, pre-grasps this share of the way out from the grasp are tried in turn: the
 # approach is then shorter (its straight line still ends at the grasp).
 PREGRASP_STANDOFFS = (1.0, 0.5)
-# A reach whose goals must let the held moves after the grasp reach (then_check) solves its IK from this many
-# guesses, q_start's joints and then q_start's moved by a normal draw of this spread (rad, from a fixed seed, within
-# the limits): the seed table's starts near the targets end on the same one to three branches of each arm, and the
-# branch decides what the arms reach once they hold the object (a throwaway probe, 2026-12-07: from 16 such guesses
-# the true grasps' pour reached in 27 of the issue's 40 random placements, 17 without them).
-ACCEPT_GUESSES = 16
-ACCEPT_GUESS_SPREAD_RAD = 0.8
-ACCEPT_GUESS_SEED = 80
 
 
 class _FirstLookFailed(PlanningError):
@@ -64,7 +56,6 @@ class ReachMotions:
         alternatives: dict[str, list[RigidTransform]] | None = None,
         approach_to: dict[str, list[RigidTransform]] | None = None,
         scene_W: np.ndarray | None = None,
-        then_check: Callable[[np.ndarray], None] | None = None,
     ) -> Reach:
         """Keyframes from q_start to both hands at targets_W, collision-free: Drake's geometry, and the sphere model
         against the world's fixed scene and obstacle_points_W (the object as seen, N x 3 in W, e.g. a perceived
@@ -74,10 +65,7 @@ class ReachMotions:
         each of its targets (the grasps, from pre-grasps; one per alternative, or one without alternatives): a
         goal from which that straight motion fails is passed over for the next, and where every goal is, goals are
         found backwards from the grasps (_goals_from_the_grasps). scene_W: the rest of the scene as the camera saw
-        it (its occupied points, N x 3 in W; world.planning_obstacles), avoided too. then_check (with approach_to):
-        raises PlanningError where the moves that follow the approach (a pour's lift, carry and tilt) do not reach
-        from its end (the arms at the grasps, rad); goals from which they reach are sought first (more of the arms'
-        IK answers: DualArmIk.solve's accept), and where there is none, any goal will do.
+        it (its occupied points, N x 3 in W; world.planning_obstacles), avoided too.
 
         Raises:
             PlanningError: no collision-free IK solution, or no collision-free path to it. A path that fails from a
@@ -89,32 +77,7 @@ class ReachMotions:
             counts = {side: len((alternatives or {}).get(side, [RigidTransform()])) for side in SIDES}
             if any(len(approach_to[side]) != counts[side] for side in SIDES):
                 raise ValueError(f"approach_to needs one grasp per alternative per side ({counts})")
-        if then_check is not None and approach_to is not None:
-            refused = []  # (goals within DISTINCT_ANSWER_RAD of one refused are refused unchecked: the same branch)
-
-            def then_reaches(q: np.ndarray, choice: dict[str, int]) -> bool:
-                if any(np.abs(q - other).max() <= DISTINCT_ANSWER_RAD for other in refused):
-                    return False
-                try:
-                    then_check(
-                        self._check_approach(q, {side: approach_to[side][choice.get(side, 0)] for side in SIDES})
-                    )
-                except PlanningError:
-                    refused.append(q)
-                    return False
-                return True
-
-            try:
-                return self._reach(
-                    q_start, targets_W, obstacle_points_W, alternatives, approach_to, scene_W, then_reaches
-                )
-            except PlanningError as error:
-                logging.info("reach: no goal from which the moves after the grasps reach (%s); any goal", error)
-        return self._reach(q_start, targets_W, obstacle_points_W, alternatives, approach_to, scene_W)
-
-    def _reach(self, q_start, targets_W, obstacle_points_W, alternatives, approach_to, scene_W, accept=None) -> Reach:
-        """reach()'s goals and paths; with `accept` (DualArmIk.solve's), only the goals found forwards it accepts."""
-        forwards = self._reach_goals(q_start, targets_W, alternatives, accept)
+        forwards = self._reach_goals(q_start, targets_W, alternatives)
         # The sphere model's scene (its distance fields) and the first IK goal need nothing of each other: side by side.
         obstacles, first = parallel_calls(
             lambda: self.world.planning_obstacles(
@@ -125,10 +88,7 @@ class ReachMotions:
         forwards = itertools.chain([first] if first is not None else [], forwards)
         # Straight segments are checked with Drake's geometry, and with the sphere model where anything is points.
         checked = obstacles if obstacle_points_W is not None or scene_W is not None else None
-        found_backwards = approach_to is not None and accept is None
-        backwards = (
-            self._goals_from_the_grasps(q_start, targets_W, alternatives, approach_to) if found_backwards else ()
-        )
+        backwards = self._goals_from_the_grasps(q_start, targets_W, alternatives, approach_to) if approach_to else ()
         failure, at_the_grasps = None, ""  # at_the_grasps: why the goals found backwards failed, if they did
         screened = []  # (goal, choice, whether found backwards): STOMP's first look at them found no path
         full_look_given = False  # the first goal STOMP plans to gets all its iterations, as if it were the only one
@@ -164,14 +124,13 @@ class ReachMotions:
         obstacle_points_W: np.ndarray | None = None,
         scene_W: np.ndarray | None = None,
         deeper: RigidTransform | None = None,
-        then_check: Callable[[np.ndarray], None] | None = None,
     ) -> tuple[np.ndarray, dict[str, RigidTransform]]:
         """A pick's reach: keyframes from q_start to both hands at pre-grasps from which the straight approach
         reaches the grasps (each grasp_W moved by `deeper` on the right, if given), and per side the grasp of its
         family it leads to (X_GG'). Where a hand cannot reach its pre-grasp so, the other grasps of its family
         (grasp_alternatives: rolled about the handle, slid along it, judged on the object's points cloud_W, N x 3
         in W), and where none does, pre-grasps nearer the grasps (PREGRASP_STANDOFFS). obstacle_points_W,
-        scene_W, then_check: as reach()'s.
+        scene_W: as reach()'s.
 
         Raises:
             PlanningError: as reach(), for the first standoff (or the last, where a nearer one was tried).
@@ -192,7 +151,7 @@ class ReachMotions:
                 side: pregrasp_alternatives(grasps_W[side].inverse() @ nearer[side], families[side]) for side in SIDES
             }
             try:
-                reach = self.reach(q_start, nearer, obstacle_points_W, alternatives, approach_to, scene_W, then_check)
+                reach = self.reach(q_start, nearer, obstacle_points_W, alternatives, approach_to, scene_W)
                 return reach.keyframes, {side: families[side][reach.choice[side]] for side in SIDES}
             except PlanningError as error:
                 failure = failure or error
@@ -200,28 +159,16 @@ class ReachMotions:
                     break  # reachable but not by a free path: nearer the object will not help
         raise failure
 
-    def _reach_goals(self, q_start, targets_W, alternatives, accept=None) -> Iterator[IkResult]:
+    def _reach_goals(self, q_start, targets_W, alternatives) -> Iterator[IkResult]:
         """The reach's IK goals, solved lazily in the order they are tried: the targets as given before their
         alternatives; the torso where it stands first, turned only where the arms cannot reach from there; at each
         torso yaw, joints well inside their limits first (a pre-grasp at a limit leaves no room for the
-        approach), then without the margin. With `accept`: from ACCEPT_GUESSES guesses instead."""
-        if accept is not None:
-            world, rng = self.world, np.random.default_rng(ACCEPT_GUESS_SEED)
-            for n in range(ACCEPT_GUESSES):
-                spread = rng.normal(0.0, ACCEPT_GUESS_SPREAD_RAD, len(q_start)) if n else 0.0
-                guess = np.clip(q_start + spread, world.lower, world.upper)
-                yield self.ik.solve(targets_W, guess, restarts=2, alternatives=alternatives, accept=accept)
-            return
+        approach), then without the margin."""
         for choices in (None, alternatives) if alternatives else (None,):
             for torso in self.ik.torso_candidates(targets_W, q_start):  # lazily: later ones cost solves of their own
                 for margin in (REACH_LIMIT_MARGIN, 0.0):
                     yield self.ik.solve(
-                        targets_W,
-                        q_start,
-                        restarts=12,
-                        limit_margin=margin,
-                        torso_yaws=[torso],
-                        alternatives=choices,
+                        targets_W, q_start, restarts=12, limit_margin=margin, torso_yaws=[torso], alternatives=choices
                     )
 
     def _goals_from_the_grasps(self, q_start, targets_W, alternatives, approach_to) -> Iterator[IkResult]:
@@ -246,14 +193,10 @@ class ReachMotions:
             except PlanningError as error:
                 yield IkResult(False, goal.q, f"at the grasps: backing off to the pre-grasps fails ({error})")
 
-    def _check_approach(self, q: np.ndarray, approach_to: dict[str, RigidTransform]) -> np.ndarray:
-        """Where the straight approach from q to approach_to ends (rad).
-
-        Raises:
-            PlanningError: it fails.
-        """
+    def _check_approach(self, q: np.ndarray, approach_to: dict[str, RigidTransform]):
+        """Raises PlanningError where the straight approach from q to approach_to fails."""
         try:
-            return self.straights.straight(q, approach_to)[-1]
+            self.straights.straight(q, approach_to)
         except PlanningError as error:
             raise PlanningError(f"the approach from the goal fails ({error})") from None
 

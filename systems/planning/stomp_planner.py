@@ -198,15 +198,7 @@ class StompPlanner(LeafSystem):
         if request.targets != Targets.PREGRASP:
             return self.motions.reach(request.q_start, targets, points, scene_W=scene).keyframes, None
         grasps = self._targets(dataclasses.replace(request, targets=Targets.GRASP), context, deeper=False)
-        then_check = None
-        if request.then_held:
-
-            def then_check(q_grasp: np.ndarray) -> None:
-                self.motions.held.held_sequence(q_grasp, request.then_held)
-
-        return self.motions.reach_pregrasps(
-            request.q_start, targets, grasps, cloud, points, scene, self.deeper, then_check
-        )
+        return self.motions.reach_pregrasps(request.q_start, targets, grasps, cloud, points, scene, self.deeper)
 
     def _to_measured(self, request: PlanRequest) -> np.ndarray:
         """A relaxing move's keyframes: from the command to where the arms are measured (q_goal, within the joint
