@@ -85,7 +85,7 @@ def move_request(
     if phase.goal is not None:
         X_motion_W, carried, left_out = held_goal_motion(phase.goal, status, place_target_W)
     if phase.goal == PlaceGoal.POUR:  # (the tilt rolled about the outflow where it is out of reach)
-        X_motion_W, *alternatives = pour_rolls(status.belief, status.pour)
+        alternatives = pour_rolls(X_motion_W, status.belief, status.pour)
     q_goal = {Targets.HOME: status.q_home, Targets.MEASURED: np.array(measured_q, dtype=float)}.get(phase.targets)
     return PlanRequest(
         status.request.id + 1 if status.request.id >= 0 else 1,
@@ -103,5 +103,5 @@ def move_request(
         full_back_off=full_back_off,
         set_down_W=set_down_W,
         exact_goal=phase.exact_goal,
-        alternatives=tuple(alternatives),
+        alternatives=alternatives,
     )

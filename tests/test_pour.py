@@ -124,23 +124,25 @@ def test_the_pour_moves_turn_the_outflow_left_tilt_it_down_over_the_opening_then
 
 
 def test_the_tilts_rolled_about_the_outflow_keep_the_tip_and_the_outflow_and_turn_the_cans_top():
-    """pour_rolls: the first is pour_motion's tilt; each puts the spout's tip at the same point with the same outflow,
-    the can turned about that line by its roll (its top towards the robot, -x_W, for a negative roll)."""
+    """pour_rolls: each puts the spout's tip at the same point as pour_motion's tilt, with the same outflow, the can
+    turned about that line by its roll (its top towards the robot, -x_W, for a negative roll)."""
     scenario = _pour_scenario()
     X_WO, tool_O, pour = _held_can(scenario)
     over = pour_motion(PlaceGoal.POUR_APPROACH, ObjectBelief(X_WO, X_WO), pour)[0] @ X_WO
     belief = ObjectBelief(X_WO, over)
-    rolls = pour_rolls(belief, pour)
-    assert len(rolls) == len(POUR_ROLLS_DEG) and rolls[0].IsExactlyEqualTo(pour_motion(PlaceGoal.POUR, belief, pour)[0])
-    first = tool_O.moved(rolls[0] @ over)
+    tilt, _ = pour_motion(PlaceGoal.POUR, belief, pour)
+    rolls = pour_rolls(tilt, belief, pour)
+    assert len(rolls) == len(POUR_ROLLS_DEG)
+    unturned = tilt @ over
+    first = tool_O.moved(unturned)
     for motion, roll in zip(rolls, POUR_ROLLS_DEG, strict=True):
         poured = motion @ over
         np.testing.assert_allclose(tool_O.moved(poured).tip, first.tip, atol=1e-9)
         np.testing.assert_allclose(tool_O.moved(poured).axis, first.axis, atol=1e-9)
-        turn = poured.rotation().multiply((rolls[0] @ over).rotation().inverse()).ToAngleAxis()
+        turn = poured.rotation().multiply(unturned.rotation().inverse()).ToAngleAxis()
         assert np.degrees(turn.angle()) == pytest.approx(abs(roll), abs=1e-6)
-        up, first_up = poured.rotation().matrix()[:, 2], (rolls[0] @ over).rotation().matrix()[:, 2]
-        assert roll == 0.0 or np.sign(up[0] - first_up[0]) == np.sign(roll)  # (negative: the top towards -x_W)
+        up, first_up = poured.rotation().matrix()[:, 2], unturned.rotation().matrix()[:, 2]
+        assert np.sign(up[0] - first_up[0]) == np.sign(roll)  # (negative: the top towards -x_W)
 
 
 def test_the_containers_inside_is_left_out_of_the_scene_below_its_rim_and_the_rim_kept():

@@ -41,11 +41,11 @@ MIN_OUTFLOW_RUN = 0.2  # of the outflow: its horizontal share, below which no di
 # back, against 8 at 52 deg, 9-12 at 67-75 deg and 1 at 90 deg (docs/use.md).
 POUR_HEADING_W = np.array([np.cos(np.radians(60.0)), np.sin(np.radians(60.0))])
 # deg: the tilt's goal turned about the outflow's line through the spout's tip (right-handed about the outflow; at
-# POUR_HEADING_W negative turns bring the can's top towards the robot), tried in turn where the one before is out of
-# reach: the tip and the outflow stay as asked, the hands move. With the true poses of the issue's 40 random
-# placements (IK along the moves, as the task finds them: a throwaway probe, 2026-12-07), no turn reached the tilt in
-# 12, these four in 17 (-45 deg added none).
-POUR_ROLLS_DEG = (0.0, -15.0, -30.0, 15.0)
+# POUR_HEADING_W negative turns bring the can's top towards the robot), tried in turn after the unturned goal where the
+# one before is out of reach: the tip and the outflow stay as asked, the hands move. With the true poses of the issue's
+# 40 random placements (IK along the moves, as the task finds them: a throwaway probe, 2026-12-07), the unturned goal
+# reached the tilt in 12, with these turns 17 (-45, +30 and +45 deg added none).
+POUR_ROLLS_DEG = (-15.0, -30.0, 15.0)
 
 
 @dataclass(frozen=True)
@@ -134,13 +134,12 @@ def pour_motion(goal: PlaceGoal, belief: ObjectBelief, pour: PourTarget) -> tupl
     return X_goal @ now.inverse(), now @ belief.seen_W.inverse()
 
 
-def pour_rolls(belief: ObjectBelief, pour: PourTarget) -> tuple[RigidTransform, ...]:
-    """The pour's tilt (X_motion_W from where the object is believed to be) with its goal turned about the outflow's
-    line through the spout's tip by each of POUR_ROLLS_DEG in turn; the first (0) is pour_motion's."""
-    tilt, _ = pour_motion(PlaceGoal.POUR, belief, pour)
-    poured = pour.tool_O.moved(tilt @ belief.now_W)  # (in W)
+def pour_rolls(tilt_W: RigidTransform, belief: ObjectBelief, pour: PourTarget) -> tuple[RigidTransform, ...]:
+    """The pour's tilt (tilt_W: pour_motion's X_motion_W from where the object is believed to be) with its goal
+    turned about the outflow's line through the spout's tip by each of POUR_ROLLS_DEG in turn."""
+    poured = pour.tool_O.moved(tilt_W @ belief.now_W)  # (in W)
     return tuple(
-        turned_about(poured.tip, RotationMatrix(AngleAxis(np.radians(roll), poured.axis))) @ tilt
+        turned_about(poured.tip, RotationMatrix(AngleAxis(np.radians(roll), poured.axis))) @ tilt_W
         for roll in POUR_ROLLS_DEG
     )
 
