@@ -23,7 +23,7 @@ from systems.messages import (
 )
 from systems.pick_looks import object_motion
 from systems.pick_tasks import Phase
-from systems.planning.aim_goals import aim_motion, aim_target
+from systems.planning.aim_goals import aim_motion, aim_rolls, aim_target
 from systems.planning.place_goals import place_motion
 from systems.planning.pour_goals import inside_left_out, pour_motion, pour_rolls, pour_target
 
@@ -86,6 +86,8 @@ def move_request(
         X_motion_W, carried, left_out = held_goal_motion(phase.goal, status, place_target_W)
     if phase.goal == PlaceGoal.POUR:  # (the tilt rolled about the outflow where it is out of reach)
         alternatives = pour_rolls(X_motion_W, status.belief, status.pour)
+    elif phase.goal in AIM_GOALS:  # (the aim's moves rolled about the bit's axis, the same)
+        alternatives = aim_rolls(X_motion_W, status.belief, status.aim)
     q_goal = {Targets.HOME: status.q_home, Targets.MEASURED: np.array(measured_q, dtype=float)}.get(phase.targets)
     return PlanRequest(
         status.request.id + 1 if status.request.id >= 0 else 1,

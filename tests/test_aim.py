@@ -29,7 +29,15 @@ from systems.perception.board_finder import find_board
 from systems.perception.board_target import TARGET_RGB, target_pixels
 from systems.pick_supervisor import PickSupervisor
 from systems.pick_tasks import Phase, aim_pick
-from systems.planning.aim_goals import AIM_APPROACH_M, AIM_STANDOFF_M, aim_motion, aim_target, level
+from systems.planning.aim_goals import (
+    AIM_APPROACH_M,
+    AIM_ROLLS_DEG,
+    AIM_STANDOFF_M,
+    aim_motion,
+    aim_rolls,
+    aim_target,
+    level,
+)
 from systems.shape_space.tool_frame import ToolFrame
 from tests.test_recovery import Q0, _answer, _hands, _status
 
@@ -90,6 +98,29 @@ def test_the_aim_moves_put_the_bit_along_the_normal_short_of_the_target_then_on_
         aim_target(board, dataclasses.replace(grasps, tool_W=None, message="grasps on the seen handles"), X_WO)
     with pytest.raises(ValueError, match="the board: 3 points"):
         aim_target(BoardSeen(False, message="the board: 3 points seen"), grasps, X_WO)
+
+
+def test_the_aims_rolled_about_the_bit_keep_its_tip_and_axis_and_the_aim_after_a_rolled_approach_keeps_the_roll():
+    """aim_rolls: each puts the bit's tip where aim_motion's goal does, along the same axis, the drill turned about
+    the bit by its roll; the aim from a rolled approach moves straight in along the normal, its roll kept."""
+    X_WO, grasps, board = _aim()
+    aim = aim_target(board, grasps, X_WO)
+    belief = ObjectBelief.seen(X_WO)
+    approach, _ = aim_motion(PlaceGoal.AIM_APPROACH, belief, aim)
+    rolls = aim_rolls(approach, belief, aim)
+    assert len(rolls) == len(AIM_ROLLS_DEG)
+    unturned = approach @ X_WO
+    first = aim.tool_O.moved(unturned)
+    for motion, roll in zip(rolls, AIM_ROLLS_DEG, strict=True):
+        rolled = motion @ X_WO
+        np.testing.assert_allclose(aim.tool_O.moved(rolled).tip, first.tip, atol=1e-9)
+        np.testing.assert_allclose(aim.tool_O.moved(rolled).axis, first.axis, atol=1e-9)
+        turn = rolled.rotation().multiply(unturned.rotation().inverse()).ToAngleAxis()
+        assert np.degrees(turn.angle()) == pytest.approx(abs(roll), abs=1e-6)
+        assert abs(turn.axis() @ board.normal_W) == pytest.approx(1.0)  # about the bit's axis, the normal
+        into, _ = aim_motion(PlaceGoal.AIM, ObjectBelief(X_WO, rolled), aim)
+        assert into.rotation().IsNearlyIdentity(1e-9)  # straight in: the roll kept
+        np.testing.assert_allclose(into.translation(), -AIM_APPROACH_M * board.normal_W, atol=1e-9)
 
 
 def test_a_bit_axis_near_level_is_taken_level_and_a_steep_one_as_perceived():

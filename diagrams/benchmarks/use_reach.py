@@ -18,9 +18,9 @@ from diagrams.generation.objects.library import resolve_object
 from diagrams.generation.planning_problems import held_problem
 from diagrams.scenario import load_scenario, replace_object
 from diagrams.station import TABLE_HEIGHT, object_pose_on_table
-from systems.planning.aim_goals import aim_pose
+from systems.planning.aim_goals import aim_pose, turned_about
 from systems.planning.pick_motions import PickMotions
-from systems.planning.pour_goals import outflow_elevation, turned_about
+from systems.planning.pour_goals import outflow_elevation
 
 LIFT_M = 0.10  # m: how high the object is held above where it stood
 TABLE_HALF_SIZE_M = (0.4, 0.6)  # m: the table top's half depth (x) and width (y): sdf/scene/table.sdf

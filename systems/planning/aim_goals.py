@@ -17,6 +17,11 @@ from systems.shape_space.tool_frame import ToolFrame
 AIM_STANDOFF_M = 0.005  # m: the bit's tip this far off the board's surface
 LEVEL_AXIS_MAX_DEG = 10.0  # a perceived tool axis this near level is taken level (level())
 AIM_APPROACH_M = 0.10  # m: the aim is approached, and left, along the board's normal over this
+# deg: the aim's moves (its approach, the aim, the way back) turned about the bit's axis (through its tip, along the
+# board's normal), tried in turn after the unturned goal where the one before is out of reach or finds no plan: the
+# bit aims the same, the drill's body and the hands turn about it. The aim that follows a turned approach keeps its
+# turn (aim_pose turns the least), and the way back may turn it further or back.
+AIM_ROLLS_DEG = (-15.0, 15.0, -30.0, 30.0)
 
 
 def aim_pose(
@@ -37,8 +42,7 @@ def aim_pose(
     if np.linalg.norm(cross) < 1e-9:  # already along it, or straight away from it: turn about the vertical
         cross = np.array([0.0, 0.0, 1.0])
     pivot_W = X_WO.multiply(np.asarray(pivot_O, dtype=float))
-    turn = RigidTransform(RotationMatrix(AngleAxis(angle, cross / np.linalg.norm(cross))))
-    turned = RigidTransform(pivot_W) @ turn @ RigidTransform(-pivot_W) @ X_WO
+    turned = turned_about(pivot_W, RotationMatrix(AngleAxis(angle, cross / np.linalg.norm(cross)))) @ X_WO
     return RigidTransform(np.asarray(target_W) + standoff * normal - turned.multiply(tool_O.tip)) @ turned
 
 
@@ -90,3 +94,19 @@ def aim_motion(goal: PlaceGoal, belief: ObjectBelief, aim: AimTarget) -> tuple[R
     else:
         raise ValueError(f"{goal!r} is no aim goal")
     return X_goal @ now.inverse(), now @ belief.seen_W.inverse()
+
+
+def aim_rolls(X_motion_W: RigidTransform, belief: ObjectBelief, aim: AimTarget) -> tuple[RigidTransform, ...]:
+    """An aim goal's move (X_motion_W: aim_motion's, from where the object is believed to be) with its goal turned
+    about the bit's axis, the line through the tip along the board's normal, by each of AIM_ROLLS_DEG in turn.
+    (The perceived axis lies within a degree or two of the normal once aimed: the turn is about the normal.)"""
+    tip_W = (X_motion_W @ belief.now_W).multiply(aim.tool_O.tip)
+    normal = np.asarray(aim.normal_W, dtype=float) / np.linalg.norm(aim.normal_W)
+    return tuple(
+        turned_about(tip_W, RotationMatrix(AngleAxis(np.radians(roll), normal))) @ X_motion_W for roll in AIM_ROLLS_DEG
+    )
+
+
+def turned_about(point_W: np.ndarray, rotation: RotationMatrix) -> RigidTransform:
+    """The turn by `rotation` about a point (W)."""
+    return RigidTransform(point_W) @ RigidTransform(rotation) @ RigidTransform(-np.asarray(point_W))

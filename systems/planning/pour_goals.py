@@ -22,7 +22,7 @@ from pydrake.math import RigidTransform, RotationMatrix
 
 from systems.messages import ContainerSeen, GraspPoses, ObjectBelief, PlaceGoal, PourTarget
 from systems.perception.container_opening import Opening
-from systems.planning.aim_goals import held_tool
+from systems.planning.aim_goals import held_tool, turned_about
 from systems.shape_space.tool_frame import ToolFrame
 
 # m: the spout's tip this far above the opening's rim while it pours. At 2.5 cm (one more training row of 24 reached)
@@ -167,8 +167,3 @@ def upright(X_WO: RigidTransform, pivot_O: np.ndarray) -> RigidTransform:
     angle = float(np.arctan2(np.linalg.norm(cross), z[2]))
     pivot_W = X_WO.multiply(np.asarray(pivot_O, dtype=float))
     return turned_about(pivot_W, RotationMatrix(AngleAxis(angle, cross / np.linalg.norm(cross)))) @ X_WO
-
-
-def turned_about(point_W: np.ndarray, rotation: RotationMatrix) -> RigidTransform:
-    """The turn by `rotation` about a point (W)."""
-    return RigidTransform(point_W) @ RigidTransform(rotation) @ RigidTransform(-np.asarray(point_W))
