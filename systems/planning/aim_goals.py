@@ -98,12 +98,20 @@ def aim_motion(goal: PlaceGoal, belief: ObjectBelief, aim: AimTarget) -> tuple[R
 
 def aim_rolls(X_motion_W: RigidTransform, belief: ObjectBelief, aim: AimTarget) -> tuple[RigidTransform, ...]:
     """An aim goal's move (X_motion_W: aim_motion's, from where the object is believed to be) with its goal turned
-    about the bit's axis, the line through the tip along the board's normal, by each of AIM_ROLLS_DEG in turn.
-    (The perceived axis lies within a degree or two of the normal once aimed: the turn is about the normal.)"""
+    about the bit's axis, the line through the tip along the board's normal, by each of AIM_ROLLS_DEG in turn (at
+    every aim goal aim_pose has put the perceived bit's axis along the normal)."""
     tip_W = (X_motion_W @ belief.now_W).multiply(aim.tool_O.tip)
     normal = np.asarray(aim.normal_W, dtype=float) / np.linalg.norm(aim.normal_W)
+    return rolled_about(X_motion_W, tip_W, normal, AIM_ROLLS_DEG)
+
+
+def rolled_about(
+    X_motion_W: RigidTransform, point_W: np.ndarray, axis_W: np.ndarray, rolls_deg
+) -> tuple[RigidTransform, ...]:
+    """A held move (X_motion_W) with its goal turned about the line through point_W along axis_W (unit, W) by each
+    of rolls_deg (deg, right-handed about axis_W) in turn."""
     return tuple(
-        turned_about(tip_W, RotationMatrix(AngleAxis(np.radians(roll), normal))) @ X_motion_W for roll in AIM_ROLLS_DEG
+        turned_about(point_W, RotationMatrix(AngleAxis(np.radians(roll), axis_W))) @ X_motion_W for roll in rolls_deg
     )
 
 

@@ -22,7 +22,7 @@ from pydrake.math import RigidTransform, RotationMatrix
 
 from systems.messages import ContainerSeen, GraspPoses, ObjectBelief, PlaceGoal, PourTarget
 from systems.perception.container_opening import Opening
-from systems.planning.aim_goals import held_tool, turned_about
+from systems.planning.aim_goals import held_tool, rolled_about, turned_about
 from systems.shape_space.tool_frame import ToolFrame
 
 # m: the spout's tip this far above the opening's rim while it pours. At 2.5 cm (one more training row of 24 reached)
@@ -138,10 +138,7 @@ def pour_rolls(tilt_W: RigidTransform, belief: ObjectBelief, pour: PourTarget) -
     """The pour's tilt (tilt_W: pour_motion's X_motion_W from where the object is believed to be) with its goal
     turned about the outflow's line through the spout's tip by each of POUR_ROLLS_DEG in turn."""
     poured = pour.tool_O.moved(tilt_W @ belief.now_W)  # (in W)
-    return tuple(
-        turned_about(poured.tip, RotationMatrix(AngleAxis(np.radians(roll), poured.axis))) @ tilt_W
-        for roll in POUR_ROLLS_DEG
-    )
+    return rolled_about(tilt_W, poured.tip, poured.axis, POUR_ROLLS_DEG)
 
 
 def inside_left_out(pour: PourTarget) -> tuple[np.ndarray, float]:

@@ -44,6 +44,7 @@ Where along the handle (the seed), and the rules between the seen part and the p
   hand to the prior, and only where the prior is sound; else the grasps are poor, and perception names why.
 """
 
+import functools
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -158,6 +159,7 @@ def fit_part(
     if count < MIN_PART_POINTS:
         return PartFit(hand, count, reason=f"{count} points seen (at least {MIN_PART_POINTS} expected)")
     cut_off, prior = part.cut_off, prior_W.translation()
+    middle = functools.cache(lambda: _tube_near_middle(points_W, viewpoint_W))  # (fitted once, where asked)
     # (_sees_prior_place needs a seen point within FINGER_HALF_SPAN of the grasp on the axis, so within
     # POOR_PRIOR_ACROSS + FINGER_HALF_SPAN of the prior's: where there is none, no tube is fitted at the prior's place)
     if (
@@ -169,7 +171,7 @@ def fit_part(
         if (
             tube is not None
             and _sees_prior_place(points_W, tube, prior, POOR_PRIOR_ACROSS)
-            and not _on_a_sliver(points_W, viewpoint_W, tube)
+            and not _on_a_sliver(tube, middle())
         ):
             fit = _checked(hand, count, tube, cut_off)
             if fit.sound:
@@ -180,7 +182,7 @@ def fit_part(
         if tube is not None and prior_sound and not _sees_prior_place(points_W, tube, prior, PRIOR_ACROSS):
             return PartFit(hand, count, tube, "the prior's place on the handle is not seen", cut_off)
     if tube is None and not cut_off:
-        tube = _tube_near_middle(points_W, viewpoint_W)
+        tube = middle()
     return _checked(hand, count, tube, cut_off)
 
 
@@ -256,13 +258,12 @@ def _tube_near_middle(points_W: np.ndarray, viewpoint_W: np.ndarray) -> Tube | N
     return fit_tube(points_W, viewpoint_W, middle)
 
 
-def _on_a_sliver(points_W: np.ndarray, viewpoint_W: np.ndarray, tube: Tube) -> bool:
+def _on_a_sliver(tube: Tube, middle: Tube | None) -> bool:
     """Whether the tube at a poor prior's place stands on a sliver of the part beside the handle: the tube at the
-    handle's middle (_tube_near_middle) is a handle's (seen well, at most HANDLE_RADIUS_MAX thick) on another piece
-    (its point more than PRIOR_ACROSS from this tube's axis), and the camera saw that piece far more densely (this
-    tube fitted to fewer than SLIVER_SHARE of its points): pixels given the handle's role at the edge of a
-    neighbouring part, where the poor fit's grasp fell."""
-    middle = _tube_near_middle(points_W, viewpoint_W)
+    handle's middle (`middle`: _tube_near_middle's) is a handle's (seen well, at most HANDLE_RADIUS_MAX thick) on
+    another piece (its point more than PRIOR_ACROSS from this tube's axis), and the camera saw that piece far more
+    densely (this tube fitted to fewer than SLIVER_SHARE of its points): pixels given the handle's role at the edge
+    of a neighbouring part, where the poor fit's grasp fell."""
     if middle is None or middle.points < MIN_TUBE_POINTS or middle.rms_m > MAX_TUBE_RMS:
         return False
     if middle.radius > HANDLE_RADIUS_MAX:  # (the middle stands on the body: its tube is no handle's)
