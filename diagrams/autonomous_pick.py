@@ -46,8 +46,8 @@ from diagrams.planning_scene import make_planning_world
 from diagrams.pour_container import true_opening
 from diagrams.pour_judge import PourJudge
 from diagrams.robot_driver import MakeRobotDriver
-from diagrams.scenario import ObjectConfig, Scenario
-from diagrams.station import HAND_INSTANCES, OBJECT_INSTANCE, MakeStation, drop_zone, place_target
+from diagrams.scenario import ObjectConfig, Scenario, initial_positions
+from diagrams.station import HAND_INSTANCES, OBJECT_INSTANCE, MakeStation, clear_home, drop_zone, place_target
 from systems.messages import ClearedObject, GraspPoses, Mode, PickStatus
 from systems.perception.camera_latch import CameraLatch
 from systems.perception.grasp_offset import GraspOffset
@@ -145,7 +145,9 @@ def MakePickDiagram(
         tasks, place_target_W = clear_pick(check=scenario.look_before_approach, held_looks=scenario.place.looks), None
     else:
         tasks, place_target_W = lift_pick(check=scenario.look_before_approach), None
-    clearing = {"drop_zone": drop_zone(scenario, robot_at_start(scenario)), "max_objects": scenario.clear.max_objects}
+    at_home = clear_home(scenario)
+    clearing = {"drop_zone": drop_zone(scenario, robot_at_start(at_home)), "max_objects": scenario.clear.max_objects,
+                "home_q": initial_positions(at_home)}  # fmt: skip
     supervisor = PickSupervisor(
         tasks,
         PERCEIVE_AT_S,

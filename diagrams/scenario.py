@@ -160,6 +160,12 @@ class ClearConfig:
     zone_size: list[float] = field(default_factory=lambda: [0.48, 0.40])
     # The most objects the robot takes on (cleared or given up), however many it sees.
     max_objects: int = 6
+    # Where the arms go between objects, j_arm1_1..7 then j_arm2_1..7, rad ([]: back to the start). The right arm
+    # stands raised, its hand over 32 cm above the zone: at the start it hangs 15 cm above the zone's near rows, the
+    # part every object is carried to, and what stands there would be in its way home (docs/clear.md).
+    home_arm_positions: list[float] = field(
+        default_factory=lambda: [0.9, 0.2, 0.5, -2.2, 0.0, 0.5, 0.0] + [0.5, -0.2, -0.5, -2.4, 0.0, 0.5, 0.0]
+    )
 
 
 @dataclass
@@ -504,6 +510,9 @@ def _validate_clear(clear: ClearConfig) -> None:
         raise ValueError(f"clear.zone_size must be 2 entries in [0.1, 1.2] m (x, y), got {clear.zone_size}")
     if not 1 <= clear.max_objects <= 20:
         raise ValueError(f"clear.max_objects must lie in [1, 20], got {clear.max_objects}")
+    if len(clear.home_arm_positions) not in (0, 14):
+        raise ValueError(f"clear.home_arm_positions must have 14 entries (or none: the start), got "
+                         f"{len(clear.home_arm_positions)}")  # fmt: skip
 
 
 def clutter_name(other: ClutterObjectConfig) -> str:

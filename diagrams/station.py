@@ -19,6 +19,7 @@ planned_joints): 15, the left arm, the right arm and the torso yaw, or 14 with t
 locked. The camera rides on the torso: its pose follows the torso's yaw.
 """
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -143,8 +144,8 @@ def place_target(scenario: Scenario) -> RigidTransform:
 
 def drop_zone(scenario: Scenario, robot_spheres_W: np.ndarray | None = None) -> DropZone:
     """The clear task's drop zone in W (scenario.clear: its centre in the table_top frame); with the robot's spheres
-    at its start (S x 4: centre in W, radius; m), those reaching below ZONE_KEEP_OUT_HEIGHT_M above the table top
-    are its keep-out circles."""
+    at its home between objects (S x 4: centre in W, radius; m; clear_home), those reaching below
+    ZONE_KEEP_OUT_HEIGHT_M above the table top are its keep-out circles."""
     centre = np.array(scenario.table_xyz[:2]) + scenario.clear.zone_xy
     keep_out = ()
     if robot_spheres_W is not None:
@@ -154,9 +155,16 @@ def drop_zone(scenario: Scenario, robot_spheres_W: np.ndarray | None = None) -> 
     return DropZone((float(centre[0]), float(centre[1])), tuple(map(float, scenario.clear.zone_size)), keep_out)
 
 
-# m: the robot's spheres at its start reaching below this above the table top keep objects out of the drop zone (the
-# tallest familiar object, a watering can's handle, stands about 30 cm)
+# m: the robot's spheres at its home between objects reaching below this above the table top keep objects out of the
+# drop zone (the tallest familiar object, a watering can's handle, stands about 30 cm)
 ZONE_KEEP_OUT_HEIGHT_M = 0.32
+
+
+def clear_home(scenario: Scenario) -> Scenario:
+    """The scenario with the robot's arms where a clear sends them between objects (clear.home_arm_positions; the
+    start where it is empty): the robot_spheres_W of drop_zone() are taken there."""
+    home = scenario.clear.home_arm_positions
+    return dataclasses.replace(scenario, initial_arm_positions=list(home)) if home else scenario
 
 
 ZONE_MARK_RGBA = (0.15, 0.15, 0.15, 1.0)

@@ -459,7 +459,8 @@ class PickStatus:
     # The grasps the last reach to the pre-grasps chose, X_GG' per side (PlanResult.grasp_offsets_G).
     grasp_offsets_G: dict | None = None
     looks_read: int = 0  # looks at the held object whose result was read
-    q_home: np.ndarray | None = None  # where the robot stood when the pick began (planned joints, rad)
+    q_start: np.ndarray | None = None  # where the robot stood when the pick began (planned joints, rad)
+    q_home: np.ndarray | None = None  # where it goes home to: the start, or a clear's home between objects (rad)
     attempt: int = 1  # the attempt under way (a failed check starts the next, up to max_attempts)
     attempt_failures: tuple[tuple[str, str], ...] = ()  # (stage, message) of each failed attempt, in order
     task: TaskName | None = None  # the phase list under way (None: none yet, or perceiving for the next attempt)

@@ -145,6 +145,7 @@ class PickSupervisor(LeafSystem):
         max_objects: int = 1,
         status_lost_s: float | None = None,
         pour_tilt_rad: float = 0.0,
+        home_q: np.ndarray | None = None,
     ):
         super().__init__()
         self.clears, self.drop_zone, self.max_objects = tasks.after_given_up is not None, drop_zone, max_objects
@@ -155,6 +156,7 @@ class PickSupervisor(LeafSystem):
         if max_attempts < 1:
             raise ValueError(f"max_attempts must be at least 1, not {max_attempts}")
         self.max_attempts, self.pour_tilt_rad = max_attempts, pour_tilt_rad
+        self.home_q = None if home_q is None else np.asarray(home_q, float)
         self.position_port = self.DeclareVectorInputPort("position_measured", num_joints)
         self.hand_state_ports = {side: self.DeclareVectorInputPort(f"{side}_hand_state", 2) for side in SIDES}
         self.plan_port = self.DeclareAbstractInputPort("plan", AbstractValue.Make(PlanResult()))
@@ -250,7 +252,8 @@ class PickSupervisor(LeafSystem):
             measured = self.position_port.Eval(context)
             if not np.all(np.isfinite(measured)):  # (the hardware station's NaN before the robot's status)
                 return False
-            status.plan_end_q, status.q_home, changed = measured.copy(), measured.copy(), True
+            status.plan_end_q, status.q_start, changed = measured.copy(), measured.copy(), True
+            status.q_home = measured.copy() if self.home_q is None else self.home_q.copy()
         if t < self.perceive_at_s:
             return changed
         self._look_at_the_table(context, status, t)
@@ -366,7 +369,9 @@ class PickSupervisor(LeafSystem):
         status.objects, status.current = (*status.objects, failed), None
         status.failed_stage, status.message = "", ""
         logging.warning("giving up on the %s: %s", failed.category, failed.message)
-        at_start = status.plan_end_q is not None and np.allclose(status.plan_end_q, status.q_home, atol=1e-3)
+        at_start = status.plan_end_q is not None and any(
+            np.allclose(status.plan_end_q, q, atol=1e-3) for q in (status.q_start, status.q_home)
+        )
         if at_start and not status.grasp_widths:  # (nothing moved, nothing closed)
             self._next_object(context, status, t)
             return look

@@ -335,7 +335,8 @@ def give_up_task() -> Task:
 
 
 def home_task() -> Task:
-    """Between a clear task's objects: back to where the robot started; then the next object."""
+    """Between a clear task's objects: home (PickStatus.q_home: the clear's home, or where the robot started); then
+    the next object."""
     phases = (Phase(Mode.NEXT_OBJECT_HOME, PhaseKind.MOVE, MoveKind.FREE, Targets.HOME),)
     return Task(TaskName.HOME, phases, Then.NEXT_OBJECT, if_check_fails=None)
 

@@ -15,13 +15,13 @@ from pydrake.systems.analysis import Simulator
 from diagrams.autonomous_pick import run_pick
 from diagrams.benchmarks.zone_reach import carry_reach
 from diagrams.generation.clear_scenes import ZONE_CLEARANCE_M, arms_reach, clear_scene
-from diagrams.generation.clutter_scenes import scene_outlines
+from diagrams.generation.clutter_scenes import robot_at_start, scene_outlines
 from diagrams.generation.objects.library import resolve_object
 from diagrams.paths import REPO_ROOT
 from diagrams.perception import MakeSegmenter
 from diagrams.planning_scene import make_pick_motions
 from diagrams.scenario import ClutterObjectConfig, load_scenario, overlay_scenario, replace_object
-from diagrams.station import drop_zone, object_pose_on_table, settled_frame
+from diagrams.station import clear_home, drop_zone, object_pose_on_table, settled_frame
 from systems.clear_progress import chosen_spots, left_out, next_pass, placed, set_down_shapes, summary
 from systems.messages import (
     ClearedObject,
@@ -145,8 +145,10 @@ def _around(xy, half_size: float = 0.01) -> np.ndarray:
     return np.asarray(xy) + half_size * np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]])
 
 
-def _clear_supervisor(result: PerceptionResult, max_objects: int = 4):
-    dut = PickSupervisor(clear_pick(), perceive_at_s=0.1, looks=True, drop_zone=ZONE, max_objects=max_objects)
+def _clear_supervisor(result: PerceptionResult, max_objects: int = 4, home_q: np.ndarray | None = None):
+    dut = PickSupervisor(
+        clear_pick(), perceive_at_s=0.1, looks=True, drop_zone=ZONE, max_objects=max_objects, home_q=home_q
+    )
     context = dut.CreateDefaultContext()
     dut.GetInputPort("position_measured").FixValue(context, Q0)
     for side in ("left", "right"):
@@ -168,13 +170,16 @@ def test_a_table_with_nothing_familiar_ends_the_clear_at_once():
     assert status.message == "cleared 0 of 0 objects taken on; " + nothing.message
 
 
-def test_an_object_that_fails_is_given_up_left_out_and_the_next_one_looked_for():
+@pytest.mark.parametrize("home_q", [None, Q0 + 0.2])
+def test_an_object_that_fails_is_given_up_left_out_and_the_next_one_looked_for(home_q):
+    """(With a home between objects that is not the start, too: nothing moved, so nothing goes home.)"""
     points = np.array([[0.7, 0.1, 0.8], [0.72, 0.12, 0.9]])
     poor = PerceptionResult(False, Stage.REGISTRATION, "a poor fit", category="drill", points_W=points)
-    dut, context, simulator = _clear_supervisor(poor, max_objects=2)
+    dut, context, simulator = _clear_supervisor(poor, max_objects=2, home_q=home_q)
     simulator.AdvanceTo(0.15)
     status = dut.GetOutputPort("status").Eval(context)
     assert status.mode == Mode.PERCEIVING and status.perceive_id == 2  # nothing moved: it looks again at once
+    assert np.array_equal(status.q_start, Q0) and np.array_equal(status.q_home, Q0 if home_q is None else home_q)
     (given_up,) = status.objects
     assert not given_up.cleared and given_up.category == "drill" and given_up.failed_stage == "registration"
     assert given_up.seen_xy_W == pytest.approx((0.71, 0.11))
@@ -323,9 +328,30 @@ def test_scenario_checks_the_drop_zone():
         ("{clear: {zone_xy: [0.1]}}", "clear.zone_xy"),
         ("{clear: {zone_size: [0.05, 0.4]}}", "clear.zone_size"),
         ("{clear: {max_objects: 0}}", "clear.max_objects"),
+        ("{clear: {home_arm_positions: [0.9, 0.2]}}", "clear.home_arm_positions must have 14 entries"),
     ):
         with pytest.raises(ValueError, match=message):
             overlay_scenario(load_scenario(), text, "--scenario_text")
+
+
+def test_the_clear_home_leaves_the_whole_zone_to_the_objects_where_the_start_keeps_its_near_rows_out(scenario):
+    """At the start the right hand hangs 15 cm above the zone's near rows, where the arms carry every object; the
+    clear's home between objects raises it over ZONE_KEEP_OUT_HEIGHT_M, and nothing of the robot keeps objects out."""
+    scenario = dataclasses.replace(scenario, task="clear")
+    near_rows = np.array([[x, y] for x in (0.5, 0.56, 0.62) for y in (-0.43, -0.37)])  # (W, m: docs/clear.md)
+
+    def kept_out(zone: DropZone) -> np.ndarray:
+        return np.array([any(np.hypot(*(p - (x, y))) < r for x, y, r in zone.keep_out_W) for p in near_rows])
+
+    at_start = drop_zone(scenario, robot_at_start(scenario))
+    assert kept_out(at_start).any()
+    at_home = drop_zone(scenario, robot_at_start(clear_home(scenario)))
+    assert not kept_out(at_home).any()
+    (cx, cy), (sx, sy) = at_home.centre_W, at_home.size
+    for x, y, r in at_home.keep_out_W:  # (the left hand's, over the table's other side, alone)
+        assert abs(x - cx) > sx / 2 + r or abs(y - cy) > sy / 2 + r
+    start = overlay_scenario(scenario, "{clear: {home_arm_positions: []}}", "--scenario_text")
+    assert clear_home(start).initial_arm_positions == scenario.initial_arm_positions
 
 
 @pytest.mark.slow
