@@ -370,7 +370,7 @@ class PickSupervisor(LeafSystem):
         status.failed_stage, status.message = "", ""
         logging.warning("giving up on the %s: %s", failed.category, failed.message)
         at_start = status.plan_end_q is not None and any(
-            np.allclose(status.plan_end_q, q, atol=1e-3) for q in (status.q_start, status.q_home)
+            q is not None and np.allclose(status.plan_end_q, q, atol=1e-3) for q in (status.q_start, status.q_home)
         )
         if at_start and not status.grasp_widths:  # (nothing moved, nothing closed)
             self._next_object(context, status, t)
