@@ -161,6 +161,12 @@ class BatchedKinematics:
                 return current
         return None
 
+    def body_name(self, position: int) -> str:
+        """The tracked link at `position` by name, its model instance's first ("left_hand finger_2", "centauro
+        arm1_6"): the hands' bodies share their names."""
+        body = self._plant.get_body(self.links[position].body_index)
+        return f"{self._plant.GetModelInstanceName(body.model_instance())} {body.name()}"
+
     def driving_dof(self, position: int) -> int:
         """The planned coordinate that moves the tracked link at `position` last (its own joint or its nearest
         driven ancestor's): links with the same one move as one rigid body. -1 for links fixed to the world."""

@@ -213,10 +213,10 @@ class Stomp:
             theta[1:-1] = problem.constraints.project(theta[1:-1], config.sampling.projection_steps)
         clearance = self.costs.clearance(theta, problem.obstacles, held=problem.held)  # the ends' among them
         if clearance[0] < 0 or clearance[-1] < 0:
-            which = "start" if clearance[0] < 0 else "goal"
-            return StompResult(
-                False, theta, 0, 0.0, float(clearance[[0, -1]].min()), f"the {which} configuration collides"
-            )
+            which, end = ("start", theta[0]) if clearance[0] < 0 else ("goal", theta[-1])
+            contact = self.costs.deepest_contact(end, problem.obstacles, problem.held)
+            message = f"the {which} configuration collides ({contact})"
+            return StompResult(False, theta, 0, 0.0, float(clearance[[0, -1]].min()), message)
         required = config.costs.required_clearance
         if clearance[-1] <= required:  # (every keyframe of a solution is more than that clear; the goal is fixed)
             return StompResult(

@@ -166,6 +166,29 @@ class SphereCosts:
         shortfall = np.maximum(margin - gaps, 0.0).sum(axis=1)
         return gaps.min(axis=1).reshape(shape), shortfall.reshape(shape)
 
+    def deepest_contact(self, q: np.ndarray, obstacles: Obstacles, held: bool = False) -> str:
+        """What comes nearest at the configuration q (n,), said for a message: "<body> in the scene", "the held
+        object in the scene" or "<body> and <body>" (the robot's own spheres; with `held`, not hand against hand),
+        and how deep (mm; a gap where nothing overlaps)."""
+        poses = self.kinematics.body_poses(np.asarray(q, float)[None])
+        centres, radius, name = self.spheres.centres_W(poses)[0], self.spheres.radius, self.kinematics.body_name
+        scene = obstacles.distance(centres) - radius
+        i = int(np.argmin(scene))
+        found = [(scene[i], f"{name(self.spheres.body[i])} in the scene")]
+        if obstacles.carried is not None:
+            carried = obstacles.carried_clearances(poses[:, obstacles.carried.slot], np.inf)[0]
+            found.append((float(carried.min()), "the held object in the scene"))
+        pairs = np.nonzero(~self.hand_to_hand)[0] if held else np.arange(len(self.pair_a))
+        if len(pairs):
+            a, b = self.pair_a[pairs], self.pair_b[pairs]
+            gap = np.linalg.norm(centres[a] - centres[b], axis=1) - radius[a] - radius[b]
+            if obstacles.self_overlap is not None:
+                gap = gap + obstacles.self_overlap[pairs]
+            k = int(np.argmin(gap))
+            found.append((gap[k], f"{name(self.spheres.body[a[k]])} and {name(self.spheres.body[b[k]])}"))
+        gap, what = min(found, key=lambda f: f[0])
+        return f"{what}, {1000 * -gap:.0f} mm deep" if gap < 0 else f"{what}, {1000 * gap:.0f} mm apart"
+
     def body_bounds(self, body_poses: np.ndarray) -> np.ndarray:
         """The centres (bodies x B x 3, m, in W) of the bodies' bounding spheres (radii bound_radius)."""
         X_WB = body_poses[:, self.bound_body, :3].swapaxes(0, 1)  # bodies x B x 3 x 4 (body_poses' own layout)
