@@ -66,11 +66,12 @@ def test_stomp_rejects_bad_goals_and_keeps_its_time_limit(planning):
     colliding = _colliding_configuration(world)
     in_collision = motions.stomp.plan(BELOW_TABLE, colliding, scene)
     # The message names the deepest contact (two of the robot's bodies, or one in the scene) and how deep it is.
-    said = re.fullmatch(r"the goal configuration collides \((.+) (and|in) (.+), (\d+) mm deep\)", in_collision.message)
+    pattern = r"the goal configuration collides \((.+) (and|in) (.+), ([\d.]+) mm deep\)"
+    said = re.fullmatch(pattern, in_collision.message)
     kinematics = motions.stomp.costs.kinematics
     bodies = {kinematics.body_name(position) for position in range(len(kinematics.links))}  # ("right_hand finger_2")
     assert said and said[1] in bodies and said[3] in bodies | {"the scene"}, in_collision.message
-    assert int(said[4]) >= 1000 * -in_collision.min_clearance_m - 1  # (the deepest of what the plan's check found)
+    assert float(said[4]) >= 1000 * -in_collision.min_clearance_m - 1  # (the deepest of what the plan's check found)
     # A goal nearer an obstacle than any plan keeps (2 mm of the required 5): no plan can end there; said at once.
     costs = motions.stomp.costs
     centres = costs.spheres.centres_W(costs.kinematics.body_poses(q_goal[None]))[0]

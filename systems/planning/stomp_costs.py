@@ -187,7 +187,8 @@ class SphereCosts:
             k = int(np.argmin(gap))
             found.append((gap[k], f"{name(self.spheres.body[a[k]])} and {name(self.spheres.body[b[k]])}"))
         gap, what = min(found, key=lambda f: f[0])
-        return f"{what}, {1000 * -gap:.0f} mm deep" if gap < 0 else f"{what}, {1000 * gap:.0f} mm apart"
+        mm = abs(1000 * gap)
+        return f"{what}, {mm:.{1 if mm < 10 else 0}f} mm {'deep' if gap < 0 else 'apart'}"
 
     def body_bounds(self, body_poses: np.ndarray) -> np.ndarray:
         """The centres (bodies x B x 3, m, in W) of the bodies' bounding spheres (radii bound_radius)."""
