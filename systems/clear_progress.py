@@ -3,12 +3,13 @@ object goes in the drop zone, what perception leaves out when it looks for the n
 taken on again, and each object's record."""
 
 import dataclasses
+import logging
 
 import numpy as np
 from pydrake.math import RigidTransform
 from scipy.spatial import QhullError
 
-from systems.messages import ClearedObject, LeftOut, ObjectBelief, PerceptionResult, PickStatus
+from systems.messages import ClearedObject, LeftOut, Mode, ObjectBelief, PerceptionResult, PickStatus
 from systems.perception.pose_estimator import voxel_thin
 from systems.planning.drop_zone import DropZone, drop_spots, footprint_at, footprint_O
 from systems.planning.outlines import convex_outline
@@ -51,6 +52,36 @@ def chosen_spots(zone: DropZone, status: PickStatus, result: PerceptionResult) -
     if record is not None and result.reconstruction_W is not None and len(result.reconstruction_W):
         record = dataclasses.replace(record, shape_W=voxel_thin(result.reconstruction_W, SHAPE_CELL_M))
     return spots, (with_spot(record, *spots[0]) if spots else record)
+
+
+def take_spot(zone: DropZone, status: PickStatus, result: PerceptionResult) -> bool:
+    """Gives the perceived object (result) its spot in the zone and the spots to try after it (status.current,
+    place_target_W, spare_spots); where none is left, records it and ends the clear ("the drop zone is full").
+    Whether it got a spot."""
+    spots, status.current = chosen_spots(zone, status, result)
+    if not spots:
+        status.place_target_W, status.spare_spots = None, ()
+        status.objects += (dataclasses.replace(status.current, message="no room left in the drop zone"),)
+        status.mode, status.message = Mode.DONE, summary(status, "the drop zone is full")
+        return False
+    status.place_target_W, status.spare_spots = spots[0][0], tuple(spots[1:])
+    logging.info("its spot in the drop zone: %s (%d more)", status.current.target_xy_W, len(spots) - 1)
+    return True
+
+
+def nothing_moved(status: PickStatus) -> bool:
+    """Whether the robot stands where the pick began or at home, its hands never closed: an object given up there
+    needs no letting go or backing off."""
+    if status.plan_end_q is None or status.grasp_widths:
+        return False
+    return any(q is not None and np.allclose(status.plan_end_q, q, atol=1e-3) for q in (status.q_start, status.q_home))
+
+
+def forget_object(status: PickStatus) -> None:
+    """Clears what the status knew of the object just placed or given up, before the next one is looked for."""
+    status.task, status.attempt, status.corrections, status.place_corrections = None, 1, 0, 0
+    status.belief, status.aim, status.pour, status.pending_failure, status.place_target_W = (None,) * 5
+    status.spare_spots, status.grasp_widths, status.grasp_offsets_G, status.attempt_failures = (), (), None, ()
 
 
 def placed(record: ClearedObject, belief: ObjectBelief | None, attempts: int) -> ClearedObject:

@@ -24,14 +24,14 @@ target, the hands take it again and set it down again (at most MAX_PLACE_CORRECT
 An aim (a pour) reads the board (the container) perceived in the same frame and uses the perceived tool frame
 (systems/pick_goals.py); without either it fails before it moves. It sets the object down where it was taken.
 
-A clear (the tasks' after_given_up set; a drop_zone given) places one object after another: each perceived object gets
-a spot in the drop zone where it touches nothing already set down there (systems/planning/drop_zone.py). Once it is
+A clear (the tasks' after_given_up set; a drop_zone given) places one object after another: each perceived object gets a
+spot in the drop zone where it touches nothing already set down there (systems/planning/drop_zone.py). Once it is
 placed, the table is looked at from where the arms backed off it for the scene alone (the placed object in it), the
-tasks' home goes back to the start in that scene, and the next object is looked for from there; where anything fails
-on it, it is given up: after_given_up lets go and backs off, and the same follows (where the robot has not moved, the
-next object is looked for at once). Perception leaves out the zone and the objects given up (``left_out``).
-The clear is done when perception finds no object left, the zone has no room for the next one, or max_objects were
-taken on; each object's record is in the status (``objects``).
+tasks' home goes to the clear's home (q_home) in that scene, and the next object is looked for from there; where
+anything fails on it, it is given up: after_given_up lets go and backs off, and the same follows (where the robot has
+not moved, the next object is looked for at once). Perception leaves out the zone and the objects given up
+(``left_out``). The clear is done when perception finds no object left, the zone has no room for the next one, or
+max_objects were taken on; each object's record is in the status (``objects``).
 """
 
 import dataclasses
@@ -292,15 +292,8 @@ class PickSupervisor(LeafSystem):
         status.belief = ObjectBelief.seen(result.X_WO_seen)
         if self.place_target_W is not None and not self.clears:  # set down beside the target if not on it
             status.spare_spots = tuple((X_WO, None) for X_WO in nudged_targets(self.place_target_W))
-        if self.clears:
-            spots, status.current = clearing.chosen_spots(self.drop_zone, status, result)
-            status.place_target_W, status.spare_spots = (spots[0][0], tuple(spots[1:])) if spots else (None, ())
-            if spots:
-                logging.info("its spot in the drop zone: %s (%d more)", status.current.target_xy_W, len(spots) - 1)
-            if status.place_target_W is None:
-                status.objects += (dataclasses.replace(status.current, message="no room left in the drop zone"),)
-                status.mode, status.message = Mode.DONE, clearing.summary(status, "the drop zone is full")
-                return
+        if self.clears and not clearing.take_spot(self.drop_zone, status, result):  # (the zone is full: done)
+            return
         board = self.board_port.Eval(context) if self.aims else None
         container = self.container_port.Eval(context) if self.pours else None
         if failure := read_use_targets(status, result, board, container, self.pour_tilt_rad):
@@ -369,10 +362,7 @@ class PickSupervisor(LeafSystem):
         status.objects, status.current = (*status.objects, failed), None
         status.failed_stage, status.message = "", ""
         logging.warning("giving up on the %s: %s", failed.category, failed.message)
-        at_start = status.plan_end_q is not None and any(
-            q is not None and np.allclose(status.plan_end_q, q, atol=1e-3) for q in (status.q_start, status.q_home)
-        )
-        if at_start and not status.grasp_widths:  # (nothing moved, nothing closed)
+        if clearing.nothing_moved(status):
             self._next_object(context, status, t)
             return look
         return self._start_task(context, status, self.tasks.after_given_up, 0, t, look)
@@ -380,9 +370,7 @@ class PickSupervisor(LeafSystem):
     def _next_object(self, context, status: PickStatus, t: float, homing: bool = False):
         """A clear's next object: a new frame (after max_objects, the clear is done); `homing`: the frame is for the
         scene the move home avoids, the object is looked for after it."""
-        status.task, status.attempt, status.corrections, status.place_corrections = None, 1, 0, 0
-        status.belief, status.aim, status.pour, status.pending_failure, status.place_target_W = (None,) * 5
-        status.spare_spots, status.grasp_widths, status.grasp_offsets_G, status.attempt_failures = (), (), None, ()
+        clearing.forget_object(status)
         if len(status.objects) >= self.max_objects:
             ended = f"took on {self.max_objects} objects, the most"
             status.mode, status.message = Mode.DONE, clearing.summary(status, ended)

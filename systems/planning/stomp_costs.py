@@ -138,6 +138,16 @@ class SphereCosts:
         shape = q.shape[:-1]
         if poses is None:
             poses = self.kinematics.body_poses(q.reshape(-1, self.dof))
+        gaps, _ = self._gaps(poses, obstacles, held, robot_pairs)
+        shortfall = np.maximum(self.config.margin - gaps, 0.0).sum(axis=1)
+        return gaps.min(axis=1).reshape(shape), shortfall.reshape(shape)
+
+    def _gaps(
+        self, poses: np.ndarray, obstacles: Obstacles, held: bool, robot_pairs: bool
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Every gap (m) at each configuration's body poses (B x G): each sphere's to the scene, each carried
+        sphere's to the scene, then each near pair of the robot's own spheres' (clearances()); and those pairs'
+        indices (into pair_a, pair_b)."""
         centres = self.spheres.centres_W(poses)
         radius = self.spheres.radius
         margin = self.config.margin
@@ -162,33 +172,24 @@ class SphereCosts:
             if obstacles.self_overlap is not None:
                 gap += obstacles.self_overlap[near]
             gaps.append(gap)
-        gaps = np.concatenate(gaps, axis=1, dtype=np.float64)
-        shortfall = np.maximum(margin - gaps, 0.0).sum(axis=1)
-        return gaps.min(axis=1).reshape(shape), shortfall.reshape(shape)
+        return np.concatenate(gaps, axis=1, dtype=np.float64), near
 
     def deepest_contact(self, q: np.ndarray, obstacles: Obstacles, held: bool = False) -> str:
-        """What comes nearest at the configuration q (n,), said for a message: "<body> in the scene", "the held
-        object in the scene" or "<body> and <body>" (the robot's own spheres; with `held`, not hand against hand),
-        and how deep (mm; a gap where nothing overlaps)."""
-        poses = self.kinematics.body_poses(np.asarray(q, float)[None])
-        centres, radius, name = self.spheres.centres_W(poses)[0], self.spheres.radius, self.kinematics.body_name
-        scene = obstacles.distance(centres) - radius
-        i = int(np.argmin(scene))
-        found = [(scene[i], f"{name(self.spheres.body[i])} in the scene")]
-        if obstacles.carried is not None:
-            carried = obstacles.carried_clearances(poses[:, obstacles.carried.slot], np.inf)[0]
-            found.append((float(carried.min()), "the held object in the scene"))
-        pairs = np.nonzero(~self.hand_to_hand)[0] if held else np.arange(len(self.pair_a))
-        if len(pairs):
-            a, b = self.pair_a[pairs], self.pair_b[pairs]
-            gap = np.linalg.norm(centres[a] - centres[b], axis=1) - radius[a] - radius[b]
-            if obstacles.self_overlap is not None:
-                gap = gap + obstacles.self_overlap[pairs]
-            k = int(np.argmin(gap))
-            found.append((gap[k], f"{name(self.spheres.body[a[k]])} and {name(self.spheres.body[b[k]])}"))
-        gap, what = min(found, key=lambda f: f[0])
-        mm = abs(1000 * gap)
-        return f"{what}, {mm:.{1 if mm < 10 else 0}f} mm {'deep' if gap < 0 else 'apart'}"
+        """What comes nearest at the configuration q (n,) as clearances() judges it, said for a message: "<body> in
+        the scene", "the held object in the scene" or "<body> and <body>" (the robot's own spheres; with `held`, not
+        hand against hand), and how deep (mm; a gap where nothing overlaps)."""
+        gaps, near = self._gaps(self.kinematics.body_poses(np.asarray(q, float)[None]), obstacles, held, True)
+        k, name, body = int(np.argmin(gaps[0])), self.kinematics.body_name, self.spheres.body
+        carried = 0 if obstacles.carried is None else gaps.shape[1] - len(body) - len(near)
+        if k < len(body):
+            what = f"{name(body[k])} in the scene"
+        elif k < len(body) + carried:
+            what = "the held object in the scene"
+        else:
+            pair = near[k - len(body) - carried]
+            what = f"{name(body[self.pair_a[pair]])} and {name(body[self.pair_b[pair]])}"
+        mm = abs(1000 * gaps[0, k])
+        return f"{what}, {mm:.{1 if mm < 10 else 0}f} mm {'deep' if gaps[0, k] < 0 else 'apart'}"
 
     def body_bounds(self, body_poses: np.ndarray) -> np.ndarray:
         """The centres (bodies x B x 3, m, in W) of the bodies' bounding spheres (radii bound_radius)."""
