@@ -42,10 +42,12 @@ from systems.planning.drop_zone import (
     DROP_CENTRE_INSET_M,
     DROP_GAP_M,
     DROP_OVERHANG_M,
+    HAND_GAP_M,
     DropZone,
     drop_spots,
     footprint_at,
     footprint_O,
+    hands_footprint_O,
 )
 from systems.planning.outlines import gap_between, inside, outlines_apart
 
@@ -75,6 +77,26 @@ def test_the_drop_zone_takes_objects_apart_inside_it_until_none_fits():
     assert len(dropped) >= 3  # three drills side by side in a 40 cm square
     big = _box_footprint(0.3, 0.3, X_WO)  # 60 cm across: fits nowhere
     assert drop_spots(ZONE, [], big, X_WO) == []
+
+
+def test_the_hands_holding_an_object_stay_clear_of_the_objects_in_the_zone():
+    strip = DropZone((0.6, -0.38), (0.8, 0.1))  # objects stand in a row along x, packed from low x
+    X_WO = RigidTransform([0.7, 0.1, 0.8])
+    outline_O = _box_footprint(0.04, 0.04, X_WO)  # a can's body, 8 cm across
+    # A hand on a handle 8 cm behind it (-x in O), from behind: its palm and wrist stand out past the body, towards
+    # the objects set down before it.
+    X_OG = RigidTransform(RotationMatrix.MakeYRotation(np.pi / 2), [-0.08, 0.0, 0.1])
+    hands_O = hands_footprint_O([X_WO @ X_OG], X_WO)
+    assert inside(np.array([[-0.25, 0.0]]), hands_O[0])[0]  # the wrist, 17 cm behind the grasp
+    first = drop_spots(strip, [], outline_O, X_WO, hands_O=hands_O)[0]
+    dropped = [footprint_at(outline_O, first)]
+    spots = drop_spots(strip, dropped, outline_O, X_WO, hands_O=hands_O)
+    assert spots
+    for spot in spots:
+        assert all(outlines_apart(footprint_at(hand, spot), dropped[0], HAND_GAP_M - 1e-9) for hand in hands_O)
+    # Without the hands the next spot stands where the hand would be on the first object.
+    beside = drop_spots(strip, dropped, outline_O, X_WO)[0]
+    assert not outlines_apart(footprint_at(hands_O[0], beside), dropped[0], 0.0)
 
 
 def test_outlines_apart_tells_a_gap_from_an_overlap_one_inside_another_and_a_crossing():

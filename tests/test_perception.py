@@ -26,7 +26,7 @@ from systems.messages import Segmentation
 from systems.perception import segmentation_network
 from systems.perception import segmenter as segmenter_module
 from systems.perception.depth_cleaning import flying_pixels
-from systems.perception.instances import TableView, named_object, object_instances
+from systems.perception.instances import TableView, foot_hidden, named_object, object_instances
 from systems.perception.segmenter import DEFAULT_WEIGHTS, Segmenter, dominant_object
 from systems.perception.segmenter_training import intersection_over_union, predict_labels, train
 from systems.perception.shape_registrar import scale_prior, shape_space_file
@@ -141,6 +141,21 @@ def test_an_upper_part_that_self_occlusion_cut_off_joins_its_object_where_the_ta
     assert sorted(i.pixel_count for i in joined) == [1000, 2800, 3200]
     drill = named_object(joined, CLASSES, "drill", labels.shape)
     assert drill.pixel_count == 2800 and drill.mask[40, 40] and drill.mask[80, 40]
+
+
+def test_an_object_whose_foot_the_image_border_or_a_nearer_thing_hides_is_told_from_one_over_the_table():
+    depth = np.full((60, 80), 1.2)  # the table, seen 1.2 m away
+    mask = np.zeros((60, 80), bool)
+    mask[20:40, 30:50] = True
+    depth[mask] = 0.9
+    assert not foot_hidden(mask, depth)  # over the table (the arms): the table, farther, below it
+    depth[40:44, 25:55] = 0.8  # a box in front of it, nearer the camera
+    assert foot_hidden(mask, depth)
+    depth[40:44, 25:55] = np.nan  # no depth below it: nothing seen to hide it
+    assert not foot_hidden(mask, depth)
+    mask[40:, 30:50] = True  # reaching down past the image's lower border
+    assert foot_hidden(mask, depth)
+    assert not foot_hidden(np.zeros_like(mask), depth)
 
 
 def test_dominant_object_reports_nothing_found():

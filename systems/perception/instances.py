@@ -222,8 +222,32 @@ GIVEN_UP_MARGIN_M = 0.03
 # the zone's edge, seen with its centre on the edge, was taken on again and carried out of the zone)
 PLACED_MARGIN_M = 0.03
 # m: an object whose lowest seen points are higher above the table top does not stand on it (the arms backed off above
-# it do not; an object whose base another hides may show its lowest points several centimetres up)
+# it do not; an object whose base another hides may show its lowest points several centimetres up), unless the camera
+# does not see its foot (foot_hidden: report table 8, 2026-12-07, a can near the robot whose lowest 12.6 cm the image's
+# lower border cut was never taken on)
 CLEAR_FLOAT_M = 0.10
+# Below a mask's lowest pixel in a column (the camera looks down at the table: below in the image is lower or nearer in
+# the scene), within FOOT_ROWS pixels: a surface FOOT_NEARER_M nearer the camera than the object hides its foot there.
+FOOT_ROWS = 6
+FOOT_NEARER_M = 0.03
+FOOT_HIDDEN_SHARE = 0.5  # of the mask's columns whose foot is seen hidden so: the object's foot is hidden
+
+
+def foot_hidden(mask: np.ndarray, depth: np.ndarray) -> bool:
+    """Whether the camera does not see the foot of the object in `mask` (H x W bool; depth H x W, m): in at least
+    FOOT_HIDDEN_SHARE of the mask's columns, the image's lower border cuts it, or a pixel within FOOT_ROWS below its
+    lowest one lies FOOT_NEARER_M nearer the camera (the arms above the table have the table, farther, below them)."""
+    columns = np.flatnonzero(mask.any(axis=0))
+    if not len(columns):
+        return False
+    height = mask.shape[0]
+    lowest = height - 1 - np.argmax(mask[::-1, columns], axis=0)
+    rows = np.clip(lowest[:, None] + np.arange(1, FOOT_ROWS + 1), 0, height - 1)
+    below = depth[rows, columns[:, None]]
+    below = np.where(np.isfinite(below) & (below > 0), below, np.inf).min(axis=1)  # (no depth: nothing seen there)
+    with np.errstate(invalid="ignore"):
+        hidden = (below < depth[lowest, columns] - FOOT_NEARER_M) | (lowest == height - 1)
+    return bool(np.mean(hidden) >= FOOT_HIDDEN_SHARE)
 
 
 def next_object(
@@ -234,6 +258,7 @@ def next_object(
     first_near_W,
     shape,
     table_top_z: float,
+    feet_hidden: list[bool] | None = None,
 ) -> Segmentation:
     """The clear task's next object: of the objects the network labelled one of its categories (each at least
     CANDIDATE_SHARE of the largest of its category left), not standing in the drop zone (its points' centre in it,
@@ -241,12 +266,16 @@ def next_object(
     an object was given up (left_out: its points' centre within GIVEN_UP_MARGIN_M of one's outline), the one nearest
     first_near_W (its points' centre, x and y, m: the drop zone's centre; the objects nearest it stand in the way of
     the others' carries).
-    Only objects standing on the table (their lowest points at most CLEAR_FLOAT_M above table_top_z, m) are
-    candidates: the robot's arms, backed off above the table, are no object to clear whatever the network makes of
-    them. points_W: each instance's points in W (N x 3, m; none where it has no depth)."""
+    Only objects standing on the table (their lowest points at most CLEAR_FLOAT_M above table_top_z, m, or their
+    foot hidden: feet_hidden, by instance, foot_hidden's) are candidates: the robot's arms, backed off above the
+    table, are no object to clear whatever the network makes of them. points_W: each instance's points in W (N x 3,
+    m; none where it has no depth)."""
     in_zone, given_up, eligible = 0, 0, []
-    for instance, points in zip(instances, points_W, strict=True):
-        if not len(points) or np.percentile(points[:, 2], LOWEST_PERCENTILE) - table_top_z > CLEAR_FLOAT_M:
+    feet_hidden = feet_hidden or [False] * len(instances)
+    for instance, points, hidden in zip(instances, points_W, feet_hidden, strict=True):
+        if not len(points) or (
+            np.percentile(points[:, 2], LOWEST_PERCENTILE) - table_top_z > CLEAR_FLOAT_M and not hidden
+        ):
             continue  # (not standing on the table)
         centre = points.mean(axis=0)
         placed = any(distance_to(footprint, centre[:2]) <= PLACED_MARGIN_M for footprint in left_out.placed_W)

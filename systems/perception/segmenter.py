@@ -17,7 +17,7 @@ from systems.messages import LeftOut, Segmentation
 from systems.parallel import parallel_map
 from systems.paths import MODELS_DIR
 from systems.perception import segmentation_network
-from systems.perception.instances import Instance, TableView, named_object, next_object, object_instances
+from systems.perception.instances import Instance, TableView, foot_hidden, named_object, next_object, object_instances
 from systems.perception.object_completion import completed_mask
 from systems.perception.part_segmenter import PartSegmenter
 from systems.perception.pose_estimator import depth_to_points
@@ -257,8 +257,9 @@ class Segmenter(LeafSystem):
                 raise ValueError("the clear task's segmenter needs the depth image and the camera's pose")
             points = [table.X_WC.multiply(depth_to_points(depth, i.mask, self.intrinsics).T).T for i in instances]
             left_out = left_out or LeftOut()
+            hidden = [foot_hidden(i.mask, depth) for i in instances]
             segmentation = next_object(
-                instances, self.classes, points, left_out, self.first_near_W, labels.shape, self.table_top_z
+                instances, self.classes, points, left_out, self.first_near_W, labels.shape, self.table_top_z, hidden
             )
         else:
             segmentation = named_object(instances, self.classes, self.category, labels.shape)

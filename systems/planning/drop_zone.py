@@ -4,7 +4,10 @@ The zone is a rectangle on the table top (x, y in W, m). An object set down ther
 outline of its perceived shape (the registrar's reconstruction, seen from above), moved to where it was set down.
 The next object's spot is the first candidate whose footprint lies inside the zone (its outline's centre
 DROP_CENTRE_INSET_M inside, no point more than DROP_OVERHANG_M past its edges) and DROP_GAP_M clear of every
-footprint already there and of the zone's keep-out circles (where the hands hang at the robot's start). Candidates:
+footprint already there and of the zone's keep-out circles (where the hands hang at the robot's start), and the hands
+holding it (their palms and wrists, seen from above: hands_footprint_O) HAND_GAP_M clear of those footprints: a
+drill's hands reach past its outline, and a carry to a spot beside the first drill set down ended with the right
+wrist 45 mm into it (tune table 2, 2026-12-07). Candidates:
 the object turned by each of DROP_TURNS_RAD about the vertical from how it was seen, its centre on a DROP_GRID_M
 grid over the zone, nearest the zone's corner towards the robot and the table's middle first (packed from there; the
 arms reach it well).
@@ -32,6 +35,15 @@ DROP_CENTRE_INSET_M = 0.03
 # with -0.5: docs/clear.md; the larger turns fit a second can beside a first in 11 of 15 pairs of unseen objects, the
 # first three alone in 9).
 DROP_TURNS_RAD = (-0.5, -0.25, 0.0, 0.25, 0.5, -0.75, -1.0)
+# m: between a holding hand's footprint and an object already in the zone (the planner keeps the robot about 1 cm
+# clear of the scene; a set-down lands 1-2 cm off its spot)
+HAND_GAP_M = 0.02
+# A hand about its grasp frame G (x_G along the handle, y_G the fingers' closing direction, z_G the approach; m): the
+# palm (sdf/centauro/hand.sdf: 9 x 15 x 4 cm, 4.5-8.5 cm behind G) and the wrist behind it (8 cm across, to 20 cm
+# behind G), as the corners of boxes.
+_PALM_G = [(x, y, z) for x in (-0.045, 0.045) for y in (-0.075, 0.075) for z in (-0.085, -0.045)]
+_WRIST_G = [(x, y, z) for x in (-0.04, 0.04) for y in (-0.04, 0.04) for z in (-0.2, -0.085)]
+HAND_POINTS_G = np.array(_PALM_G + _WRIST_G).T  # 3 x 16
 
 
 @dataclass(frozen=True)
@@ -70,12 +82,20 @@ def footprint_at(outline_O: np.ndarray, X_WO: RigidTransform) -> np.ndarray:
     return outline_O @ R.T + X_WO.translation()[:2]
 
 
+def hands_footprint_O(grasps_W: list[RigidTransform], X_WO: RigidTransform) -> list[np.ndarray]:
+    """The footprints in O (x, y, m; M x 2 each) of the hands holding the object at grasps_W (X_WG each) while it
+    stands upright at X_WO: each hand's palm and wrist (HAND_POINTS_G) seen from above."""
+    X_OW = X_WO.inverse()
+    return [convex_outline((X_OW @ X_WG).multiply(HAND_POINTS_G).T[:, :2]) for X_WG in grasps_W]
+
+
 def drop_spots(
     zone: DropZone,
     dropped_W: list[np.ndarray],
     outline_O: np.ndarray,
     X_WO_seen: RigidTransform,
     count: int = DROP_ALTERNATIVES,
+    hands_O: list[np.ndarray] = (),
 ) -> list[RigidTransform]:
     """Where to set the object down (X_WO: upright, at the height it was seen at), best first: up to `count` spots
     that fit, each at least DROP_ALTERNATIVE_APART_M or one turn step from the ones before it (the planner tries
@@ -86,6 +106,8 @@ def drop_spots(
         dropped_W: the footprints already in the zone (each M x 2 in W, m).
         outline_O: the object's footprint in O (footprint_O).
         X_WO_seen: where it was seen, standing on the table.
+        hands_O: the footprints of the hands holding it, in O (hands_footprint_O), kept HAND_GAP_M clear of
+            dropped_W; none: not checked.
     """
     # (Packed from the corner nearest the robot and the table's middle: on the right side, low x and high y.)
     corner = np.array([zone.low[0], zone.high[1] if zone.centre_W[1] <= 0 else zone.low[1]])
@@ -104,7 +126,12 @@ def drop_spots(
             inside = zone.contains(outline.mean(axis=0), -DROP_CENTRE_INSET_M)
             if not inside or not zone.contains(outline, DROP_OVERHANG_M).all():
                 continue
-            if all(outlines_apart(outline, other, DROP_GAP_M) for other in dropped_W) and _clear_of(zone, outline):
+            hands = [footprint_at(hand_O, X_WO) for hand_O in hands_O]
+            if (
+                all(outlines_apart(outline, other, DROP_GAP_M) for other in dropped_W)
+                and all(outlines_apart(hand, other, HAND_GAP_M) for hand in hands for other in dropped_W)
+                and _clear_of(zone, outline)
+            ):
                 spots.append(X_WO)
                 chosen.append((centre, turn))
                 if len(spots) == count:
