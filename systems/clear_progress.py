@@ -9,7 +9,7 @@ import numpy as np
 from pydrake.math import RigidTransform
 from scipy.spatial import QhullError
 
-from systems.messages import ClearedObject, LeftOut, Mode, ObjectBelief, PerceptionResult, PickStatus
+from systems.messages import SIDES, ClearedObject, LeftOut, Mode, ObjectBelief, PerceptionResult, PickStatus
 from systems.perception.pose_estimator import voxel_thin
 from systems.planning.drop_zone import DropZone, drop_spots, footprint_at, footprint_O, hands_footprint_O
 from systems.planning.outlines import convex_outline
@@ -48,7 +48,7 @@ def chosen_spots(zone: DropZone, status: PickStatus, result: PerceptionResult) -
     shape = result.reconstruction_W if result.reconstruction_W is not None else result.points_W
     outline_O = footprint_O(shape, result.X_WO_seen)
     dropped = [done.footprint_W for done in status.objects if done.cleared]
-    grasps_W = [result.grasps.poses_W[f"{side}_grasp"] for side in ("left", "right") if result.grasps.found]
+    grasps_W = [result.grasps.poses_W[f"{side}_grasp"] for side in SIDES] if result.grasps.found else []
     hands_O = hands_footprint_O(grasps_W, result.X_WO_seen)
     spots = drop_spots(zone, dropped, outline_O, result.X_WO_seen, hands_O=hands_O)
     spots = [(X_WO, footprint_at(outline_O, X_WO)) for X_WO in spots]

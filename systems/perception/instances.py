@@ -245,8 +245,7 @@ def foot_hidden(mask: np.ndarray, depth: np.ndarray) -> bool:
     rows = np.clip(lowest[:, None] + np.arange(1, FOOT_ROWS + 1), 0, height - 1)
     below = depth[rows, columns[:, None]]
     below = np.where(np.isfinite(below) & (below > 0), below, np.inf).min(axis=1)  # (no depth: nothing seen there)
-    with np.errstate(invalid="ignore"):
-        hidden = (below < depth[lowest, columns] - FOOT_NEARER_M) | (lowest == height - 1)
+    hidden = (below < depth[lowest, columns] - FOOT_NEARER_M) | (lowest == height - 1)  # (NaN depth: not hidden)
     return bool(np.mean(hidden) >= FOOT_HIDDEN_SHARE)
 
 

@@ -126,17 +126,21 @@ def drop_spots(
             inside = zone.contains(outline.mean(axis=0), -DROP_CENTRE_INSET_M)
             if not inside or not zone.contains(outline, DROP_OVERHANG_M).all():
                 continue
-            hands = [footprint_at(hand_O, X_WO) for hand_O in hands_O]
             if (
                 all(outlines_apart(outline, other, DROP_GAP_M) for other in dropped_W)
-                and all(outlines_apart(hand, other, HAND_GAP_M) for hand in hands for other in dropped_W)
                 and _clear_of(zone, outline)
+                and all(_hand_clear(footprint_at(hand_O, X_WO), dropped_W) for hand_O in hands_O)
             ):
                 spots.append(X_WO)
                 chosen.append((centre, turn))
                 if len(spots) == count:
                     return spots
     return spots
+
+
+def _hand_clear(hand: np.ndarray, dropped_W: list[np.ndarray]) -> bool:
+    """Whether a holding hand's footprint (M x 2 in W) stands HAND_GAP_M clear of every footprint in the zone."""
+    return all(outlines_apart(hand, other, HAND_GAP_M) for other in dropped_W)
 
 
 def _clear_of(zone: DropZone, outline: np.ndarray) -> bool:
