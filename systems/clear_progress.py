@@ -97,7 +97,7 @@ def placed(record: ClearedObject, belief: ObjectBelief | None, attempts: int) ->
 
 
 def set_down_shapes(status: PickStatus) -> np.ndarray | None:
-    """The shapes of the objects set down in the zone where they stand (N x 3 in W, m), for the free moves to plan
+    """The shapes of the objects set down in the zone where they stand (N x 3 in W, m), for a clear's moves to plan
     around (PlanRequest.set_down_W); None where there is none."""
     shapes = [done.shape_W for done in status.objects if done.cleared and done.shape_W is not None]
     return np.vstack(shapes) if shapes else None

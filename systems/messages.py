@@ -308,7 +308,8 @@ class PlanRequest:
     # straight along their approach axes; a clear's set-down, whose next spot in the zone can be tried instead).
     full_back_off: bool = False
     # More of the scene (N x 3 points in W, m), planned around as the camera's: a clear's objects set down in the
-    # drop zone, on its free moves (the arms that have just backed off one hide it from the camera; None: no more).
+    # drop zone, on all its moves (the arms that have just backed off one, or the object carried, hide it from the
+    # camera; None: no more).
     set_down_W: np.ndarray | None = None
     # Held moves: the goal solved onto the hands' targets within 0.1 mm and 1 mrad, not the path's 1 mm and 10-40 mrad
     # (a tool's precise move: an aim).

@@ -52,7 +52,6 @@ from systems.messages import (
     LeftOut,
     LookRequest,
     Mode,
-    MoveKind,
     ObjectBelief,
     ObjectEstimate,
     PerceptionResult,
@@ -324,8 +323,9 @@ class PickSupervisor(LeafSystem):
             # (a back-off cut short leaves the fingers about the handle, and the next move sweeps them past it).
             spot_left = self.clears and status.task == self.tasks.main and bool(status.spare_spots)
             full_back_off = spot_left and phase.goal == PlaceGoal.SET_DOWN
-            # A clear's free moves plan around what it set down in the zone (the arms backed off one hide it).
-            set_down = clearing.set_down_shapes(status) if self.clears and phase.path == MoveKind.FREE else None
+            # A clear's moves plan around what it set down in the zone: the arms backed off one hide it, and the
+            # object carried hides it from the look before the set-down.
+            set_down = clearing.set_down_shapes(status) if self.clears else None
             status.request = move_request(phase, status, place_target_W, measured_q, full_back_off, set_down)
         elif phase.kind in (PhaseKind.CLOSE, PhaseKind.OPEN):
             width = phase.hand_width + (max(status.grasp_widths, default=OPEN_WIDTH) if phase.beyond_grasp else 0.0)
