@@ -98,7 +98,8 @@ def test_the_reach_looks_briefly_at_later_goals_before_giving_any_its_full_budge
     motions = make_pick_motions(scenario)
     q0 = initial_positions(scenario)
     goals = [IkResult(True, np.full_like(q0, k), choice={"left": k}) for k in range(4)]
-    monkeypatch.setattr(motions.reaches, "_reach_goals", lambda *args: iter(goals))
+    monkeypatch.setattr(motions.reaches, "_goal_specs", lambda *args: iter(range(len(goals))))
+    monkeypatch.setattr(motions.reaches, "_goal", lambda q_start, targets_W, spec, accept=None: goals[spec])
     looks = []
 
     def reach_path(q_start, q_goal, obstacles, checked, max_iterations=None):

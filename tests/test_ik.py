@@ -79,3 +79,56 @@ def test_the_last_resorts_cap_on_snopts_iterations_stops_a_solve_and_keeps_a_rea
 def test_the_planning_problems_are_drawn_with_snopt_ik_alone(motions):
     with pytest.raises(ValueError, match="drawn with SNOPT"):
         make_problem(motions[True], "reach", "tune", 0)
+
+
+def test_an_accept_test_passes_over_the_answers_it_refuses_for_another_way(scenario, motions):
+    """The IK's answers besides the nearest (each arm's elbow elsewhere) stand in for those `accept` refuses; where it
+    refuses every one, the failure says so."""
+    ik, world = motions[True].ik, motions[True].world
+    poses = true_grasp_poses(scenario)
+    targets = {side: poses[f"{side}_pregrasp"] for side in SIDES}
+    q0 = initial_positions(scenario)
+    nearest = ik.solve(targets, q0, restarts=12, limit_margin=MARGIN)
+    assert nearest.success, nearest.message
+
+    def elsewhere(q):  # the right arm not as in the nearest answer
+        return bool(np.abs(q[7:14] - nearest.q[7:14]).max() > 0.1)
+
+    other = ik.solve(targets, q0, restarts=12, limit_margin=MARGIN, accept=elsewhere)
+    assert other.success, other.message
+    assert elsewhere(other.q) and _reached(world, other.q, targets) and world.clearance(other.q) >= 0.005
+    refused = ik.solve(targets, q0, restarts=12, limit_margin=MARGIN, accept=lambda q: False)
+    assert not refused.success and "are refused" in refused.message
+
+
+def test_a_reach_whose_nearest_goal_stands_in_the_scene_reaches_the_same_targets_another_way(
+    scenario, motions, monkeypatch
+):
+    """Points where the nearest goal has its right elbow (an object the camera saw there, say one set down beside
+    the next): the reach's goal is another of the IK's ways to the same targets, clear of them (report table 0 of the
+    clear, 2026-12-07: the right forearm 21 mm into a can set down in the drop zone, and the drill never taken)."""
+    pick = motions[True]
+    world = pick.world
+    poses = true_grasp_poses(scenario)
+    targets = {side: poses[f"{side}_pregrasp"] for side in SIDES}
+    q0 = initial_positions(scenario)
+    nearest = pick.ik.solve(targets, q0, restarts=12, limit_margin=0.15)
+    world.plant.SetPositions(world.plant_context, world.full_positions(nearest.q))
+    elbow = world.plant.EvalBodyPoseInWorld(world.plant_context, world.plant.GetBodyByName("arm2_4")).translation()
+    steps = np.linspace(-0.03, 0.03, 7)
+    scene = elbow + np.array([[x, y, z] for x in steps for y in steps for z in steps])
+    obstacles = world.planning_obstacles(None, scene)
+
+    def clearance(q):
+        return pick.stomp.clearance(q[None], obstacles, robot_pairs=False)[0]
+
+    assert clearance(nearest.q) < 0.0
+    planned_to = []  # every goal handed to the path planner
+    reach_path = pick.reaches._reach_path
+    monkeypatch.setattr(
+        pick.reaches, "_reach_path", lambda *args, **kwargs: planned_to.append(args[1]) or reach_path(*args, **kwargs)
+    )
+    reach = pick.reach(q0, targets, scene_W=scene)
+    goal = reach.keyframes[-1]
+    assert _reached(world, goal, targets, 0.003, 0.04)
+    assert min(clearance(q) for q in planned_to) > 0.005  # none in the scene: the nearest passed over at once

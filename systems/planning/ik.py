@@ -10,7 +10,7 @@ candidate yaw (where it stands, then turned to face the targets, then as each ar
 and both arms together with the torso free from the first candidate where each arm reaches."""
 
 import itertools
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -26,6 +26,8 @@ from systems.planning.world import SIDES, PlanningWorld
 SEED_SAMPLES = 3000
 # Torso yaws tried besides where it stands: facing the targets' midpoint, and this much either side of it (rad).
 TORSO_SPREAD = 0.35
+# With an `accept` test (DualArmIk.solve), each arm's nearest answers paired (the rest are farther from the guess).
+ACCEPT_ANSWERS = 12
 # A hand is symmetric under a half turn about its approach axis z_G.
 HALF_TURN = RigidTransform(RotationMatrix.MakeZRotation(np.pi))
 # The batched Gauss-Newton IK: at most this many steps, each joint at most this far a step (rad). A start is done
@@ -200,6 +202,7 @@ class DualArmIk:
         limit_margin: float = 0.0,
         torso_yaws: Iterable[float] | None = None,
         alternatives: dict[str, list[RigidTransform]] | None = None,
+        accept: Callable[[np.ndarray], bool] | None = None,
     ) -> IkResult:
         """Arm joints putting each side's grasp frame at X_WG[side], nearest to q_guess.
 
@@ -219,6 +222,8 @@ class DualArmIk:
                 X_WG[side] on the right (e.g. other grasps of the same handle): the next is tried only where the
                 ones before leave that hand out of reach; IkResult.choice says which one each hand was solved for
                 (default: X_WG alone).
+            accept: whether an answer will do (e.g. clear of a scene Drake's geometry does not hold): with it, the
+                answers it refuses are passed over for the others the restarts found (each arm's elbow elsewhere).
         """
         q_guess = np.asarray(q_guess, dtype=float)
         options = (
@@ -229,6 +234,7 @@ class DualArmIk:
             restarts,
             limit_margin,
             alternatives,
+            accept,
         )
         failures = []
         if torso_yaws is None or self.world.torso is None:
@@ -243,7 +249,7 @@ class DualArmIk:
 
     def _solve_at_torso(
         self, X_WG, q_guess, torso, position_tolerance, angle_tolerance, min_distance, allow_half_turn, restarts,
-        limit_margin, alternatives,
+        limit_margin, alternatives, accept,
     ) -> IkResult:  # fmt: skip
         """solve()'s answer with each arm solved alone at the torso yaw `torso` (rad), then both together with
         the torso free (when it is planned)."""
@@ -269,11 +275,20 @@ class DualArmIk:
             if not per_arm[side]:
                 return IkResult(False, q_guess, f"{side} hand: target out of reach")
             per_arm[side].sort(key=lambda item: np.sum((item[1] - q_guess) ** 2))
-        for (left_X, left_q), (right_X, right_q) in itertools.islice(
-            itertools.product(per_arm["left"][:4], per_arm["right"][:4]), 8
-        ):
+        # The nearest pairs of per-arm answers, 8 of them at most; with `accept`, the pairs it refuses are passed over
+        # (they cost no solve) for pairs of more answers.
+        answers = 4 if accept is None else ACCEPT_ANSWERS
+        tried = refused = 0
+        for (left_X, left_q), (right_X, right_q) in itertools.product(per_arm["left"][:answers],
+                                                                       per_arm["right"][:answers]):  # fmt: skip
+            if tried == 8:
+                break
             start = left_q.copy()
             start[7:14] = right_q[7:14]
+            if accept is not None and not accept(start):
+                refused += 1
+                continue
+            tried += 1
             if min_distance is None:
                 return IkResult(True, start, "solved per arm", choice)
             if self.batched and self.world.clearance(start, max_distance=2 * min_distance) >= min_distance:
@@ -282,8 +297,10 @@ class DualArmIk:
                 {"left": left_X, "right": right_X}, start, start, position_tolerance, angle_tolerance, min_distance,
                 limit_margin, torso=True,
             )  # fmt: skip
-            if result.success:
+            if result.success and (accept is None or accept(result.q)):
                 return IkResult(True, result.q, result.message, choice)
+        if refused and not tried:
+            return IkResult(False, q_guess, f"each hand reaches its target, but the {refused} ways found are refused")
         return IkResult(False, q_guess, "each hand reaches its target, but not without a collision")
 
     def _arm_answers(

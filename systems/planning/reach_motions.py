@@ -77,17 +77,23 @@ class ReachMotions:
             counts = {side: len((alternatives or {}).get(side, [RigidTransform()])) for side in SIDES}
             if any(len(approach_to[side]) != counts[side] for side in SIDES):
                 raise ValueError(f"approach_to needs one grasp per alternative per side ({counts})")
-        forwards = self._reach_goals(q_start, targets_W, alternatives)
+        specs = self._goal_specs(q_start, targets_W, alternatives)
+        first_spec = next(specs)
         # The sphere model's scene (its distance fields) and the first IK goal need nothing of each other: side by side.
         obstacles, first = parallel_calls(
             lambda: self.world.planning_obstacles(
                 obstacle_points_W, self.world.where_the_robot_is_not(scene_W, q_start)
             ),
-            lambda: next(forwards, None),
+            lambda: self._goal(q_start, targets_W, first_spec),
         )
-        forwards = itertools.chain([first] if first is not None else [], forwards)
         # Straight segments are checked with Drake's geometry, and with the sphere model where anything is points.
         checked = obstacles if obstacle_points_W is not None or scene_W is not None else None
+        # Goals in what the camera saw (an elbow through an object set down beside the next) are passed over for the
+        # other ways the IK finds: the first goal solved again where it is one.
+        clear = self._clear_of(obstacles) if checked is not None else None
+        if clear is not None and first.success and not clear(first.q):
+            first = self._goal(q_start, targets_W, first_spec, clear)
+        forwards = itertools.chain([first], (self._goal(q_start, targets_W, spec, clear) for spec in specs))
         backwards = self._goals_from_the_grasps(q_start, targets_W, alternatives, approach_to) if approach_to else ()
         failure, at_the_grasps = None, ""  # at_the_grasps: why the goals found backwards failed, if they did
         screened = []  # (goal, choice, whether found backwards): STOMP's first look at them found no path
@@ -159,25 +165,37 @@ class ReachMotions:
                     break  # reachable but not by a free path: nearer the object will not help
         raise failure
 
-    def _reach_goals(self, q_start, targets_W, alternatives) -> Iterator[IkResult]:
-        """The reach's IK goals, solved lazily in the order they are tried: the targets as given before their
-        alternatives; the torso where it stands first, turned only where the arms cannot reach from there; at each
-        torso yaw, joints well inside their limits first (a pre-grasp at a limit leaves no room for the
-        approach), then without the margin."""
+    def _goal_specs(self, q_start, targets_W, alternatives) -> Iterator[tuple]:
+        """The reach's IK goals as (alternatives, torso yaw, limit margin), lazily in the order they are tried: the
+        targets as given before their alternatives; the torso where it stands first, turned only where the arms
+        cannot reach from there; at each torso yaw, joints well inside their limits first (a pre-grasp at a limit
+        leaves no room for the approach), then without the margin."""
         for choices in (None, alternatives) if alternatives else (None,):
             for torso in self.ik.torso_candidates(targets_W, q_start):  # lazily: later ones cost solves of their own
                 for margin in (REACH_LIMIT_MARGIN, 0.0):
-                    yield self.ik.solve(
-                        targets_W, q_start, restarts=12, limit_margin=margin, torso_yaws=[torso], alternatives=choices
-                    )
+                    yield choices, torso, margin
+
+    def _goal(self, q_start, targets_W, spec: tuple, accept=None) -> IkResult:
+        """The IK goal of one of _goal_specs (accept: as DualArmIk.solve's)."""
+        choices, torso, margin = spec
+        return self.ik.solve(
+            targets_W, q_start, restarts=12, limit_margin=margin, torso_yaws=[torso], alternatives=choices,
+            accept=accept,
+        )  # fmt: skip
+
+    def _clear_of(self, obstacles: Obstacles) -> Callable[[np.ndarray], bool]:
+        """Whether a goal (n joints) keeps the sphere model more than a plan's required clearance from `obstacles`
+        (STOMP refuses a goal any nearer)."""
+        required = self.stomp.config.costs.required_clearance
+        return lambda q: bool(self.stomp.clearance(q[None], obstacles, robot_pairs=False)[0] > required)
 
     def _goals_from_the_grasps(self, q_start, targets_W, alternatives, approach_to) -> Iterator[IkResult]:
         """Pre-grasp goals found backwards: both hands at their grasps (IK, the torso and the alternatives tried as
-        _reach_goals tries them), then backed off along the approach to the pre-grasps (straight()). For an arm
+        _goal_specs orders them), then backed off along the approach to the pre-grasps (straight()). For an arm
         that reaches its grasp only near full stretch: from a pre-grasp solved first, the approach may not reach."""
         grasps = {side: approach_to[side][0] for side in SIDES}
         others = {side: [grasps[side].inverse() @ X for X in approach_to[side]] for side in SIDES}
-        for goal in self._reach_goals(q_start, grasps, others):
+        for goal in (self._goal(q_start, grasps, spec) for spec in self._goal_specs(q_start, grasps, others)):
             if not goal.success:
                 yield IkResult(False, goal.q, f"at the grasps: {goal.message}")
                 continue
