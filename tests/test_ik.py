@@ -125,9 +125,12 @@ def test_a_reach_whose_nearest_goal_stands_in_the_scene_reaches_the_same_targets
     assert clearance(nearest.q) < 0.0
     planned_to = []  # every goal handed to the path planner
     reach_path = pick.reaches._reach_path
-    monkeypatch.setattr(
-        pick.reaches, "_reach_path", lambda *args, **kwargs: planned_to.append(args[1]) or reach_path(*args, **kwargs)
-    )
+
+    def recorded(q_start, q_goal, *args, **kwargs):
+        planned_to.append(q_goal)
+        return reach_path(q_start, q_goal, *args, **kwargs)
+
+    monkeypatch.setattr(pick.reaches, "_reach_path", recorded)
     reach = pick.reach(q0, targets, scene_W=scene)
     goal = reach.keyframes[-1]
     assert _reached(world, goal, targets, 0.003, 0.04)

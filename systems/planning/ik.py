@@ -278,9 +278,9 @@ class DualArmIk:
         # The nearest pairs of per-arm answers, 8 of them at most; with `accept`, the pairs it refuses are passed over
         # (they cost no solve) for pairs of more answers.
         answers = 4 if accept is None else ACCEPT_ANSWERS
+        pairs = itertools.product(per_arm["left"][:answers], per_arm["right"][:answers])
         tried = refused = 0
-        for (left_X, left_q), (right_X, right_q) in itertools.product(per_arm["left"][:answers],
-                                                                       per_arm["right"][:answers]):  # fmt: skip
+        for (left_X, left_q), (right_X, right_q) in pairs:
             if tried == 8:
                 break
             start = left_q.copy()

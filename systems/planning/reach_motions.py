@@ -175,7 +175,7 @@ class ReachMotions:
                 for margin in (REACH_LIMIT_MARGIN, 0.0):
                     yield choices, torso, margin
 
-    def _goal(self, q_start, targets_W, spec: tuple, accept=None) -> IkResult:
+    def _goal(self, q_start, targets_W, spec: tuple, accept: Callable[[np.ndarray], bool] | None = None) -> IkResult:
         """The IK goal of one of _goal_specs (accept: as DualArmIk.solve's)."""
         choices, torso, margin = spec
         return self.ik.solve(
