@@ -295,6 +295,34 @@ def test_carry_that_turns_the_object_keeps_the_hands_upright_and_slow(lift_probl
     assert trajectory.end_time() >= max(0.15 / HELD_SPEED_M_S, 0.3 / HELD_TURN_SPEED_RAD_S)
 
 
+# A can held at 10 cm above where it stood (tune table 8 of the clear, 2026-12-07; the hands' pose as the lift left
+# them), and the carry to its spot in the drop zone: 5 cm forward, 23 cm to the robot's left of W's origin after a
+# turn of -1.03 rad about W's vertical (the zone lies on the robot's right).
+CAN_HELD_FOR_THE_ZONE = [0.4615, 1.388, 0.5198, -2.0144, 1.7623, 1.1694, 1.0015,
+                         0.2863, -0.0263, 0.4618, -2.2111, 0.1463, 1.1218, -0.0437, 0.0551]  # fmt: skip
+CARRY_TO_THE_ZONE = RigidTransform(RotationMatrix.MakeZRotation(-1.0271), [0.0507, 0.2267, 0.0])
+
+
+def test_a_held_move_whose_path_ends_with_an_elbow_in_the_pelvis_ends_on_another_branch(scenario):
+    """The held path, solved along the carry from the start, keeps the right arm on its branch and ends with its
+    forearm (arm2_5) in the pelvis: STOMP refuses that goal. The held move's goal is solved again, clear of the
+    robot itself, holding the object where the path's goal holds it."""
+    motions = make_pick_motions(scenario)
+    q0 = np.array(CAN_HELD_FOR_THE_ZONE)
+    path = motions.held_path(q0, CARRY_TO_THE_ZONE, 1.0)
+    assert motions.world.in_collision(path.configurations[-1])  # the path's own goal
+    held = motions.held_move(q0, CARRY_TO_THE_ZONE, 1.0)
+    goal = held.keyframes[-1]
+    assert not motions.world.in_collision(goal)
+    path_end, held_end = (motions.world.grasp_frame_poses(q) for q in (path.configurations[-1], goal))
+    # The left hand where the path's goal has it (within the held path's 1 mm and 0.04 rad, from its projection onto
+    # the closure), the right one where the grasps hold it from the left.
+    assert np.linalg.norm(held_end["left"].translation() - path_end["left"].translation()) < 0.003
+    assert (held_end["left"].rotation().inverse() @ path_end["left"].rotation()).ToAngleAxis().angle() < 0.045
+    t_dev, o_dev = deviations(motions.world.end_effectors, goal[None], held.X_E1E2)
+    assert t_dev.max() < 0.001 and o_dev.max() < 0.01
+
+
 def test_a_bounded_step_holds_a_joint_at_its_limit_where_clipping_stalls():
     """e = q0 + q1 - 1 from q = 0 with q0 at most 0.2: the plain step (0.5, 0.5) clipped leaves e = -0.3; the
     bounded step holds q0 at its limit and moves q1 alone, reaching e = 0 at once."""

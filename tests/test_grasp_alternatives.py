@@ -5,8 +5,10 @@ import numpy as np
 import pytest
 from pydrake.math import RigidTransform, RollPitchYaw
 
-from diagrams.planning_scene import make_pick_motions, true_grasp_poses
+from diagrams.generation.objects.library import resolve_object
+from diagrams.planning_scene import make_pick_motions, object_surface_W, true_grasp_poses
 from diagrams.scenario import initial_positions, replace_object
+from diagrams.station import object_pose_on_table
 from systems.planning.grasp_alternatives import (
     GRASP_ROLLS,
     HANDLE_SLIDES,
@@ -119,3 +121,28 @@ def test_the_reach_looks_briefly_at_later_goals_before_giving_any_its_full_budge
     with pytest.raises(PlanningError, match="no path to goal"):
         motions.reach(q0, {})
     assert looks == [(0, None), (1, screen), (3, screen), (1, None), (3, None)]
+
+
+def test_grasps_in_reach_but_not_a_centimetre_deeper_are_approached_to_the_grasps_themselves(scenario):
+    """A drill at the edge of the arms' reach (tune table 8 of the clear's first object: training drill 0 at x -0.03
+    m, y 0.03 m, yaw -0.23 rad): the right hand's approach reaches its grasp but not the perception margin's
+    centimetre past it. The reach then approaches the grasps themselves: the X_GG' it returns take the centimetre
+    back off, so that the approach the pick plays (to grasp @ X_GG' @ deeper) ends at a grasp of the family."""
+    drill = replace_object(scenario, category="drill", instance="train_0", xy=[-0.0315, 0.0269], yaw=-0.232)
+    motions = make_pick_motions(drill)
+    poses = true_grasp_poses(drill)
+    q0 = initial_positions(drill)
+    pregrasps = {side: poses[f"{side}_pregrasp"] for side in SIDES}
+    grasps = {side: poses[f"{side}_grasp"] for side in SIDES}
+    model = resolve_object(drill.object)
+    surface, _ = object_surface_W(model, object_pose_on_table(drill, model), 2000)  # (as the clear's tables check)
+    deeper = RigidTransform([0.0, 0.0, 0.01])
+    keyframes, chosen = motions.reach_pregrasps(q0, pregrasps, grasps, surface, surface, deeper=deeper)
+    families = {side: grasp_alternatives(grasps[side], surface) for side in SIDES}
+    for side in SIDES:
+        X_GG = chosen[side] @ deeper  # where the approach ends, in the grasp's frame: a grasp of its family
+        assert any(X_GG.IsNearlyEqualTo(member, 1e-9) for member in families[side])
+    ends = {side: grasps[side] @ chosen[side] @ deeper for side in SIDES}
+    motions.straight(keyframes[-1], ends)  # the approach the pick plays reaches them
+    with pytest.raises(PlanningError, match="out of reach"):  # a centimetre deeper, it does not
+        motions.straight(keyframes[-1], {side: X @ deeper for side, X in ends.items()})

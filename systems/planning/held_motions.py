@@ -38,6 +38,8 @@ HELD_GOAL_ANGLE_TOLERANCES = (0.01, 0.04)
 # hand's pose relative to the left within it too): with the tolerances above and a pull towards the configuration
 # before, the goal sits at their edge, behind the motion (an aimed bit's tip stopped some 2 mm short of its goal).
 HELD_GOAL_EXACT_TOLERANCES = (0.0001, 0.001)
+# m: a held move's goal that collides is solved again this far from the robot itself and the table (Drake's geometry)
+HELD_GOAL_MIN_DISTANCE = 0.01
 HELD_PATH_STEPS = 10  # configurations solved along a held move's motion
 PROJECTION_STEPS = 15
 # A carried object as spheres of this radius (m) for the collision cost, centred on its points so that every
@@ -114,6 +116,13 @@ class HeldMotions:
         # Project onto the closure manifold alone: the goal keeps its own orientation (a carry may turn the
         # object; a lift at the edge of reach may tilt it).
         q_goal = stomp.project(path[-1], X_E1E2, None, steps=PROJECTION_STEPS)[0]
+        scene = self.world.table_obstacles(self.world.where_the_robot_is_not(scene_W, q_start))
+        centre_W = None
+        if carried_points_W is not None and len(carried_points_W):
+            scene = scene.carrying(self.carried(q_start, carried_points_W))
+            centre_W = np.mean(carried_points_W, axis=0)
+        if not self._stomp_accepts(q_start, q_goal, scene):
+            q_goal = self._clear_goal(q_start, q_goal, X_E1E2, scene)
         # The hands keep their world orientation along a translation, and their tilt along a motion that turns
         # the object about the vertical (a carry, a set-down that corrects its yaw): it does not tip on the way.
         R_motion = X_motion_W.rotation().matrix()
@@ -127,11 +136,6 @@ class HeldMotions:
             tilt = orientation_deviations(end_effectors, q_goal[None], R_goal, orientation.upright_only)
             if tilt.max() >= 0.5 * orientation.o_max:  # the goal itself tilts (the edge of reach): no constraint
                 orientation = None
-        scene = self.world.table_obstacles(self.world.where_the_robot_is_not(scene_W, q_start))
-        centre_W = None
-        if carried_points_W is not None and len(carried_points_W):
-            scene = scene.carrying(self.carried(q_start, carried_points_W))
-            centre_W = np.mean(carried_points_W, axis=0)
         path[-1] = q_goal
         payload = self.payload(q_start, centre_W)
         result = stomp.plan(q_start, q_goal, scene, self.closure, orientation, initial_path=path, payload=payload)
@@ -143,6 +147,31 @@ class HeldMotions:
             "%.2f s", 100 * first.reached, first.angle_tolerance, kept, result.iterations, result.seconds
         )  # fmt: skip
         return HeldMove(result.trajectory, X_E1E2)
+
+    def _stomp_accepts(self, q_start: np.ndarray, q_goal: np.ndarray, scene) -> bool:
+        """Whether STOMP takes q_goal as a held move's goal from q_start: its sphere model (the held object's among
+        them) more than a plan's required clearance from itself and `scene`, as judged from the plan's ends
+        (Stomp.standing_at_ends: a goal Drake's exact geometry finds free may keep the coarse spheres' overlaps)."""
+        obstacles = self.stomp.standing_at_ends(q_start, q_goal, scene)
+        required = self.stomp.config.costs.required_clearance
+        return bool(self.stomp.clearance(q_goal[None], obstacles, held=True)[0] > required)
+
+    def _clear_goal(self, q_start: np.ndarray, q_goal: np.ndarray, X_E1E2: np.ndarray, scene) -> np.ndarray:
+        """A held move's goal STOMP takes (_stomp_accepts), the hands where they are at q_goal (within the held
+        path's tolerances; X_E1E2: 4 x 4): solved from q_goal with Drake's geometry HELD_GOAL_MIN_DISTANCE apart.
+        The path's goal, solved along the motion from the start, stays on the arms' branch; where that branch ends
+        with an elbow in the pelvis (a carry to the robot's right side), another one may hold the object there.
+        q_goal itself where none is taken."""
+        X_WG_left = self.world.grasp_frame_poses(q_goal)["left"]
+        for tolerance in HELD_GOAL_ANGLE_TOLERANCES:
+            result = self.ik.solve_held(
+                X_WG_left, RigidTransform(X_E1E2), q_goal, HELD_GOAL_POSITION_TOLERANCE, tolerance,
+                min_distance=HELD_GOAL_MIN_DISTANCE,
+            )  # fmt: skip
+            if result.success and self._stomp_accepts(q_start, result.q, scene):
+                logging.info("held move: its goal collides; another holding the object there is clear")
+                return result.q
+        return q_goal
 
     def held_path(
         self, q_start: np.ndarray, X_motion_W: RigidTransform, min_fraction: float, exact_goal: bool = False

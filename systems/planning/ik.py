@@ -418,10 +418,11 @@ class DualArmIk:
         angle_tolerance: float,
         start: np.ndarray | None = None,
         closure_tolerances: tuple[float, float] = (0.0005, 0.005),
+        min_distance: float | None = None,
     ) -> IkResult:
         """Both arms holding one object: the left grasp frame at X_WG_left (within the tolerances, m and
         rad) and the right one at X_E1E2 from it (within closure_tolerances, m and rad), nearest to q_near,
-        solved from `start` (default q_near)."""
+        solved from `start` (default q_near); with min_distance (m), Drake's geometry that far apart at least."""
         world, plant = self.world, self.world.plant
         left, right = world.grasp_frames["left"], world.grasp_frames["right"]
         ik = InverseKinematics(plant, world.plant_context, with_joint_limits=True)
@@ -434,6 +435,8 @@ class DualArmIk:
         p_E1E2 = X_E1E2.translation()
         ik.AddPositionConstraint(right, [0, 0, 0], left, p_E1E2 - closure, p_E1E2 + closure)
         ik.AddOrientationConstraint(right, RotationMatrix(), left, X_E1E2.rotation(), closure_tolerances[1])
+        if min_distance is not None:
+            ik.AddMinimumDistanceLowerBoundConstraint(min_distance)
         initial = world.full_positions(q_near if start is None else start)
         fixed = np.setdiff1d(np.arange(plant.num_positions()), world.arm_indices)
         prog.AddBoundingBoxConstraint(initial[fixed], initial[fixed], q[fixed])

@@ -135,16 +135,38 @@ class ReachMotions:
         reaches the grasps (each grasp_W moved by `deeper` on the right, if given), and per side the grasp of its
         family it leads to (X_GG'). Where a hand cannot reach its pre-grasp so, the other grasps of its family
         (grasp_alternatives: rolled about the handle, slid along it, judged on the object's points cloud_W, N x 3
-        in W), and where none does, pre-grasps nearer the grasps (PREGRASP_STANDOFFS). obstacle_points_W,
-        scene_W: as reach()'s.
+        in W), and where none does, pre-grasps nearer the grasps (PREGRASP_STANDOFFS). Where the approach reaches
+        none of them `deeper`, it ends at the grasps themselves: the X_GG' returned then take `deeper` back off (an
+        approach to grasp @ X_GG' @ deeper ends at grasp @ X_GG of the family). obstacle_points_W, scene_W: as
+        reach()'s.
 
         Raises:
             PlanningError: as reach(), for the first standoff (or the last, where a nearer one was tried).
         """
-        deeper = deeper if deeper is not None else RigidTransform()
         families = {side: grasp_alternatives(grasps_W[side], cloud_W) for side in SIDES}
+        depths = [RigidTransform()] if deeper is None else [deeper, RigidTransform()]
+        failure = None
+        for depth in depths:
+            try:
+                keyframes, chosen = self._reach_to_depth(
+                    q_start, pregrasps_W, grasps_W, families, depth, obstacle_points_W, scene_W
+                )
+            except PlanningError as error:
+                failure = failure or error
+                if not _out_of_reach(error):
+                    break  # reachable but not by a free path: a shallower approach will not help
+                continue
+            if depth is not depths[0]:
+                logging.info("reach: the approach goes no deeper than the grasps (deeper, they are out of reach)")
+                chosen = {side: X_GG @ deeper.inverse() for side, X_GG in chosen.items()}
+            return keyframes, chosen
+        raise failure
+
+    def _reach_to_depth(self, q_start, pregrasps_W, grasps_W, families, depth, obstacle_points_W, scene_W):
+        """reach_pregrasps' reach with each approach ending at grasp @ X_GG @ depth (X_GG: each of the hand's
+        family): its keyframes and the X_GG chosen per side."""
         # Where each hand's approach ends, for each grasp of its family.
-        approach_to = {side: [grasps_W[side] @ X_GG @ deeper for X_GG in families[side]] for side in SIDES}
+        approach_to = {side: [grasps_W[side] @ X_GG @ depth for X_GG in families[side]] for side in SIDES}
         failure = None
         for standoff in PREGRASP_STANDOFFS:
             nearer = {
@@ -161,7 +183,7 @@ class ReachMotions:
                 return reach.keyframes, {side: families[side][reach.choice[side]] for side in SIDES}
             except PlanningError as error:
                 failure = failure or error
-                if "no collision-free IK solution" not in str(error) and "approach" not in str(error):
+                if not _out_of_reach(error):
                     break  # reachable but not by a free path: nearer the object will not help
         raise failure
 
@@ -303,6 +325,12 @@ class ReachMotions:
             if self.stomp.clearance(states, obstacles, robot_pairs=False).min() <= 0:
                 return False
         return self.world.segment_is_free(q_from, q_to, max_step, tolerated)
+
+
+def _out_of_reach(error: PlanningError) -> bool:
+    """Whether a reach failed for want of an IK goal or of its straight approach (targets nearer the grasps, or less
+    deep, may do), not of a free path to a goal."""
+    return "no collision-free IK solution" in str(error) or "approach" in str(error)
 
 
 def shortcut(is_free: Callable[[np.ndarray, np.ndarray], bool], keyframes: list[np.ndarray]) -> list[np.ndarray] | None:
