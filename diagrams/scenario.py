@@ -535,6 +535,7 @@ def _validate_clutter(name: str, other: ClutterObjectConfig) -> None:
 
 TASKS = ("lift", "place", "aim", "pour", "clear")
 TABLE_HEIGHT = 0.76  # m: the table_top frame above the table's base (sdf/scene/table.sdf)
+TABLE_HALF_SIZE = (0.4, 0.6)  # m: the table top's half depth (x) and half width (y) about its frame (the same file)
 POUR_CONTAINERS = ("bowl", "pot")  # what the pour task pours into
 # The aim task's board: width (along y), height and thickness, m.
 BOARD_SIZE_M = (0.5, 0.4, 0.02)

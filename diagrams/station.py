@@ -56,6 +56,7 @@ from diagrams.generation.objects.library import ObjectModel, resolve_object
 from diagrams.paths import PACKAGE_XML
 from diagrams.pour_container import table_clutter
 from diagrams.scenario import (
+    TABLE_HALF_SIZE,
     TABLE_HEIGHT,
     ClutterObjectConfig,
     ObjectConfig,
@@ -143,8 +144,8 @@ def place_target(scenario: Scenario) -> RigidTransform:
 
 
 def drop_zone(scenario: Scenario, robot_spheres_W: np.ndarray | None = None) -> DropZone:
-    """The clear task's drop zone in W (scenario.clear: its centre in the table_top frame); with the robot's spheres
-    at its home between objects (S x 4: centre in W, radius; m; clear_home), those reaching below
+    """The clear task's drop zone in W (scenario.clear: its centre in the table_top frame), on the table's top; with
+    the robot's spheres at its home between objects (S x 4: centre in W, radius; m; clear_home), those reaching below
     ZONE_KEEP_OUT_HEIGHT_M above the table top are its keep-out circles."""
     centre = np.array(scenario.table_xyz[:2]) + scenario.clear.zone_xy
     keep_out = ()
@@ -152,7 +153,11 @@ def drop_zone(scenario: Scenario, robot_spheres_W: np.ndarray | None = None) -> 
         low = robot_spheres_W[robot_spheres_W[:, 2] - robot_spheres_W[:, 3] < scenario.table_xyz[2] + TABLE_HEIGHT
                               + ZONE_KEEP_OUT_HEIGHT_M]  # fmt: skip
         keep_out = tuple((float(x), float(y), float(r)) for x, y, _, r in low)
-    return DropZone((float(centre[0]), float(centre[1])), tuple(map(float, scenario.clear.zone_size)), keep_out)
+    table = np.array(scenario.table_xyz[:2])
+    table_W = (tuple(map(float, table - TABLE_HALF_SIZE)), tuple(map(float, table + TABLE_HALF_SIZE)))
+    return DropZone(
+        (float(centre[0]), float(centre[1])), tuple(map(float, scenario.clear.zone_size)), keep_out, table_W
+    )
 
 
 # m: the robot's spheres at its home between objects reaching below this above the table top keep objects out of the

@@ -11,7 +11,7 @@ from scipy.spatial import QhullError
 
 from systems.messages import SIDES, ClearedObject, LeftOut, Mode, ObjectBelief, PerceptionResult, PickStatus
 from systems.perception.pose_estimator import voxel_thin
-from systems.planning.drop_zone import DropZone, drop_spots, footprint_at, footprint_O, hands_footprint_O
+from systems.planning.drop_zone import DropZone, base_O, drop_spots, footprint_at, footprint_O, hands_footprint_O
 from systems.planning.outlines import convex_outline
 
 SEEN_POINT_HALF_SIZE_M = 0.02  # m: an object seen as points on a line is given this outline about their centre
@@ -43,14 +43,16 @@ def seen_object(result: PerceptionResult, later_pass: bool = False) -> ClearedOb
 def chosen_spots(zone: DropZone, status: PickStatus, result: PerceptionResult) -> tuple[list, ClearedObject]:
     """Where in the zone the perceived object may go, best first ((X_WO, its footprint there: M x 2 in W, m) each;
     [] where it fits nowhere), and its record with the first spot: its footprint from the registrar's whole inferred
-    shape (the seen points where there is none); the hands holding it (its grasps) kept clear of the objects there."""
+    shape (the seen points where there is none); the hands holding it (its grasps) kept clear of the objects there,
+    its base (that shape's lowest points) on the table."""
     record = seen_object(result, later_pass=status.pass_from > 0)
     shape = result.reconstruction_W if result.reconstruction_W is not None else result.points_W
     outline_O = footprint_O(shape, result.X_WO_seen)
     dropped = [done.footprint_W for done in status.objects if done.cleared]
     grasps_W = [result.grasps.poses_W[f"{side}_grasp"] for side in SIDES] if result.grasps.found else []
     hands_O = hands_footprint_O(grasps_W, result.X_WO_seen)
-    spots = drop_spots(zone, dropped, outline_O, result.X_WO_seen, hands_O=hands_O)
+    base = base_O(shape, result.X_WO_seen)
+    spots = drop_spots(zone, dropped, outline_O, result.X_WO_seen, hands_O=hands_O, base_outline_O=base)
     spots = [(X_WO, footprint_at(outline_O, X_WO)) for X_WO in spots]
     if record is not None and result.reconstruction_W is not None and len(result.reconstruction_W):
         record = dataclasses.replace(record, shape_W=voxel_thin(result.reconstruction_W, SHAPE_CELL_M))

@@ -44,7 +44,9 @@ from systems.planning.drop_zone import (
     DROP_GAP_M,
     DROP_OVERHANG_M,
     HAND_GAP_M,
+    TABLE_EDGE_MARGIN_M,
     DropZone,
+    base_O,
     drop_spots,
     footprint_at,
     footprint_O,
@@ -78,6 +80,32 @@ def test_the_drop_zone_takes_objects_apart_inside_it_until_none_fits():
     assert len(dropped) >= 3  # three drills side by side in a 40 cm square
     big = _box_footprint(0.3, 0.3, X_WO)  # 60 cm across: fits nowhere
     assert drop_spots(ZONE, [], big, X_WO) == []
+
+
+def test_an_object_goes_where_its_base_stands_on_the_table_whatever_its_outline_reaches_past_the_zone():
+    """A can (a body 14 cm across, a spout reaching 12 cm out at 20 cm high): its outline may reach past the zone's
+    marks (the spout), but where the zone knows the table top, the can's base stays TABLE_EDGE_MARGIN_M inside it.
+    A zone drawn across the table's edge takes it nowhere; one inside it, where its base stays on."""
+    X_WO = RigidTransform([0.8, 0.2, 0.76])
+    angle = np.linspace(0, 2 * np.pi, 24, endpoint=False)
+    ring = np.stack([0.07 * np.cos(angle), 0.07 * np.sin(angle)], axis=1)
+    body = np.concatenate([np.column_stack([ring, np.full(24, z)]) for z in (0.0, 0.01, 0.1, 0.25)])
+    spout = np.column_stack([np.linspace(0.07, 0.19, 6), np.zeros(6), np.full(6, 0.2)])
+    shape_W = X_WO.multiply(np.concatenate([body, spout]).T).T
+    outline, base = footprint_O(shape_W, X_WO), base_O(shape_W, X_WO)
+    np.testing.assert_allclose(np.abs(base).max(axis=0), [0.07, 0.07], atol=0.002)  # the body's foot, not the spout
+    table_W = ((0.45, -0.6), (1.25, 0.6))
+    across = DropZone((0.7, -0.6), (0.4, 0.16))  # half of it past the table's side (y -0.6 m)
+    unknown = drop_spots(across, [], outline, X_WO, base_outline_O=base)
+    assert unknown and all(footprint_at(base, X).min(axis=0)[1] < table_W[0][1] for X in unknown)
+    assert drop_spots(dataclasses.replace(across, table_W=table_W), [], outline, X_WO, base_outline_O=base) == []
+    inside_table = DropZone((0.7, -0.4), (0.4, 0.4), table_W=table_W)
+    spots = drop_spots(inside_table, [], outline, X_WO, count=50, base_outline_O=base)
+    assert spots
+    for X in spots:
+        foot = footprint_at(base, X)
+        assert np.all(foot >= np.add(table_W[0], TABLE_EDGE_MARGIN_M) - 1e-9)
+        assert np.all(foot <= np.subtract(table_W[1], TABLE_EDGE_MARGIN_M) + 1e-9)
 
 
 def test_the_hands_holding_an_object_stay_clear_of_the_objects_in_the_zone():

@@ -16,14 +16,13 @@ from pydrake.math import RigidTransform, RotationMatrix
 
 from diagrams.generation.objects.library import resolve_object
 from diagrams.generation.planning_problems import held_problem
-from diagrams.scenario import load_scenario, replace_object
+from diagrams.scenario import TABLE_HALF_SIZE, load_scenario, replace_object
 from diagrams.station import TABLE_HEIGHT, object_pose_on_table
 from systems.planning.aim_goals import aim_pose, turned_about
 from systems.planning.pick_motions import PickMotions
 from systems.planning.pour_goals import outflow_elevation
 
 LIFT_M = 0.10  # m: how high the object is held above where it stood
-TABLE_HALF_SIZE_M = (0.4, 0.6)  # m: the table top's half depth (x) and width (y): sdf/scene/table.sdf
 # The boards: where each stands (the table's far edge, its left and right sides) as (its plane's offset from the
 # table's centre along its outward normal's opposite, the normal in W).
 BOARDS = {
@@ -98,7 +97,7 @@ def aim_reach_rows(
             centre = np.array(scenario.table_xyz) + [0.0, 0.0, TABLE_HEIGHT]
             for board, (outward, normal) in BOARDS.items():
                 along = np.cross([0.0, 0.0, 1.0], normal)  # the board's horizontal direction
-                edge = np.abs(outward[:2]) @ TABLE_HALF_SIZE_M - inset
+                edge = np.abs(outward[:2]) @ TABLE_HALF_SIZE - inset
                 for height in heights:
                     for offset in offsets:
                         target = centre + edge * outward + offset * along + [0.0, 0.0, height]

@@ -46,7 +46,15 @@ from diagrams.evaluation import PAPER_CATEGORIES, PLACEMENT_HALF_SIZE_M, PLACEME
 from diagrams.generation.objects.library import ObjectModel, resolve_object
 from diagrams.planning_scene import MakeRobotScene, object_collision_surface_W, object_surface_W
 from diagrams.pour_container import pour_container, true_opening
-from diagrams.scenario import AimConfig, PourConfig, Scenario, initial_positions, load_scenario, replace_object
+from diagrams.scenario import (
+    TABLE_HALF_SIZE,
+    AimConfig,
+    PourConfig,
+    Scenario,
+    initial_positions,
+    load_scenario,
+    replace_object,
+)
 from diagrams.station import TABLE_HEIGHT, object_pose_on_table
 from systems.planning.aim_goals import aim_pose
 from systems.planning.closure import ClosureConstraint, OrientationConstraint, deviations, orientation_deviations
@@ -86,7 +94,6 @@ BOX_GAP_M = 0.03  # a box stands at least this far from the held object at start
 BOX_DRAWS = 20
 ARM_LENGTH_M = 0.35  # from the grasp frame back along the approach axis: the hand, the wrist and the forearm
 ARM_GAP_M = 0.09  # a box stands at least this far from those points at start and goal (the forearm's radius and more)
-TABLE_HALF_SIZE = (0.4, 0.6)  # m, the table top's half extent in its frame
 # Arms under the table top, the torso straight (a reach's start where the straight line collides).
 BELOW_TABLE = np.array([0, 0.15, 0, -0.1, 0, 0, 0, 0, -0.15, 0, -0.1, 0, 0, 0.0, 0.0])
 DENSE_STEP_RAD = 0.01  # the dense checks: no joint turns more than this between two checked states

@@ -10,7 +10,11 @@ drill's hands reach past its outline, and a carry to a spot beside the first dri
 wrist 45 mm into it (tune table 2, 2026-12-07). Candidates:
 the object turned by each of DROP_TURNS_RAD about the vertical from how it was seen, its centre on a DROP_GRID_M
 grid over the zone, nearest the zone's corner towards the robot and the table's middle first (packed from there; the
-arms reach it well).
+arms reach it well). Where the zone knows the table top, the object's base (the outline of its lowest BASE_HEIGHT_M)
+stays TABLE_EDGE_MARGIN_M inside the table's edges: the zone's marks run 2 cm from the table's side and its footprints
+may reach past them (a spout), and a can set down at the zone's far corner with a handle's width of its body over the
+edge (its outline's centre inside, the body off it) fell off the table as the hands backed off (tune table 8,
+2026-12-07).
 """
 
 from dataclasses import dataclass
@@ -44,6 +48,8 @@ HAND_GAP_M = 0.02
 _PALM_G = [(x, y, z) for x in (-0.045, 0.045) for y in (-0.075, 0.075) for z in (-0.085, -0.045)]
 _WRIST_G = [(x, y, z) for x in (-0.04, 0.04) for y in (-0.04, 0.04) for z in (-0.2, -0.085)]
 HAND_POINTS_G = np.array(_PALM_G + _WRIST_G).T  # 3 x 16
+BASE_HEIGHT_M = 0.02  # m: an object's base is its shape's lowest this much (what it stands on)
+TABLE_EDGE_MARGIN_M = 0.02  # m: a base stays this far inside the table top's edges (a set-down lands 1-2 cm off)
 
 
 @dataclass(frozen=True)
@@ -55,6 +61,8 @@ class DropZone:
     # Circles (x, y, radius in W, m) no footprint may come within DROP_GAP_M of: where the robot's hands hang at its
     # start (a move back there, after an object given up, must not find one standing under them).
     keep_out_W: tuple[tuple[float, float, float], ...] = ()
+    # The table top the zone lies on: its lowest and highest corners (x, y in W, m); None: not known (not checked).
+    table_W: tuple[tuple[float, float], tuple[float, float]] | None = None
 
     @property
     def low(self) -> np.ndarray:
@@ -74,6 +82,13 @@ def footprint_O(points_W: np.ndarray, X_WO: RigidTransform) -> np.ndarray:
     """An object's footprint in its own frame: the convex outline (M x 2, x, y in O, m) of its points (N x 3 in W)
     seen from above, the object standing upright at X_WO."""
     return convex_outline(X_WO.inverse().multiply(np.asarray(points_W).T).T[:, :2])
+
+
+def base_O(points_W: np.ndarray, X_WO: RigidTransform) -> np.ndarray:
+    """An object's base in its own frame: the convex outline (M x 2, x, y in O, m) of its points (N x 3 in W) within
+    BASE_HEIGHT_M of its lowest, the object standing upright at X_WO."""
+    points_O = X_WO.inverse().multiply(np.asarray(points_W).T).T
+    return convex_outline(points_O[points_O[:, 2] <= points_O[:, 2].min() + BASE_HEIGHT_M, :2])
 
 
 def footprint_at(outline_O: np.ndarray, X_WO: RigidTransform) -> np.ndarray:
@@ -96,6 +111,7 @@ def drop_spots(
     X_WO_seen: RigidTransform,
     count: int = DROP_ALTERNATIVES,
     hands_O: list[np.ndarray] = (),
+    base_outline_O: np.ndarray | None = None,
 ) -> list[RigidTransform]:
     """Where to set the object down (X_WO: upright, at the height it was seen at), best first: up to `count` spots
     that fit, each at least DROP_ALTERNATIVE_APART_M or one turn step from the ones before it (the planner tries
@@ -108,6 +124,8 @@ def drop_spots(
         X_WO_seen: where it was seen, standing on the table.
         hands_O: the footprints of the hands holding it, in O (hands_footprint_O), kept HAND_GAP_M clear of
             dropped_W; none: not checked.
+        base_outline_O: the object's base in O (base_O), kept TABLE_EDGE_MARGIN_M inside zone.table_W; None: not
+            checked.
     """
     # (Packed from the corner nearest the robot and the table's middle: on the right side, low x and high y.)
     corner = np.array([zone.low[0], zone.high[1] if zone.centre_W[1] <= 0 else zone.low[1]])
@@ -126,6 +144,8 @@ def drop_spots(
             inside = zone.contains(outline.mean(axis=0), -DROP_CENTRE_INSET_M)
             if not inside or not zone.contains(outline, DROP_OVERHANG_M).all():
                 continue
+            if not _on_the_table(zone, base_outline_O, X_WO):
+                continue
             if (
                 all(outlines_apart(outline, other, DROP_GAP_M) for other in dropped_W)
                 and _clear_of(zone, outline)
@@ -136,6 +156,16 @@ def drop_spots(
                 if len(spots) == count:
                     return spots
     return spots
+
+
+def _on_the_table(zone: DropZone, base_outline_O: np.ndarray | None, X_WO: RigidTransform) -> bool:
+    """Whether the object's base, standing at X_WO, lies TABLE_EDGE_MARGIN_M inside the table top (where both are
+    known)."""
+    if zone.table_W is None or base_outline_O is None:
+        return True
+    base = footprint_at(base_outline_O, X_WO)
+    low, high = np.asarray(zone.table_W[0]), np.asarray(zone.table_W[1])
+    return bool(np.all((base >= low + TABLE_EDGE_MARGIN_M) & (base <= high - TABLE_EDGE_MARGIN_M)))
 
 
 def _hand_clear(hand: np.ndarray, dropped_W: list[np.ndarray]) -> bool:
