@@ -94,6 +94,8 @@ def test_an_object_goes_where_its_base_stands_on_the_table_whatever_its_outline_
     shape_W = X_WO.multiply(np.concatenate([body, spout]).T).T
     outline, base = footprint_O(shape_W, X_WO), base_O(shape_W, X_WO)
     np.testing.assert_allclose(np.abs(base).max(axis=0), [0.07, 0.07], atol=0.002)  # the body's foot, not the spout
+    line = X_WO.multiply(np.array([[0.0, 0.0, 0.0], [0.05, 0.0, 0.0], [0.1, 0.0, 0.3]]).T).T
+    np.testing.assert_allclose(base_O(line, X_WO), [[0.0, 0.0], [0.05, 0.0]], atol=1e-12)  # (no area: the points)
     table_W = ((0.45, -0.6), (1.25, 0.6))
     across = DropZone((0.7, -0.6), (0.4, 0.16))  # half of it past the table's side (y -0.6 m)
     unknown = drop_spots(across, [], outline, X_WO, base_outline_O=base)

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from pydrake.math import RigidTransform, RotationMatrix
+from scipy.spatial import QhullError
 
 from systems.planning.outlines import convex_outline, distance_to, outlines_apart
 
@@ -86,9 +87,14 @@ def footprint_O(points_W: np.ndarray, X_WO: RigidTransform) -> np.ndarray:
 
 def base_O(points_W: np.ndarray, X_WO: RigidTransform) -> np.ndarray:
     """An object's base in its own frame: the convex outline (M x 2, x, y in O, m) of its points (N x 3 in W) within
-    BASE_HEIGHT_M of its lowest, the object standing upright at X_WO."""
+    BASE_HEIGHT_M of its lowest (those points themselves where they span no area), the object standing upright at
+    X_WO."""
     points_O = X_WO.inverse().multiply(np.asarray(points_W).T).T
-    return convex_outline(points_O[points_O[:, 2] <= points_O[:, 2].min() + BASE_HEIGHT_M, :2])
+    lowest = points_O[points_O[:, 2] <= points_O[:, 2].min() + BASE_HEIGHT_M, :2]
+    try:
+        return convex_outline(lowest)
+    except QhullError:  # (too few, or on a line: they bound the base themselves)
+        return lowest
 
 
 def footprint_at(outline_O: np.ndarray, X_WO: RigidTransform) -> np.ndarray:
