@@ -77,9 +77,10 @@ def parse_args(argv=None):
     parser.add_argument(
         "--scene-split",
         dest="scene_split",
-        choices=("report", "tune"),
+        choices=("report", "tune", "validation"),
         default="report",
-        help="which cluttered tables: report (unseen instances; never tuned on) or tune (training instances)",
+        help="which cluttered tables: report (unseen instances; never tuned on), tune (training instances) or "
+        "validation (other unseen instances, for tuning)",
     )
     parser.add_argument(
         "--yaw-noise", dest="yaw_noise", type=float, default=PAPER_YAW_NOISE, help="registration yaw noise, +-rad"

@@ -362,6 +362,10 @@ def test_the_tables_to_clear_are_seeded_and_keep_their_promises(scenario):
         for outline in scene_outlines(table):
             assert gap_between(outline, zone) >= ZONE_CLEARANCE_M - 1e-9
     assert clear_scene(scenario, 0) != clear_scene(scenario, 0, "tune")
+    # (the validation tables' familiar objects are unseen instances of their own: neither training nor report ones)
+    validation = clear_scene(scenario, 0, "validation")
+    instances = [validation.object.instance, *(other.instance for other in validation.clutter if other.instance)]
+    assert all(name in ("extra_2600", "extra_2601", "extra_2602") for name in instances), instances
     with pytest.raises(ValueError, match="unknown split"):
         clear_scene(scenario, 0, "test")
 

@@ -1,7 +1,7 @@
 """Tables to clear (the clear task): 2-3 familiar objects among 1-2 distractors, drawn from a seed.
 
 Table k of a split is made from the seed [CLEAR_SEED, split, k] alone. The familiar objects are generated instances of
-either category (unseen extra_ ones in the report split, train_ ones when tuning), standing where the arms pick them
+either category (unseen extra_ ones in the report and validation splits, train_ ones in the tune split), standing where the arms pick them
 (FAMILIAR_X, FAMILIAR_Y: between the table's middle and its left, the drop zone being at its right), at least
 FAMILIAR_GAP_M apart, each one's hands' way to its true grasps free of every other object (clutter_scenes'
 HAND_CLEARANCE_M), and each one within the arms' reach alone as the pick moves (arms_reach: its true pre-grasps or
@@ -44,8 +44,10 @@ from systems.planning.pick_motions import PickMotions
 from systems.planning.straight_motions import PlanningError
 
 CLEAR_SEED = 81
-SPLIT_CODES = {"report": 2, "tune": 1}
-FIRST_INSTANCE = 2300  # the report split's familiar objects: extra_<FIRST_INSTANCE + 3 k + i>
+SPLIT_CODES = {"report": 2, "tune": 1, "validation": 3}
+# The unseen splits' familiar objects: extra_<first + 3 k + i>. Validation's are unseen too, for tuning what the
+# training instances cannot show (perception of novel instances in clutter); report's are never tuned on.
+UNSEEN_FIRST_INSTANCE = {"report": 2300, "validation": 2600}
 FAMILIAR_COUNT = (2, 3)  # at least, at most
 # m, table_top frame: where the arms pick (evaluation.py's random placements' range, on the side away from the zone)
 FAMILIAR_X = (-0.22, -0.02)
@@ -105,7 +107,8 @@ def _familiar_objects(base: Scenario, rng, k: int, split: str, count: int, zone:
     motions = None  # (built at the first object drawn that stands clear)
     for i in range(count):
         category = ("watering_can", "drill")[int(rng.integers(2))]
-        instance = f"extra_{FIRST_INSTANCE + 3 * k + i}" if split == "report" else f"train_{(3 * k + i) % 8}"
+        first = UNSEEN_FIRST_INSTANCE.get(split)
+        instance = f"train_{(3 * k + i) % 8}" if first is None else f"extra_{first + 3 * k + i}"
         for _ in range(TRIES):
             xy = [float(rng.uniform(*FAMILIAR_X)), float(rng.uniform(*FAMILIAR_Y))]
             yaw = float(rng.uniform(-FAMILIAR_MAX_YAW, FAMILIAR_MAX_YAW))

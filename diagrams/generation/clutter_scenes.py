@@ -28,10 +28,11 @@ from systems.planning.outlines import convex_outline, distance_to, edge_distance
 
 CLUTTER_SEED = 35
 # Each split's code in its tables' seeds (code 0, a report range looked at while the scenes were built, is unused).
-SPLIT_CODES = {"report": 2, "tune": 1}
-# The target: extra_<TARGET_FIRST_INSTANCE + k> in the report split (unseen), train_<k % 8> when tuning; placed
-# within TARGET_HALF_SIZE_M (x, y) of TARGET_CENTRE (table_top frame, m) and TARGET_MAX_YAW of the presentation.
-TARGET_FIRST_INSTANCE = 2200
+SPLIT_CODES = {"report": 2, "tune": 1, "validation": 3}
+# The target: extra_<first + k> in the report and validation splits (unseen; validation's for tuning what training
+# instances cannot show, report's never tuned on), train_<k % 8> in the tune split; placed within TARGET_HALF_SIZE_M
+# (x, y) of TARGET_CENTRE (table_top frame, m) and TARGET_MAX_YAW of the presentation.
+TARGET_FIRST_INSTANCE = {"report": 2200, "validation": 2500}
 TARGET_CENTRE = (-0.09, 0.0)  # (3 cm farther than the default spot: room in view for an object in front)
 TARGET_HALF_SIZE_M = (0.04, 0.08)
 TARGET_MAX_YAW = 0.3
@@ -73,7 +74,8 @@ def clutter_scene(base: Scenario, category: str, k: int, split: str = "report") 
     if other_category is None:
         raise ValueError(f"cluttered scenes are drawn for the generated categories, not {category!r}")
     rng = np.random.default_rng([CLUTTER_SEED, SPLIT_CODES[split], k])
-    instance = f"extra_{TARGET_FIRST_INSTANCE + k}" if split == "report" else f"train_{k % 8}"
+    first = TARGET_FIRST_INSTANCE.get(split)
+    instance = f"train_{k % 8}" if first is None else f"extra_{first + k}"
     xy = np.array(TARGET_CENTRE) + rng.uniform(-1, 1, 2) * TARGET_HALF_SIZE_M
     yaw = float(rng.uniform(-TARGET_MAX_YAW, TARGET_MAX_YAW))
     scenario = replace_object(base, category=category, instance=instance, file="", xy=[*map(float, xy)], yaw=yaw)
