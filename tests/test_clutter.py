@@ -51,8 +51,10 @@ def test_cluttered_tables_are_seeded_and_keep_their_promises(scenario):
             ys = target[:, 1].min(), target[:, 1].max()
             fronts += any(o[:, 0].max() < x_min and o[:, 1].max() > ys[0] and o[:, 1].min() < ys[1] for o in others)
     assert 4 <= fronts <= 12  # in about half of the tables one stands between the target and the robot
+    # (the validation split's targets are unseen instances of their own, neither training nor report ones)
+    assert clutter_scene(scenario, "drill", 0, "validation").object.instance == "extra_2500"
     with pytest.raises(ValueError, match="split"):
-        clutter_scene(scenario, "drill", 0, "validation")
+        clutter_scene(scenario, "drill", 0, "test")
 
 
 def test_the_scene_cloud_holds_what_is_not_the_object_and_the_space_hidden_behind_it(scenario):
