@@ -56,7 +56,9 @@ def main():
         "--inset", type=float, default=0.0, help="aim: the boards stand this far in from the table's edges, m"
     )
     parser.add_argument("--tables", type=int, default=4, help="clear: the tables (0..N-1) whose objects are carried")
-    parser.add_argument("--scene-split", choices=("tune", "validation", "report"), default="tune", help="clear: the tables' split")
+    parser.add_argument(
+        "--scene-split", choices=("tune", "validation", "report"), default="tune", help="clear: the tables' split"
+    )
     parser.add_argument("--zone-turns", type=float, nargs="+", default=sorted(DROP_TURNS_RAD), help="clear: rad")
     parser.add_argument("--zone-step", type=float, default=0.06, help="clear: between the zone's spots, m")
     parser.add_argument("--json", type=Path)

@@ -1,7 +1,8 @@
 """Tables to clear (the clear task): 2-3 familiar objects among 1-2 distractors, drawn from a seed.
 
 Table k of a split is made from the seed [CLEAR_SEED, split, k] alone. The familiar objects are generated instances of
-either category (unseen extra_ ones in the report and validation splits, train_ ones in the tune split), standing where the arms pick them
+either category (unseen extra_ ones in the report and validation splits, train_ ones in the tune split), standing
+where the arms pick them
 (FAMILIAR_X, FAMILIAR_Y: between the table's middle and its left, the drop zone being at its right), at least
 FAMILIAR_GAP_M apart, each one's hands' way to its true grasps free of every other object (clutter_scenes'
 HAND_CLEARANCE_M), and each one within the arms' reach alone as the pick moves (arms_reach: its true pre-grasps or
